@@ -1,0 +1,55 @@
+"""The ``hysbench`` command line.
+
+Each subcommand lives in its own module with ``add_arguments(parser)`` and
+``main(args) -> int``. Bad input (an unknown model, a refused dataset, bad
+options, an unwritable output folder) is printed as one line on stderr with
+exit status 2, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from hysbench.models.errors import HysbenchError
+
+# subcommand -> (module, one-line help)
+COMMANDS = {
+    "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+}
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line and exit status 2."""
+
+    def error(self, message: str):
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(prog="hysbench", description="Benchmark suite for rate-dependent hysteresis models.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
+    sub.required = True
+    for name, (module, help_text) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module)
+        importlib.import_module(module).add_arguments(p)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(importlib.import_module(args._module).main(args) or 0)
+    except HysbenchError as exc:
+        print(f"hysbench {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"hysbench {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

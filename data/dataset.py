@@ -1,0 +1,408 @@
+"""The dataset format: a folder with ``dataset.toml`` and its record files.
+
+```toml
+name = "virtual-dea"
+description = "free text"
+time_column = "t"
+input_column = "u"
+output_column = "y"
+input_unit = "kV"
+output_unit = "mm"
+# optional: csv_columns = ["t", "u", "y"] names the columns of CSV files that have
+# no header row; delimiter = "," (default)
+
+[[records]]
+file = "f0.02Hz.csv"      # relative to dataset.toml; CSV with a header row, or .npz
+frequency_hz = 0.02        # optional for records that are not periodic
+role = "identification"    # or "validation"
+weight = 4                 # k_m of eq. 9; default 1
+window = [950.0, 1000.0]   # optional [start, end] in s: what is fitted and scored
+```
+
+Without ``window`` a periodic record is scored on its last full period, any
+other record on all of it. Models are always simulated from a record's first
+sample. Time must increase with a uniform step: every step within
+``UNIFORM_STEP_TOLERANCE`` (1 %) of the median step.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import math
+import os
+import shutil
+import tempfile
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from hysbench.models.errors import HysbenchError
+
+ROLES = ("identification", "validation")
+UNIFORM_STEP_TOLERANCE = 0.01
+TOP_REQUIRED = ("name", "time_column", "input_column", "output_column", "records")
+TOP_OPTIONAL = ("description", "input_unit", "output_unit", "csv_columns", "delimiter")
+RECORD_REQUIRED = ("file", "role")
+RECORD_OPTIONAL = ("frequency_hz", "weight", "window")
+
+
+class DatasetError(HysbenchError):
+    """A dataset that the loader refuses; the message names the file and the problem."""
+
+
+@dataclass
+class Record:
+    """One measured (or simulated) record: time, input, output and its role."""
+
+    file: str
+    t: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    role: str = "identification"
+    frequency_hz: float | None = None
+    weight: float = 1.0
+    window: tuple[float, float] | None = None
+    start: int = field(default=0)
+    stop: int = field(default=-1)
+
+    def __post_init__(self):
+        self.t = np.ascontiguousarray(self.t, dtype=float)
+        self.u = np.ascontiguousarray(self.u, dtype=float)
+        self.y = np.ascontiguousarray(self.y, dtype=float)
+        if self.stop < 0:
+            self.start, self.stop = scored_window(self.file, self.t, self.frequency_hz, self.window)
+
+    @property
+    def dt(self) -> float:
+        return float((self.t[-1] - self.t[0]) / (self.t.size - 1)) if self.t.size > 1 else 0.0
+
+    @property
+    def scored(self) -> slice:
+        """The samples that are fitted and scored."""
+        return slice(self.start, self.stop)
+
+    @property
+    def n_scored(self) -> int:
+        return self.stop - self.start
+
+    @property
+    def label(self) -> str:
+        return f"{self.frequency_hz:g} Hz" if self.frequency_hz else Path(self.file).stem
+
+
+@dataclass
+class Dataset:
+    """A plain container: metadata and records with fixed roles."""
+
+    name: str
+    records: list[Record]
+    description: str = ""
+    time_column: str = "t"
+    input_column: str = "u"
+    output_column: str = "y"
+    input_unit: str = ""
+    output_unit: str = ""
+    path: Path | None = None
+
+    @property
+    def identification(self) -> list[Record]:
+        return [r for r in self.records if r.role == "identification"]
+
+    @property
+    def validation(self) -> list[Record]:
+        return [r for r in self.records if r.role == "validation"]
+
+    def record(self, file: str) -> Record:
+        for r in self.records:
+            if r.file == file:
+                return r
+        raise DatasetError(f"dataset {self.name!r} has no record {file!r}")
+
+    def content_hash(self) -> str:
+        """SHA-256 over metadata and every record's arrays and settings."""
+        h = hashlib.sha256()
+        h.update(repr((self.name, self.time_column, self.input_column, self.output_column)).encode())
+        for r in self.records:
+            h.update(repr((r.file, r.role, r.frequency_hz, r.weight, r.window, r.start, r.stop)).encode())
+            for a in (r.t, r.u, r.y):
+                h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+        return h.hexdigest()
+
+
+# --- loading ---------------------------------------------------------------
+def load_dataset(path: str | os.PathLike) -> Dataset:
+    """Read and check a dataset folder (or its dataset.toml)."""
+    path = Path(path)
+    toml_path = path if path.suffix == ".toml" else path / "dataset.toml"
+    if not toml_path.is_file():
+        raise DatasetError(f"{toml_path}: no such dataset file (a dataset is a folder holding dataset.toml)")
+    try:
+        meta = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{toml_path}: not valid TOML: {exc}") from None
+    _check_keys(toml_path.name, meta, TOP_REQUIRED, TOP_OPTIONAL)
+    for key in ("name", "time_column", "input_column", "output_column", "description", "input_unit", "output_unit"):
+        if key in meta and not isinstance(meta[key], str):
+            raise DatasetError(f"{toml_path.name}: {key} must be a string")
+    records_meta = meta["records"]
+    if not isinstance(records_meta, list) or not records_meta:
+        raise DatasetError(f"{toml_path.name}: records must be a non-empty list of [[records]] tables")
+    csv_columns = meta.get("csv_columns")
+    if csv_columns is not None and not (
+        isinstance(csv_columns, list) and all(isinstance(c, str) for c in csv_columns)
+    ):
+        raise DatasetError(f"{toml_path.name}: csv_columns must be a list of column names")
+    delimiter = meta.get("delimiter", ",")
+    if not (isinstance(delimiter, str) and len(delimiter) == 1):
+        raise DatasetError(f"{toml_path.name}: delimiter must be one character")
+    columns = (meta["time_column"], meta["input_column"], meta["output_column"])
+    records = []
+    for i, rm in enumerate(records_meta):
+        if not isinstance(rm, dict):
+            raise DatasetError(f"{toml_path.name}: records[{i}] must be a table")
+        records.append(_load_record(toml_path.parent, i, rm, columns, csv_columns, delimiter))
+    return Dataset(
+        name=meta["name"],
+        description=meta.get("description", ""),
+        time_column=columns[0],
+        input_column=columns[1],
+        output_column=columns[2],
+        input_unit=meta.get("input_unit", ""),
+        output_unit=meta.get("output_unit", ""),
+        records=records,
+        path=toml_path.parent,
+    )
+
+
+def _check_keys(where: str, table: dict, required: Iterable[str], optional: Iterable[str]) -> None:
+    allowed = set(required) | set(optional)
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise DatasetError(f"{where}: unknown key(s) {', '.join(unknown)} (allowed: {', '.join(sorted(allowed))})")
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise DatasetError(f"{where}: missing key(s) {', '.join(missing)}")
+
+
+def _number(where: str, key: str, value, positive: bool = False, nonnegative: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise DatasetError(f"{where}: {key} must be a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise DatasetError(f"{where}: {key} must be positive, got {value!r}")
+    if nonnegative and value < 0:
+        raise DatasetError(f"{where}: {key} must not be negative, got {value!r}")
+    return float(value)
+
+
+def _load_record(folder: Path, index: int, rm: dict, columns, csv_columns, delimiter) -> Record:
+    where = f"records[{index}]"
+    _check_keys(f"dataset.toml {where}", rm, RECORD_REQUIRED, RECORD_OPTIONAL)
+    file = rm["file"]
+    if not isinstance(file, str) or not file:
+        raise DatasetError(f"dataset.toml {where}: file must be a non-empty string")
+    where = file
+    role = rm["role"]
+    if role not in ROLES:
+        raise DatasetError(f"{where}: role must be 'identification' or 'validation', got {role!r}")
+    freq = rm.get("frequency_hz")
+    if freq is not None:
+        freq = _number(where, "frequency_hz", freq, positive=True)
+    weight = _number(where, "weight", rm.get("weight", 1.0), nonnegative=True)
+    window = rm.get("window")
+    if window is not None:
+        if not (isinstance(window, list) and len(window) == 2):
+            raise DatasetError(f"{where}: window must be [start, end] in seconds")
+        window = (_number(where, "window start", window[0]), _number(where, "window end", window[1]))
+    file_path = folder / file
+    if not file_path.is_file():
+        raise DatasetError(f"{where}: file not found ({file_path})")
+    t, u, y = _read_columns(file_path, where, columns, csv_columns, delimiter)
+    check_series(where, t, u, y, columns)
+    return Record(file=file, t=t, u=u, y=y, role=role, frequency_hz=freq, weight=weight, window=window)
+
+
+def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
+    if path.suffix == ".npz":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                missing = [c for c in columns if c not in z.files]
+                if missing:
+                    raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} (has {', '.join(z.files)})")
+                arrays = [np.asarray(z[c]) for c in columns]
+        except DatasetError:
+            raise
+        except Exception as exc:  # zip, pickle or format errors
+            raise DatasetError(f"{where}: cannot read .npz file: {exc}") from None
+        for c, a in zip(columns, arrays):
+            if a.ndim != 1:
+                raise DatasetError(f"{where}: column {c} must be 1-D, has shape {a.shape}")
+            if not np.issubdtype(a.dtype, np.number):
+                raise DatasetError(f"{where}: column {c} is not numeric ({a.dtype})")
+        return [a.astype(float) for a in arrays]
+    return _read_csv(path, where, columns, csv_columns, delimiter)
+
+
+def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{where}: cannot read CSV file: {exc}") from None
+    lines = text.splitlines()
+    if csv_columns is None:
+        if not lines:
+            raise DatasetError(f"{where}: empty record (no header row)")
+        header = [h.strip() for h in next(csv.reader([lines[0]], delimiter=delimiter))]
+        body = lines[1:]
+    else:
+        header = list(csv_columns)
+        body = lines
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} (has {', '.join(header)})")
+    body = [ln for ln in body if ln.strip()]
+    if not body:
+        raise DatasetError(f"{where}: empty record (no data rows)")
+    wanted = [header.index(c) for c in columns]
+    try:
+        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
+    except ValueError:
+        data = None
+    if data is None:
+        rows = list(csv.reader(body, delimiter=delimiter))
+        lengths = {len(r) for r in rows}
+        if len(lengths) > 1 or max(lengths) < len(header):
+            raise DatasetError(f"{where}: columns of unequal length (rows have {sorted(lengths)} fields)")
+        try:
+            data = np.array([[float(r[j]) if r[j].strip() else np.nan for j in wanted] for r in rows])
+        except ValueError as exc:
+            raise DatasetError(f"{where}: non-numeric value: {exc}") from None
+    return [data[:, k].copy() for k in range(len(columns))]
+
+
+def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
+    """Refuse unequal lengths, empty records, NaN/inf and non-uniform time."""
+    lengths = {c: a.size for c, a in zip(columns, (t, u, y))}
+    if len(set(lengths.values())) > 1:
+        raise DatasetError(f"{where}: columns of unequal length ({', '.join(f'{c}: {n}' for c, n in lengths.items())})")
+    if t.size == 0:
+        raise DatasetError(f"{where}: empty record")
+    for c, a in zip(columns, (t, u, y)):
+        if not np.all(np.isfinite(a)):
+            k = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise DatasetError(f"{where}: column {c} holds NaN or inf (first at sample {k})")
+    if t.size < 2:
+        raise DatasetError(f"{where}: a record needs at least two samples")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0])
+        raise DatasetError(f"{where}: time is not increasing (at sample {k + 1})")
+    median = float(np.median(steps))
+    dev = np.abs(steps - median) > UNIFORM_STEP_TOLERANCE * median
+    if np.any(dev):
+        k = int(np.flatnonzero(dev)[0])
+        raise DatasetError(
+            f"{where}: time step is not uniform (step {steps[k]:.6g} s at sample {k + 1} vs median {median:.6g} s; "
+            f"tolerance {UNIFORM_STEP_TOLERANCE:.0%})"
+        )
+
+
+def scored_window(where: str, t: np.ndarray, frequency_hz: float | None, window) -> tuple[int, int]:
+    """Sample indices [start, stop) that are fitted and scored."""
+    n = t.size
+    dt = float((t[-1] - t[0]) / (n - 1)) if n > 1 else 0.0
+    if frequency_hz is not None and n > 1:
+        period = int(round(1.0 / (frequency_hz * dt)))
+        if period > n:
+            raise DatasetError(
+                f"{where}: record is shorter than a period ({n} samples, one period of {frequency_hz:g} Hz "
+                f"is {period} samples)"
+            )
+    else:
+        period = None
+    if window is not None:
+        a, b = window
+        if not (a < b):
+            raise DatasetError(f"{where}: window start {a:g} s is not before its end {b:g} s")
+        half = 0.5 * dt
+        if a < t[0] - half or b > t[-1] + dt + half:  # the end is exclusive
+            raise DatasetError(f"{where}: window [{a:g}, {b:g}] s is outside the record's time [{t[0]:g}, {t[-1]:g}] s")
+        start = int(np.searchsorted(t, a - half))
+        stop = int(np.searchsorted(t, b - half))  # end is exclusive, like [a, b)
+        if stop - start < 2:
+            raise DatasetError(f"{where}: window [{a:g}, {b:g}] s holds fewer than two samples")
+        return start, stop
+    if period is not None:
+        return n - period, n
+    return 0, n
+
+
+# --- writing ---------------------------------------------------------------
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def dataset_toml(dataset: Dataset) -> str:
+    lines = [f"{k} = {_toml_value(getattr(dataset, k))}" for k in (
+        "name", "description", "time_column", "input_column", "output_column", "input_unit", "output_unit")]
+    for r in dataset.records:
+        lines += ["", "[[records]]", f"file = {_toml_value(r.file)}"]
+        if r.frequency_hz is not None:
+            lines.append(f"frequency_hz = {_toml_value(r.frequency_hz)}")
+        lines.append(f"role = {_toml_value(r.role)}")
+        lines.append(f"weight = {_toml_value(r.weight)}")
+        if r.window is not None:
+            lines.append(f"window = {_toml_value([float(x) for x in r.window])}")
+    return "\n".join(lines) + "\n"
+
+
+def save_dataset(dataset: Dataset, folder: str | os.PathLike, compress: bool = True) -> Path:
+    """Write records (.npz or .csv, by file suffix) and dataset.toml.
+
+    Written into a temporary sibling folder and then moved into place, so an
+    interrupted write never leaves a half-written dataset.
+    """
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        for r in dataset.records:
+            target = tmp / r.file
+            target.parent.mkdir(parents=True, exist_ok=True)
+            arrays = {dataset.time_column: r.t, dataset.input_column: r.u, dataset.output_column: r.y}
+            if target.suffix == ".npz":
+                (np.savez_compressed if compress else np.savez)(target, **arrays)
+            elif target.suffix == ".csv":
+                header = ",".join(arrays)
+                np.savetxt(target, np.column_stack(list(arrays.values())), delimiter=",", header=header,
+                           comments="", fmt="%.10g")
+            else:
+                raise DatasetError(f"{r.file}: record files must end in .npz or .csv")
+        (tmp / "dataset.toml").write_text(dataset_toml(dataset), encoding="utf-8")
+        replace_folder(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return folder
+
+
+def replace_folder(new: Path, target: Path) -> None:
+    """Move a finished folder into place, replacing any old one."""
+    if target.exists():
+        old = target.with_name(f".{target.name}.old")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(target, old)
+        os.replace(new, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(new, target)

@@ -1,0 +1,24 @@
+"""Hysteresis models behind one interface (see ``base.HysteresisModel``)."""
+
+from .base import DataScale, HysteresisModel, Parameter
+from .classical_pi import ClassicalPI
+from .errors import HysbenchError, ModelError
+from .mrpim import MRPIM, PAPER_TABLE2
+from .registry import get_model, list_models, register
+
+register(ClassicalPI.name, ClassicalPI)
+register(MRPIM.name, MRPIM)
+
+__all__ = [
+    "ClassicalPI",
+    "DataScale",
+    "HysbenchError",
+    "HysteresisModel",
+    "MRPIM",
+    "ModelError",
+    "PAPER_TABLE2",
+    "Parameter",
+    "get_model",
+    "list_models",
+    "register",
+]

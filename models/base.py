@@ -1,0 +1,189 @@
+"""The common model interface.
+
+A model is configured by explicit constructor arguments (its hyperparameters,
+as in scikit-learn) and evaluated with a separate parameter set: a mapping
+name -> value, or, in the batched form, an array of shape (n_sets, n_params)
+whose columns follow ``model.param_names``.
+
+Every model declares its named parameters with default bounds and says which
+enter the output linearly. For models linear in part of their parameters,
+``regressors`` returns the matrix Phi with y = Phi @ theta_linear, given the
+nonlinear parameters, so identifiers can solve that part exactly.
+
+``input_range`` (u_min, u_max) fixes input-dependent structure such as play
+thresholds or a Preisach grid. Left as None, it is taken from the simulated
+input itself; identifiers pass the range of the identification records so
+that a fitted model is one fixed operator on every record.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass, replace
+from typing import ClassVar, Mapping, Sequence
+
+import numpy as np
+
+from .errors import ModelError
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named parameter with default search bounds (lmfit style)."""
+
+    name: str
+    value: float
+    min: float
+    max: float
+    linear: bool = False
+    description: str = ""
+
+    def scaled(self, factor: float) -> "Parameter":
+        """Bounds and default multiplied by a positive factor (unit scaling)."""
+        return replace(self, value=self.value * factor, min=self.min * factor, max=self.max * factor)
+
+
+@dataclass(frozen=True)
+class DataScale:
+    """Typical magnitudes of the data, used to scale default bounds.
+
+    ``u`` is max |input|, ``y`` is max |output|, ``time`` a characteristic time
+    in seconds (the shortest drive period). The defaults are the paper's DEA.
+    """
+
+    u: float = 2.5
+    y: float = 10.0
+    time: float = 1.0
+
+    @classmethod
+    def of(cls, inputs: Sequence[np.ndarray], outputs: Sequence[np.ndarray], time: float = 1.0) -> "DataScale":
+        u = max(float(np.max(np.abs(x))) for x in inputs)
+        y = max(float(np.max(np.abs(x))) for x in outputs)
+        return cls(u=u if u > 0 else 1.0, y=y if y > 0 else 1.0, time=time)
+
+
+class HysteresisModel:
+    """Base class. Subclasses set ``name`` and implement ``parameters`` and
+    ``simulate_batch``; partly linear models also implement ``regressors``."""
+
+    name: ClassVar[str] = ""
+    presets_available: ClassVar[tuple[str, ...]] = ()
+
+    # --- configuration -------------------------------------------------
+    @classmethod
+    def _hyperparameter_names(cls) -> list[str]:
+        sig = inspect.signature(cls.__init__)
+        return [p for p in sig.parameters if p != "self"]
+
+    def get_hyperparameters(self) -> dict:
+        """The constructor arguments, as given (scikit-learn's get_params)."""
+        return {k: getattr(self, k) for k in self._hyperparameter_names()}
+
+    def clone(self, **changes) -> "HysteresisModel":
+        """A new model of the same class, with some hyperparameters changed."""
+        hyper = self.get_hyperparameters()
+        hyper.update(changes)
+        return type(self)(**hyper)
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_hyperparameters().items())
+        return f"{type(self).__name__}({args})"
+
+    # --- parameters ------------------------------------------------------
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        """Named parameters with default bounds, scaled to the data's units."""
+        raise NotImplementedError
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters())
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters() if p.linear)
+
+    @property
+    def nonlinear_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters() if not p.linear)
+
+    @property
+    def has_linear_part(self) -> bool:
+        return bool(self.linear_names) and type(self).regressors is not HysteresisModel.regressors
+
+    def bounds(self, scale: DataScale | None = None) -> tuple[np.ndarray, np.ndarray]:
+        params = self.parameters(scale)
+        return np.array([p.min for p in params]), np.array([p.max for p in params])
+
+    def default_params(self, scale: DataScale | None = None) -> dict[str, float]:
+        return {p.name: p.value for p in self.parameters(scale)}
+
+    def preset(self, name: str) -> dict[str, float]:
+        """A named parameter set (e.g. 'paper'); 'default' is always there."""
+        if name == "default":
+            return self.default_params()
+        raise ModelError(
+            f"model {self.name!r} has no preset {name!r}; presets: {', '.join(('default',) + self.presets_available)}"
+        )
+
+    def pack(self, params: Mapping[str, float]) -> np.ndarray:
+        """Parameter mapping -> vector in ``param_names`` order."""
+        names = self.param_names
+        unknown = sorted(set(params) - set(names))
+        missing = [n for n in names if n not in params]
+        if unknown or missing:
+            parts = []
+            if missing:
+                parts.append(f"missing {', '.join(missing)}")
+            if unknown:
+                parts.append(f"unknown {', '.join(unknown)}")
+            raise ModelError(f"parameters for model {self.name!r}: {'; '.join(parts)}")
+        return np.array([float(params[n]) for n in names])
+
+    def unpack(self, vector: np.ndarray) -> dict[str, float]:
+        vector = np.asarray(vector, dtype=float)
+        return dict(zip(self.param_names, (float(v) for v in vector)))
+
+    # --- evaluation ------------------------------------------------------
+    def simulate(self, u, dt: float, params: Mapping[str, float] | np.ndarray, input_range=None) -> np.ndarray:
+        """Output for a 1-D input sampled every ``dt`` seconds."""
+        vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
+        return self.simulate_batch(u, dt, vec[None, :], input_range=input_range)[0]
+
+    def simulate_batch(self, u, dt: float, param_sets: np.ndarray, input_range=None) -> np.ndarray:
+        """Outputs for many parameter sets, shape (n_sets, n_samples)."""
+        raise NotImplementedError
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
+        """Phi with y = Phi @ [linear parameters in ``linear_names`` order]."""
+        raise ModelError(f"model {self.name!r} has no linear part to solve exactly")
+
+    # --- helpers for subclasses -----------------------------------------
+    def _check_input(self, u, dt: float) -> np.ndarray:
+        u = np.ascontiguousarray(u, dtype=float)
+        if u.ndim != 1 or u.size == 0:
+            raise ModelError(f"model {self.name!r} needs a non-empty 1-D input, got shape {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise ModelError(f"model {self.name!r}: input holds NaN or inf")
+        if not (dt > 0 and np.isfinite(dt)):
+            raise ModelError(f"model {self.name!r}: time step must be positive, got {dt!r}")
+        return u
+
+    def _check_param_sets(self, param_sets) -> np.ndarray:
+        P = np.ascontiguousarray(np.atleast_2d(np.asarray(param_sets, dtype=float)))
+        if P.ndim != 2 or P.shape[1] != self.n_params:
+            raise ModelError(
+                f"model {self.name!r} takes {self.n_params} parameters ({', '.join(self.param_names)}), "
+                f"got an array of shape {np.shape(param_sets)}"
+            )
+        return P
+
+    @staticmethod
+    def _input_range(u: np.ndarray, input_range) -> tuple[float, float]:
+        if input_range is None:
+            return float(np.min(u)), float(np.max(u))
+        lo, hi = input_range
+        return float(lo), float(hi)

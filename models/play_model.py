@@ -1,0 +1,169 @@
+"""The Prandtl-Ishlinskii family: a polynomial of the input, an optional q*u''
+term, an optional output offset, and a weighted sum of one-sided play
+operators with optional dynamic envelopes. ``classical-pi`` and ``mrpim`` are
+configurations of this one structure.
+
+    y(k) = sum_{j=1..K} p_j u(k)^j + q u''(k) + sum_{i=1..N} a_i W_i(k) + c
+
+Thresholds r_i = (i-1)/N * ||u||_inf (eq. 8), with ||u||_inf taken over
+``input_range`` (identifiers pass the identification records' range).
+Play state starts at W_i(0) = max(h_l(0) - r_i, min(h_r(0), 0)): eq. 3 with
+its zero initial state; we read eq. 6's y(0) as that same zero (an actuator
+at rest before the record starts).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from .base import DataScale, HysteresisModel, Parameter
+from .derivatives import DERIVATIVE_METHODS, derivatives
+from .errors import ModelError
+from .kernels import pi_output, pi_output_batch, play_operators
+
+# Default bounds, in units of the data scale (see DataScale).
+POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
+WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
+Q_BOUND = 1.0  # |q| <= Q_BOUND * y * time**2 / u
+ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
+OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
+
+
+class PlayOperatorModel(HysteresisModel):
+    """Shared implementation; use ``ClassicalPI`` or ``MRPIM``."""
+
+    def __init__(
+        self,
+        n_operators: int = 13,
+        poly_order: int = 4,
+        q_term: bool = True,
+        envelopes: bool = True,
+        offset: bool = True,
+        derivative: str = "backward",
+        derivative_window: float = 0.05,
+    ):
+        self.n_operators = n_operators
+        self.poly_order = poly_order
+        self.q_term = q_term
+        self.envelopes = envelopes
+        self.offset = offset
+        self.derivative = derivative
+        self.derivative_window = derivative_window
+        self._validate()
+        self._parameter_cache: dict = {}
+
+    def _validate(self) -> None:
+        if not (isinstance(self.n_operators, (int, np.integer)) and self.n_operators >= 1):
+            raise ModelError(f"{self.name}: n_operators must be a positive integer, got {self.n_operators!r}")
+        if not (isinstance(self.poly_order, (int, np.integer)) and 0 <= self.poly_order <= 12):
+            raise ModelError(f"{self.name}: poly_order must be an integer in 0..12, got {self.poly_order!r}")
+        if self.derivative not in DERIVATIVE_METHODS:
+            raise ModelError(
+                f"{self.name}: unknown derivative {self.derivative!r}; choose one of {', '.join(DERIVATIVE_METHODS)}"
+            )
+        if not self.derivative_window > 0:
+            raise ModelError(f"{self.name}: derivative_window must be positive, got {self.derivative_window!r}")
+
+    # --- parameters ------------------------------------------------------
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        scale = scale or DataScale()
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        u, y, T = scale.u, scale.y, scale.time
+        params = []
+        if self.envelopes:
+            b = ENVELOPE_BOUND * T
+            params.append(Parameter("gamma", 0.0, -b, b, False, "left envelope: h_l = u - gamma |u'| (s)"))
+            params.append(Parameter("lambda", 0.0, -b, b, False, "right envelope: h_r = u + lambda |u'| (s)"))
+        for j in range(1, self.poly_order + 1):
+            b = POLY_BOUND * y / u**j
+            params.append(Parameter(f"p{j}", 0.0, -b, b, True, f"polynomial coefficient of u^{j}"))
+        if self.q_term:
+            b = Q_BOUND * y * T * T / u
+            params.append(Parameter("q", 0.0, -b, b, True, "weight of the input's second derivative"))
+        for i in range(1, self.n_operators + 1):
+            b = WEIGHT_BOUND * y / u
+            params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}"))
+        if self.offset:
+            b = OFFSET_BOUND * y
+            params.append(Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)"))
+        params = tuple(params)
+        self._parameter_cache[scale] = params
+        return params
+
+    # --- structure -------------------------------------------------------
+    def thresholds(self, u: np.ndarray, input_range=None) -> np.ndarray:
+        """r_i = (i-1)/N * ||u||_inf over ``input_range`` (eq. 8)."""
+        lo, hi = self._input_range(u, input_range)
+        norm = max(abs(lo), abs(hi))
+        return np.arange(self.n_operators, dtype=float) / self.n_operators * norm
+
+    def _signals(self, u: np.ndarray, dt: float):
+        du, ddu = derivatives(u, dt, self.derivative, self.derivative_window)
+        return np.abs(du), ddu
+
+    def _column_indices(self) -> dict[str, list[int]]:
+        index = {n: i for i, n in enumerate(self.param_names)}
+        return {
+            "weights": [index[f"a{i}"] for i in range(1, self.n_operators + 1)],
+            "poly": [index[f"p{j}"] for j in range(1, self.poly_order + 1)],
+        }
+
+    # --- evaluation ------------------------------------------------------
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        P = self._check_param_sets(param_sets)
+        n_set = P.shape[0]
+        r = self.thresholds(u, input_range)
+        backward = self.derivative == "backward"
+        if backward:
+            abs_du = ddu = u[:0]
+        else:
+            abs_du, ddu = self._signals(u, dt)
+        idx = self._column_indices()
+        names = self.param_names
+        zeros = np.zeros(n_set)
+        gammas = P[:, names.index("gamma")].copy() if self.envelopes else zeros
+        lams = P[:, names.index("lambda")].copy() if self.envelopes else zeros
+        qs = P[:, names.index("q")].copy() if self.q_term else zeros
+        offsets = P[:, names.index("offset")].copy() if self.offset else zeros
+        weights = np.ascontiguousarray(P[:, idx["weights"]])
+        polys = np.ascontiguousarray(P[:, idx["poly"]])
+        if n_set == 1:
+            y = pi_output(u, dt, backward, abs_du, ddu, gammas[0], lams[0], r, weights[0], polys[0], qs[0],
+                          offsets[0], 0.0)
+            return y[None, :]
+        return pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets, 0.0)
+
+    def play_outputs(self, u, dt: float, gamma: float = 0.0, lam: float = 0.0, input_range=None) -> np.ndarray:
+        """Outputs of the N (rate-dependent) play operators, shape (T, N)."""
+        u = self._check_input(u, dt)
+        abs_du, _ = self._signals(u, dt)
+        if not self.envelopes:
+            gamma = lam = 0.0
+        return play_operators(u - gamma * abs_du, u + lam * abs_du, self.thresholds(u, input_range), 0.0)
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None = None, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        nonlinear = dict(nonlinear or {})
+        expected = set(self.nonlinear_names)
+        if set(nonlinear) != expected:
+            raise ModelError(
+                f"{self.name}: regressors need exactly the nonlinear parameters "
+                f"{sorted(expected)}, got {sorted(nonlinear)}"
+            )
+        gamma = nonlinear.get("gamma", 0.0)
+        lam = nonlinear.get("lambda", 0.0)
+        _, ddu = self._signals(u, dt)
+        F = self.play_outputs(u, dt, gamma, lam, input_range)
+        cols = {f"p{j}": u**j for j in range(1, self.poly_order + 1)}
+        if self.q_term:
+            cols["q"] = ddu
+        for i in range(self.n_operators):
+            cols[f"a{i + 1}"] = F[:, i]
+        if self.offset:
+            cols["offset"] = np.ones_like(u)
+        return np.stack([cols[n] for n in self.linear_names], axis=1)
