@@ -1,0 +1,179 @@
+"""Classical Bouc-Wen hysteresis model (registry name ``bouc-wen``).
+
+Form of the survey by Ismail, Ikhouane & Rodellar, "The hysteresis Bouc-Wen
+model, a survey", Arch. Comput. Methods Eng. 16 (2009) 161-188, eq. (1)-(2):
+Phi(x) = alpha k x + (1 - alpha) k z, dz/dt = A dx/dt - beta |dx/dt| |z|^(n-1) z
+- gamma dx/dt |z|^n. Here, with the input scaled to xi in [-1, 1] over the
+input range (so beta, gamma, n are dimensionless and the same for kV and V):
+
+    xi   = (2u - (u_max + u_min)) / (u_max - u_min)
+    dz/dt = dxi/dt - beta |dxi/dt| |z|^(n-1) z - gamma dxi/dt |z|^n,   z(0) = 0
+    y    = c + k_x xi + k_z z
+
+A = 1: with A free the parameters are redundant (z -> A z rescales beta,
+gamma and k_z; the survey's section 3 discusses this), so it is fixed, as in
+the normalised forms. k_x, k_z and c enter linearly (``regressors`` gives
+[xi, z, 1] for fixed beta, gamma, n); beta, gamma, n are nonlinear.
+With beta >= 0 (the bounds) and beta + gamma > 0, z starting from 0 stays
+within |z| <= (beta + gamma)^(-1/n) (the hysteretic part is bounded); for
+beta + gamma <= 0 it grows without bound and is clipped to +-Z_CAP, so such
+sets fit badly instead of overflowing.
+
+Integration at the data's step: the equation is rate-independent,
+dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
+so each sample interval is integrated in xi (xi taken linear between samples)
+with classical Runge-Kutta 4 in m sub-steps, m = ceil(|dxi| L / 0.25) with
+L = n (|beta| + |gamma|) max(1, |z|)^(n-1) the local stiffness bound (at most
+MAX_SUBSTEPS). The error is far below any measurement noise (tested against
+scipy's solve_ivp at rtol 1e-10) and the scheme is stable at any step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .base import DataScale, HysteresisModel, Parameter
+from .branches import normalised_input
+from .errors import ModelError
+
+Z_CAP = 1e3
+MAX_SUBSTEPS = 4096
+GAIN_BOUND = 50.0  # |k_x|, |k_z| <= GAIN_BOUND * y
+OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
+SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
+N_MAX = 4.0
+
+
+@njit(cache=True, fastmath=False)
+def _rate(z, sigma, beta, gamma, n):
+    """dz/dxi for the sign sigma of dxi."""
+    az = abs(z)
+    p = az**n if n != 1.0 else az
+    sz = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
+    return 1.0 - p * (sigma * beta * sz + gamma)
+
+
+@njit(cache=True)
+def _bouc_wen_z(xi, beta, gamma, n, out):
+    """z(k) for one parameter set into ``out``."""
+    n_t = xi.shape[0]
+    z = 0.0
+    out[0] = 0.0
+    stiff0 = n * (abs(beta) + abs(gamma))
+    for k in range(1, n_t):
+        d = xi[k] - xi[k - 1]
+        if d != 0.0:
+            sigma = 1.0 if d > 0.0 else -1.0
+            az = abs(z)
+            L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
+            m = int(math.ceil(abs(d) * L / 0.25))
+            if m < 1:
+                m = 1
+            elif m > MAX_SUBSTEPS:
+                m = MAX_SUBSTEPS
+            h = d / m
+            for _ in range(m):
+                # dz/dxi is autonomous in xi: classical RK4 with step h (signed)
+                k1 = _rate(z, sigma, beta, gamma, n)
+                k2 = _rate(z + 0.5 * h * k1, sigma, beta, gamma, n)
+                k3 = _rate(z + 0.5 * h * k2, sigma, beta, gamma, n)
+                k4 = _rate(z + h * k3, sigma, beta, gamma, n)
+                z += h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+                if z > Z_CAP:
+                    z = Z_CAP
+                elif z < -Z_CAP:
+                    z = -Z_CAP
+                elif z != z:  # NaN from an overflowing set
+                    z = Z_CAP
+        out[k] = z
+
+
+@njit(cache=True)
+def bouc_wen_z(xi, beta, gamma, n):
+    out = np.empty(xi.shape[0])
+    _bouc_wen_z(xi, beta, gamma, n, out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def bouc_wen_batch(xi, betas, gammas, ns, kxs, kzs, offsets):
+    """y for many parameter sets, in parallel over sets; returns (B, T)."""
+    n_set = betas.shape[0]
+    n_t = xi.shape[0]
+    out = np.empty((n_set, n_t))
+    for b in prange(n_set):
+        z = np.empty(n_t)
+        _bouc_wen_z(xi, betas[b], gammas[b], ns[b], z)
+        for k in range(n_t):
+            out[b, k] = offsets[b] + kxs[b] * xi[k] + kzs[b] * z[k]
+    return out
+
+
+class BoucWen(HysteresisModel):
+    """Classical Bouc-Wen on the normalised input; see the module docstring."""
+
+    name = "bouc-wen"
+
+    def __init__(self, offset: bool = True):
+        self.offset = offset
+        self._parameter_cache: dict = {}
+
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        scale = scale or DataScale()
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        g = GAIN_BOUND * scale.y
+        params = [
+            Parameter("beta", 1.0, 0.0, SHAPE_BOUND, False, "Bouc-Wen beta (dimensionless, input in [-1, 1])"),
+            Parameter("gamma", 0.0, -SHAPE_BOUND, SHAPE_BOUND, False, "Bouc-Wen gamma (beta + gamma > 0: bounded z)"),
+            Parameter("n", 1.0, 1.0, N_MAX, False, "Bouc-Wen exponent n (sharpness of the transition)"),
+            Parameter("kx", 0.0, -g, g, True, "gain of the scaled input xi (alpha k)"),
+            Parameter("kz", 0.0, -g, g, True, "gain of the hysteretic state z ((1 - alpha) k)"),
+        ]
+        if self.offset:
+            b = OFFSET_BOUND * scale.y
+            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
+        params = tuple(params)
+        self._parameter_cache[scale] = params
+        return params
+
+    def normalised(self, u, input_range=None) -> np.ndarray:
+        lo, hi = self._input_range(u, input_range)
+        if not hi > lo:
+            raise ModelError(
+                f"model {self.name!r} needs an input that varies (or an input_range of positive width), "
+                f"got range ({lo!r}, {hi!r})"
+            )
+        return normalised_input(np.ascontiguousarray(u, dtype=float), lo, hi)
+
+    def hysteretic_state(self, u, dt: float, beta: float, gamma: float, n: float, input_range=None) -> np.ndarray:
+        """z(k) for one (beta, gamma, n)."""
+        u = self._check_input(u, dt)
+        return bouc_wen_z(self.normalised(u, input_range), float(beta), float(gamma), float(n))
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        P = self._check_param_sets(param_sets)
+        xi = self.normalised(u, input_range)
+        col = {name: np.ascontiguousarray(P[:, i]) for i, name in enumerate(self.param_names)}
+        offsets = col["offset"] if self.offset else np.zeros(P.shape[0])
+        return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        nonlinear = dict(nonlinear or {})
+        if set(nonlinear) != set(self.nonlinear_names):
+            raise ModelError(
+                f"{self.name}: regressors need exactly the nonlinear parameters "
+                f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}"
+            )
+        xi = self.normalised(u, input_range)
+        z = bouc_wen_z(xi, float(nonlinear["beta"]), float(nonlinear["gamma"]), float(nonlinear["n"]))
+        cols = [xi, z]
+        if self.offset:
+            cols.append(np.ones_like(xi))
+        return np.stack(cols, axis=1)
