@@ -21,11 +21,18 @@ sets fit badly instead of overflowing.
 
 Integration at the data's step: the equation is rate-independent,
 dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
-so each sample interval is integrated in xi (xi taken linear between samples)
-with classical Runge-Kutta 4 in m sub-steps, m = ceil(|dxi| L / 0.25) with
-L = n (|beta| + |gamma|) max(1, |z|)^(n-1) the local stiffness bound (at most
-MAX_SUBSTEPS). The error is far below any measurement noise (tested against
-scipy's solve_ivp at rtol 1e-10) and the scheme is stable at any step.
+so each sample interval is integrated in xi (xi taken linear between samples),
+whatever its length:
+- n = 1: exactly. In each sign region of z the equation is linear,
+  z(xi0 + h) = 1/a + (z0 - 1/a) exp(-a h) with a = sigma beta + gamma sgn(z);
+  a step that crosses z = 0 is split there.
+- n != 1: classical Runge-Kutta 4 in m sub-steps, m = ceil(|dxi| L / RK_STEP),
+  L = n (|beta| + |gamma|) max(1, |z|)^(n-1) the local stiffness bound (at most
+  MAX_SUBSTEPS); a sub-step in which z changes sign lands on 0 first (where
+  dz/dxi = 1), and for n < 2 the sub-steps near z = 0 are split NEAR_ZERO_SPLIT
+  times, since |z|^n is not smooth there.
+Against scipy's solve_ivp (DOP853, rtol 1e-11) the error is below 1e-8 for
+every case in the tests, and the scheme is stable at any sampling step.
 """
 
 from __future__ import annotations
@@ -41,6 +48,8 @@ from .errors import ModelError
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
+RK_STEP = 0.05  # RK4 sub-step: |h| * stiffness <= RK_STEP
+NEAR_ZERO_SPLIT = 32  # finer RK4 steps where z is near 0 and n < 2
 GAIN_BOUND = 50.0  # |k_x|, |k_z| <= GAIN_BOUND * y
 OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
@@ -57,6 +66,58 @@ def _rate(z, sigma, beta, gamma, n):
 
 
 @njit(cache=True)
+def _exact_linear(z, h, sigma, beta, gamma):
+    """n = 1: dz/dxi = 1 - a z with a = sigma beta + gamma sgn(z), exact over a step h
+    (signed), split where z crosses 0 (dz/dxi = 1 there, so z crosses in the
+    direction of h)."""
+    remaining = h
+    for _ in range(3):  # at most one crossing per step; guard against round-off loops
+        if remaining == 0.0:
+            break
+        # the sign region z is in, or enters when it starts at 0 (it moves like h)
+        side = 1.0 if (z > 0.0 or (z == 0.0 and remaining > 0.0)) else -1.0
+        a = sigma * beta + gamma * side
+        # crossing of 0 within this step? z moves towards 0 from the side opposite to h
+        hc = remaining + 1.0  # none
+        if z != 0.0 and (z > 0.0) != (remaining > 0.0):
+            arg = 1.0 - a * z
+            if a == 0.0:
+                hc = -z
+            elif arg > 0.0:
+                hc = math.log(arg) / a
+        if hc != remaining + 1.0 and abs(hc) < abs(remaining):
+            z = 0.0
+            remaining -= hc
+            continue
+        if a == 0.0:
+            z += remaining
+        else:
+            z = 1.0 / a + (z - 1.0 / a) * math.exp(-a * remaining)
+        remaining = 0.0
+    return z
+
+
+@njit(cache=True)
+def _rk4(z, h, sigma, beta, gamma, n):
+    k1 = _rate(z, sigma, beta, gamma, n)
+    k2 = _rate(z + 0.5 * h * k1, sigma, beta, gamma, n)
+    k3 = _rate(z + 0.5 * h * k2, sigma, beta, gamma, n)
+    k4 = _rate(z + h * k3, sigma, beta, gamma, n)
+    return z + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+
+
+@njit(cache=True)
+def _rk4_crossing(z, h, sigma, beta, gamma, n):
+    """One RK4 step; where z changes sign, land on 0 (dz/dxi = 1 there) and finish from it."""
+    z_new = _rk4(z, h, sigma, beta, gamma, n)
+    if z != 0.0 and (z_new > 0.0) != (z > 0.0):
+        hc = -z
+        if abs(hc) < abs(h):
+            z_new = _rk4(0.0, h - hc, sigma, beta, gamma, n)
+    return z_new
+
+
+@njit(cache=True)
 def _bouc_wen_z(xi, beta, gamma, n, out):
     """z(k) for one parameter set into ``out``."""
     n_t = xi.shape[0]
@@ -67,27 +128,30 @@ def _bouc_wen_z(xi, beta, gamma, n, out):
         d = xi[k] - xi[k - 1]
         if d != 0.0:
             sigma = 1.0 if d > 0.0 else -1.0
-            az = abs(z)
-            L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
-            m = int(math.ceil(abs(d) * L / 0.25))
-            if m < 1:
-                m = 1
-            elif m > MAX_SUBSTEPS:
-                m = MAX_SUBSTEPS
-            h = d / m
-            for _ in range(m):
-                # dz/dxi is autonomous in xi: classical RK4 with step h (signed)
-                k1 = _rate(z, sigma, beta, gamma, n)
-                k2 = _rate(z + 0.5 * h * k1, sigma, beta, gamma, n)
-                k3 = _rate(z + 0.5 * h * k2, sigma, beta, gamma, n)
-                k4 = _rate(z + h * k3, sigma, beta, gamma, n)
-                z += h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
-                if z > Z_CAP:
-                    z = Z_CAP
-                elif z < -Z_CAP:
-                    z = -Z_CAP
-                elif z != z:  # NaN from an overflowing set
-                    z = Z_CAP
+            if n == 1.0:
+                z = _exact_linear(z, d, sigma, beta, gamma)
+            else:
+                az = abs(z)
+                L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
+                m = int(math.ceil(abs(d) * L / RK_STEP))
+                if m < 1:
+                    m = 1
+                elif m > MAX_SUBSTEPS:
+                    m = MAX_SUBSTEPS
+                h = d / m
+                for _ in range(m):
+                    if n < 2.0 and abs(z) <= 2.0 * abs(h):
+                        # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
+                        for _ in range(NEAR_ZERO_SPLIT):
+                            z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
+                    else:
+                        z = _rk4_crossing(z, h, sigma, beta, gamma, n)
+            if z > Z_CAP:
+                z = Z_CAP
+            elif z < -Z_CAP:
+                z = -Z_CAP
+            elif z != z:  # NaN from an overflowing set
+                z = Z_CAP
         out[k] = z
 
 
