@@ -140,6 +140,17 @@ class BranchModel(HysteresisModel):
     def _centre_basis(self, xi: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    @staticmethod
+    def _powers(x: np.ndarray, first: int, last: int) -> np.ndarray:
+        """Columns x^first ... x^last by repeated products (numpy's x**3 calls pow)."""
+        out = np.empty((x.size, last - first + 1))
+        col = np.ones_like(x)
+        for j in range(last + 1):
+            if j >= first:
+                out[:, j - first] = col
+            col = col * x
+        return out
+
     def _halfwidth_basis(self, xi_clipped: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 

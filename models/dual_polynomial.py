@@ -53,11 +53,11 @@ class DualPolynomial(BranchModel):
         return [(f"h{j}", f"half-width H: coefficient of (1 - xi^2) xi^{j}") for j in range(self.order - 1)]
 
     def _centre_basis(self, xi):
-        return np.stack([xi**j for j in range(1, self.order + 1)], axis=1)
+        return self._powers(xi, 1, self.order)
 
     def _halfwidth_basis(self, xi_clipped):
         envelope = 1.0 - xi_clipped * xi_clipped
-        return np.stack([envelope * xi_clipped**j for j in range(self.order - 1)], axis=1)
+        return envelope[:, None] * self._powers(xi_clipped, 0, self.order - 2)
 
     def branch_polynomials(self, params) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients (xi^0 ... xi^n, offset included) of P_rise + c and P_fall + c."""

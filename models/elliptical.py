@@ -65,7 +65,7 @@ class Elliptical(BranchModel):
         return u * np.abs(u) if self.linearise == "square" else u
 
     def _centre_basis(self, xi):
-        return np.stack([xi**j for j in range(1, self.poly_order + 1)], axis=1)
+        return self._powers(xi, 1, self.poly_order)
 
     def _halfwidth_basis(self, xi_clipped):
         return np.sqrt(np.maximum(1.0 - xi_clipped * xi_clipped, 0.0))[:, None]

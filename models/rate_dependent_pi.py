@@ -62,32 +62,45 @@ def rd_play_operators(u, abs_du, r0, beta, w0):
     return out
 
 
+@njit(cache=True, fastmath=True)
+def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
+    """out[k] = offset + sum_j poly[j-1] u^j + sum_i weights[i] W_i(k), one parameter set."""
+    n_op = r0.shape[0]
+    n_poly = poly.shape[0]
+    w = np.empty(n_op)
+    for i in range(n_op):
+        w[i] = w0
+    for k in range(u.shape[0]):
+        uk = u[k]
+        extra = beta * abs_du[k]
+        acc = 0.0
+        for i in range(n_op):
+            r = r0[i] + extra
+            v = min(uk + r, w[i])
+            lo = uk - r
+            v = v if v > lo else lo
+            w[i] = v
+            acc += weights[i] * v
+        p = 0.0
+        for j in range(n_poly - 1, -1, -1):
+            p = (p + poly[j]) * uk
+        out[k] = offset + p + acc
+
+
+@njit(cache=True)
+def rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0):
+    out = np.empty(u.shape[0])
+    _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out)
+    return out
+
+
 @njit(cache=True, parallel=True)
 def rd_pi_batch(u, abs_du, r0, betas, weights, polys, offsets, w0):
     """y (B, T) for many parameter sets, in parallel over sets."""
     n_set = betas.shape[0]
-    n_t = u.shape[0]
-    n_op = r0.shape[0]
-    n_poly = polys.shape[1]
-    out = np.empty((n_set, n_t))
+    out = np.empty((n_set, u.shape[0]))
     for b in prange(n_set):
-        w = np.full(n_op, w0)
-        beta = betas[b]
-        for k in range(n_t):
-            uk = u[k]
-            extra = beta * abs_du[k]
-            acc = 0.0
-            for i in range(n_op):
-                r = r0[i] + extra
-                v = min(uk + r, w[i])
-                lo = uk - r
-                v = v if v > lo else lo
-                w[i] = v
-                acc += weights[b, i] * v
-            p = 0.0
-            for j in range(n_poly - 1, -1, -1):
-                p = (p + polys[b, j]) * uk
-            out[b, k] = offsets[b] + p + acc
+        _rd_pi_output(u, abs_du, r0, betas[b], weights[b], polys[b], offsets[b], w0, out[b])
     return out
 
 
@@ -164,8 +177,10 @@ class RateDependentPI(HysteresisModel):
         polys = np.ascontiguousarray(P[:, [index[f"p{j}"] for j in range(1, self.poly_order + 1)]])
         weights = np.ascontiguousarray(P[:, [index[f"a{i}"] for i in range(1, self.n_operators + 1)]])
         offsets = np.ascontiguousarray(P[:, index["offset"]]) if self.offset else np.zeros(P.shape[0])
-        return rd_pi_batch(u, self.abs_rate(u, dt), self.base_thresholds(u, input_range), betas, weights, polys,
-                           offsets, 0.0)
+        abs_du, r0 = self.abs_rate(u, dt), self.base_thresholds(u, input_range)
+        if P.shape[0] == 1:
+            return rd_pi_output(u, abs_du, r0, betas[0], weights[0], polys[0], offsets[0], 0.0)[None, :]
+        return rd_pi_batch(u, abs_du, r0, betas, weights, polys, offsets, 0.0)
 
     def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
         u = self._check_input(u, dt)
