@@ -163,6 +163,15 @@ def bouc_wen_z(xi, beta, gamma, n):
 
 
 @njit(cache=True, parallel=True)
+def bouc_wen_z_batch(xi, betas, gammas, ns):
+    """z (B, T) for many (beta, gamma, n), in parallel over sets."""
+    out = np.empty((betas.shape[0], xi.shape[0]))
+    for b in prange(betas.shape[0]):
+        _bouc_wen_z(xi, betas[b], gammas[b], ns[b], out[b])
+    return out
+
+
+@njit(cache=True, parallel=True)
 def bouc_wen_batch(xi, betas, gammas, ns, kxs, kzs, offsets):
     """y for many parameter sets, in parallel over sets; returns (B, T)."""
     n_set = betas.shape[0]
@@ -241,3 +250,20 @@ class BoucWen(HysteresisModel):
         if self.offset:
             cols.append(np.ones_like(xi))
         return np.stack(cols, axis=1)
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """Rows ``window`` of ``regressors`` for many (beta, gamma, n): (n_sets, n_rows, n_linear)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 3)
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        xi = self.normalised(u, input_range)
+        order = [self.nonlinear_names.index(n) for n in ("beta", "gamma", "n")]
+        Z = bouc_wen_z_batch(xi[:stop], *(np.ascontiguousarray(sets[:, i]) for i in order))
+        out = np.empty((sets.shape[0], stop - start, len(self.linear_names)))
+        out[:, :, 0] = xi[start:stop]
+        out[:, :, 1] = Z[:, start:stop]
+        if self.offset:
+            out[:, :, 2] = 1.0
+        return out

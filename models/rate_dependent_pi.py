@@ -62,6 +62,35 @@ def rd_play_operators(u, abs_du, r0, beta, w0):
     return out
 
 
+@njit(cache=True)
+def _rd_play_window(u, abs_du, r0, beta, w0, start, stop, out):
+    """Plays run from sample 0; rows [start, stop) written to out (stop - start, N)."""
+    n_op = r0.shape[0]
+    w = np.empty(n_op)
+    for i in range(n_op):
+        w[i] = w0
+    for k in range(stop):
+        uk = u[k]
+        extra = beta * abs_du[k]
+        for i in range(n_op):
+            r = r0[i] + extra
+            v = min(uk + r, w[i])
+            lo = uk - r
+            w[i] = v if v > lo else lo
+        if k >= start:
+            for i in range(n_op):
+                out[k - start, i] = w[i]
+
+
+@njit(cache=True, parallel=True)
+def rd_play_window_batch(u, abs_du, r0, betas, w0, start, stop):
+    """Play outputs on rows [start, stop) for many betas, in parallel: (B, stop - start, N)."""
+    out = np.empty((betas.shape[0], stop - start, r0.shape[0]))
+    for b in prange(betas.shape[0]):
+        _rd_play_window(u, abs_du, r0, betas[b], w0, start, stop, out[b])
+    return out
+
+
 @njit(cache=True, fastmath=True)
 def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
     """out[k] = offset + sum_j poly[j-1] u^j + sum_i weights[i] W_i(k), one parameter set."""
@@ -193,3 +222,22 @@ class RateDependentPI(HysteresisModel):
         if self.offset:
             cols.append(np.ones_like(u))
         return np.stack(cols, axis=1)
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """Rows ``window`` of ``regressors`` for many betas (n_sets, 1): (n_sets, n_rows, n_linear)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 1)
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        F = rd_play_window_batch(u, self.abs_rate(u, dt), self.base_thresholds(u, input_range),
+                                 np.ascontiguousarray(sets[:, 0]), 0.0, start, stop)
+        uw = u[start:stop]
+        n_set, n_rows = sets.shape[0], stop - start
+        out = np.empty((n_set, n_rows, len(self.linear_names)))
+        for j in range(1, self.poly_order + 1):
+            out[:, :, j - 1] = uw**j
+        out[:, :, self.poly_order:self.poly_order + self.n_operators] = F
+        if self.offset:
+            out[:, :, -1] = 1.0
+        return out

@@ -431,3 +431,17 @@ def test_rate_dependent_pi_loops_widen_with_frequency():
     np.testing.assert_allclose(widths[0.0], widths[0.0][0], rtol=2e-3)
     assert widths[0.02][0] < widths[0.02][1] < widths[0.02][2]
     assert widths[0.02][2] > 1.1 * widths[0.0][2]
+
+
+@pytest.mark.parametrize("name", ["bouc-wen", "rate-dependent-pi"])
+def test_windowed_regressors_batch_are_rows_of_regressors(name):
+    model = get_model(name)
+    u = paper_input(0.4, 2.0)
+    P = random_sets(model, 3, 5)
+    sets = P[:, [model.param_names.index(n) for n in model.nonlinear_names]]
+    window = slice(1200, 2500)
+    W = model.windowed_regressors_batch(u, DT, sets, window, input_range=(0.4, 2.6))
+    assert W.shape == (3, 1300, len(model.linear_names))
+    for b in range(3):
+        full = model.regressors(u, DT, dict(zip(model.nonlinear_names, sets[b])), input_range=(0.4, 2.6))
+        np.testing.assert_allclose(W[b], full[window], rtol=1e-12, atol=1e-12)
