@@ -78,20 +78,23 @@ class CellResult:
         return cls(**d)
 
 
+# The default matrix runs the three identifiers; chains such as varpro+lsq are run when named.
+DEFAULT_METHODS = ("varpro", "mpso", "lsq")
+
+
 def applicable_methods(model_name: str) -> list[str]:
     """Identifiers that apply to a model, through the interface only."""
-    from hysbench.identification import list_methods, method_applies
+    from hysbench.identification import applicable_methods as applicable
 
-    model = get_model(model_name)
-    return [m for m in list_methods() if method_applies(model, m)]
+    return applicable(model_name)
 
 
 def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, methods: list[str] | None,
                seed: int, method_options: dict | None = None) -> list[Cell]:
     """Every requested model x applicable method x dataset (unknown names raise HysbenchError)."""
-    from hysbench.identification import list_methods
+    from hysbench.identification import METHODS
 
-    known_methods = list_methods()
+    known_methods = list(METHODS)
     models = models or list_models()
     for m in models:
         get_model(m)  # raises on an unknown name
@@ -104,7 +107,7 @@ def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, me
         digest = ds.content_hash()
         for model in models:
             for method in applicable_methods(model):
-                if methods and method not in methods:
+                if method not in (methods or DEFAULT_METHODS):
                     continue
                 opts = tuple(sorted(method_options.get(method, {}).items()))
                 cells.append(Cell(str(path), ds.name, digest, model, method, seed, opts))
@@ -139,7 +142,7 @@ def run_cell(cell: Cell) -> dict:
         simulate_seconds = time.perf_counter() - t0
         return CellResult(
             **base, status="ok", n_params=model.n_params, fitness=float(fit.fitness),
-            fit_seconds=float(fit.wall_seconds), simulate_seconds=simulate_seconds,
+            fit_seconds=float(fit.fit_seconds), simulate_seconds=simulate_seconds,
             n_evaluations=int(fit.n_evaluations), params=dict(fit.params),
             input_range=[float(x) for x in fit.input_range],
             records=[_record_dict(s) for s in fit.records],
