@@ -17,6 +17,7 @@ from hysbench.models.errors import HysbenchError
 # subcommand -> (module, one-line help)
 COMMANDS = {
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
 }
 
 
