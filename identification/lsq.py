@@ -32,18 +32,22 @@ OPTIONS = {
 
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x0: np.ndarray | None = None,
         **options) -> dict:
-    opts = {**OPTIONS, **options}
+    with problem.parallel_records():
+        return _run(problem, seed, start, x0, {**OPTIONS, **options})
+
+
+def _run(problem: Problem, seed, start, x0, opts) -> dict:
     rng = np.random.default_rng(seed)
     lo, hi = problem.lower, problem.upper
     width = np.where(hi > lo, hi - lo, 1.0)
     free = hi > lo  # a parameter fixed by equal bounds is not varied
     step = opts["fd_step"] * width
-    x_first = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
-    starts = [x_first] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
+    base = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
+    starts = [base] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
     cache: dict = {}
 
     def residual(zf):
-        x = x_first.copy()
+        x = base.copy()
         x[free] = zf
         key = x.tobytes()
         if key not in cache:
@@ -54,7 +58,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
         return cache[key]
 
     def jacobian(zf):
-        x = x_first.copy()
+        x = base.copy()
         x[free] = zf
         r0 = residual(zf)
         h = np.where(x + step <= hi, step, -step)[free]
@@ -68,7 +72,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
     best_x, best_f, searches = None, np.inf, []
     for x_s in starts:
         n0 = problem.n_evaluations
-        x_first = x_s.copy()
+        base = x_s.copy()
         cache.clear()
         if not np.all(np.isfinite(residual(x_s[free]))):
             searches.append({"fitness": float("inf"), "status": -1, "message": "start is not finite",
@@ -85,5 +89,5 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
         if f < best_f:
             best_x, best_f = x, f
     if best_x is None:
-        best_x = x_first
+        best_x = base
     return {"x": best_x, "diagnostics": {"local_searches": searches}, "notes": []}
