@@ -4,7 +4,7 @@ The residual vector is the weighted stack of eq. 9 (rows sqrt(k_m / n_m)),
 minimised with the bounded trust-region reflective method, each parameter
 scaled by its bound width (``x_scale``). The Jacobian is by forward
 differences, all n_params perturbed sets simulated as one batch per record
-(``simulate_batch``, parallel over sets); a step that would leave the bounds
+(``simulate_window_batch``, parallel over sets); a step that would leave the bounds
 is taken backwards.
 
 Starts: the start point (the model's defaults, or ``start``, or the result
@@ -24,7 +24,7 @@ from .problem import Problem
 
 OPTIONS = {
     "n_starts": 1,
-    "max_nfev": 200,  # residual evaluations per start (Jacobians not counted by scipy)
+    "max_nfev": 200,  # residual evaluations per start, as scipy counts them (Jacobians are extra)
     "tol": 1e-10,  # ftol = xtol = gtol
     "fd_step": 1e-7,  # forward-difference step, relative to each bound's width
 }

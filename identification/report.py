@@ -188,7 +188,8 @@ def _load() -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hysbench.identification.report", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m hysbench.identification.report",
+                                     description=__doc__.split("\n")[0])
     parser.add_argument("--dataset", help="dataset folder (default: data/virtual_dea if present, else Table-2 data)")
     parser.add_argument("--out", default="results", help="output folder (default results/)")
     parser.add_argument("--seed", type=int, default=0)
