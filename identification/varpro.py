@@ -23,7 +23,7 @@ is eq. 9 exactly, and is solved exactly:
 
 The nonlinear parameters are searched with several starts: the start point
 (the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
-Sobol sequence in their bounds (seeded) are evaluated as one batch; local
+Halton sequence in their bounds (seeded) are evaluated as one batch; local
 searches (scipy.optimize.least_squares, trust-region reflective, bounded,
 Jacobian by forward differences evaluated as one batch) run from the
 ``n_starts`` best; the best result wins. A model with no nonlinear parameter
@@ -46,7 +46,7 @@ from .problem import MAX_BATCH_ELEMENTS, Problem
 
 OPTIONS = {
     "n_starts": 2,  # local searches, from the best candidates
-    "n_candidates": 16,  # Sobol points evaluated before the local searches
+    "n_candidates": 16,  # Halton points evaluated before the local searches
     "max_nfev": 40,  # residual evaluations per local search
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
     "tol": 1e-8,  # ftol = xtol = gtol of least_squares
@@ -96,12 +96,21 @@ class SeparableProblem:
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
 
     # --- design matrices ---------------------------------------------------
+    def _as_sets(self, nonlinear_sets) -> np.ndarray:
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        return sets.reshape(1, len(self.nonlinear_names)) if sets.ndim < 2 else sets
+
     def blocks(self, nonlinear_sets: np.ndarray) -> list[np.ndarray]:
         """Per fit record, the unweighted regressors on its scored rows for each
         set: a list of (n_sets, n_m, n_linear) arrays. Counts the evaluations."""
-        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        sets = self._as_sets(nonlinear_sets)
         p = self.problem
-        out = [self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range) for r in p.records]
+
+        def one(r):
+            return self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range)
+
+        pool = p.record_pool if sets.shape[0] == 1 else None
+        out = list(pool.map(one, p.records)) if pool is not None else [one(r) for r in p.records]
         p.n_evaluations += sets.shape[0]
         return out
 
@@ -220,7 +229,7 @@ class SeparableProblem:
 
     def projected_batch(self, nonlinear_sets: np.ndarray) -> list[LinearSolution]:
         """Linear solves for many nonlinear sets; the best fitness goes to the history."""
-        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        sets = self._as_sets(nonlinear_sets)
         n_lin = len(self.linear_names)
         chunk = max(1, MAX_BATCH_ELEMENTS // max(1, self.problem.n_rows * n_lin))
         sols = []
@@ -241,55 +250,72 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
     sep = SeparableProblem(problem, opts["max_condition"])
+    with problem.parallel_records():
+        return _run(problem, sep, seed, start, opts)
+
+
+def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
-    if d == 0:
+    if d == 0:  # a purely linear model: the final solve below is the whole identification
         best_nl = np.zeros(0)
-        sep.projected_batch(np.zeros((1, 0)))
         diag["local_searches"] = []
     else:
         lo, hi = sep.nl_lower, sep.nl_upper
-        width = np.where(hi > lo, hi - lo, 1.0)
-        cands = [x_start[sep.nl_idx]]
+        free = hi > lo  # a nonlinear parameter fixed by equal bounds is not searched
+        width = np.where(free, hi - lo, 1.0)
+        cands = [np.clip(x_start[sep.nl_idx], lo, hi)]
         if opts["n_candidates"] > 0:
-            sobol = qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed))
-            cands.extend(lo + sobol.random(int(opts["n_candidates"])) * (hi - lo))
+            halton = qmc.Halton(d, scramble=True, seed=np.random.default_rng(seed))
+            cands.extend(lo + halton.random(int(opts["n_candidates"])) * (hi - lo))
         cands = np.array(cands)
         sols = sep.projected_batch(cands)
         order = np.argsort([s.fitness for s in sols], kind="stable")
         searches = []
         best_nl, best_f = cands[order[0]], sols[order[0]].fitness
-        step = opts["fd_step"] * width
+        step = (opts["fd_step"] * width)[free]
+        base = cands[order[0]].copy()
         cache: dict = {}
 
-        def residual(z):
-            key = z.tobytes()
+        def full(zf):
+            z = base.copy()
+            z[free] = zf
+            return z
+
+        def residual(zf):
+            key = zf.tobytes()
             if key not in cache:
                 cache.clear()
-                cache[key] = sep.projected_batch(z[None])[0].residuals
+                cache[key] = sep.projected_batch(full(zf)[None])[0].residuals
             return cache[key]
 
-        def jacobian(z):
-            r0 = residual(z)
-            h = np.where(z + step <= hi, step, -step)
-            Z = z[None, :] + np.diag(h)
+        def jacobian(zf):
+            r0 = residual(zf)
+            h = np.where(zf + step <= hi[free], step, -step)
+            Z = np.repeat(full(zf)[None], h.size, axis=0)
+            Z[np.arange(h.size), np.flatnonzero(free)] += h
             sols_h = sep.projected_batch(Z)
             return np.column_stack([(s.residuals - r0) / h[j] for j, s in enumerate(sols_h)])
 
+        if not free.any():
+            order = order[:0]
         for k in order[: max(1, int(opts["n_starts"]))]:
-            z0 = np.clip(cands[k], lo, hi)
+            base = cands[k].copy()
             n0 = problem.n_evaluations
-            res = least_squares(residual, z0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale=width,
-                                ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"], max_nfev=int(opts["max_nfev"]))
+            res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
+                                x_scale=width[free], ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"],
+                                max_nfev=int(opts["max_nfev"]))
             f = float(2.0 * res.cost)
-            searches.append({"start": [float(v) for v in z0], "start_fitness": float(sols[k].fitness),
-                             "end": [float(v) for v in res.x], "fitness": f, "status": int(res.status),
+            end = full(res.x)
+            searches.append({"start": [float(v) for v in cands[k]], "start_fitness": float(sols[k].fitness),
+                             "end": [float(v) for v in end], "fitness": f, "status": int(res.status),
                              "message": str(res.message), "n_evaluations": problem.n_evaluations - n0})
             if f < best_f:
-                best_nl, best_f = res.x.copy(), f
+                best_nl, best_f = end, f
         diag["local_searches"] = searches
     final = sep.solve(best_nl, accurate=True)
+    problem.note(final.fitness)
     x = sep.full_vector(best_nl, final.linear)
     diag.update(condition_number=final.condition_number, regularised=final.regularised, ridge=final.ridge,
                 bounded_linear_solve=final.bounded, max_condition=sep.max_condition)

@@ -41,6 +41,8 @@ OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 class PlayOperatorModel(HysteresisModel):
     """Shared implementation; use ``ClassicalPI`` or ``MRPIM``."""
 
+    concurrent_calls_safe = True  # single-set calls run nogil kernels: threads may overlap them
+
     def __init__(
         self,
         n_operators: int = 13,
