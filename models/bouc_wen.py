@@ -56,7 +56,7 @@ SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
 N_MAX = 4.0
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def _rate(z, sigma, beta, gamma, n):
     """dz/dxi for the sign sigma of dxi."""
     az = abs(z)
@@ -65,7 +65,7 @@ def _rate(z, sigma, beta, gamma, n):
     return 1.0 - p * (sigma * beta * sz + gamma)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _exact_linear(z, h, sigma, beta, gamma):
     """n = 1: dz/dxi = 1 - a z with a = sigma beta + gamma sgn(z), exact over a step h
     (signed), split where z crosses 0 (dz/dxi = 1 there, so z crosses in the
@@ -97,7 +97,7 @@ def _exact_linear(z, h, sigma, beta, gamma):
     return z
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rk4(z, h, sigma, beta, gamma, n):
     k1 = _rate(z, sigma, beta, gamma, n)
     k2 = _rate(z + 0.5 * h * k1, sigma, beta, gamma, n)
@@ -106,7 +106,7 @@ def _rk4(z, h, sigma, beta, gamma, n):
     return z + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rk4_crossing(z, h, sigma, beta, gamma, n):
     """One RK4 step; where z changes sign, land on 0 (dz/dxi = 1 there) and finish from it."""
     z_new = _rk4(z, h, sigma, beta, gamma, n)
@@ -117,7 +117,7 @@ def _rk4_crossing(z, h, sigma, beta, gamma, n):
     return z_new
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bouc_wen_z(xi, beta, gamma, n, out):
     """z(k) for one parameter set into ``out``."""
     n_t = xi.shape[0]
@@ -155,11 +155,19 @@ def _bouc_wen_z(xi, beta, gamma, n, out):
         out[k] = z
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def bouc_wen_z(xi, beta, gamma, n):
     out = np.empty(xi.shape[0])
     _bouc_wen_z(xi, beta, gamma, n, out)
     return out
+
+
+@njit(cache=True, nogil=True)
+def bouc_wen_output(xi, beta, gamma, n, kx, kz, offset):
+    """y for one parameter set (no threads: callers may run it concurrently)."""
+    z = np.empty(xi.shape[0])
+    _bouc_wen_z(xi, beta, gamma, n, z)
+    return offset + kx * xi + kz * z
 
 
 @njit(cache=True, parallel=True)
@@ -189,6 +197,7 @@ class BoucWen(HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
+    concurrent_calls_safe = True  # single-set calls run nogil kernels without threads
 
     def __init__(self, offset: bool = True):
         self.offset = offset
@@ -234,6 +243,9 @@ class BoucWen(HysteresisModel):
         xi = self.normalised(u, input_range)
         col = {name: np.ascontiguousarray(P[:, i]) for i, name in enumerate(self.param_names)}
         offsets = col["offset"] if self.offset else np.zeros(P.shape[0])
+        if P.shape[0] == 1:
+            return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
+                                   offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
 
     def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
@@ -260,7 +272,11 @@ class BoucWen(HysteresisModel):
             raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
         xi = self.normalised(u, input_range)
         order = [self.nonlinear_names.index(n) for n in ("beta", "gamma", "n")]
-        Z = bouc_wen_z_batch(xi[:stop], *(np.ascontiguousarray(sets[:, i]) for i in order))
+        b, g, n = (np.ascontiguousarray(sets[:, i]) for i in order)
+        if sets.shape[0] == 1:
+            Z = bouc_wen_z(xi[:stop], b[0], g[0], n[0])[None, :]
+        else:
+            Z = bouc_wen_z_batch(xi[:stop], b, g, n)
         out = np.empty((sets.shape[0], stop - start, len(self.linear_names)))
         out[:, :, 0] = xi[start:stop]
         out[:, :, 1] = Z[:, start:stop]

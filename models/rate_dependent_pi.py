@@ -62,7 +62,7 @@ def rd_play_operators(u, abs_du, r0, beta, w0):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rd_play_window(u, abs_du, r0, beta, w0, start, stop, out):
     """Plays run from sample 0; rows [start, stop) written to out (stop - start, N)."""
     n_op = r0.shape[0]
@@ -82,6 +82,14 @@ def _rd_play_window(u, abs_du, r0, beta, w0, start, stop, out):
                 out[k - start, i] = w[i]
 
 
+@njit(cache=True, nogil=True)
+def rd_play_window(u, abs_du, r0, beta, w0, start, stop):
+    """``rd_play_window_batch`` for one beta, without threads: (stop - start, N)."""
+    out = np.empty((stop - start, r0.shape[0]))
+    _rd_play_window(u, abs_du, r0, beta, w0, start, stop, out)
+    return out
+
+
 @njit(cache=True, parallel=True)
 def rd_play_window_batch(u, abs_du, r0, betas, w0, start, stop):
     """Play outputs on rows [start, stop) for many betas, in parallel: (B, stop - start, N)."""
@@ -91,7 +99,7 @@ def rd_play_window_batch(u, abs_du, r0, betas, w0, start, stop):
     return out
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
     """out[k] = offset + sum_j poly[j-1] u^j + sum_i weights[i] W_i(k), one parameter set."""
     n_op = r0.shape[0]
@@ -116,7 +124,7 @@ def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
         out[k] = offset + p + acc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0):
     out = np.empty(u.shape[0])
     _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out)
@@ -137,6 +145,7 @@ class RateDependentPI(HysteresisModel):
     """P-I with thresholds growing with |du/dt|; see the module docstring."""
 
     name = "rate-dependent-pi"
+    concurrent_calls_safe = True  # single-set calls run nogil kernels without threads
 
     def __init__(
         self,
@@ -230,8 +239,11 @@ class RateDependentPI(HysteresisModel):
         start, stop, step = window.indices(u.size)
         if step != 1 or stop <= start:
             raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
-        F = rd_play_window_batch(u, self.abs_rate(u, dt), self.base_thresholds(u, input_range),
-                                 np.ascontiguousarray(sets[:, 0]), 0.0, start, stop)
+        abs_du, r0 = self.abs_rate(u, dt), self.base_thresholds(u, input_range)
+        if sets.shape[0] == 1:
+            F = rd_play_window(u, abs_du, r0, float(sets[0, 0]), 0.0, start, stop)[None]
+        else:
+            F = rd_play_window_batch(u, abs_du, r0, np.ascontiguousarray(sets[:, 0]), 0.0, start, stop)
         uw = u[start:stop]
         n_set, n_rows = sets.shape[0], stop - start
         out = np.empty((n_set, n_rows, len(self.linear_names)))
