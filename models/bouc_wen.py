@@ -16,8 +16,10 @@ the normalised forms. k_x, k_z and c enter linearly (``regressors`` gives
 [xi, z, 1] for fixed beta, gamma, n); beta, gamma, n are nonlinear.
 With beta >= 0 (the bounds) and beta + gamma > 0, z starting from 0 stays
 within |z| <= (beta + gamma)^(-1/n) (the hysteretic part is bounded); for
-beta + gamma <= 0 it grows without bound and is clipped to +-Z_CAP, so such
-sets fit badly instead of overflowing.
+beta + gamma <= 0 it grows without bound: once |z| reaches Z_CAP it is held
+there for the rest of the record (no further integration, which would need
+ever smaller steps), so such sets fit badly instead of overflowing or
+stalling an optimiser.
 
 Integration at the data's step: the equation is rate-independent,
 dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
@@ -146,12 +148,11 @@ def _bouc_wen_z(xi, beta, gamma, n, out):
                             z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
                     else:
                         z = _rk4_crossing(z, h, sigma, beta, gamma, n)
-            if z > Z_CAP:
-                z = Z_CAP
-            elif z < -Z_CAP:
-                z = -Z_CAP
-            elif z != z:  # NaN from an overflowing set
-                z = Z_CAP
+            if not abs(z) < Z_CAP:  # a diverging set (or NaN): hold z at the cap from here on
+                z = -Z_CAP if z < 0.0 else Z_CAP
+                for j in range(k, n_t):
+                    out[j] = z
+                return
         out[k] = z
 
 

@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 
 from hysbench.benchmarks.metrics import loop_width
 from hysbench.models import DataScale, ModelError, get_model, list_models
-from hysbench.models.bouc_wen import BoucWen
+from hysbench.models.bouc_wen import Z_CAP, BoucWen
 from hysbench.models.dual_polynomial import DualPolynomial
 from hysbench.models.elliptical import Elliptical
 from hysbench.models.preisach import Preisach
@@ -310,10 +310,14 @@ def test_bouc_wen_is_stable_at_coarse_steps_and_reaches_a_periodic_loop():
 
 
 def test_bouc_wen_unstable_set_is_clipped_not_overflowing():
+    # beta + gamma < 0: dz/dxi = 1 + 20 z^3 blows up in finite xi; z is held at the cap from then on
     model = BoucWen()
     y = model.simulate(paper_input(), DT, {"beta": 0.0, "gamma": -20.0, "n": 3.0, "kx": 1.0, "kz": 1.0,
                                             "offset": 0.0})
     assert np.all(np.isfinite(y))
+    z = model.hysteretic_state(paper_input(), DT, 0.0, -20.0, 3.0)
+    k = int(np.argmax(np.abs(z) >= Z_CAP))
+    assert k > 0 and np.all(z[k:] == Z_CAP) and np.all(np.abs(z[:k]) < Z_CAP)
 
 
 # --- Preisach ----------------------------------------------------------------
