@@ -1,8 +1,8 @@
 """Classical Bouc-Wen hysteresis model (registry name ``bouc-wen``).
 
 Form of the survey by Ismail, Ikhouane & Rodellar, "The hysteresis Bouc-Wen
-model, a survey", Arch. Comput. Methods Eng. 16 (2009) 161-188, eq. (1)-(2):
-Phi(x) = alpha k x + (1 - alpha) k z, dz/dt = A dx/dt - beta |dx/dt| |z|^(n-1) z
+model, a survey", Arch. Comput. Methods Eng. 16 (2009) 161-188 (its basic
+form): Phi(x) = alpha k x + (1 - alpha) k z, dz/dt = A dx/dt - beta |dx/dt| |z|^(n-1) z
 - gamma dx/dt |z|^n. Here, with the input scaled to xi in [-1, 1] over the
 input range (so beta, gamma, n are dimensionless and the same for kV and V):
 
@@ -11,7 +11,7 @@ input range (so beta, gamma, n are dimensionless and the same for kV and V):
     y    = c + k_x xi + k_z z
 
 A = 1: with A free the parameters are redundant (z -> A z rescales beta,
-gamma and k_z; the survey's section 3 discusses this), so it is fixed, as in
+gamma and k_z; the survey discusses this redundancy), so it is fixed, as in
 the normalised forms. k_x, k_z and c enter linearly (``regressors`` gives
 [xi, z, 1] for fixed beta, gamma, n); beta, gamma, n are nonlinear.
 With beta >= 0 (the bounds) and beta + gamma > 0, z starting from 0 stays
@@ -58,7 +58,7 @@ SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
 N_MAX = 4.0
 
 
-@njit(cache=True, fastmath=False, nogil=True)
+@njit(cache=True, nogil=True)
 def _rate(z, sigma, beta, gamma, n):
     """dz/dxi for the sign sigma of dxi."""
     az = abs(z)

@@ -3,11 +3,14 @@
 The seed paper (Zou & Gu, Polymers 10 (2018) 525) cites as its ref. [28] an
 elliptical model of a tubular DEA: once the input is linearised, the DEA's
 loops are symmetric and ellipse-like, and an ellipse describes them. The
-reference list of [28] could not be checked from here; the form below is the
+text of [28] could not be checked from here (the seed text has no reference
+list); the form below is the
 standard one for an ellipse-shaped loop (the loop of any linear lag under a
-sinusoid; the same form as Gu & Zhu, "Modeling of rate-dependent hysteresis in
-piezoelectric actuators using a family of ellipses", Sens. Actuators A 165
-(2011) 303-309, with one parameter set for every frequency):
+sinusoid; Gu & Zhu, "Modeling of rate-dependent hysteresis in piezoelectric
+actuators using a family of ellipses", Sens. Actuators A 165 (2011) 303-309,
+cited from memory, describe piezo loops by ellipses of this kind with
+frequency-dependent parameters; here one parameter set serves every
+frequency, as the seed paper describes [28]):
 
     x   = L(u)                                  linearised input
     xi  = (2x - (x_max + x_min)) / (x_max - x_min)     in [-1, 1]

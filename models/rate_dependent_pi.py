@@ -1,13 +1,18 @@
 """Rate-dependent Prandtl-Ishlinskii model with rate-dependent thresholds
 (registry name ``rate-dependent-pi``).
 
-Form followed: Al Janaideh & Krejci, "Inverse rate-dependent
-Prandtl-Ishlinskii model for feedforward compensation of hysteresis in a
-piezomicropositioning actuator", IEEE/ASME Trans. Mechatronics 18 (2013)
-1498-1507, which builds on Al Janaideh, Rakheja & Su, "Development of the
-rate-dependent Prandtl-Ishlinskii model for smart actuators", Smart Mater.
-Struct. 17 (2008) 035026: symmetric play operators whose thresholds grow
-with the input rate, r_i(t) = alpha i + beta |du/dt|. Discretised:
+Form followed: the rate-dependent P-I of Al Janaideh, Rakheja & Su,
+"Development of the rate-dependent Prandtl-Ishlinskii model for smart
+actuators", Smart Mater. Struct. 17 (2008) 035026, in the form with
+thresholds r_j(t) = alpha j + beta |du/dt| used by Al Janaideh & Krejci,
+"Inverse rate-dependent Prandtl-Ishlinskii model for feedforward
+compensation of hysteresis in a piezomicropositioning actuator", IEEE/ASME
+Trans. Mechatronics 18 (2013) 1498-1507 (cited from memory: the papers'
+text could not be checked from here; see also Al Janaideh, Krejci &
+Monteiro, "Inverse rate-dependent Prandtl-Ishlinskii operators and
+applications", Appl. Math. (2023), on play operators whose thresholds are
+functions of time). Symmetric play operators whose thresholds grow with the
+input rate, discretised:
 
     y(k)   = c + sum_{j=1..K} p_j u(k)^j + sum_{i=1..N} a_i W_i(k)
     W_i(k) = max(u(k) - r_i(k), min(u(k) + r_i(k), W_i(k-1))),   W_i(-1) = 0
@@ -18,8 +23,8 @@ Interpretations: the thresholds' rate-independent part is spread over
 a symmetric play of threshold >= half the span no longer moves in a periodic
 regime, so larger thresholds would only duplicate the offset. The weights
 a_i are free constants (the discretised density, as in the seed paper's
-eq. 8) rather than the published exponential density p(r) = rho e^(-tau r)
-evaluated at the moving thresholds, so the model is linear in a_i, p_j and
+eq. 8) rather than a parametric density evaluated at the moving thresholds
+(that line of work uses an exponential one), so the model is linear in a_i, p_j and
 c given beta, the only nonlinear parameter (in seconds, >= 0: thresholds
 grow with the rate). u' is the backward difference [u(k) - u(k-1)]/T with
 u(-1) = u(0), as the seed paper estimates it (``derivative="smoothed"``
