@@ -15,6 +15,7 @@ fit with the lowest identification fitness (eq. 9) is reported.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -78,7 +79,7 @@ def _records(fit) -> list[dict]:
 
 
 def _fmt(x: float, digits: int = 2) -> str:
-    return "n/a" if x != x else f"{x:.{digits}f}"
+    return "n/a" if math.isnan(x) else f"{x:.{digits}f}"
 
 
 def render(rows: list[dict], dataset: Dataset, description: str, seed: int, elapsed: float) -> str:

@@ -14,8 +14,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.integrate import solve_ivp
-
 from hysbench.benchmarks.metrics import loop_width
 from hysbench.models import DataScale, ModelError, get_model, list_models
 from hysbench.models.bouc_wen import Z_CAP, BoucWen
@@ -23,6 +21,7 @@ from hysbench.models.dual_polynomial import DualPolynomial
 from hysbench.models.elliptical import Elliptical
 from hysbench.models.preisach import Preisach
 from hysbench.models.rate_dependent_pi import RateDependentPI
+from scipy.integrate import solve_ivp
 
 BASELINES = ("elliptical", "dual-polynomial", "bouc-wen", "preisach", "rate-dependent-pi")
 RATE_INDEPENDENT = ("elliptical", "dual-polynomial", "bouc-wen", "preisach")
