@@ -32,7 +32,10 @@ whatever its length:
   L = n (|beta| + |gamma|) max(1, |z|)^(n-1) the local stiffness bound (at most
   MAX_SUBSTEPS); a sub-step in which z changes sign lands on 0 first (where
   dz/dxi = 1), and for n < 2 the sub-steps near z = 0 are split NEAR_ZERO_SPLIT
-  times, since |z|^n is not smooth there.
+  times, since |z|^n is not smooth there. Where an interval is tiny
+  (|dxi| L <= TAYLOR_STEP and |dxi| <= TAYLOR_STEP |z|: slow records sampled
+  finely) one third-order Taylor step replaces RK4 (local error
+  ~ (|dxi| L)^4 |z| / 24 < 1e-11 |z|), which needs one power instead of four.
 Against scipy's solve_ivp (DOP853, rtol 1e-11) the error is below 1e-8 for
 every case in the tests, and the scheme is stable at any sampling step.
 """
@@ -52,6 +55,7 @@ Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
 RK_STEP = 0.05  # RK4 sub-step: |h| * stiffness <= RK_STEP
 NEAR_ZERO_SPLIT = 32  # finer RK4 steps where z is near 0 and n < 2
+TAYLOR_STEP = 3e-3  # a 3rd-order Taylor step replaces RK4 where |dxi| L and |dxi| / |z| are below this
 GAIN_BOUND = 50.0  # |k_x|, |k_z| <= GAIN_BOUND * y
 OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
@@ -120,6 +124,20 @@ def _rk4_crossing(z, h, sigma, beta, gamma, n):
 
 
 @njit(cache=True, nogil=True)
+def _taylor3(z, h, sigma, beta, gamma, n):
+    """Third-order Taylor step of dz/dxi = f(z) = 1 - A |z|^n, A = sigma beta sgn(z) + gamma,
+    for z != 0 (one power instead of RK4's four); used only where |h| L and |h| / |z| are tiny."""
+    az = abs(z)
+    s = 1.0 if z > 0.0 else -1.0
+    a = sigma * beta * s + gamma
+    p = az**n
+    f = 1.0 - a * p
+    f1 = -a * n * s * p / az  # f'
+    f2 = -a * n * (n - 1.0) * p / (az * az)  # f''
+    return z + h * f + 0.5 * h * h * f * f1 + h * h * h * (f * f1 * f1 + f * f * f2) / 6.0
+
+
+@njit(cache=True, nogil=True)
 def _bouc_wen_z(xi, beta, gamma, n, out):
     """z(k) for one parameter set into ``out``."""
     n_t = xi.shape[0]
@@ -141,6 +159,11 @@ def _bouc_wen_z(xi, beta, gamma, n, out):
                 elif m > MAX_SUBSTEPS:
                     m = MAX_SUBSTEPS
                 h = d / m
+                if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
+                    z_new = _taylor3(z, d, sigma, beta, gamma, n)
+                    if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
+                        z = z_new
+                        m = 0
                 for _ in range(m):
                     if n < 2.0 and abs(z) <= 2.0 * abs(h):
                         # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
