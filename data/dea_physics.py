@@ -188,11 +188,10 @@ def _substeps(u0, dt, p, n_br):
 
 
 @njit(cache=True)
-def _simulate_one(u_kv, dt, p, n_br, out_dlam, x):
-    """Fill out_dlam[k] = lam_a(t_k) - lam0 from the state ``x`` at t_0; NaN from a failure on.
-
-    ``x`` is advanced in place and holds the state at the last sample on return.
-    """
+def _simulate_one(u_kv, dt, p, n_br, out, x, start):
+    """out[k - start] = lam_a(t_k) - lam0 for k in [start, start + len(out)), simulated from the
+    state ``x`` at t_0 (which is advanced in place); NaN from a failure on. Stops at the last
+    sample stored."""
     n = 1 + 4 * n_br
     k1 = np.empty(n)
     k2 = np.empty(n)
@@ -200,13 +199,14 @@ def _simulate_one(u_kv, dt, p, n_br, out_dlam, x):
     k4 = np.empty(n)
     tmp = np.empty(n)
     lam0 = p[3]
-    n_t = u_kv.shape[0]
+    last = start + out.shape[0] - 1
     m = _substeps(u_kv[0], dt, p, n_br)
     h = dt / m
     ok = True
-    for i in range(n_t):
-        out_dlam[i] = x[0] - lam0
-        if i == n_t - 1:
+    for i in range(last + 1):
+        if i >= start:
+            out[i - start] = x[0] - lam0
+        if i == last:
             break
         ua = u_kv[i]
         du = (u_kv[i + 1] - ua) / m
@@ -232,21 +232,27 @@ def _simulate_one(u_kv, dt, p, n_br, out_dlam, x):
                 ok = False
                 break
         if not ok:
-            for r in range(i + 1, n_t):
-                out_dlam[r] = np.nan
+            for r in range(max(i + 1, start), last + 1):
+                out[r - start] = np.nan
             break
 
 
 @njit(cache=True, parallel=True)
-def simulate_stretch_batch(u_kv, dt, phys, n_br):
-    """lam_a(t_k) - lam0 for each row of ``phys``: shape (n_sets, n_samples)."""
+def simulate_window_batch(u_kv, dt, phys, n_br, start, stop):
+    """lam_a(t_k) - lam0 for k in [start, stop), each row of ``phys`` simulated from t_0:
+    shape (n_sets, stop - start). Only the window is stored."""
     n_set = phys.shape[0]
-    out = np.empty((n_set, u_kv.shape[0]))
+    out = np.empty((n_set, stop - start))
     for s in prange(n_set):
         x = np.empty(1 + 4 * n_br)
         _initial_state(phys[s], n_br, x)
-        _simulate_one(u_kv, dt, phys[s], n_br, out[s], x)
+        _simulate_one(u_kv, dt, phys[s], n_br, out[s], x, start)
     return out
+
+
+def simulate_stretch_batch(u_kv, dt, phys, n_br):
+    """lam_a(t_k) - lam0 for each row of ``phys``: shape (n_sets, n_samples)."""
+    return simulate_window_batch(u_kv, dt, phys, n_br, 0, u_kv.shape[0])
 
 
 @njit(cache=True)
@@ -255,7 +261,7 @@ def simulate_stretch(u_kv, dt, phys, n_br):
     out = np.empty(u_kv.shape[0])
     x = np.empty(1 + 4 * n_br)
     _initial_state(phys, n_br, x)
-    _simulate_one(u_kv, dt, phys, n_br, out, x)
+    _simulate_one(u_kv, dt, phys, n_br, out, x, 0)
     return out
 
 
@@ -263,7 +269,7 @@ def simulate_stretch(u_kv, dt, phys, n_br):
 def simulate_from(u_kv, dt, phys, n_br, state):
     """Like ``simulate_stretch`` but from a given state, which is advanced in place (analysis)."""
     out = np.empty(u_kv.shape[0])
-    _simulate_one(u_kv, dt, phys, n_br, out, state)
+    _simulate_one(u_kv, dt, phys, n_br, out, state, 0)
     return out
 
 

@@ -144,50 +144,83 @@ class Viscoelastic(HysteresisModel):
         return p
 
     # --- physics -------------------------------------------------------------
-    def physical_vectors(self, param_sets: np.ndarray) -> np.ndarray:
-        """Rows of model parameters -> rows of ``dea_physics`` parameter vectors (SI)."""
-        P = self._check_param_sets(param_sets)
+    def physical_vectors(self, nonlinear_sets: np.ndarray) -> np.ndarray:
+        """Rows of nonlinear parameters (``nonlinear_names`` order; full parameter rows are
+        accepted too, their linear columns are ignored) -> ``dea_physics`` parameter vectors (SI)."""
+        N = np.ascontiguousarray(np.atleast_2d(np.asarray(nonlinear_sets, dtype=float)))
         K = self.n_branches
-        n = P.shape[0]
-        phys = np.empty((n, dea_physics.N_FIXED + 2 * K))
+        if N.ndim != 2 or N.shape[1] not in (2 + 2 * K, self.n_params):
+            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters ({', '.join(self.param_names)}), "
+                             f"got an array of shape {np.shape(nonlinear_sets)}")
+        phys = np.empty((N.shape[0], dea_physics.N_FIXED + 2 * K))
         L = 1e-3 * self.length0  # any length: the output scales with ``length``, only the ratio matters here
-        phys[:, 0] = P[:, 0] * 1e3
+        phys[:, 0] = N[:, 0] * 1e3
         phys[:, 1] = self.gent_limit
-        phys[:, 2] = P[:, 1] * 1e3
+        phys[:, 2] = N[:, 1] * 1e3
         phys[:, 3] = self.prestretch
         phys[:, 4] = self.transverse_prestretch
         phys[:, 5] = L
         phys[:, 6] = L * self.length_ratio
         phys[:, 7] = self.thickness
         phys[:, 8] = self.eps_r
-        phys[:, 9:9 + K] = P[:, 2:2 + K] * 1e3
-        phys[:, 9 + K:9 + 2 * K] = P[:, 2 + K:2 + 2 * K]
+        phys[:, 9:9 + K] = N[:, 2:2 + K] * 1e3
+        phys[:, 9 + K:9 + 2 * K] = N[:, 2 + K:2 + 2 * K]
         return phys
 
-    def stretch_batch(self, u, dt: float, param_sets) -> np.ndarray:
-        """lam_a - lam0 for each parameter set, shape (n_sets, T)."""
+    def stretch_batch(self, u, dt: float, nonlinear_sets, window: slice | None = None) -> np.ndarray:
+        """lam_a - lam0 for each parameter set, shape (n_sets, samples of ``window``); the
+        actuator is always simulated from the first sample, only the window is stored."""
         u = self._check_input(u, dt)
-        phys = self.physical_vectors(param_sets)
+        phys = self.physical_vectors(nonlinear_sets)
+        start, stop, step = (window or slice(None)).indices(u.size)
+        if step != 1:
+            raise ModelError(f"{self.name}: a window must be a contiguous slice, got step {step}")
+        stop = max(stop, start)
         u_kv = u * (self.volts_per_input_unit / 1000.0)
-        return dea_physics.simulate_stretch_batch(u_kv, float(dt), phys, self.n_branches)
+        return dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop)
 
     # --- evaluation ------------------------------------------------------
-    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
-        P = self._check_param_sets(param_sets)
+    def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:
         K = self.n_branches
-        dlam = self.stretch_batch(u, dt, P)
         y = P[:, 2 + 2 * K, None] * dlam
         if self.offset:
             y += P[:, 3 + 2 * K, None]
         return y
 
-    def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
-        nonlinear = dict(nonlinear)
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        P = self._check_param_sets(param_sets)
+        return self._linear_part(P, self.stretch_batch(u, dt, P))
+
+    def simulate_window_batch(self, u, dt: float, param_sets, window: slice, input_range=None) -> np.ndarray:
+        P = self._check_param_sets(param_sets)
+        return self._linear_part(P, self.stretch_batch(u, dt, P, window))
+
+    def _check_nonlinear(self, nonlinear: Mapping[str, float]) -> np.ndarray:
         expected = set(self.nonlinear_names)
         if set(nonlinear) != expected:
             raise ModelError(f"{self.name}: regressors need exactly the nonlinear parameters {sorted(expected)}, "
                              f"got {sorted(nonlinear)}")
-        row = np.array([nonlinear[n] for n in self.nonlinear_names] + [1.0] * len(self.linear_names))
-        dlam = self.stretch_batch(u, dt, row[None, :])[0]
+        return np.array([float(nonlinear[n]) for n in self.nonlinear_names])
+
+    def _regressor_columns(self, dlam: np.ndarray) -> np.ndarray:
+        """(n_sets, rows) stretches -> (n_sets, rows, n_linear) in ``linear_names`` order."""
         cols = [dlam] + ([np.ones_like(dlam)] if self.offset else [])
-        return np.stack(cols, axis=1)
+        return np.stack(cols, axis=-1)
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
+        row = self._check_nonlinear(dict(nonlinear))
+        return self._regressor_columns(self.stretch_batch(u, dt, row[None, :]))[0]
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
+                            input_range=None) -> np.ndarray:
+        row = self._check_nonlinear(dict(nonlinear))
+        return self._regressor_columns(self.stretch_batch(u, dt, row[None, :], window))[0]
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window: slice,
+                                  input_range=None) -> np.ndarray:
+        N = np.asarray(nonlinear_sets, dtype=float)
+        N = N.reshape(1, -1) if N.ndim < 2 else N
+        if N.shape[1] != len(self.nonlinear_names):
+            raise ModelError(f"{self.name}: nonlinear parameter sets need {len(self.nonlinear_names)} columns "
+                             f"({', '.join(self.nonlinear_names)}), got shape {N.shape}")
+        return self._regressor_columns(self.stretch_batch(u, dt, N, window))

@@ -144,3 +144,21 @@ def test_identifies_its_own_simulated_data(model, truth):
     _, coef = residuals(sol.x[None])
     assert coef[0] == pytest.approx(truth["length"], rel=0.02)
     assert coef[1] == pytest.approx(0.2, abs=0.02)
+
+
+def test_windowed_forms_equal_the_full_simulation(model, truth):
+    u = vd.command_voltage(0.4, 7000)
+    rng = np.random.default_rng(5)
+    P = model.pack(truth) * np.exp(rng.uniform(-0.2, 0.2, (3, model.n_params)))
+    window = slice(4500, 6999)
+    full = model.simulate_batch(u, DT, P)
+    assert np.array_equal(model.simulate_window_batch(u, DT, P, window), full[:, window])
+    n_nl = len(model.nonlinear_names)
+    batch = model.windowed_regressors_batch(u, DT, P[:, :n_nl], window)
+    assert batch.shape == (3, window.stop - window.start, 2)
+    for i in range(3):
+        nonlinear = dict(zip(model.nonlinear_names, P[i, :n_nl]))
+        single = model.windowed_regressors(u, DT, nonlinear, window)
+        assert np.array_equal(batch[i], single)
+        assert np.array_equal(single, model.regressors(u, DT, nonlinear)[window])
+        np.testing.assert_allclose(single @ P[i, n_nl:], full[i, window], rtol=1e-12, atol=1e-12)
