@@ -17,7 +17,10 @@ region], with the input linearly interpolated between samples (first-order
 hold of the commanded voltage) and ``n_sub`` RK4 substeps per sample, chosen
 per parameter set from a Gershgorin bound of the Jacobian at the initial state
 so that the step stays well inside RK4's stability region (one substep for
-the virtual DEA at 1 ms). A parameter set for which a Gent denominator
+the virtual DEA at 1 ms). ``simulate_window_batch`` stores only a window and
+may cross the samples before it with longer RK4 steps (``warmup_stride``
+samples, bounded by stability: WARMUP_RATE_STEP_LIMIT); the data generator
+never does. A parameter set for which a Gent denominator
 reaches zero or the state stops being finite (lock-up, loss of stability) gets
 NaN from that sample on: identifiers must read NaN as "infeasible".
 """
@@ -38,6 +41,8 @@ N_FIXED = len(PHYS_NAMES)
 # The largest |Jacobian| * substep we allow (RK4 is stable up to about 2.8 on
 # the negative real axis; 0.25 keeps the local error tiny).
 RATE_STEP_LIMIT = 0.25
+# Before the stored window (warm-up) the step may be longer: stability, not accuracy, is what matters there.
+WARMUP_RATE_STEP_LIMIT = 1.0
 MAX_SUBSTEPS = 64
 
 
@@ -95,8 +100,11 @@ TRUTH = DEAParameters(mu=7870.0, J=100.0, eta_v=15900.0, mu_k=(178e3, 117e3, 349
 
 
 @njit(cache=True, fastmath=False)
-def _rhs(state, u_kv, p, n_br, out):
-    """Time derivative of the state; returns False if a Gent limit is reached."""
+def _rhs(state, u_kv, p, n_br, inv_6tau, out):
+    """Time derivative of the state; returns False if a Gent limit is reached.
+
+    ``inv_6tau[k]`` = 1 / (6 tau_k), precomputed by the caller.
+    """
     mu = p[0]
     inv_j = 1.0 / p[1]
     eta_v = p[2]
@@ -104,6 +112,8 @@ def _rhs(state, u_kv, p, n_br, out):
     lam_t = p[4]
     ratio = p[5] / p[6]  # L_active / L_passive
     lt2 = lam_t * lam_t
+    inv_lt = 1.0 / lam_t
+    inv_lt2 = inv_lt * inv_lt
     lam_a = state[0]
     lam_p = lam0 - ratio * (lam_a - lam0)
     if lam_a <= 0.0 or lam_p <= 0.0:
@@ -112,26 +122,31 @@ def _rhs(state, u_kv, p, n_br, out):
     s_p = 0.0
     for reg in range(2):
         lam = lam_a if reg == 0 else lam_p
+        inv_lam = 1.0 / lam
         l2 = lam * lam
+        il2 = inv_lam * inv_lam
         # Gent spring
-        den = 1.0 - (l2 + lt2 + 1.0 / (l2 * lt2) - 3.0) * inv_j
+        den = 1.0 - (l2 + lt2 + il2 * inv_lt2 - 3.0) * inv_j
         if den <= 0.0:
             return False
-        s = mu / den * (lam - 1.0 / (l2 * lam * lt2))
+        s = mu / den * (lam - il2 * inv_lam * inv_lt2)
         # Gent-Maxwell branches, Zhao-Koh-Suo flow rule
         for k in range(n_br):
             j = 1 + 2 * (reg * n_br + k)
             xi = state[j]
             xi_t = state[j + 1]
-            a1 = l2 / (xi * xi)
-            a2 = lt2 / (xi_t * xi_t)
-            a3 = 1.0 / (a1 * a2)
+            e1 = lam / xi  # elastic stretches of the branch spring
+            e2 = lam_t / xi_t
+            e3 = xi * xi_t * inv_lam * inv_lt
+            a1 = e1 * e1
+            a2 = e2 * e2
+            a3 = e3 * e3
             den_k = 1.0 - (a1 + a2 + a3 - 3.0) * inv_j
             if den_k <= 0.0:
                 return False
             g = 1.0 / den_k
-            s += p[N_FIXED + k] * g * (a1 - a3) / lam
-            rate = g / (6.0 * p[N_FIXED + n_br + k])
+            s += p[N_FIXED + k] * g * (a1 - a3) * inv_lam
+            rate = g * inv_6tau[k]
             out[j] = xi * rate * (2.0 * a1 - a2 - a3)
             out[j + 1] = xi_t * rate * (2.0 * a2 - a1 - a3)
         if reg == 0:
@@ -150,6 +165,14 @@ def _rhs(state, u_kv, p, n_br, out):
 
 
 @njit(cache=True)
+def _inv_6tau(p, n_br):
+    out = np.empty(n_br)
+    for k in range(n_br):
+        out[k] = 1.0 / (6.0 * p[N_FIXED + n_br + k])
+    return out
+
+
+@njit(cache=True)
 def _initial_state(p, n_br, state):
     state[0] = p[3]
     for reg in range(2):
@@ -160,21 +183,22 @@ def _initial_state(p, n_br, state):
 
 
 @njit(cache=True)
-def _substeps(u0, dt, p, n_br):
+def _substeps(u0, dt, p, n_br, limit=RATE_STEP_LIMIT):
     """RK4 substeps per sample from a Gershgorin bound of the Jacobian at the initial state."""
     n = 1 + 4 * n_br
     x = np.empty(n)
     f0 = np.empty(n)
     f1 = np.empty(n)
     _initial_state(p, n_br, x)
-    if not _rhs(x, u0, p, n_br, f0):
+    inv_6tau = _inv_6tau(p, n_br)
+    if not _rhs(x, u0, p, n_br, inv_6tau, f0):
         return 1
     row = np.zeros(n)
     for j in range(n):
         h = 1e-7 * abs(x[j]) + 1e-10
         xj = x[j]
         x[j] = xj + h
-        ok = _rhs(x, u0, p, n_br, f1)
+        ok = _rhs(x, u0, p, n_br, inv_6tau, f1)
         x[j] = xj
         if not ok:
             continue
@@ -183,15 +207,48 @@ def _substeps(u0, dt, p, n_br):
     bound = 0.0
     for i in range(n):
         bound = max(bound, row[i])
-    m = int(math.ceil(dt * bound / RATE_STEP_LIMIT))
+    m = int(math.ceil(dt * bound / limit))
     return min(max(m, 1), MAX_SUBSTEPS)
 
 
 @njit(cache=True)
-def _simulate_one(u_kv, dt, p, n_br, out, x, start):
+def _rk4_step(x, ua, um, ub, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
+    """One classical RK4 step of length h with the input ua, um, ub at its start, middle, end."""
+    n = x.shape[0]
+    ok = _rhs(x, ua, p, n_br, inv_6tau, k1)
+    for j in range(n):
+        tmp[j] = x[j] + 0.5 * h * k1[j]
+    ok = ok and _rhs(tmp, um, p, n_br, inv_6tau, k2)
+    for j in range(n):
+        tmp[j] = x[j] + 0.5 * h * k2[j]
+    ok = ok and _rhs(tmp, um, p, n_br, inv_6tau, k3)
+    for j in range(n):
+        tmp[j] = x[j] + h * k3[j]
+    ok = ok and _rhs(tmp, ub, p, n_br, inv_6tau, k4)
+    if not ok:
+        return False
+    for j in range(n):
+        x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    return math.isfinite(x[0])
+
+
+@njit(cache=True)
+def _input_at(u_kv, q):
+    """The input at fractional sample position q (linear between samples)."""
+    k = min(int(q), u_kv.shape[0] - 2)
+    return u_kv[k] + (q - k) * (u_kv[k + 1] - u_kv[k])
+
+
+@njit(cache=True)
+def _simulate_one(u_kv, dt, p, n_br, out, x, start, warmup_stride):
     """out[k - start] = lam_a(t_k) - lam0 for k in [start, start + len(out)), simulated from the
     state ``x`` at t_0 (which is advanced in place); NaN from a failure on. Stops at the last
-    sample stored."""
+    sample stored.
+
+    Before ``start`` (warm-up, not stored), RK4 steps may span ``warmup_stride`` samples (input
+    linear between samples); from ``start`` on, and everywhere when warmup_stride is 1, each
+    sample interval is integrated with its own RK4 (sub)steps.
+    """
     n = 1 + 4 * n_br
     k1 = np.empty(n)
     k2 = np.empty(n)
@@ -199,11 +256,29 @@ def _simulate_one(u_kv, dt, p, n_br, out, x, start):
     k4 = np.empty(n)
     tmp = np.empty(n)
     lam0 = p[3]
+    inv_6tau = _inv_6tau(p, n_br)
     last = start + out.shape[0] - 1
+    ok = True
+    i0 = 0
+    if warmup_stride > 1 and start >= warmup_stride:
+        ms = _substeps(u_kv[0], dt * warmup_stride, p, n_br, WARMUP_RATE_STEP_LIMIT)
+        hs = dt * warmup_stride / ms
+        while ok and i0 + warmup_stride <= start:
+            for s in range(ms):
+                qa = i0 + warmup_stride * s / ms
+                qm = i0 + warmup_stride * (s + 0.5) / ms
+                qb = i0 + warmup_stride * (s + 1.0) / ms
+                ok = _rk4_step(x, _input_at(u_kv, qa), _input_at(u_kv, qm), _input_at(u_kv, qb), hs, p, n_br,
+                               inv_6tau, k1, k2, k3, k4, tmp)
+                if not ok:
+                    break
+            i0 += warmup_stride
+        if not ok:
+            out[:] = np.nan
+            return
     m = _substeps(u_kv[0], dt, p, n_br)
     h = dt / m
-    ok = True
-    for i in range(last + 1):
+    for i in range(i0, last + 1):
         if i >= start:
             out[i - start] = x[0] - lam0
         if i == last:
@@ -212,24 +287,8 @@ def _simulate_one(u_kv, dt, p, n_br, out, x, start):
         du = (u_kv[i + 1] - ua) / m
         for s in range(m):
             u0 = ua + du * s
-            um = u0 + 0.5 * du
-            u1 = u0 + du
-            ok = _rhs(x, u0, p, n_br, k1)
-            for j in range(n):
-                tmp[j] = x[j] + 0.5 * h * k1[j]
-            ok = ok and _rhs(tmp, um, p, n_br, k2)
-            for j in range(n):
-                tmp[j] = x[j] + 0.5 * h * k2[j]
-            ok = ok and _rhs(tmp, um, p, n_br, k3)
-            for j in range(n):
-                tmp[j] = x[j] + h * k3[j]
-            ok = ok and _rhs(tmp, u1, p, n_br, k4)
+            ok = _rk4_step(x, u0, u0 + 0.5 * du, u0 + du, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
             if not ok:
-                break
-            for j in range(n):
-                x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-            if not math.isfinite(x[0]):
-                ok = False
                 break
         if not ok:
             for r in range(max(i + 1, start), last + 1):
@@ -238,15 +297,16 @@ def _simulate_one(u_kv, dt, p, n_br, out, x, start):
 
 
 @njit(cache=True, parallel=True)
-def simulate_window_batch(u_kv, dt, phys, n_br, start, stop):
+def simulate_window_batch(u_kv, dt, phys, n_br, start, stop, warmup_stride=1):
     """lam_a(t_k) - lam0 for k in [start, stop), each row of ``phys`` simulated from t_0:
-    shape (n_sets, stop - start). Only the window is stored."""
+    shape (n_sets, stop - start). Only the window is stored; ``warmup_stride`` > 1 takes
+    longer steps before it (see ``_simulate_one``)."""
     n_set = phys.shape[0]
     out = np.empty((n_set, stop - start))
     for s in prange(n_set):
         x = np.empty(1 + 4 * n_br)
         _initial_state(phys[s], n_br, x)
-        _simulate_one(u_kv, dt, phys[s], n_br, out[s], x, start)
+        _simulate_one(u_kv, dt, phys[s], n_br, out[s], x, start, warmup_stride)
     return out
 
 
@@ -261,7 +321,7 @@ def simulate_stretch(u_kv, dt, phys, n_br):
     out = np.empty(u_kv.shape[0])
     x = np.empty(1 + 4 * n_br)
     _initial_state(phys, n_br, x)
-    _simulate_one(u_kv, dt, phys, n_br, out, x, 0)
+    _simulate_one(u_kv, dt, phys, n_br, out, x, 0, 1)
     return out
 
 
@@ -269,7 +329,7 @@ def simulate_stretch(u_kv, dt, phys, n_br):
 def simulate_from(u_kv, dt, phys, n_br, state):
     """Like ``simulate_stretch`` but from a given state, which is advanced in place (analysis)."""
     out = np.empty(u_kv.shape[0])
-    _simulate_one(u_kv, dt, phys, n_br, out, state, 0)
+    _simulate_one(u_kv, dt, phys, n_br, out, state, 0, 1)
     return out
 
 
@@ -277,7 +337,7 @@ def simulate_from(u_kv, dt, phys, n_br, state):
 def state_derivative(state, u_kv, phys, n_br):
     """The right-hand side (for linearisation and tests); NaN where a Gent limit is reached."""
     out = np.zeros(state.shape[0])
-    if not _rhs(state, u_kv, phys, n_br, out):
+    if not _rhs(state, u_kv, phys, n_br, _inv_6tau(phys, n_br), out):
         out[:] = np.nan
     return out
 

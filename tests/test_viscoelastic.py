@@ -146,7 +146,8 @@ def test_identifies_its_own_simulated_data(model, truth):
     assert coef[1] == pytest.approx(0.2, abs=0.02)
 
 
-def test_windowed_forms_equal_the_full_simulation(model, truth):
+def test_windowed_forms_equal_the_full_simulation(truth):
+    model = get_model("viscoelastic", warmup_stride=1)  # exact: every sample interval integrated
     u = vd.command_voltage(0.4, 7000)
     rng = np.random.default_rng(5)
     P = model.pack(truth) * np.exp(rng.uniform(-0.2, 0.2, (3, model.n_params)))
@@ -162,3 +163,18 @@ def test_windowed_forms_equal_the_full_simulation(model, truth):
         assert np.array_equal(batch[i], single)
         assert np.array_equal(single, model.regressors(u, DT, nonlinear)[window])
         np.testing.assert_allclose(single @ P[i, n_nl:], full[i, window], rtol=1e-12, atol=1e-12)
+
+
+def test_long_warmup_steps_change_the_window_negligibly(model, truth):
+    """The identifiers' windowed forms (warm-up crossed in 5-sample steps) against the exact run,
+    on the longest record of the default dataset, and the exact form against the full simulation."""
+    assert model.warmup_stride == 5
+    u = vd.command_voltage(0.02, 500_000)
+    window = slice(450_000, 500_000)
+    P = model.pack(truth)[None, :]
+    fast = model.simulate_window_batch(u, DT, P, window)[0]
+    exact = get_model("viscoelastic", warmup_stride=1).simulate_window_batch(u, DT, P, window)[0]
+    full = model.simulate(u, DT, truth)[window]
+    assert np.array_equal(exact, full)
+    assert np.max(np.abs(fast - exact)) < 1e-5 * np.ptp(exact)
+    assert not np.array_equal(fast, exact)  # the long steps were taken
