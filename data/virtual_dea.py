@@ -115,9 +115,9 @@ def displacement_mm(u_kv, dt: float = SAMPLE_TIME_S, params: DEAParameters = TRU
 def command_voltage(frequency_hz: float, n_samples: int, dt: float = SAMPLE_TIME_S) -> np.ndarray:
     """Eq. 1, V = sin(2 pi f t - pi/2) + 1.5 kV, at t_k = k dt, exactly periodic.
 
-    One period is computed with the phase reduced to it (math.sin, the platform's
-    libm) and repeated, so the signal is bitwise periodic and the same on every
-    machine; it equals ``protocol.paper_voltage`` to rounding.
+    One period is computed with the phase reduced to it (``math.sin``, not NumPy's
+    vectorised sin, whose last bit may depend on the CPU) and repeated, so the
+    signal is bitwise periodic; it equals ``protocol.paper_voltage`` to rounding.
     """
     n_period = period_samples(frequency_hz, dt)
     if abs(n_period * frequency_hz * dt - 1.0) > 1e-9:
