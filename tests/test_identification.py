@@ -358,6 +358,16 @@ def test_fit_round_trips_through_json_and_simulates(paper_model, noisy, varpro_n
         Fit.from_dict({"format": "something else"})
 
 
+def test_the_linear_solve_around_a_fit_reproduces_it(noisy, varpro_noisy):
+    fit = varpro_noisy  # what the posterior builds on: the optimum and the solve given gamma, lambda
+    sep = SeparableProblem(Problem.for_fit(fit, noisy))
+    sol = sep.solve({"gamma": fit.params["gamma"], "lambda": fit.params["lambda"]})
+    np.testing.assert_allclose(sol.linear, [fit.params[n] for n in sep.linear_names], rtol=1e-10, atol=1e-12)
+    assert sol.fitness == pytest.approx(fit.fitness, rel=1e-9)
+    blocks = sep.record_designs({"gamma": fit.params["gamma"], "lambda": fit.params["lambda"]})
+    assert [b[0].shape for b in blocks] == [(r.n_scored, len(sep.linear_names)) for r in noisy.identification]
+
+
 def test_fit_on_a_subset_of_records(paper_model, noisy):
     held_out = "f0.2Hz.npz"
     files = [r.file for r in noisy.records if r.file != held_out]
