@@ -264,9 +264,14 @@ def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     else:
         lo, hi = sep.nl_lower, sep.nl_upper
         free = hi > lo  # a nonlinear parameter fixed by equal bounds is not searched
-        width = np.where(free, hi - lo, 1.0)
+        width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
         cands = [np.clip(x_start[sep.nl_idx], lo, hi)]
         if opts["n_candidates"] > 0:
+            if not np.all(np.isfinite(hi - lo)):
+                bad = [n for n, ok in zip(sep.nonlinear_names, np.isfinite(hi - lo)) if not ok]
+                raise IdentificationError(
+                    f"method 'varpro' on model {problem.model.name!r}: candidate starts need finite bounds for "
+                    f"{', '.join(bad)} (give bounds, or n_candidates=0)")
             halton = qmc.Halton(d, scramble=True, seed=np.random.default_rng(seed))
             cands.extend(lo + halton.random(int(opts["n_candidates"])) * (hi - lo))
         cands = np.array(cands)
