@@ -139,6 +139,9 @@ class SeparableProblem:
         w = self.problem.row_weights
         ys = self._ys
         n = len(self.linear_names)
+        if not all(np.all(np.isfinite(Phi)) for Phi in blocks):  # a model that blew up: worst possible fit
+            return LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
+                                  [])
 
         def times(x):  # residual blocks w_m (Phi_m x - y_m)
             return [wm * (Phi @ x - y) for wm, Phi, y in zip(w, blocks, ys)]
@@ -306,6 +309,8 @@ def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
         if not free.any():
             order = order[:0]
         for k in order[: max(1, int(opts["n_starts"]))]:
+            if not math.isfinite(sols[k].fitness):  # the model gave no finite output there
+                continue
             base = cands[k].copy()
             n0 = problem.n_evaluations
             res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
