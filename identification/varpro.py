@@ -139,9 +139,10 @@ class SeparableProblem:
         w = self.problem.row_weights
         ys = self._ys
         n = len(self.linear_names)
-        if not all(np.all(np.isfinite(Phi)) for Phi in blocks):  # a model that blew up: worst possible fit
-            return LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
+        blown_up = LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
                                   [])
+        if not all(np.all(np.isfinite(Phi)) for Phi in blocks):  # a model that blew up: worst possible fit
+            return blown_up
 
         def times(x):  # residual blocks w_m (Phi_m x - y_m)
             return [wm * (Phi @ x - y) for wm, Phi, y in zip(w, blocks, ys)]
@@ -151,7 +152,10 @@ class SeparableProblem:
 
         if accurate:
             A = np.concatenate([wm * Phi for wm, Phi in zip(w, blocks)])
-            D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            with np.errstate(over="ignore"):
+                D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            if not np.all(np.isfinite(D)):
+                return blown_up
             D[~(D > 0)] = 1.0
             Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
             U, s, Vt = np.linalg.svd(Rb[:n, :n])  # A_s = Q U S V^T
@@ -159,12 +163,16 @@ class SeparableProblem:
             ev = s * s
             rhs = s * (U.T @ Rb[:n, n])  # V^T A_s^T b, with Rb[:n, n] = Q^T b
         else:
-            G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+            with np.errstate(over="ignore", invalid="ignore"):
+                G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+                Atb = self._Atb(blocks)
+            if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
+                return blown_up
             D = np.sqrt(np.diag(G)).copy()
             D[~(D > 0)] = 1.0
             ev, V = np.linalg.eigh(G / np.outer(D, D))
             ev, V = ev[::-1], V[:, ::-1]
-            rhs = V.T @ (self._Atb(blocks) / D)
+            rhs = V.T @ (Atb / D)
         ev = np.maximum(ev, 0.0)
         ev_max = float(ev[0]) if ev.size else 0.0
         ev_min = float(ev[-1]) if ev.size else 0.0
