@@ -106,7 +106,8 @@ def render(results, dataset: Dataset, source: str, seed: int, load: str) -> str:
         lines += [f"Per record, best method ({best.method}), in the layout of the paper's Tables 3 and 4:", "",
                   "| record | frequency (Hz) | role | e_m (%) | e_rms (%) |", "|---|---:|---|---:|---:|"]
         for s in best.records:
-            lines.append(f"| {s.file} | {s.frequency_hz:g} | {s.role} | {_f(s.e_m)} | {_f(s.e_rms)} |")
+            freq = "-" if s.frequency_hz is None else f"{s.frequency_hz:g}"
+            lines.append(f"| {s.file} | {freq} | {s.role} | {_f(s.e_m)} | {_f(s.e_rms)} |")
         lines.append("")
         notes = sorted({n for f in fits for n in f.notes})
         if notes:

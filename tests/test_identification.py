@@ -161,6 +161,7 @@ def test_windowed_simulation_is_the_window_of_the_full_output(seed, start, lengt
     window = slice(start, start + length)
     full = model.simulate_batch(u, 1e-3, P)[:, window]
     np.testing.assert_allclose(model.simulate_window_batch(u, 1e-3, P, window), full, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(model.simulate_window_batch(u, 1e-3, P[:1], window), full[:1], rtol=1e-12, atol=1e-9)
 
 
 # --- the linear solve against slow references -----------------------------
