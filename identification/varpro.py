@@ -49,7 +49,7 @@ OPTIONS = {
     "n_candidates": 16,  # Halton points evaluated before the local searches
     "max_nfev": 40,  # residual evaluations per local search
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
-    "tol": 1e-8,  # ftol = xtol = gtol of least_squares
+    "tol": 1e-6,  # ftol = xtol = gtol of least_squares
     "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
 }
 
