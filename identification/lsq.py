@@ -20,6 +20,7 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import least_squares
 
+from .errors import IdentificationError
 from .problem import Problem
 
 OPTIONS = {
@@ -39,9 +40,12 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
 def _run(problem: Problem, seed, start, x0, opts) -> dict:
     rng = np.random.default_rng(seed)
     lo, hi = problem.lower, problem.upper
-    width = np.where(hi > lo, hi - lo, 1.0)
     free = hi > lo  # a parameter fixed by equal bounds is not varied
+    width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
     step = opts["fd_step"] * width
+    if opts["n_starts"] > 1 and not np.all(np.isfinite(hi - lo)):
+        raise IdentificationError(f"method 'lsq' on model {problem.model.name!r}: random starts (n_starts > 1) "
+                                  "need finite bounds for every parameter")
     base = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
     starts = [base] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
     cache: dict = {}

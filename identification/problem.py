@@ -101,6 +101,13 @@ class Problem:
             finally:
                 self.record_pool = None
 
+    @classmethod
+    def for_fit(cls, fit, dataset) -> "Problem":
+        """The problem a Fit solved: its model, fitted records and bounds (e.g.
+        to get varpro's linear solve around a fit's optimum)."""
+        records = [dataset.record(f) for f in fit.fitted_on]
+        return cls.build(fit.model_instance(), records, fit.bounds)
+
     # --- sizes and names -------------------------------------------------
     @property
     def names(self) -> tuple[str, ...]:
@@ -131,10 +138,12 @@ class Problem:
         n_set = P.shape[0]
         out = np.empty((n_set, self.n_rows))
         starts = np.cumsum([0] + [r.n_scored for r in self.records])
+        # the base class's window is a slice of the full output: size its batches by the record
+        windowed = type(self.model).simulate_window_batch is not HysteresisModel.simulate_window_batch
 
         def one(m):
             r, w, col = self.records[m], self.row_weights[m], starts[m]
-            chunk = max(1, MAX_BATCH_ELEMENTS // r.n_scored)
+            chunk = max(1, MAX_BATCH_ELEMENTS // (r.n_scored if windowed else r.u.size))
             ya = r.y[r.scored]
             for a in range(0, n_set, chunk):
                 Y = self.model.simulate_window_batch(r.u, r.dt, P[a:a + chunk], r.scored, input_range=self.input_range)

@@ -49,7 +49,7 @@ OPTIONS = {
     "n_candidates": 16,  # Halton points evaluated before the local searches
     "max_nfev": 40,  # residual evaluations per local search
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
-    "tol": 1e-8,  # ftol = xtol = gtol of least_squares
+    "tol": 1e-6,  # ftol = xtol = gtol of least_squares
     "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
 }
 
@@ -139,6 +139,10 @@ class SeparableProblem:
         w = self.problem.row_weights
         ys = self._ys
         n = len(self.linear_names)
+        blown_up = LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
+                                  [])
+        if not all(np.all(np.isfinite(Phi)) for Phi in blocks):  # a model that blew up: worst possible fit
+            return blown_up
 
         def times(x):  # residual blocks w_m (Phi_m x - y_m)
             return [wm * (Phi @ x - y) for wm, Phi, y in zip(w, blocks, ys)]
@@ -148,7 +152,10 @@ class SeparableProblem:
 
         if accurate:
             A = np.concatenate([wm * Phi for wm, Phi in zip(w, blocks)])
-            D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            with np.errstate(over="ignore"):
+                D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            if not np.all(np.isfinite(D)):
+                return blown_up
             D[~(D > 0)] = 1.0
             Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
             U, s, Vt = np.linalg.svd(Rb[:n, :n])  # A_s = Q U S V^T
@@ -156,12 +163,16 @@ class SeparableProblem:
             ev = s * s
             rhs = s * (U.T @ Rb[:n, n])  # V^T A_s^T b, with Rb[:n, n] = Q^T b
         else:
-            G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+            with np.errstate(over="ignore", invalid="ignore"):
+                G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+                Atb = self._Atb(blocks)
+            if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
+                return blown_up
             D = np.sqrt(np.diag(G)).copy()
             D[~(D > 0)] = 1.0
             ev, V = np.linalg.eigh(G / np.outer(D, D))
             ev, V = ev[::-1], V[:, ::-1]
-            rhs = V.T @ (self._Atb(blocks) / D)
+            rhs = V.T @ (Atb / D)
         ev = np.maximum(ev, 0.0)
         ev_max = float(ev[0]) if ev.size else 0.0
         ev_min = float(ev[-1]) if ev.size else 0.0
@@ -264,9 +275,14 @@ def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     else:
         lo, hi = sep.nl_lower, sep.nl_upper
         free = hi > lo  # a nonlinear parameter fixed by equal bounds is not searched
-        width = np.where(free, hi - lo, 1.0)
+        width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
         cands = [np.clip(x_start[sep.nl_idx], lo, hi)]
         if opts["n_candidates"] > 0:
+            if not np.all(np.isfinite(hi - lo)):
+                bad = [n for n, ok in zip(sep.nonlinear_names, np.isfinite(hi - lo)) if not ok]
+                raise IdentificationError(
+                    f"method 'varpro' on model {problem.model.name!r}: candidate starts need finite bounds for "
+                    f"{', '.join(bad)} (give bounds, or n_candidates=0)")
             halton = qmc.Halton(d, scramble=True, seed=np.random.default_rng(seed))
             cands.extend(lo + halton.random(int(opts["n_candidates"])) * (hi - lo))
         cands = np.array(cands)
@@ -301,6 +317,8 @@ def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
         if not free.any():
             order = order[:0]
         for k in order[: max(1, int(opts["n_starts"]))]:
+            if not math.isfinite(sols[k].fitness):  # the model gave no finite output there
+                continue
             base = cands[k].copy()
             n0 = problem.n_evaluations
             res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",

@@ -10,9 +10,11 @@ from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
 from .registry import get_model, list_models, register
+from .viscoelastic import Viscoelastic
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
+register(Viscoelastic.name, Viscoelastic)
 # baselines (issue 5)
 register(Elliptical.name, Elliptical)
 register(DualPolynomial.name, DualPolynomial)
@@ -34,6 +36,7 @@ __all__ = [
     "Parameter",
     "Preisach",
     "RateDependentPI",
+    "Viscoelastic",
     "get_model",
     "list_models",
     "register",
