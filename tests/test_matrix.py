@@ -189,11 +189,11 @@ def test_measured_data_matrix(shared_datasets, tmp_path):
     pzt = pzt_dataset(shared_datasets, tmp_path / "pzt")
     out = tmp_path / "out"
     proc = run(["--dataset", str(piezo), "--dataset", str(pzt), "--out", str(out), "--jobs", "2",
-                "--models", "mrpim,classical-pi", "--methods", "varpro"])
+                "--models", "mrpim,classical-pi,preisach", "--methods", "varpro"])
     assert proc.returncode == 0, proc.stderr
     rows = read_matrix(out)
     assert {r["dataset"] for r in rows} == {"piezo-sindy-1hz", "pzt-ceramic"}
-    assert {r["model"] for r in rows} == {"mrpim", "classical-pi"}
+    assert {r["model"] for r in rows} == {"mrpim", "classical-pi", "preisach"}
     errors = np.array([float(r["e_rms"]) for r in rows])
     assert np.all(np.isfinite(errors))
     # a fitted hysteresis model must beat predicting each window's mean by far
