@@ -19,6 +19,7 @@ COMMANDS = {
     "check": ("hysbench.data.check_cli", "check a dataset folder and summarise its records"),
     "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "ablate": ("hysbench.benchmarks.ablation_cli", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
 }
 
 
