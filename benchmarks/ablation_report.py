@@ -76,10 +76,10 @@ def render_markdown(result: dict, figure: str | None = "ablation.png") -> str:
         f"the reference **{ref['name']}** (order {ref['order']}, q {_onoff(ref['q_term'])}, envelopes "
         f"{_onoff(ref['envelopes'])}, N = {ref['n_operators']}: the paper's choice), plus the full grid "
         f"order x q x envelopes at N = {ref['n_operators']}; {t['n_variants']} distinct variants, each fitted "
-        "once. Every fit is `identify(model, dataset, method=\"varpro\")`: full fits with "
-        f"{s['full_fit']}, cross-validation fits start at the full fit's (gamma, lambda) with {s['cv_fit']}; "
-        f"seed {s['seed']}. Variants without envelopes have no nonlinear parameter and are one exact linear "
-        "solve.",
+        "once. Every fit with envelopes is `identify(model, dataset, method=\"varpro\")` with "
+        f"{s['full_fit']} and seed {s['seed']} (cross-validation fits: {s['cv_fit']}, from the same default start, "
+        "blind to the left-out record); variants without envelopes have no nonlinear parameter and are one "
+        "exact linear solve (varpro's, on regressors shared between the variants).",
         "",
         "- **e_m, e_rms**: eq. 10 per record (percent of the measured peak-to-peak in the scored window). "
         "*ident.* and *valid.* e_rms: mean over the identification / validation records of the full fit; "
