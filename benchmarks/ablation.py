@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 import os
+import resource
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -269,12 +270,13 @@ def fit_once(model, dataset: Dataset, fit_on: list[str], bounds: dict, seed: int
     """Identify ``model`` on the records ``fit_on``; scores of every record.
 
     With envelopes: ``identify(method="varpro")``. Without, the model has no
-    nonlinear parameter and the fit is one linear solve, done here with the
-    identifiers' ``SeparableProblem`` on regressors shared between variants
-    (``columns``), because ``identify(method="varpro")`` fails on models without
-    nonlinear parameters (reported to the identifiers). That solve is varpro's
-    search solve (``accurate=False``: eigen-decomposition of the column-scaled
-    normal equations, one refinement step, the same ridge above condition 1e6).
+    nonlinear parameter and varpro is one linear solve: done here with the
+    identifiers' ``SeparableProblem`` on regressors shared between the variants
+    (``columns``) and varpro's search solve (``accurate=False``: the
+    column-scaled normal equations by eigen-decomposition, one refinement step,
+    the same ridge above condition 1e6) instead of ``identify``'s final QR, which
+    costs more than the whole rest of such a fit. tests/test_ablation.py checks
+    that both give the same fit.
     """
     t0 = time.perf_counter()
     fitted = set(fit_on)
@@ -391,6 +393,12 @@ def evaluate_task(variants: list[Variant], dataset: Dataset, full: Dataset | Non
             for v in variants]
 
 
+def _cpu_seconds() -> float:
+    """User + system CPU time of this process and its finished worker processes."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def plan_tasks(variants: Sequence[Variant]) -> list[list[Variant]]:
     """Tasks, costly first (envelopes mean a nonlinear search; cost grows with N), for load balance."""
     tasks = [[v] for v in sorted((v for v in variants if v.envelopes),
@@ -424,7 +432,7 @@ def run_ablation(dataset: Dataset, *, reference: Variant = PAPER, orders: Sequen
                  seed: int = 0, jobs: int = 1, trim: bool = True, full_options: dict | None = None,
                  cv_options: dict | None = None, progress=None) -> dict:
     """Fit, score and cross-validate every planned variant; returns the JSON-ready result."""
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), _cpu_seconds()
     if not dataset.identification:
         raise AblationError(f"dataset {dataset.name!r} has no identification records")
     groups = frequency_groups(dataset)
@@ -494,6 +502,8 @@ def run_ablation(dataset: Dataset, *, reference: Variant = PAPER, orders: Sequen
                          "rescore_gap_e_rms": max((r["rescore_gap"] for r in rows), default=0.0)},
         "variants": rows,
         "timing": {"total_seconds": time.perf_counter() - t_start, "fit_wall_seconds": fit_wall,
+                   "cpu_seconds": _cpu_seconds() - cpu_start, "load_average": list(os.getloadavg()),
+                   "cores": os.cpu_count(),
                    "n_variants": len(rows), "n_fits": sum(1 + len(r.get("cv_folds", [])) for r in rows),
                    "fit_seconds_sum": sum(r["fit_seconds"] + r.get("cv_seconds", 0.0) for r in rows)},
     }

@@ -136,8 +136,10 @@ def render_markdown(result: dict, figure: str | None = "ablation.png") -> str:
     h = result["history_trim"]
     trimmed = [i for i in h["records"] if i["trimmed"]]
     lines += ["", "## Run", "",
-              f"{t['n_variants']} variants, {t['n_fits']} varpro fits, {t['total_seconds']:.1f} s wall "
-              f"({s['jobs']} job{'s' if s['jobs'] != 1 else ''}; sum of fit times {t['fit_seconds_sum']:.1f} s)."]
+              f"{t['n_variants']} variants, {t['n_fits']} varpro fits: {t['total_seconds']:.1f} s wall with "
+              f"{s['jobs']} job{'s' if s['jobs'] != 1 else ''} on {t['cores']} cores, {t['cpu_seconds']:.1f} s of CPU "
+              f"(this process and its workers); load average {t['load_average'][0]:.1f} at the end (other work "
+              f"on the machine slows the wall time)."]
     if trimmed:
         lines += ["", "Records fitted from a later period (the play operators' state is periodic after one period "
                       "of a periodic input): " +

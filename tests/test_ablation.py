@@ -266,3 +266,21 @@ def test_cli_bad_input_is_one_line_and_exit_2(argv, message, dataset_dir, tmp_pa
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and "Traceback" not in err
     assert not (tmp_path / "o" / "ablation.json").exists()
+
+
+def test_linear_shortcut_is_identifys_fit(q_zero):
+    """Variants without envelopes skip identify(); they must get its result."""
+    from hysbench.benchmarks.ablation import FullBounds, fit_once
+    from hysbench.identification import identify
+
+    ds, _ = q_zero
+    for v in (Variant(4, True, False, 13), Variant(0, False, False, 5)):
+        model = v.model()
+        fit_on = [r.file for r in ds.records if r.frequency_hz != 0.2]
+        bounds = FullBounds(ds)(model, fit_on)
+        ours = fit_once(model, ds, fit_on, bounds, 0, None, {}, SharedColumns(v.n_operators, 6))
+        ref = identify(model, ds, method="varpro", fit_on=fit_on)
+        assert ours["fitness"] == pytest.approx(ref.fitness, rel=1e-7)
+        for a, b in zip(ours["scores"], ref.records):
+            assert (a.file, a.role) == (b.file, b.role)
+            assert a.e_rms == pytest.approx(b.e_rms, rel=1e-6, abs=1e-9)
