@@ -640,9 +640,16 @@ def conclusions(result: dict) -> list[str]:
         best, enough = _smallest_adequate(fam, factor)
         val = ref[factor]
         cmp_ref = compare(enough, ref) if enough is not ref else None
-        s = (f"The {label}: {factor_name(factor)} = {enough[factor]} is enough (cross-validated e_rms {fmt(enough)}; "
-             f"the best, {factor_name(factor)} = {best[factor]}, has {fmt(best)}; larger values do not lower it by a "
-             f"difference that counts)")
+        name = factor_name(factor)
+        if enough is best:
+            s = (f"The {label}: {name} = {enough[factor]} is enough: it has the lowest cross-validated e_rms "
+                 f"({fmt(enough)}) of {name} = {', '.join(str(r[factor]) for r in sorted(fam, key=lambda r: r[factor]))}")
+        else:
+            c = compare(best, enough)
+            s = (f"The {label}: {name} = {enough[factor]} is enough: its cross-validated e_rms {fmt(enough)} is within "
+                 f"the margin ({c['margin']:.3f} points; mean paired difference {c['mean']:+.3f}) of the best, "
+                 f"{name} = {best[factor]} with {fmt(best)}"
+                 + (", and smaller values are worse by more" if any(r[factor] < enough[factor] for r in fam) else ""))
         if enough[factor] == val:
             s += f"; the reference's {val} is exactly that."
         elif enough[factor] < val:
@@ -662,11 +669,13 @@ def conclusions(result: dict) -> list[str]:
     bound_hits = [r for r in rows if r.get("at_bounds")]
     if bound_hits:
         names = sorted({n for r in bound_hits for n in r["at_bounds"]})
-        out.append(f"In {len(bound_hits)} of {len(rows)} variants the fitted {' and '.join(names)} "
-                   f"{'sit' if len(names) > 1 else 'sits'} at a bound of "
-                   f"the default search box (e.g. {bound_hits[0]['name']}: "
-                   + ", ".join(f"{n} in [{lo:.3g}, {hi:.3g}]" for n, (lo, hi) in bound_hits[0]["at_bounds"].items())
-                   + "): the envelopes' verdict holds for envelopes within those bounds.")
+        first = next((r for r in bound_hits if r["reference"]), bound_hits[0])
+        out.append(f"In {len(bound_hits)} of {len(rows)} variants{' (the reference among them)' if any(r is ref for r in bound_hits) else ''}"
+                   f" the fitted {' and/or '.join(names)} {'sit' if len(names) > 1 else 'sits'} at a bound of "
+                   f"the default search box (e.g. {first['name']}: "
+                   + ", ".join(f"{n} in [{lo:.3g}, {hi:.3g}]" for n, (lo, hi) in first["at_bounds"].items())
+                   + "): those variants' errors are for envelopes within these bounds and might be lower with "
+                     "wider ones.")
     by_bic = min(rows, key=lambda r: r["bic"])
     by_bice = min(rows, key=lambda r: r["bic_effective"])
     best_cv = min((r for r in rows if r.get("cv_folds")), key=lambda r: r["cv_e_rms"])
