@@ -8,13 +8,16 @@ reference (the paper's choice: order 4, q on, envelopes on, N = 13), plus the
 full grid order x q x envelopes at the reference N. Identical variants are
 fitted once.
 
-Every variant is identified by variable projection (``identify(..., "varpro")``)
-on the dataset's identification records and scored on every record; then
-leave-one-frequency-out cross-validation fits it on all records but those of
+Every variant is identified by variable projection (``identify(..., "varpro")``;
+variants without envelopes, which have no nonlinear parameter, by varpro's
+linear solve on shared regressors, see ``fit_once``) on the dataset's
+identification records and scored on every record; then leave-one-frequency-out
+cross-validation fits it, by the same procedure, on all records but those of
 one frequency (``fit_on``) and predicts that frequency, for every frequency.
 
 Definitions (also written into the JSON's ``definitions``):
 
+* n_params: the model's parameters, output offset included (every variant has it).
 * e_m, e_rms: eq. 10 per record, percent of the measured peak-to-peak over the
   scored window; ``*_e_rms`` is the mean over the records of that role,
   ``*_e_m`` the largest.
@@ -59,7 +62,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from hysbench.data.dataset import Dataset, Record
-from hysbench.identification import IdentificationError, Problem, SeparableProblem, data_scale, identify
+from hysbench.identification import Problem, SeparableProblem, data_scale, identify
 from hysbench.models import get_model
 from hysbench.models.errors import HysbenchError
 
@@ -642,8 +645,9 @@ def conclusions(result: dict) -> list[str]:
         cmp_ref = compare(enough, ref) if enough is not ref else None
         name = factor_name(factor)
         if enough is best:
+            levels = ", ".join(str(r[factor]) for r in sorted(fam, key=lambda r: r[factor]))
             s = (f"The {label}: {name} = {enough[factor]} is enough: it has the lowest cross-validated e_rms "
-                 f"({fmt(enough)}) of {name} = {', '.join(str(r[factor]) for r in sorted(fam, key=lambda r: r[factor]))}")
+                 f"({fmt(enough)}) of {name} = {levels}")
         else:
             c = compare(best, enough)
             s = (f"The {label}: {name} = {enough[factor]} is enough: its cross-validated e_rms {fmt(enough)} is within "
@@ -670,8 +674,8 @@ def conclusions(result: dict) -> list[str]:
     if bound_hits:
         names = sorted({n for r in bound_hits for n in r["at_bounds"]})
         first = next((r for r in bound_hits if r["reference"]), bound_hits[0])
-        out.append(f"In {len(bound_hits)} of {len(rows)} variants{' (the reference among them)' if any(r is ref for r in bound_hits) else ''}"
-                   f" the fitted {' and/or '.join(names)} {'sit' if len(names) > 1 else 'sits'} at a bound of "
+        among = " (the reference among them)" if any(r is ref for r in bound_hits) else ""
+        out.append(f"In {len(bound_hits)} of {len(rows)} variants{among} the fitted {' and/or '.join(names)} {'sit' if len(names) > 1 else 'sits'} at a bound of "
                    f"the default search box (e.g. {first['name']}: "
                    + ", ".join(f"{n} in [{lo:.3g}, {hi:.3g}]" for n, (lo, hi) in first["at_bounds"].items())
                    + "): those variants' errors are for envelopes within these bounds and might be lower with "
