@@ -5,9 +5,11 @@ from .classical_pi import ClassicalPI
 from .errors import HysbenchError, ModelError
 from .mrpim import MRPIM, PAPER_TABLE2
 from .registry import get_model, list_models, register
+from .viscoelastic import Viscoelastic
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
+register(Viscoelastic.name, Viscoelastic)
 
 __all__ = [
     "ClassicalPI",
@@ -18,6 +20,7 @@ __all__ = [
     "ModelError",
     "PAPER_TABLE2",
     "Parameter",
+    "Viscoelastic",
     "get_model",
     "list_models",
     "register",

@@ -197,7 +197,7 @@ class PlayOperatorModel(HysteresisModel):
     def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
         start, stop, step = window.indices(u.size)
         if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+            raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
         return start, stop
 
     def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int) -> dict[str, np.ndarray]:

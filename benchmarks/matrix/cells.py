@@ -102,6 +102,7 @@ def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, me
         if m not in known_methods:
             raise HysbenchError(f"unknown method {m!r}; known methods: {', '.join(known_methods)}")
     method_options = method_options or {}
+    _check_options(models, methods, method_options)
     cells = []
     for path, ds in datasets:
         digest = ds.content_hash()
@@ -112,6 +113,20 @@ def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, me
                 opts = tuple(sorted(method_options.get(method, {}).items()))
                 cells.append(Cell(str(path), ds.name, digest, model, method, seed, opts))
     return cells
+
+
+def _check_options(models, methods, method_options) -> None:
+    """Refuse unknown or bad identifier options before anything runs."""
+    from hysbench.identification.api import resolve_method, split_options
+
+    for method, opts in method_options.items():
+        if method not in (methods or DEFAULT_METHODS):
+            raise HysbenchError(f"--option names method {method!r}, which is not being run")
+        for model in models:
+            if method in applicable_methods(model):
+                stages = resolve_method(method, get_model(model))
+                split_options(stages, method, opts)
+                break
 
 
 _DATASET_CACHE: dict[str, Dataset] = {}

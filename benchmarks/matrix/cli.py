@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of every identifier (default 0)")
     parser.add_argument("--dask", metavar="ADDRESS", help="run the cells on this Dask scheduler instead")
     parser.add_argument("--option", action="append", default=[], metavar="METHOD.KEY=VALUE",
-                        help="an identifier option, e.g. mpso.max_evaluations=2000 (repeatable)")
+                        help="an identifier option, e.g. mpso.iterations=50 (repeatable)")
     parser.add_argument("--force", action="store_true", help="recompute cells that are already finished")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
@@ -50,7 +50,7 @@ def _names(text: str | None, what: str) -> list[str] | None:
 
 
 def parse_options(items: list[str]) -> dict[str, dict]:
-    """['mpso.max_evaluations=2000'] -> {'mpso': {'max_evaluations': 2000}}."""
+    """['mpso.iterations=50'] -> {'mpso': {'iterations': 50}}."""
     out: dict[str, dict] = {}
     for item in items:
         head, sep, raw = item.partition("=")
@@ -74,10 +74,6 @@ def main(args) -> int:
     models = _names(args.models, "models")
     methods = _names(args.methods, "methods")
     options = parse_options(args.option)
-    if methods:
-        unknown = sorted(set(options) - set(methods))
-        if unknown:
-            raise HysbenchError(f"--option names method(s) not being run: {', '.join(unknown)}")
     paths = [Path(p) for p in (args.dataset or [default_dataset()])]
     datasets = [(p, load_dataset(p)) for p in paths]
     names = [ds.name for _, ds in datasets]
