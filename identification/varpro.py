@@ -257,10 +257,6 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
     sep = SeparableProblem(problem, opts["max_condition"])
-    return _run(problem, sep, seed, start, opts)
-
-
-def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
