@@ -690,19 +690,5 @@ def conclusions(result: dict) -> list[str]:
     return out
 
 
-def simulated_table2_dataset(noise_sd: float = 0.01, seed: int = 20180704, dt: float = 1e-3) -> Dataset:
-    """Stand-in default dataset: the paper's Table 2 MRPIM on the seven-frequency
-    protocol (two periods, the second scored) plus white noise of ``noise_sd`` mm."""
-    from .protocol import simulated_dataset
-
-    model = get_model("mrpim")
-    ds = simulated_dataset(model, model.preset("paper"), n_periods=2, dt=dt, noise_sd=noise_sd, seed=seed,
-                           name="table2-mrpim-simulated")
-    ds.description = (f"Simulated stand-in (until data/virtual_dea lands): the paper's Table 2 MRPIM (eq. 8, "
-                      f"offset 0) driven by eq. 1 at the seven frequencies, {dt * 1e3:g} ms, two periods, the second "
-                      f"scored; white output noise sd {noise_sd:g} mm, seed {seed}.")
-    return ds
-
-
 def factor_name(factor: str) -> str:
     return {"order": "order", "n_operators": "N", "q_term": "q", "envelopes": "envelopes"}[factor]

@@ -15,7 +15,8 @@ from .output import ensure_dir
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", metavar="DATASET", help="dataset folder (holding dataset.toml)")
+    parser.add_argument("dataset", metavar="DATASET", nargs="?", default=None,
+                        help="dataset folder holding dataset.toml (default: the virtual DEA, data/virtual_dea)")
     parser.add_argument("--out", default="results", help="folder for ablation.md, ablation.json, ablation.png "
                                                           "(default: results/)")
     parser.add_argument("--json", metavar="FILE", help="also write the JSON here")
@@ -29,6 +30,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--full-records", action="store_true",
                         help="fit the records whole (no trimming of periodic history before the windows)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def default_dataset() -> Path:
+    import hysbench.data
+
+    return Path(hysbench.data.__file__).resolve().parent / "virtual_dea"
 
 
 def _integers(text: str, what: str, minimum: int) -> list[int]:
@@ -51,7 +58,7 @@ def main(args: argparse.Namespace) -> int:
     if max(orders) > 12:
         raise AblationError(f"--orders: the model allows orders up to 12, got {max(orders)}")
     n_ops = _integers(args.operators, "operators", 1)
-    dataset = load_dataset(args.dataset)
+    dataset = load_dataset(args.dataset or default_dataset())
     out = ensure_dir(args.out)
     if args.json:
         ensure_dir(Path(args.json).resolve().parent)

@@ -1,35 +1,24 @@
-"""Speed of ``hysbench ablate`` on the default dataset.
+"""Speed of ``hysbench ablate`` on the default dataset (the virtual DEA).
 
 Target: the whole command (load, 33 variants x (1 full + 7 leave-one-frequency-out)
 varpro fits, outputs) <= 120 s wall with its default ``--jobs`` (all cores) on
 the 2-core reference machine.
 
-Default dataset: ``data/virtual_dea`` when it is in the package, else the
-simulated Table 2 stand-in (``ablation.simulated_table2_dataset``). The load
-average before and after and the CPU time (this process and its workers) are
-recorded: on a shared machine the wall time says little without them (CPU time
-/ cores is what the wall time would be on free cores).
+The load average before and after and the CPU time (this process and its
+workers) are recorded: on a shared machine the wall time says little without
+them (CPU time / cores is what the wall time would be on free cores).
 """
 
 import os
 import resource
 import time
-from pathlib import Path
 
-import hysbench.data
-from hysbench.benchmarks.ablation import run_ablation, simulated_table2_dataset
+from hysbench.benchmarks.ablation import run_ablation
+from hysbench.benchmarks.ablation_cli import default_dataset
 from hysbench.benchmarks.cli import main as cli_main
-from hysbench.data.dataset import load_dataset, save_dataset
+from hysbench.data.dataset import load_dataset
 
 TARGET_S = 120.0
-
-
-def default_dataset_folder(tmp: Path) -> Path:
-    folder = Path(hysbench.data.__file__).resolve().parent / "virtual_dea"
-    if (folder / "dataset.toml").is_file():
-        return folder
-    save_dataset(simulated_table2_dataset(), tmp / "table2")
-    return tmp / "table2"
 
 
 def cpu_seconds() -> float:
@@ -38,13 +27,13 @@ def cpu_seconds() -> float:
 
 
 def test_ablate_default_dataset(benchmark, tmp_path):
-    folder = default_dataset_folder(tmp_path)
+    folder = default_dataset()
     # warm the numba cache and imports (not timed): one small variant
     run_ablation(load_dataset(folder), orders=(4,), factors=("order",), grid=False, jobs=1)
     load_before = os.getloadavg()
     cpu0 = cpu_seconds()
     t0 = time.perf_counter()
-    code = benchmark.pedantic(cli_main, args=(["ablate", str(folder), "--out", str(tmp_path / "out"), "--quiet"],),
+    code = benchmark.pedantic(cli_main, args=(["ablate", "--out", str(tmp_path / "out"), "--quiet"],),
                               rounds=1, iterations=1)
     wall = time.perf_counter() - t0
     cpu = cpu_seconds() - cpu0
