@@ -33,11 +33,7 @@ OPTIONS = {
 
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x0: np.ndarray | None = None,
         **options) -> dict:
-    with problem.parallel_records():
-        return _run(problem, seed, start, x0, {**OPTIONS, **options})
-
-
-def _run(problem: Problem, seed, start, x0, opts) -> dict:
+    opts = {**OPTIONS, **options}
     rng = np.random.default_rng(seed)
     lo, hi = problem.lower, problem.upper
     free = hi > lo  # a parameter fixed by equal bounds is not varied

@@ -16,12 +16,9 @@ Identifiers use the model only through its interface: ``simulate_window_batch``,
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
-import numba
 import numpy as np
 
 from hysbench.benchmarks.protocol import input_range as records_input_range
@@ -62,7 +59,6 @@ class Problem:
     n_evaluations: int = 0
     history: list[tuple[int, float]] = field(default_factory=list)
     best_fitness: float = math.inf
-    record_pool: ThreadPoolExecutor | None = None  # see ``parallel_records``
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
@@ -84,22 +80,6 @@ class Problem:
             i = names.index(name)
             lower[i], upper[i] = lo, hi
         return cls(model, records, scale, lower, upper, records_input_range(records))
-
-    @contextmanager
-    def parallel_records(self, enabled: bool = True):
-        """Within this block, single-set evaluations run their records in
-        threads, if the model declares ``concurrent_calls_safe`` (nogil
-        kernels) and numba has more than one thread."""
-        n = min(numba.get_num_threads(), len(self.records))
-        if not (enabled and n > 1 and getattr(self.model, "concurrent_calls_safe", False)):
-            yield
-            return
-        with ThreadPoolExecutor(n) as pool:
-            self.record_pool = pool
-            try:
-                yield
-            finally:
-                self.record_pool = None
 
     @classmethod
     def for_fit(cls, fit, dataset) -> "Problem":
@@ -149,12 +129,8 @@ class Problem:
                 Y = self.model.simulate_window_batch(r.u, r.dt, P[a:a + chunk], r.scored, input_range=self.input_range)
                 out[a:a + chunk, col:col + r.n_scored] = w * (Y - ya)
 
-        pool = self.record_pool if n_set == 1 else None
-        if pool is not None:
-            list(pool.map(one, range(len(self.records))))
-        else:
-            for m in range(len(self.records)):
-                one(m)
+        for m in range(len(self.records)):
+            one(m)
         out[~np.isfinite(out)] = np.inf
         self.n_evaluations += n_set
         return out

@@ -106,11 +106,7 @@ class SeparableProblem:
         sets = self._as_sets(nonlinear_sets)
         p = self.problem
 
-        def one(r):
-            return self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range)
-
-        pool = p.record_pool if sets.shape[0] == 1 else None
-        out = list(pool.map(one, p.records)) if pool is not None else [one(r) for r in p.records]
+        out = [self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range) for r in p.records]
         p.n_evaluations += sets.shape[0]
         return out
 
@@ -261,11 +257,6 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
     sep = SeparableProblem(problem, opts["max_condition"])
-    with problem.parallel_records():
-        return _run(problem, sep, seed, start, opts)
-
-
-def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
