@@ -18,6 +18,8 @@ from hysbench.models.errors import HysbenchError
 COMMANDS = {
     "check": ("hysbench.data.check_cli", "check a dataset folder and summarise its records"),
     "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
+    "posterior": ("hysbench.identification.posterior_cli",
+                  "posterior of a model's parameters with emcee (AR(1) noise; writes results/posterior.md)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
 }
 
