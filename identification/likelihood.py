@@ -25,8 +25,9 @@ a Gaussian prior theta_L ~ N(m0, S^-1) the posterior of theta_L given
 
 with Phi* = T Phi, y* = T y. Everything it needs is the Gram matrix of the
 prewhitened augmented design [Phi*, y*], which ``whitened_gram`` accumulates
-record by record. ``S = 0`` (a flat prior) is allowed; the result is then
-defined up to a constant and needs Phi* of full column rank.
+record by record. ``S = 0`` (a flat prior, density 1) is allowed: the result
+is then the integral of the likelihood over theta_L, where 1/2 log|S| is
+replaced by p/2 log(2 pi), and needs Phi* of full column rank.
 """
 
 from __future__ import annotations
@@ -69,83 +70,99 @@ def ar1_loglik(residual_segments, sigma: float, phi: float) -> float:
 _CHUNK = 256  # time samples per block (the block stays in the L1/L2 cache)
 
 
-@njit(cache=True, parallel=True, fastmath=True)
-def _whitened_gram(X, y, phis, out):
-    """out[b] += Z Z' with Z = T_phi[b] [X[b]; y] (one AR(1) segment), X (B, m, n), out (B, m+1, m+1).
+@njit(cache=True, fastmath=True, nogil=True)
+def _gram_one(X, y, phi, out):
+    """out += Z Z' with Z = T_phi [X; y] (one AR(1) segment); X (m, n), out (m+1, m+1).
 
     Z is formed block by block (``_CHUNK`` samples) and multiplied in 4 x 4
     register tiles; the first sample is scaled by sqrt(1 - phi^2).
     """
-    n_set, m, n = X.shape
+    m, n = X.shape
     mp = ((m + 1 + 3) // 4) * 4
-    for b in prange(n_set):
-        phi = phis[b]
-        head = np.sqrt(1.0 - phi * phi)
-        buf = np.zeros((mp, _CHUNK))
-        G = np.zeros((mp, mp))
-        for t0 in range(0, n, _CHUNK):
-            t1 = min(n, t0 + _CHUNK)
-            width = t1 - t0
-            for i in range(m + 1):
+    head = np.sqrt(1.0 - phi * phi)
+    buf = np.zeros((mp, _CHUNK))
+    G = np.zeros((mp, mp))
+    for t0 in range(0, n, _CHUNK):
+        t1 = min(n, t0 + _CHUNK)
+        width = t1 - t0
+        first = 0
+        if t0 == 0:
+            for i in range(m):
+                buf[i, 0] = head * X[i, 0]
+            buf[m, 0] = head * y[0]
+            first = 1
+        for i in range(m):
+            for t in range(first, width):
+                buf[i, t] = X[i, t0 + t] - phi * X[i, t0 + t - 1]
+        for t in range(first, width):
+            buf[m, t] = y[t0 + t] - phi * y[t0 + t - 1]
+        for I in range(0, mp, 4):
+            for J in range(I, mp, 4):
+                a00 = a01 = a02 = a03 = a10 = a11 = a12 = a13 = 0.0
+                a20 = a21 = a22 = a23 = a30 = a31 = a32 = a33 = 0.0
                 for t in range(width):
-                    k = t0 + t
-                    cur = X[b, i, k] if i < m else y[k]
-                    if k == 0:
-                        buf[i, t] = head * cur
-                    else:
-                        prev = X[b, i, k - 1] if i < m else y[k - 1]
-                        buf[i, t] = cur - phi * prev
-            for I in range(0, mp, 4):
-                for J in range(I, mp, 4):
-                    a00 = a01 = a02 = a03 = a10 = a11 = a12 = a13 = 0.0
-                    a20 = a21 = a22 = a23 = a30 = a31 = a32 = a33 = 0.0
-                    for t in range(width):
-                        x0 = buf[I, t]
-                        x1 = buf[I + 1, t]
-                        x2 = buf[I + 2, t]
-                        x3 = buf[I + 3, t]
-                        z0 = buf[J, t]
-                        z1 = buf[J + 1, t]
-                        z2 = buf[J + 2, t]
-                        z3 = buf[J + 3, t]
-                        a00 += x0 * z0
-                        a01 += x0 * z1
-                        a02 += x0 * z2
-                        a03 += x0 * z3
-                        a10 += x1 * z0
-                        a11 += x1 * z1
-                        a12 += x1 * z2
-                        a13 += x1 * z3
-                        a20 += x2 * z0
-                        a21 += x2 * z1
-                        a22 += x2 * z2
-                        a23 += x2 * z3
-                        a30 += x3 * z0
-                        a31 += x3 * z1
-                        a32 += x3 * z2
-                        a33 += x3 * z3
-                    G[I, J] += a00
-                    G[I, J + 1] += a01
-                    G[I, J + 2] += a02
-                    G[I, J + 3] += a03
-                    G[I + 1, J] += a10
-                    G[I + 1, J + 1] += a11
-                    G[I + 1, J + 2] += a12
-                    G[I + 1, J + 3] += a13
-                    G[I + 2, J] += a20
-                    G[I + 2, J + 1] += a21
-                    G[I + 2, J + 2] += a22
-                    G[I + 2, J + 3] += a23
-                    G[I + 3, J] += a30
-                    G[I + 3, J + 1] += a31
-                    G[I + 3, J + 2] += a32
-                    G[I + 3, J + 3] += a33
-        for i in range(m + 1):
-            for j in range(i, m + 1):
-                v = G[i, j]  # i <= j: an upper tile, or a diagonal tile (computed whole)
-                out[b, i, j] += v
-                if j != i:
-                    out[b, j, i] += v
+                    x0 = buf[I, t]
+                    x1 = buf[I + 1, t]
+                    x2 = buf[I + 2, t]
+                    x3 = buf[I + 3, t]
+                    z0 = buf[J, t]
+                    z1 = buf[J + 1, t]
+                    z2 = buf[J + 2, t]
+                    z3 = buf[J + 3, t]
+                    a00 += x0 * z0
+                    a01 += x0 * z1
+                    a02 += x0 * z2
+                    a03 += x0 * z3
+                    a10 += x1 * z0
+                    a11 += x1 * z1
+                    a12 += x1 * z2
+                    a13 += x1 * z3
+                    a20 += x2 * z0
+                    a21 += x2 * z1
+                    a22 += x2 * z2
+                    a23 += x2 * z3
+                    a30 += x3 * z0
+                    a31 += x3 * z1
+                    a32 += x3 * z2
+                    a33 += x3 * z3
+                G[I, J] += a00
+                G[I, J + 1] += a01
+                G[I, J + 2] += a02
+                G[I, J + 3] += a03
+                G[I + 1, J] += a10
+                G[I + 1, J + 1] += a11
+                G[I + 1, J + 2] += a12
+                G[I + 1, J + 3] += a13
+                G[I + 2, J] += a20
+                G[I + 2, J + 1] += a21
+                G[I + 2, J + 2] += a22
+                G[I + 2, J + 3] += a23
+                G[I + 3, J] += a30
+                G[I + 3, J + 1] += a31
+                G[I + 3, J + 2] += a32
+                G[I + 3, J + 3] += a33
+    for i in range(m + 1):
+        for j in range(i, m + 1):
+            v = G[i, j]  # i <= j: an upper tile, or a diagonal tile (computed whole)
+            out[i, j] += v
+            if j != i:
+                out[j, i] += v
+
+
+@njit(cache=True, parallel=True)
+def _whitened_gram_parallel(X, y, phis, out):
+    for b in prange(X.shape[0]):
+        _gram_one(X[b], y, phis[b], out[b])
+
+
+@njit(cache=True)
+def _whitened_gram_serial(X, y, phis, out):
+    for b in range(X.shape[0]):
+        _gram_one(X[b], y, phis[b], out[b])
+
+
+# below this many multiply-adds a call runs on one thread: waking the thread pool costs more
+PARALLEL_MIN_WORK = 4_000_000
 
 
 def whitened_gram(X: np.ndarray, y: np.ndarray, phis: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -164,7 +181,10 @@ def whitened_gram(X: np.ndarray, y: np.ndarray, phis: np.ndarray, out: np.ndarra
         raise IdentificationError(f"whitened_gram: shapes X {X.shape}, y {y.shape}, phis {phis.shape} do not match")
     if out is None:
         out = np.zeros((n_set, m + 1, m + 1))
-    _whitened_gram(X, y, phis, out)
+    if n_set > 1 and n_set * n * (m + 1) * (m + 2) // 2 >= PARALLEL_MIN_WORK:
+        _whitened_gram_parallel(X, y, phis, out)
+    else:
+        _whitened_gram_serial(X, y, phis, out)
     return out
 
 
@@ -181,17 +201,92 @@ class LinearMarginal:
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         """One draw of theta_L per set from N(mean, P^-1); NaN where not ok."""
-        n_set, p = self.mean.shape
-        xi = rng.standard_normal((n_set, p))
-        out = np.full((n_set, p), np.nan)
-        for b in np.flatnonzero(self.ok):  # theta = mu + D^-1 L^-T xi
-            out[b] = self.mean[b] + np.linalg.solve(self.chol[b].T, xi[b]) / self.scale[b]
+        xi = rng.standard_normal(self.mean.shape)
+        out = np.empty_like(self.mean)
+        _draw_kernel(self.mean, self.chol, self.scale, xi, out)  # theta = mu + D^-1 L^-T xi
+        out[~self.ok] = np.nan
         return out
 
     def covariance(self, b: int) -> np.ndarray:
         """P^-1 of set b."""
         Linv = np.linalg.inv(self.chol[b])
         return (Linv.T @ Linv) / np.outer(self.scale[b], self.scale[b])
+
+
+@njit(cache=True)
+def _marginal_kernel(G, s2, S, m0, n_rows, log_jac, logdet_S, loglik, mean, L, D, ok):
+    """Per set b: P = Gxx/s2 + diag(S), Cholesky of D^-1 P D^-1, log marginal, posterior mean."""
+    n_set = G.shape[0]
+    p = G.shape[1] - 1
+    m0Sm0 = 0.0
+    for i in range(p):
+        m0Sm0 += m0[i] * S[i] * m0[i]
+    w = np.empty(p)
+    for b in range(n_set):
+        good = True
+        for i in range(p):
+            d = G[b, i, i] / s2[b] + S[i]
+            if not (d > 0.0 and d < np.inf):
+                good = False
+                d = 1.0
+            D[b, i] = np.sqrt(d)
+        # L L' = D^-1 P D^-1 (Cholesky-Banachiewicz)
+        logdet = 0.0
+        for i in range(p):
+            for j in range(i + 1):
+                v = G[b, i, j] / s2[b] / (D[b, i] * D[b, j])
+                if i == j:
+                    v += S[i] / (D[b, i] * D[b, i])
+                for k in range(j):
+                    v -= L[b, i, k] * L[b, j, k]
+                if i == j:
+                    if not (v > 0.0):
+                        good = False
+                        v = 1.0
+                    L[b, i, i] = np.sqrt(v)
+                    logdet += 2.0 * np.log(L[b, i, i]) + 2.0 * np.log(D[b, i])
+                else:
+                    L[b, i, j] = v / L[b, j, j]
+            for j in range(i + 1, p):
+                L[b, i, j] = 0.0
+        ok[b] = good
+        if not good:
+            loglik[b] = -np.inf
+            for i in range(p):
+                mean[b, i] = np.nan
+            continue
+        # L w = D^-1 b,  b = Gxy/s2 + S m0
+        ww = 0.0
+        for i in range(p):
+            v = (G[b, i, p] / s2[b] + S[i] * m0[i]) / D[b, i]
+            for k in range(i):
+                v -= L[b, i, k] * w[k]
+            w[i] = v / L[b, i, i]
+            ww += w[i] * w[i]
+        # L' v = w, mean = v / D
+        for i in range(p - 1, -1, -1):
+            v = w[i]
+            for k in range(i + 1, p):
+                v -= L[b, k, i] * mean[b, k] * D[b, k]
+            mean[b, i] = v / L[b, i, i] / D[b, i]
+        quad = G[b, p, p] / s2[b] + m0Sm0 - ww
+        loglik[b] = (log_jac[b] - 0.5 * n_rows * np.log(2.0 * np.pi * s2[b]) + 0.5 * logdet_S - 0.5 * logdet
+                     - 0.5 * quad)
+
+
+@njit(cache=True)
+def _draw_kernel(mean, L, D, xi, out):
+    """out[b] = mean[b] + D^-1 L^-T xi[b]."""
+    n_set, p = mean.shape
+    z = np.empty(p)
+    for b in range(n_set):
+        for i in range(p - 1, -1, -1):
+            v = xi[b, i]
+            for k in range(i + 1, p):
+                v -= L[b, k, i] * z[k]
+            z[i] = v / L[b, i, i]
+        for i in range(p):
+            out[b, i] = mean[b, i] + z[i] / D[b, i]
 
 
 def marginalise_linear(G: np.ndarray, sigma: np.ndarray, n_rows: int, log_jacobian: np.ndarray,
@@ -201,40 +296,27 @@ def marginalise_linear(G: np.ndarray, sigma: np.ndarray, n_rows: int, log_jacobi
     G: (B, p+1, p+1) Gram matrices of the prewhitened [Phi*, y*]; sigma: (B,);
     n_rows: N; log_jacobian: (B,) log|T| (sum of 1/2 log(1 - phi^2) over
     records); prior_mean: (p,); prior_precision: (p,) diagonal of S, or None
-    for a flat prior (then the constant 1/2 log|S| is dropped).
+    for a flat prior of density 1. The precision is factored after scaling
+    its diagonal to one (D^-1 P D^-1 = L L'); a set whose P is not positive
+    definite gets loglik -inf and ok False.
     """
-    G = np.asarray(G, dtype=float)
+    G = np.ascontiguousarray(G, dtype=float)
     n_set, p1, _ = G.shape
     p = p1 - 1
-    s2 = np.asarray(sigma, dtype=float).reshape(n_set) ** 2
-    Gxx, Gxy, Gyy = G[:, :p, :p], G[:, :p, p], G[:, p, p]
+    s2 = np.ascontiguousarray(np.asarray(sigma, dtype=float).reshape(n_set) ** 2)
     flat = prior_precision is None
-    S = np.zeros(p) if flat else np.asarray(prior_precision, dtype=float)
-    m0 = np.asarray(prior_mean, dtype=float)
-    P = Gxx / s2[:, None, None]
-    P[:, np.arange(p), np.arange(p)] += S
-    b = Gxy / s2[:, None] + S * m0
-    diag = np.einsum("bii->bi", P)
-    ok = np.all(diag > 0, axis=1) & np.all(np.isfinite(P), axis=(1, 2))
-    D = np.sqrt(np.where(diag > 0, diag, 1.0))
-    Ps = P / (D[:, :, None] * D[:, None, :])
-    L = np.zeros_like(Ps)
-    I = np.eye(p)
-    try:
-        L[ok] = np.linalg.cholesky(Ps[ok])
-    except np.linalg.LinAlgError:  # some set is not positive definite: factor one by one
-        for k in np.flatnonzero(ok):
-            try:
-                L[k] = np.linalg.cholesky(Ps[k])
-            except np.linalg.LinAlgError:
-                ok[k] = False
-    L[~ok] = I
-    w = np.linalg.solve(L, (b / D)[:, :, None])[:, :, 0]  # L w = D^-1 b
-    mean = np.linalg.solve(np.transpose(L, (0, 2, 1)), w[:, :, None])[:, :, 0] / D
-    logdet_P = 2.0 * np.sum(np.log(np.einsum("bii->bi", L)), axis=1) + 2.0 * np.sum(np.log(D), axis=1)
-    quad = Gyy / s2 + float(m0 @ (S * m0)) - np.einsum("bi,bi->b", w, w)
-    logdet_S = 0.0 if flat else float(np.sum(np.log(S)))
-    loglik = (np.asarray(log_jacobian, dtype=float) - 0.5 * n_rows * np.log(2.0 * np.pi * s2)
-              + 0.5 * logdet_S - 0.5 * logdet_P - 0.5 * quad)
-    loglik = np.where(ok & np.isfinite(loglik), loglik, -np.inf)
+    S = np.zeros(p) if flat else np.ascontiguousarray(prior_precision, dtype=float)
+    m0 = np.ascontiguousarray(prior_mean, dtype=float)
+    logdet_S = p * math.log(2.0 * math.pi) if flat else float(np.sum(np.log(S)))
+    loglik = np.empty(n_set)
+    mean = np.empty((n_set, p))
+    L = np.zeros((n_set, p, p))
+    D = np.empty((n_set, p))
+    ok = np.empty(n_set, dtype=np.bool_)
+    log_jac = np.ascontiguousarray(np.broadcast_to(np.asarray(log_jacobian, dtype=float), (n_set,)))
+    _marginal_kernel(G, s2, S, m0, float(n_rows), log_jac, logdet_S, loglik, mean, L, D, ok)
+    loglik[~np.isfinite(loglik)] = -np.inf
+    for b in np.flatnonzero(~ok):
+        L[b] = np.eye(p)
+        D[b] = 1.0
     return LinearMarginal(loglik=loglik, mean=mean, chol=L, scale=D, ok=ok)

@@ -73,6 +73,27 @@ BURN_TAUS = 5  # automatic burn-in: this many autocorrelation times
 MIN_ACCEPTANCE = 0.05  # a walker accepting less is called stuck
 SIGMA_PRIOR_RANGE = (1e-9, 10.0)  # times max |y|
 CHAIN_FORMAT = "hysbench-posterior-chain/1"
+REGRESSOR_CHUNK_BYTES = 40e6  # regressor matrices built at once (see LogPosterior.grams)
+SERIAL_SAMPLES = 200_000  # below this many simulated samples (x parameter sets) per record, one thread
+
+
+class _numba_threads:
+    """Run numba's parallel kernels on ``n`` threads inside the block (None: leave as is)."""
+
+    def __init__(self, n: int | None):
+        self.n = n
+
+    def __enter__(self):
+        import numba
+
+        self.old = numba.get_num_threads()
+        if self.n is not None:
+            numba.set_num_threads(min(self.n, self.old))
+
+    def __exit__(self, *exc):
+        import numba
+
+        numba.set_num_threads(self.old)
 
 
 # --- data: record windows, with periodic records shortened ---------------------
@@ -194,7 +215,7 @@ class LogPosterior:
 
     def __init__(self, model: HysteresisModel, records: Sequence[Record], noise: str = "ar1",
                  bounds: Mapping | None = None, shorten: bool = True, seed: int | None = 0,
-                 start_nonlinear: np.ndarray | None = None, max_batch: int = 4):
+                 start_nonlinear: np.ndarray | None = None):
         if noise not in NOISE_MODELS:
             raise IdentificationError(f"unknown noise model {noise!r}; choose one of {', '.join(NOISE_MODELS)}")
         if not model.has_linear_part:
@@ -240,7 +261,6 @@ class LogPosterior:
         self.segments = build_segments(model, records, self.input_range, np.array(checks).reshape(-1, n_nl),
                                        shorten)
         self.n_rows = sum(s.n for s in self.segments)
-        self.max_batch = max(1, int(max_batch))
         self.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7]))
         self.n_evaluations = 0
 
@@ -280,15 +300,25 @@ class LogPosterior:
 
     # --- evaluation ---------------------------------------------------------------
     def grams(self, nl: np.ndarray, phi: np.ndarray) -> np.ndarray:
-        """Prewhitened Gram matrices of [Phi*, y*] summed over records, (n, p+1, p+1)."""
+        """Prewhitened Gram matrices of [Phi*, y*] summed over records, (n, p+1, p+1).
+
+        Regressors are built for about ``REGRESSOR_CHUNK_BYTES`` worth of
+        parameter sets at a time, so that a chunk is still in cache when its
+        Gram matrices are formed. A short record is built for all sets at once
+        on one thread: waking the thread pool would cost more than it saves.
+        """
         p = len(self.linear_names)
-        G = np.zeros((nl.shape[0], p + 1, p + 1))
-        for a in range(0, nl.shape[0], self.max_batch):
-            sl = slice(a, a + self.max_batch)
-            for s in self.segments:
-                Phi = self.model.windowed_regressors_batch(s.u, s.dt, nl[sl], s.window, self.input_range)
-                whitened_gram(np.transpose(Phi, (0, 2, 1)), s.y, phi[sl], G[sl])
-        self.n_evaluations += nl.shape[0]
+        n_set = nl.shape[0]
+        G = np.zeros((n_set, p + 1, p + 1))
+        for s in self.segments:
+            small = s.u.size * n_set < SERIAL_SAMPLES
+            chunk = n_set if small else max(2, int(REGRESSOR_CHUNK_BYTES // (8 * s.n * p)))
+            with _numba_threads(1 if small else None):
+                for a in range(0, n_set, chunk):
+                    sl = slice(a, a + chunk)
+                    Phi = self.model.windowed_regressors_batch(s.u, s.dt, nl[sl], s.window, self.input_range)
+                    whitened_gram(np.transpose(Phi, (0, 2, 1)), s.y, phi[sl], G[sl])
+        self.n_evaluations += n_set
         return G
 
     def marginal(self, X: np.ndarray) -> tuple[np.ndarray, LinearMarginal | None, np.ndarray]:
