@@ -157,9 +157,35 @@ class HysteresisModel:
         """Outputs for many parameter sets, shape (n_sets, n_samples)."""
         raise NotImplementedError
 
+    def simulate_window_batch(self, u, dt: float, param_sets: np.ndarray, window: slice,
+                              input_range=None) -> np.ndarray:
+        """Samples ``window`` of ``simulate_batch`` (the model still runs from the first
+        sample), shape (n_sets, n_window). Identifiers score only a record's window;
+        models with long records override this to store only those samples."""
+        return np.ascontiguousarray(self.simulate_batch(u, dt, param_sets, input_range=input_range)[:, window])
+
     def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
         """Phi with y = Phi @ [linear parameters in ``linear_names`` order]."""
         raise ModelError(f"model {self.name!r} has no linear part to solve exactly")
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
+                            input_range=None) -> np.ndarray:
+        """Rows ``window`` of ``regressors`` (the model still runs from the first sample).
+
+        Identifiers fit only a record's scored window; models with long
+        records override this to avoid building the full matrix.
+        """
+        return np.ascontiguousarray(self.regressors(u, dt, nonlinear, input_range=input_range)[window])
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window: slice,
+                                  input_range=None) -> np.ndarray:
+        """``windowed_regressors`` for many nonlinear parameter sets (columns in
+        ``nonlinear_names`` order); shape (n_sets, n_rows, n_linear)."""
+        names = self.nonlinear_names
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        sets = sets.reshape(1, -1) if sets.ndim < 2 else sets
+        return np.stack([self.windowed_regressors(u, dt, dict(zip(names, (float(v) for v in row))), window,
+                                                  input_range=input_range) for row in sets])
 
     # --- helpers for subclasses -----------------------------------------
     def _check_input(self, u, dt: float) -> np.ndarray:

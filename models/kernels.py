@@ -14,8 +14,15 @@ the machine code instead of recompiling it.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit, prange
+import os
+
+# numba's OpenMP layer spins in its barriers by default; on a shared, busy
+# machine that costs milliseconds per parallel region. Passive waiting costs
+# microseconds. Only effective before the first parallel kernel runs.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import numpy as np  # noqa: E402
+from numba import njit, prange  # noqa: E402
 
 
 @njit(cache=True, fastmath=True)
@@ -104,3 +111,104 @@ def pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, thresholds, weig
             out[b],
         )
     return out
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out):
+    """Play operators run from sample 0; rows [start, start + n) go to out (N, n), transposed."""
+    n_op = thresholds.shape[0]
+    stop = start + out.shape[1]
+    w = np.empty(n_op)
+    for i in range(n_op):
+        w[i] = w0
+    u1 = u[0]
+    inv_dt = 1.0 / dt
+    for k in range(stop):
+        uk = u[k]
+        if backward:
+            a_du = abs(uk - u1) * inv_dt
+            u1 = uk
+        else:
+            a_du = abs_du[k]
+        hl = uk - gamma * a_du
+        hr = uk + lam * a_du
+        for i in range(n_op):
+            v = min(hr, w[i])
+            lo = hl - thresholds[i]
+            v = v if v > lo else lo
+            w[i] = v
+        if k >= start:
+            for i in range(n_op):
+                out[i, k - start] = w[i]
+
+
+@njit(cache=True, nogil=True)
+def play_operators_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out):
+    """Rows [start, start + n) of the play-operator outputs, written transposed into out (N, n).
+
+    The operators run from the first sample (their state needs the whole
+    history) but only the requested rows are stored, which keeps the memory
+    traffic of long records with a short scored window small; the transposed
+    layout gives each regressor column contiguous memory. Envelopes as in
+    ``_pi_output``: h_l = u - gamma |u'|, h_r = u + lam |u'| with |u'| the
+    backward difference when ``backward``, else read from ``abs_du``.
+    """
+    _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out)
+
+
+@njit(cache=True, parallel=True)
+def play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, thresholds, w0, start, out):
+    """``play_operators_window`` for many (gamma, lam) pairs in parallel; out (B, N, n)."""
+    for b in prange(gammas.shape[0]):
+        _play_window(u, dt, backward, abs_du, gammas[b], lams[b], thresholds, w0, start, out[b])
+
+
+@njit(cache=True, parallel=True)
+def pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, thresholds, weights, polys, qs, offsets, w0,
+                           start, stop):
+    """Samples [start, stop) of ``pi_output_batch`` (the model still runs from sample 0); (B, stop - start)."""
+    n_set = gammas.shape[0]
+    out = np.empty((n_set, stop - start))
+    for b in prange(n_set):
+        _pi_output_window(u, dt, backward, abs_du, ddu, gammas[b], lams[b], thresholds, weights[b], polys[b], qs[b],
+                          offsets[b], w0, start, out[b])
+    return out
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, start, out):
+    """``_pi_output`` storing only samples [start, start + out.size)."""
+    n_op = thresholds.shape[0]
+    n_poly = poly.shape[0]
+    stop = start + out.shape[0]
+    w = np.empty(n_op)
+    for i in range(n_op):
+        w[i] = w0
+    u1 = u[0]
+    u2 = u[0]
+    inv_dt = 1.0 / dt
+    inv_dt2 = inv_dt * inv_dt
+    for k in range(stop):
+        uk = u[k]
+        if backward:
+            a_du = abs(uk - u1) * inv_dt
+            d2 = (uk - 2.0 * u1 + u2) * inv_dt2
+            u2 = u1
+            u1 = uk
+        else:
+            a_du = abs_du[k]
+            d2 = ddu[k]
+        hl = uk - gamma * a_du
+        hr = uk + lam * a_du
+        acc = 0.0
+        for i in range(n_op):
+            v = min(hr, w[i])
+            lo = hl - thresholds[i]
+            v = v if v > lo else lo
+            w[i] = v
+            acc += weights[i] * v
+        if k >= start:
+            p = 0.0
+            for j in range(n_poly - 1, -1, -1):
+                p = (p + poly[j]) * uk
+            out[k - start] = acc + p + q * d2 + offset

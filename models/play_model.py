@@ -21,10 +21,17 @@ import numpy as np
 from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
-from .kernels import pi_output, pi_output_batch, play_operators
+from .kernels import (
+    pi_output,
+    pi_output_batch,
+    pi_output_window_batch,
+    play_operators,
+    play_operators_window,
+    play_operators_window_batch,
+)
 
 # Default bounds, in units of the data scale (see DataScale).
-POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
+POLY_BOUND = 20.0  # |p_j| <= POLY_BOUND * y / u**j (5 would exclude Table 2: p2 = 5.58 vs 5.16)
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
 Q_BOUND = 1.0  # |q| <= Q_BOUND * y * time**2 / u
 ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
@@ -113,7 +120,7 @@ class PlayOperatorModel(HysteresisModel):
         }
 
     # --- evaluation ------------------------------------------------------
-    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+    def _batch_arguments(self, u, dt: float, param_sets, input_range):
         u = self._check_input(u, dt)
         P = self._check_param_sets(param_sets)
         n_set = P.shape[0]
@@ -132,11 +139,23 @@ class PlayOperatorModel(HysteresisModel):
         offsets = P[:, names.index("offset")].copy() if self.offset else zeros
         weights = np.ascontiguousarray(P[:, idx["weights"]])
         polys = np.ascontiguousarray(P[:, idx["poly"]])
-        if n_set == 1:
+        return u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets = self._batch_arguments(
+            u, dt, param_sets, input_range)
+        if gammas.shape[0] == 1:
             y = pi_output(u, dt, backward, abs_du, ddu, gammas[0], lams[0], r, weights[0], polys[0], qs[0],
                           offsets[0], 0.0)
             return y[None, :]
         return pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets, 0.0)
+
+    def simulate_window_batch(self, u, dt: float, param_sets, window: slice, input_range=None) -> np.ndarray:
+        u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets = self._batch_arguments(
+            u, dt, param_sets, input_range)
+        start, stop = self._window_bounds(u, window)
+        return pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets,
+                                      0.0, start, stop)
 
     def play_outputs(self, u, dt: float, gamma: float = 0.0, lam: float = 0.0, input_range=None) -> np.ndarray:
         """Outputs of the N (rate-dependent) play operators, shape (T, N)."""
@@ -167,3 +186,68 @@ class PlayOperatorModel(HysteresisModel):
         if self.offset:
             cols["offset"] = np.ones_like(u)
         return np.stack([cols[n] for n in self.linear_names], axis=1)
+
+    # --- windowed regressors (what identifiers fit) -----------------------
+    def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        return start, stop
+
+    def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int) -> dict[str, np.ndarray]:
+        """Columns that do not depend on gamma, lambda, on rows [start, stop)."""
+        uw = u[start:stop]
+        cols = {f"p{j}": uw**j for j in range(1, self.poly_order + 1)}
+        if self.q_term:
+            if self.derivative == "backward":  # needs only two samples before the window
+                s0 = max(0, start - 2)
+                _, ddu = derivatives(u[s0:stop], dt, "backward")
+                cols["q"] = ddu[start - s0:]
+            else:
+                cols["q"] = self._signals(u, dt)[1][start:stop]
+        if self.offset:
+            cols["offset"] = np.ones(stop - start)
+        return cols
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        sets = sets.reshape(1, -1) if sets.ndim < 2 else sets
+        if sets.shape[1] != len(self.nonlinear_names):
+            raise ModelError(
+                f"{self.name}: regressors need the nonlinear parameters {list(self.nonlinear_names)}, "
+                f"got sets of shape {sets.shape}"
+            )
+        start, stop = self._window_bounds(u, window)
+        n_set = sets.shape[0]
+        if self.envelopes:
+            gammas = np.ascontiguousarray(sets[:, self.nonlinear_names.index("gamma")])
+            lams = np.ascontiguousarray(sets[:, self.nonlinear_names.index("lambda")])
+        else:
+            gammas = lams = np.zeros(n_set)
+        backward = self.derivative == "backward"
+        abs_du = u[:0] if backward else self._signals(u, dt)[0]
+        r = self.thresholds(u, input_range)
+        names = self.linear_names
+        out = np.empty((n_set, len(names), stop - start))  # columns contiguous
+        first = names.index("a1")  # a1..aN are consecutive
+        ops = out[:, first:first + self.n_operators, :]
+        if n_set == 1:
+            play_operators_window(u, dt, backward, abs_du, gammas[0], lams[0], r, 0.0, start, ops[0])
+        else:
+            play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, r, 0.0, start, ops)
+        for name, col in self._static_columns(u, dt, start, stop).items():
+            out[:, names.index(name), :] = col
+        return out.transpose(0, 2, 1)
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window: slice,
+                            input_range=None) -> np.ndarray:
+        nonlinear = dict(nonlinear or {})
+        if set(nonlinear) != set(self.nonlinear_names):
+            raise ModelError(
+                f"{self.name}: regressors need exactly the nonlinear parameters "
+                f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}"
+            )
+        sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
+        return self.windowed_regressors_batch(u, dt, sets, window, input_range)[0]

@@ -1,0 +1,189 @@
+"""``Fit``: the one result type of every identifier (lmfit style).
+
+A Fit names the model (registry name and hyperparameters) and the method,
+holds the parameters, eq. 9's fitness on the fit records, e_m and e_rms of
+every record of the dataset (identification and validation), the number of
+model evaluations, the wall time, the convergence history, the input range
+that fixes the model's structure, the bounds, options and seed. It simulates
+new inputs and round-trips through JSON (``to_dict`` / ``from_dict``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from hysbench.benchmarks.protocol import RecordScore, score_records
+from hysbench.data.dataset import Record
+from hysbench.models import get_model
+from hysbench.models.base import HysteresisModel
+
+from .errors import IdentificationError
+
+FORMAT = "hysbench-fit/1"
+
+
+def _num(x):
+    """JSON-safe float: non-finite values become None."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _num(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def _float(x):
+    return math.nan if x is None else float(x)
+
+
+@dataclass
+class Fit:
+    model: str
+    hyperparameters: dict
+    method: str
+    params: dict[str, float]
+    fitness: float
+    records: list[RecordScore]
+    n_evaluations: int
+    fit_seconds: float
+    history: list[tuple[int, float]]
+    input_range: tuple[float, float]
+    bounds: dict[str, tuple[float, float]]
+    scale: dict[str, float]
+    options: dict
+    seed: int | None
+    dataset: str = ""
+    dataset_hash: str = ""
+    fitted_on: list[str] = field(default_factory=list)
+    diagnostics: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    version: str = ""
+    _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
+
+    # --- the fitted model ----------------------------------------------------
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    def model_instance(self) -> HysteresisModel:
+        """The model this Fit belongs to (rebuilt from the registry after from_dict)."""
+        if self._instance is None:
+            self._instance = get_model(self.model, **self.hyperparameters)
+        return self._instance
+
+    def simulate(self, u, dt: float) -> np.ndarray:
+        """Output of the fitted model for a new input, from its first sample."""
+        return self.model_instance().simulate(u, dt, self.params, input_range=self.input_range)
+
+    def predict(self, record: Record) -> np.ndarray:
+        return self.simulate(record.u, record.dt)
+
+    def score(self, records: Sequence[Record]) -> list[RecordScore]:
+        """e_m and e_rms (percent) of the fitted model on other records."""
+        return score_records(self.model_instance(), self.params, records, self.input_range)
+
+    # --- views -----------------------------------------------------------------
+    def scores(self, role: str | None = None) -> list[RecordScore]:
+        return [s for s in self.records if role is None or s.role == role]
+
+    def worst(self, role: str, metric: str = "e_rms") -> float:
+        vals = [getattr(s, metric) for s in self.scores(role)]
+        return max(vals) if vals else math.nan
+
+    def mean(self, role: str, metric: str = "e_rms") -> float:
+        vals = [getattr(s, metric) for s in self.scores(role)]
+        return float(np.mean(vals)) if vals else math.nan
+
+    def summary(self) -> str:
+        """A short text table: the fit, per-record errors, parameters."""
+        lines = [
+            f"model {self.model} ({self.n_params} parameters), method {self.method}, seed {self.seed}",
+            f"fitness (eq. 9) {self.fitness:.6g}   evaluations {self.n_evaluations}   time {self.fit_seconds:.2f} s",
+            "",
+            f"{'record':<24} {'f (Hz)':>8} {'role':<15} {'e_m %':>8} {'e_rms %':>8}",
+        ]
+        for s in self.records:
+            f = f"{s.frequency_hz:g}" if s.frequency_hz else "-"
+            lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {s.e_m:8.3f} {s.e_rms:8.3f}")
+        lines.append("")
+        items = [f"{k} = {v:.6g}" for k, v in self.params.items()]
+        for i in range(0, len(items), 4):
+            lines.append("   ".join(f"{it:<20}" for it in items[i:i + 4]).rstrip())
+        for note in self.notes:
+            lines += ["", f"note: {note}"]
+        return "\n".join(lines)
+
+    # --- JSON ------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return _jsonable({
+            "format": FORMAT,
+            "model": self.model,
+            "hyperparameters": self.hyperparameters,
+            "method": self.method,
+            "n_params": self.n_params,
+            "params": self.params,
+            "fitness": self.fitness,
+            "fit_seconds": self.fit_seconds,
+            "n_evaluations": self.n_evaluations,
+            "records": [s.as_dict() for s in self.records],
+            "seed": self.seed,
+            "dataset": self.dataset,
+            "dataset_hash": self.dataset_hash,
+            "fitted_on": self.fitted_on,
+            "input_range": list(self.input_range),
+            "bounds": {k: list(v) for k, v in self.bounds.items()},
+            "scale": self.scale,
+            "options": self.options,
+            "history": [list(h) for h in self.history],
+            "diagnostics": self.diagnostics,
+            "notes": self.notes,
+            "version": self.version,
+        })
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Fit":
+        if not isinstance(d, dict) or d.get("format") != FORMAT:
+            raise IdentificationError(f"not a hysbench fit (expected format {FORMAT!r})")
+        try:
+            return cls(
+                model=d["model"],
+                hyperparameters=dict(d["hyperparameters"]),
+                method=d["method"],
+                params={k: _float(v) for k, v in d["params"].items()},
+                fitness=_float(d["fitness"]),
+                records=[RecordScore(r["file"], r["frequency_hz"], r["role"], _float(r["e_m"]), _float(r["e_rms"]))
+                         for r in d["records"]],
+                n_evaluations=int(d["n_evaluations"]),
+                fit_seconds=_float(d["fit_seconds"]),
+                history=[(int(n), _float(f)) for n, f in d["history"]],
+                input_range=tuple(_float(v) for v in d["input_range"]),
+                bounds={k: (-math.inf if v[0] is None else float(v[0]), math.inf if v[1] is None else float(v[1]))
+                        for k, v in d["bounds"].items()},
+                scale={k: _float(v) for k, v in d["scale"].items()},
+                options=d["options"],
+                seed=d["seed"],
+                dataset=d.get("dataset", ""),
+                dataset_hash=d.get("dataset_hash", ""),
+                fitted_on=list(d.get("fitted_on", [])),
+                diagnostics=d.get("diagnostics", {}),
+                notes=list(d.get("notes", [])),
+                version=d.get("version", ""),
+            )
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise IdentificationError(f"malformed fit record: {exc!r}") from None

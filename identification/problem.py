@@ -1,0 +1,151 @@
+"""What every identifier minimises: eq. 9 over the scored windows of the fit records.
+
+    f(theta) = sum_m k_m / n_m sum_{i in window m} (y_mi(theta) - y^a_mi)^2
+
+A ``Problem`` holds the fit records, the data scale and bounds, the input
+range that fixes the model's structure, and counts model evaluations. One
+evaluation is one parameter set simulated over every fit record (for varpro:
+one regressor build over every fit record for one nonlinear parameter set).
+Residual vectors are stacked over records with row weights sqrt(k_m / n_m),
+so that their sum of squares is eq. 9 exactly.
+
+Identifiers use the model only through its interface: ``simulate_window_batch``,
+``windowed_regressors_batch``, ``parameters``/``bounds``, names.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from hysbench.benchmarks.protocol import input_range as records_input_range
+from hysbench.data.dataset import Record
+from hysbench.models.base import DataScale, HysteresisModel
+
+from .errors import IdentificationError
+
+# Largest batch output simulated at once (elements of the (sets, samples) array).
+MAX_BATCH_ELEMENTS = 20_000_000
+
+
+def data_scale(records: Sequence[Record]) -> DataScale:
+    """DataScale of the fit records: max |u|, max |y| and the shortest drive period.
+
+    A record without a frequency contributes its scored window's duration as
+    its characteristic time.
+    """
+    times = []
+    for r in records:
+        if r.frequency_hz:
+            times.append(1.0 / r.frequency_hz)
+        else:
+            times.append(r.n_scored * r.dt)
+    return DataScale.of([r.u for r in records], [r.y for r in records], time=min(times))
+
+
+@dataclass
+class Problem:
+    """A prepared identification problem; see the module docstring."""
+
+    model: HysteresisModel
+    records: list[Record]
+    scale: DataScale
+    lower: np.ndarray
+    upper: np.ndarray
+    input_range: tuple[float, float]
+    n_evaluations: int = 0
+    history: list[tuple[int, float]] = field(default_factory=list)
+    best_fitness: float = math.inf
+
+    @classmethod
+    def build(cls, model: HysteresisModel, records: Sequence[Record],
+              bounds: Mapping[str, Sequence[float]] | None = None) -> "Problem":
+        records = list(records)
+        scale = data_scale(records)
+        lower, upper = (np.array(b, dtype=float) for b in model.bounds(scale))
+        names = model.param_names
+        for name, pair in (bounds or {}).items():
+            if name not in names:
+                raise IdentificationError(
+                    f"bounds: model {model.name!r} has no parameter {name!r} (parameters: {', '.join(names)})")
+            try:
+                lo, hi = (float(v) for v in pair)
+            except (TypeError, ValueError):
+                raise IdentificationError(f"bounds for {name!r} must be a pair [low, high], got {pair!r}") from None
+            if not (lo <= hi) or math.isnan(lo) or math.isnan(hi):
+                raise IdentificationError(f"bounds for {name!r}: low {lo!r} is not <= high {hi!r}")
+            i = names.index(name)
+            lower[i], upper[i] = lo, hi
+        return cls(model, records, scale, lower, upper, records_input_range(records))
+
+    # --- sizes and names -------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.model.param_names
+
+    @property
+    def row_weights(self) -> list[float]:
+        """sqrt(k_m / n_m) per record: weighted squared residuals sum to eq. 9."""
+        return [math.sqrt(r.weight / r.n_scored) for r in self.records]
+
+    @property
+    def n_rows(self) -> int:
+        return sum(r.n_scored for r in self.records)
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        return np.minimum(np.maximum(x, self.lower), self.upper)
+
+    # --- evaluation ------------------------------------------------------
+    def residuals_batch(self, P: np.ndarray) -> np.ndarray:
+        """Weighted residuals (n_sets, n_rows) for parameter sets in ``param_names`` order.
+
+        Each record is simulated for the whole batch in one
+        ``simulate_window_batch`` call (split only when the output would exceed
+        MAX_BATCH_ELEMENTS).
+        Non-finite outputs give +inf residuals.
+        """
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        n_set = P.shape[0]
+        out = np.empty((n_set, self.n_rows))
+        col = 0
+        for r, w in zip(self.records, self.row_weights):
+            chunk = max(1, MAX_BATCH_ELEMENTS // r.n_scored)
+            ya = r.y[r.scored]
+            for a in range(0, n_set, chunk):
+                Y = self.model.simulate_window_batch(r.u, r.dt, P[a:a + chunk], r.scored, input_range=self.input_range)
+                out[a:a + chunk, col:col + r.n_scored] = w * (Y - ya)
+            col += r.n_scored
+        out[~np.isfinite(out)] = np.inf
+        self.n_evaluations += n_set
+        return out
+
+    def fitness_batch(self, P: np.ndarray) -> np.ndarray:
+        """Eq. 9 for each parameter set; records the best so far in ``history``."""
+        R = self.residuals_batch(P)
+        with np.errstate(over="ignore", invalid="ignore"):
+            f = np.einsum("ij,ij->i", R, R)
+        f[~np.isfinite(f)] = np.inf
+        self.note(float(np.min(f)) if f.size else math.inf)
+        return f
+
+    def note(self, fitness: float) -> None:
+        """Record an evaluated fitness in the convergence history (best so far)."""
+        if fitness < self.best_fitness:
+            self.best_fitness = fitness
+        self.history.append((self.n_evaluations, self.best_fitness))
+
+    def vector(self, params: Mapping[str, float]) -> np.ndarray:
+        return self.model.pack(params)
+
+    def start_vector(self, start: Mapping[str, float] | None) -> np.ndarray:
+        """Default parameters (clipped into bounds) overridden by ``start``."""
+        x = self.clip(np.array(self.model.pack(self.model.default_params(self.scale)), dtype=float))
+        for name, value in (start or {}).items():
+            if name not in self.names:
+                raise IdentificationError(
+                    f"start: model {self.model.name!r} has no parameter {name!r} (parameters: {', '.join(self.names)})")
+            x[self.names.index(name)] = float(value)
+        return self.clip(x)

@@ -1,0 +1,311 @@
+"""``varpro``: separable least squares (variable projection, Golub & Pereyra 1973).
+
+Many hysteresis models are linear in most of their parameters once a few
+nonlinear ones are fixed (MRPIM: everything but gamma and lambda). For given
+nonlinear parameters theta_N the model's ``windowed_regressors`` give, per fit
+record m, the matrix Phi_m (scored rows) with y = Phi_m @ theta_L. With row
+weights sqrt(k_m / n_m) the stacked least-squares problem
+
+    min_{theta_L} || A(theta_N) theta_L - b ||^2,   A = [w_m Phi_m],  b = [w_m y_m]
+
+is eq. 9 exactly, and is solved exactly:
+
+* columns are scaled to unit norm (D); the solve works on A_s = A D^-1;
+* the condition number of A_s is computed (eigenvalues of A_s^T A_s in the
+  search, singular values of A_s for the reported optimum);
+* if it exceeds ``max_condition`` (default 1e6) the solve is regularised by a
+  ridge on the scaled coefficients, alpha = s_max / max_condition, which damps
+  only the directions with singular values below s_max / max_condition; the
+  Fit says so and names the parameters of those directions;
+* linear parameters keep their bounds: when the unconstrained solution leaves
+  them, the bounded problem is solved with scipy.optimize.lsq_linear (on the
+  equivalent small system, same ridge), e.g. Preisach's non-negative weights.
+
+The nonlinear parameters are searched with several starts: the start point
+(the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
+Sobol sequence in their bounds (seeded) are evaluated as one batch; local
+searches (scipy.optimize.least_squares, trust-region reflective, bounded,
+Jacobian by forward differences evaluated as one batch) run from the
+``n_starts`` best; the best result wins. A model with no nonlinear parameter
+is a single linear solve.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+import scipy.linalg
+from scipy.optimize import least_squares, lsq_linear
+from scipy.stats import qmc
+
+from .errors import IdentificationError
+from .problem import MAX_BATCH_ELEMENTS, Problem
+
+OPTIONS = {
+    "n_starts": 2,  # local searches, from the best candidates
+    "n_candidates": 16,  # Sobol points evaluated before the local searches
+    "max_nfev": 40,  # residual evaluations per local search
+    "max_condition": 1e6,  # ridge above this condition number of the scaled design
+    "tol": 1e-8,  # ftol = xtol = gtol of least_squares
+    "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
+}
+
+
+@dataclass
+class LinearSolution:
+    """The exact solve of the linear parameters for one nonlinear parameter set."""
+
+    linear: np.ndarray  # linear parameters in ``model.linear_names`` order
+    fitness: float  # eq. 9
+    residuals: np.ndarray  # weighted, stacked over records
+    condition_number: float  # of the column-scaled weighted design matrix
+    regularised: bool
+    ridge: float  # alpha / s_max (0 when not regularised)
+    bounded: bool  # the bounded solve was needed
+    weak_directions: list  # [(singular value / s_max, {name: loading})] below 1 / max_condition
+
+
+class SeparableProblem:
+    """Linear solves and projected residuals of a ``Problem`` (public: the
+    posterior and the ablation use it)."""
+
+    def __init__(self, problem: Problem, max_condition: float = OPTIONS["max_condition"]):
+        model = problem.model
+        if not model.has_linear_part:
+            raise IdentificationError(
+                f"method 'varpro' cannot identify model {model.name!r}: it has no linear parameters to solve "
+                "exactly (use 'lsq' or 'mpso')"
+            )
+        self.problem = problem
+        self.model = model
+        self.max_condition = float(max_condition)
+        names = model.param_names
+        self.linear_names = model.linear_names
+        self.nonlinear_names = model.nonlinear_names
+        self.lin_idx = np.array([names.index(n) for n in self.linear_names], dtype=int)
+        self.nl_idx = np.array([names.index(n) for n in self.nonlinear_names], dtype=int)
+        self.lin_lower = problem.lower[self.lin_idx]
+        self.lin_upper = problem.upper[self.lin_idx]
+        self.nl_lower = problem.lower[self.nl_idx]
+        self.nl_upper = problem.upper[self.nl_idx]
+        w = problem.row_weights
+        self._ys = [np.ascontiguousarray(r.y[r.scored]) for r in problem.records]
+        self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
+
+    # --- design matrices ---------------------------------------------------
+    def blocks(self, nonlinear_sets: np.ndarray) -> list[np.ndarray]:
+        """Per fit record, the unweighted regressors on its scored rows for each
+        set: a list of (n_sets, n_m, n_linear) arrays. Counts the evaluations."""
+        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        p = self.problem
+        out = [self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range) for r in p.records]
+        p.n_evaluations += sets.shape[0]
+        return out
+
+    def designs(self, nonlinear_sets: np.ndarray) -> np.ndarray:
+        """Weighted stacked design matrices A (rows sqrt(k_m/n_m) Phi_m), (n_sets, n_rows, n_linear)."""
+        blocks = self.blocks(nonlinear_sets)
+        return np.concatenate([w * B for w, B in zip(self.problem.row_weights, blocks)], axis=1)
+
+    def record_designs(self, nonlinear: Mapping[str, float]) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """Per fit record: (Phi on its scored rows, measured y there, k_m / n_m), unweighted."""
+        p = self.problem
+        sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
+        return [(self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range)[0],
+                 r.y[r.scored].copy(), r.weight / r.n_scored) for r in p.records]
+
+    # --- the linear solve ----------------------------------------------------
+    def solve_blocks(self, blocks: list[np.ndarray], accurate: bool = False) -> LinearSolution:
+        """Exact (regularised, bounded) least squares for one set's per-record regressors.
+
+        Works on the column-scaled matrix A_s = A D^-1 (unit-norm columns) of
+        the weighted stack A = [w_m Phi_m]. Fast path: eigen-decomposition of
+        A_s^T A_s (accumulated per record, nothing stacked) with one step of
+        iterative refinement. ``accurate``: a Householder QR of [A_s, b] and
+        the SVD of its small triangle (condition numbers exact up to ~1e16).
+        """
+        w = self.problem.row_weights
+        ys = self._ys
+        n = len(self.linear_names)
+
+        def times(x):  # residual blocks w_m (Phi_m x - y_m)
+            return [wm * (Phi @ x - y) for wm, Phi, y in zip(w, blocks, ys)]
+
+        def times_t(rs):  # A^T r
+            return sum(wm * (Phi.T @ r) for wm, Phi, r in zip(w, blocks, rs))
+
+        if accurate:
+            A = np.concatenate([wm * Phi for wm, Phi in zip(w, blocks)])
+            D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            D[~(D > 0)] = 1.0
+            Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
+            U, s, Vt = np.linalg.svd(Rb[:n, :n])  # A_s = Q U S V^T
+            V = Vt.T
+            ev = s * s
+            rhs = s * (U.T @ Rb[:n, n])  # V^T A_s^T b, with Rb[:n, n] = Q^T b
+        else:
+            G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+            D = np.sqrt(np.diag(G)).copy()
+            D[~(D > 0)] = 1.0
+            ev, V = np.linalg.eigh(G / np.outer(D, D))
+            ev, V = ev[::-1], V[:, ::-1]
+            rhs = V.T @ (self._Atb(blocks) / D)
+        ev = np.maximum(ev, 0.0)
+        ev_max = float(ev[0]) if ev.size else 0.0
+        ev_min = float(ev[-1]) if ev.size else 0.0
+        cond = math.sqrt(ev_max / ev_min) if ev_min > 0 else math.inf
+        regularised = cond > self.max_condition
+        alpha2 = ev_max / self.max_condition**2 if regularised else 0.0
+        denom = ev + alpha2
+        safe = denom > ev_max * 1e-15 if ev_max > 0 else denom > 0
+
+        def apply_inverse(v):  # (A_s^T A_s + alpha2 I)^+ in V-coordinates
+            c = np.zeros_like(v)
+            c[safe] = v[safe] / denom[safe]
+            return V @ c
+
+        xs = apply_inverse(rhs)
+        if not accurate:  # one step of iterative refinement of the normal equations
+            rs = times(xs / D)
+            xs = xs - apply_inverse(V.T @ (times_t(rs) / D + alpha2 * xs))
+        x = xs / D
+        bounded = False
+        lo, hi = self.lin_lower, self.lin_upper
+        if np.any(x < lo) or np.any(x > hi):
+            bounded = True
+            # min ||A_s xs - b||^2 + alpha2 ||xs||^2 as the small system M xs ~ c
+            root = np.sqrt(denom[safe])
+            M = (V[:, safe] * root).T
+            c = rhs[safe] / root
+            res = lsq_linear(M, c, bounds=(lo * D, hi * D), method="bvls", tol=1e-12)
+            x = np.clip(res.x / D, lo, hi)
+        r = np.concatenate(times(x))
+        fit = float(r @ r)
+        weak = []
+        if regularised:
+            for k in np.flatnonzero(ev < alpha2):
+                load = V[:, k] / D  # direction in parameter units
+                load = load / np.max(np.abs(load))
+                top = np.argsort(-np.abs(load))[:4]
+                weak.append((math.sqrt(ev[k] / ev_max) if ev_max > 0 else 0.0,
+                             {self.linear_names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
+        return LinearSolution(x, fit, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
+                              bounded, weak)
+
+    def _Atb(self, blocks):
+        return sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(self.problem.row_weights, blocks, self._ys))
+
+    def solve_design(self, A: np.ndarray, accurate: bool = False) -> LinearSolution:
+        """The linear solve for a weighted stacked design matrix A (as from ``designs``)."""
+        w = self.problem.row_weights
+        blocks, row = [], 0
+        for wm, r in zip(w, self.problem.records):
+            blocks.append(A[row:row + r.n_scored] / wm)
+            row += r.n_scored
+        return self.solve_blocks(blocks, accurate)
+
+    def solve(self, nonlinear: Mapping[str, float] | np.ndarray, accurate: bool = True) -> LinearSolution:
+        """The linear solve given the nonlinear parameters (a mapping, or a vector in their order)."""
+        if isinstance(nonlinear, Mapping):
+            missing = [n for n in self.nonlinear_names if n not in nonlinear]
+            if missing:
+                raise IdentificationError(f"varpro solve: missing nonlinear parameter(s) {', '.join(missing)}")
+            vec = np.array([float(nonlinear[n]) for n in self.nonlinear_names])
+        else:
+            vec = np.asarray(nonlinear, dtype=float).reshape(len(self.nonlinear_names))
+        return self.solve_blocks([B[0] for B in self.blocks(vec[None])], accurate=accurate)
+
+    def projected_batch(self, nonlinear_sets: np.ndarray) -> list[LinearSolution]:
+        """Linear solves for many nonlinear sets; the best fitness goes to the history."""
+        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        n_lin = len(self.linear_names)
+        chunk = max(1, MAX_BATCH_ELEMENTS // max(1, self.problem.n_rows * n_lin))
+        sols = []
+        for a in range(0, sets.shape[0], chunk):
+            blocks = self.blocks(sets[a:a + chunk])
+            sols.extend(self.solve_blocks([B[i] for B in blocks]) for i in range(blocks[0].shape[0]))
+        self.problem.note(min(s.fitness for s in sols))
+        return sols
+
+    def full_vector(self, nonlinear: np.ndarray, linear: np.ndarray) -> np.ndarray:
+        x = np.empty(len(self.model.param_names))
+        x[self.nl_idx] = nonlinear
+        x[self.lin_idx] = linear
+        return x
+
+
+def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, **options) -> dict:
+    """Identify by variable projection; returns params, diagnostics and notes."""
+    opts = {**OPTIONS, **options}
+    sep = SeparableProblem(problem, opts["max_condition"])
+    x_start = problem.start_vector(start)
+    d = len(sep.nonlinear_names)
+    diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
+    if d == 0:
+        best_nl = np.zeros(0)
+        sep.projected_batch(np.zeros((1, 0)))
+        diag["local_searches"] = []
+    else:
+        lo, hi = sep.nl_lower, sep.nl_upper
+        width = np.where(hi > lo, hi - lo, 1.0)
+        cands = [x_start[sep.nl_idx]]
+        if opts["n_candidates"] > 0:
+            sobol = qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed))
+            cands.extend(lo + sobol.random(int(opts["n_candidates"])) * (hi - lo))
+        cands = np.array(cands)
+        sols = sep.projected_batch(cands)
+        order = np.argsort([s.fitness for s in sols], kind="stable")
+        searches = []
+        best_nl, best_f = cands[order[0]], sols[order[0]].fitness
+        step = opts["fd_step"] * width
+        cache: dict = {}
+
+        def residual(z):
+            key = z.tobytes()
+            if key not in cache:
+                cache.clear()
+                cache[key] = sep.projected_batch(z[None])[0].residuals
+            return cache[key]
+
+        def jacobian(z):
+            r0 = residual(z)
+            h = np.where(z + step <= hi, step, -step)
+            Z = z[None, :] + np.diag(h)
+            sols_h = sep.projected_batch(Z)
+            return np.column_stack([(s.residuals - r0) / h[j] for j, s in enumerate(sols_h)])
+
+        for k in order[: max(1, int(opts["n_starts"]))]:
+            z0 = np.clip(cands[k], lo, hi)
+            n0 = problem.n_evaluations
+            res = least_squares(residual, z0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale=width,
+                                ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"], max_nfev=int(opts["max_nfev"]))
+            f = float(2.0 * res.cost)
+            searches.append({"start": [float(v) for v in z0], "start_fitness": float(sols[k].fitness),
+                             "end": [float(v) for v in res.x], "fitness": f, "status": int(res.status),
+                             "message": str(res.message), "n_evaluations": problem.n_evaluations - n0})
+            if f < best_f:
+                best_nl, best_f = res.x.copy(), f
+        diag["local_searches"] = searches
+    final = sep.solve(best_nl, accurate=True)
+    x = sep.full_vector(best_nl, final.linear)
+    diag.update(condition_number=final.condition_number, regularised=final.regularised, ridge=final.ridge,
+                bounded_linear_solve=final.bounded, max_condition=sep.max_condition)
+    notes = []
+    if final.regularised:
+        dirs = "; ".join(
+            " ".join(f"{v:+.2f}*{n}" for n, v in load.items()) + f" (s/s_max {sv:.1e})"
+            for sv, load in final.weak_directions
+        )
+        notes.append(
+            f"varpro: linear solve regularised: the column-scaled design matrix has condition number "
+            f"{final.condition_number:.3g} > {sep.max_condition:.3g}; a ridge alpha = s_max/{sep.max_condition:.3g} "
+            f"damps its weakest direction(s), which the data barely determine: {dirs}"
+        )
+        diag["weak_directions"] = [{"relative_singular_value": sv, "loadings": load}
+                                   for sv, load in final.weak_directions]
+    if final.bounded:
+        notes.append("varpro: the unconstrained linear solution left the bounds; solved with bounds (lsq_linear)")
+    return {"x": x, "diagnostics": diag, "notes": notes}
