@@ -21,6 +21,7 @@ COMMANDS = {
     "posterior": ("hysbench.identification.posterior_cli",
                   "posterior of a model's parameters with emcee (AR(1) noise; writes results/posterior.md)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
 }
 
 
