@@ -421,11 +421,12 @@ def _derivatives(f: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return g, H
 
 
-def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[np.ndarray, np.ndarray | None, dict]:
+def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[np.ndarray, np.ndarray, dict]:
     """Newton steps on the log posterior from x0 with finite-difference derivatives.
 
-    Returns (mode, Laplace covariance or None if the Hessian is not negative
-    definite there, info).
+    Returns (mode, covariance for the walkers' start, info): the Laplace
+    covariance if the Hessian is negative definite at the end
+    (``info["laplace"]``), else a diagonal ball.
     """
     x = np.asarray(x0, dtype=float).copy()
     d = x.size
@@ -435,6 +436,7 @@ def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[n
     h = 1e-4 * width
     f_x = float(post.log_prob(x[None])[0])
     cov = None
+    diag_sd = None
     info = {"iterations": 0, "start_log_posterior": f_x}
     for it in range(max_iter):
         if post.noise == "ar1":  # keep the stencil inside |phi| < 1
@@ -445,6 +447,8 @@ def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[n
             h *= 0.25
             continue
         g, H = _derivatives(f, h)
+        curv = -np.diag(H)
+        diag_sd = np.where(curv > 0, 1.0 / np.sqrt(np.where(curv > 0, curv, 1.0)), np.nan)
         try:
             L = np.linalg.cholesky(-H)
             cov = np.linalg.inv(-H)
@@ -476,18 +480,37 @@ def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[n
             except np.linalg.LinAlgError:
                 cov = None
     info["laplace"] = cov is not None
+    if cov is None:  # a diagonal ball: the curvature where it is negative, else 1e-3 of the prior width
+        fallback = np.full(d, 1e-3)
+        fallback[:n_nl] = 1e-3 * width[:n_nl]
+        sd = fallback if diag_sd is None else np.where(np.isfinite(diag_sd), np.minimum(diag_sd, 10 * fallback),
+                                                       fallback)
+        cov = np.diag(sd**2)
+        info["ball_sd"] = [float(v) for v in sd]
     return x, cov, info
 
 
-def initial_walkers(post: LogPosterior, mode: np.ndarray, cov: np.ndarray | None, n_walkers: int,
+def screen_start(post: LogPosterior, nl0: np.ndarray, sigma: float, phi: float, seed, n: int = 64) -> np.ndarray:
+    """The best of nl0 and ``n`` scrambled Sobol points of the nonlinear prior box, by log posterior
+    at the given noise parameters (one batched evaluation): the identifiers' optimum (weighted
+    least squares) need not be near the mode under the AR(1) likelihood."""
+    from scipy.stats import qmc
+
+    d = nl0.size
+    if d == 0:
+        return nl0
+    lo, hi = post.priors.nonlinear_lower, post.priors.nonlinear_upper
+    pts = lo + qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed)).random(n) * (hi - lo)
+    cands = np.vstack([nl0[None], pts])
+    X = np.array([post.coords(c, sigma, phi) for c in cands])
+    lp = post.log_prob(X)
+    return cands[int(np.argmax(lp))]
+
+
+def initial_walkers(post: LogPosterior, mode: np.ndarray, cov: np.ndarray, n_walkers: int,
                     rng: np.random.Generator) -> np.ndarray:
-    """Walkers drawn from the Laplace Gaussian (or a small ball), inside the prior support."""
+    """Walkers drawn from the Laplace Gaussian (or a diagonal ball), inside the prior support."""
     d = mode.size
-    if cov is None:
-        n_nl = len(post.nonlinear_names)
-        scale = np.full(d, 1e-3)
-        scale[:n_nl] = 1e-5 * (post.priors.nonlinear_upper - post.priors.nonlinear_lower)
-        cov = np.diag(scale**2)
     L = np.linalg.cholesky(cov + 1e-300 * np.eye(d))
     out = np.empty((0, d))
     for _ in range(100):
@@ -563,15 +586,29 @@ class Convergence:
 
 
 def convergence(chain: np.ndarray, draws: np.ndarray, accepted: np.ndarray, burn: int | str = "auto",
-                min_ess: float = 0.0) -> Convergence:
-    """Burn-in, tau, ESS of the reported parameters (sampled coordinates and linear draws)."""
+                min_ess: float = 0.0, log_prob: np.ndarray | None = None) -> Convergence:
+    """Burn-in, tau, ESS of the reported parameters (sampled coordinates and linear draws).
+
+    Automatic burn-in: the larger of ``BURN_TAUS`` tau (estimated on the
+    second half) and the first step at which the walkers' median log
+    posterior reaches the median of the second half, plus 2 tau (walkers
+    started far from the typical set need that long to get there).
+    """
     n = chain.shape[0]
+    if draws.ndim == 2:  # one linear parameter
+        draws = draws[:, :, None]
     both = np.concatenate([chain, draws], axis=2)
     if burn == "auto":
         half = both[n // 2:]
         t = autocorr_times(half)
         t_max = float(np.nanmax(t)) if np.any(np.isfinite(t)) else n / 2
-        burn = int(min(n // 2, math.ceil(BURN_TAUS * t_max)))
+        burn = math.ceil(BURN_TAUS * t_max)
+        if log_prob is not None and n >= 4:
+            level = float(np.median(log_prob[n // 2:]))
+            reached = np.flatnonzero(np.median(log_prob, axis=1) >= level)
+            if reached.size:
+                burn = max(burn, int(reached[0]) + math.ceil(2 * t_max))
+        burn = int(min(burn, n - 2))
     burn = int(burn)
     if not 0 <= burn < n:
         raise IdentificationError(f"posterior: burn-in {burn} must be below the chain length {n}")
@@ -827,14 +864,18 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
         nl0 = np.array([float(start_params[n]) for n in post.nonlinear_names])
         nl0 = np.clip(nl0, post.priors.nonlinear_lower, post.priors.nonlinear_upper)
         sigma0, phi0 = noise_estimate(post, nl0)
+        nl1 = screen_start(post, nl0, sigma0, phi0, seed)
+        if not np.array_equal(nl1, nl0):
+            nl0 = nl1
+            sigma0, phi0 = noise_estimate(post, nl0)
         x0 = post.coords(nl0, sigma0, phi0)
         say("start: posterior mode and Laplace covariance ...")
         mode, cov, info = find_mode(post, x0)
         start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
                  "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
                  "mode": dict(zip(post.coord_names, map(float, mode))),
-                 "laplace_sd": (dict(zip(post.coord_names, map(float, np.sqrt(np.diag(cov)))))
-                                if cov is not None else None),
+                 "screened_start": dict(zip(post.nonlinear_names, map(float, nl0))),
+                 "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(cov))))),
                  "mode_search": info, "seconds": time.perf_counter() - ts}
         rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
         p0 = initial_walkers(post, mode, cov, n_walkers, rng)
@@ -866,7 +907,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                     bar.update(1)
                 if not fixed_steps and k % check_every == 0 and k >= 2 * check_every:
                     c = convergence(sampler.get_chain(), sampler.get_blobs(), sampler.backend.accepted, burn,
-                                    min_ess)
+                                    min_ess, sampler.get_log_prob())
                     if bar is not None:
                         bar.set_postfix_str(f"tau {c.tau_max:.1f}, {c.length_in_tau:.0f} tau, "
                                             f"ESS min {np.nanmin(c.ess):.0f}")
@@ -882,7 +923,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     if draws.ndim == 2:  # a single linear parameter
         draws = draws[:, :, None]
     if conv is None or conv.n_steps != chain.shape[0]:
-        conv = convergence(chain, draws, sampler.backend.accepted, burn, min_ess)
+        conv = convergence(chain, draws, sampler.backend.accepted, burn, min_ess, sampler.get_log_prob())
     return PosteriorRun(post=post, chain=chain, draws=draws, log_prob=sampler.get_log_prob(), conv=conv,
                         start=start, wall_seconds=time.perf_counter() - t0, sampling_seconds=sampling_seconds,
                         resumed_from=done, n_walkers=n_walkers, moves=moves, seed=seed, dataset=dataset.name,

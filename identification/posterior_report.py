@@ -3,6 +3,7 @@ what they say about identifiability, corner plot, posterior predictive bands."""
 
 from __future__ import annotations
 
+import logging
 import math
 from pathlib import Path
 
@@ -88,9 +89,15 @@ def corner_figure(run: PosteriorRun, path: Path) -> list[str]:
     S = run.samples()
     cols = [run.names.index(names[i]) for i in idx]
     pyplot()
-    fig = corner.corner(S[:, cols], labels=[names[i] for i in idx], quantiles=[0.05, 0.5, 0.95],
-                        show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8},
-                        label_kwargs={"fontsize": 9})
+    root = logging.getLogger()
+    level = root.level
+    root.setLevel(logging.ERROR)  # corner logs a warning for sparse tails of a contour
+    try:
+        fig = corner.corner(S[:, cols], labels=[names[i] for i in idx], quantiles=[0.05, 0.5, 0.95],
+                            show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8},
+                            label_kwargs={"fontsize": 9})
+    finally:
+        root.setLevel(level)
     fig.suptitle("most correlated parameters (5, 50, 95 % quantiles)", y=1.02)
     save_figure(fig, path)
     return [names[i] for i in idx]

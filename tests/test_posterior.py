@@ -7,10 +7,10 @@ parameters, NumPy Gram matrices, the base ``regressors`` interface.
 
 Calibration test, reduced to stay within CI's budget (same property checked):
 MRPIM with 4 operators and a quadratic polynomial (11 parameters instead of
-21), the four identification frequencies at a 10 ms step (instead of 1 ms)
+21), the four identification frequencies at a 20 ms step (instead of 1 ms)
 over two periods, 16 walkers run until the chain is >= 50 tau long with
 >= 300 effective samples (instead of 1000). Its truth is that reduced
-model's varpro fit to Table 2's noise-free output (rounded).
+model's varpro fit to Table 2's noise-free output at a 10 ms step (rounded).
 """
 
 import json
@@ -25,6 +25,7 @@ from hypothesis import strategies as st
 from scipy.linalg import block_diag, toeplitz
 from scipy.stats import multivariate_normal
 
+from hysbench.benchmarks.cli import main as cli_main
 from hysbench.benchmarks.protocol import IDENTIFICATION_WEIGHTS
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.identification.errors import IdentificationError
@@ -38,7 +39,7 @@ from hysbench.models.base import HysteresisModel, Parameter
 SMALL = dict(n_operators=4, poly_order=2)
 TRUTH = {"gamma": 0.0305, "lambda": -0.0317, "p1": 3.255, "p2": 0.9785, "q": 0.0251, "a1": -4.6812,
          "a2": 0.8303, "a3": 0.2917, "a4": 2.4706, "offset": 0.4419}
-SIGMA, PHI = 0.02, 0.9  # innovation sd (mm) and AR(1) coefficient per 10 ms sample
+SIGMA, PHI = 0.02, 0.9  # innovation sd (mm) and AR(1) coefficient per sample
 
 
 def dense_logpdf(r, cov):
@@ -247,7 +248,7 @@ def test_credible_intervals_are_calibrated_under_ar1_noise():
     truth_ar1 = dict(TRUTH, sigma=SIGMA, phi=PHI)
     hits = {"ar1": [], "iid": []}
     for k in range(N_DATASETS):
-        ds = simulated_ar1_dataset(model, TRUTH, sigma=SIGMA, phi=PHI, seed=1000 + k, n_periods=2, dt=0.01,
+        ds = simulated_ar1_dataset(model, TRUTH, sigma=SIGMA, phi=PHI, seed=1000 + k, n_periods=2, dt=0.02,
                                    frequencies=tuple(IDENTIFICATION_WEIGHTS))
         for noise in ("ar1", "iid"):
             run = sample_posterior(model, ds, noise=noise, n_walkers=16, max_steps=3000, min_ess=300, seed=k,
@@ -265,9 +266,15 @@ def test_credible_intervals_are_calibrated_under_ar1_noise():
 
 
 # --- the command line ----------------------------------------------------------------------
-def _hysbench(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", *args], capture_output=True,
-                          text=True, cwd=cwd)
+def _hysbench(capsys, *args):
+    """Run the CLI in this process: (exit status, stdout, stderr)."""
+    capsys.readouterr()
+    try:
+        code = cli_main(list(args))
+    except SystemExit as exc:  # argparse usage errors
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
@@ -288,21 +295,26 @@ def tiny_dataset(tmp_path_factory):
     (["{ds}", "--burn", "-3"], "expected an integer >= 0"),
     (["{ds}", "--min-ess", "nan"], "expected a finite number"),
 ])
-def test_cli_bad_input_is_one_line_and_exit_2(tiny_dataset, tmp_path, args, fragment):
+def test_cli_bad_input_is_one_line_and_exit_2(tiny_dataset, tmp_path, capsys, args, fragment):
     args = [a.format(ds=tiny_dataset) for a in args]
-    p = _hysbench("posterior", *args, "--out", str(tmp_path / "o"), "--quiet")
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and fragment in lines[0], p.stderr
-    assert "Traceback" not in p.stderr
+    code, _, err = _hysbench(capsys, "posterior", *args, "--out", str(tmp_path / "o"), "--quiet")
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0], err
 
 
-def test_cli_writes_outputs_warns_when_not_converged_and_resumes(tiny_dataset, tmp_path):
+def test_cli_bad_input_through_the_console_script(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "posterior", str(tmp_path / "missing")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+def test_cli_writes_outputs_warns_when_not_converged_and_resumes(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "out"
-    p = _hysbench("posterior", str(tiny_dataset), "--model", "mrpim", "--out", str(out), "--steps", "40",
-                  "--fixed-steps", "--walkers", "8", "--draws", "20", "--quiet")
-    assert p.returncode == 0, p.stderr
-    assert "NOT converged" in p.stderr
+    code, _, err = _hysbench(capsys, "posterior", str(tiny_dataset), "--model", "mrpim", "--out", str(out),
+                             "--steps", "40", "--fixed-steps", "--walkers", "8", "--draws", "20", "--quiet")
+    assert code == 0, err
+    assert "NOT converged" in err
     summary = json.loads((out / "posterior.json").read_text())
     assert summary["converged"] is False and summary["sampler"]["steps"] == 40
     assert summary["noise_model"]["name"] == "ar1" and summary["wall_seconds"] > 0
@@ -316,16 +328,16 @@ def test_cli_writes_outputs_warns_when_not_converged_and_resumes(tiny_dataset, t
         assert (out / f).stat().st_size > 0
     assert 0 <= summary["predictive"]["validation"][0]["fraction_inside_observation_band"] <= 1
     # same settings: the chain file is resumed and extended
-    p = _hysbench("posterior", str(tiny_dataset), "--out", str(out), "--steps", "60", "--fixed-steps",
-                  "--walkers", "8", "--draws", "20", "--quiet")
-    assert p.returncode == 0, p.stderr
+    code, _, err = _hysbench(capsys, "posterior", str(tiny_dataset), "--out", str(out), "--steps", "60",
+                             "--fixed-steps", "--walkers", "8", "--draws", "20", "--quiet")
+    assert code == 0, err
     summary = json.loads((out / "posterior.json").read_text())
     assert summary["sampler"]["resumed_from_step"] == 40 and summary["sampler"]["steps"] == 60
     # other settings: refused in one line, unless --restart
-    p = _hysbench("posterior", str(tiny_dataset), "--out", str(out), "--steps", "60", "--walkers", "10",
-                  "--quiet")
-    assert p.returncode == 2 and "other settings (differs in: walkers)" in p.stderr
-    assert len(p.stderr.strip().splitlines()) == 1
+    code, _, err = _hysbench(capsys, "posterior", str(tiny_dataset), "--out", str(out), "--steps", "60",
+                             "--walkers", "10", "--quiet")
+    assert code == 2 and "other settings (differs in: walkers)" in err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_api_refuses_models_without_a_linear_part_and_bad_settings():
