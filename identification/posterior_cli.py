@@ -88,7 +88,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--chain", default=None, help="HDF5 chain file (default OUT/posterior_chain.h5)")
     parser.add_argument("--no-chain", action="store_true", help="keep the chain in memory only (no resuming)")
     parser.add_argument("--restart", action="store_true", help="discard an existing chain file")
+    parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures (faster)")
     parser.add_argument("--quiet", action="store_true", help="no progress messages")
+
+
+def canonical_command(args) -> str:
+    """The command line that reproduces this run (every sampling setting spelled out)."""
+    parts = ["hysbench", "posterior", args.dataset, "--model", args.model, "--noise", args.noise, "--walkers",
+             str(args.walkers), "--steps", str(args.steps), "--min-ess", f"{args.min_ess:g}", "--burn", str(args.burn),
+             "--moves", args.moves, "--seed", str(args.seed), "--draws", str(args.draws), "--out", args.out]
+    if args.fixed_steps:
+        parts.append("--fixed-steps")
+    if args.no_figures:
+        parts.append("--no-figures")
+    return " ".join(shlex.quote(str(p)) for p in parts)
 
 
 def main(args) -> int:
@@ -116,15 +129,16 @@ def main(args) -> int:
                              for k, v in pred.items()}
     ident = identifiability(run, summary["parameters"])
     summary["identifiability"] = ident
-    files = {"corner": "posterior_corner.png", "predictive": "posterior_predictive.png",
-             "correlation": "posterior_correlation.png", "trace": "posterior_trace.png"}
-    files["corner_names"] = ", ".join(corner_figure(run, out / files["corner"]))
-    correlation_figure(run, out / files["correlation"])
-    trace_figure(run, out / files["trace"])
-    if pred["validation"]:
-        predictive_figure(pred["validation"], out / files["predictive"], dataset.output_unit)
-    command = "hysbench posterior " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 2 \
-        else f"hysbench posterior {args.dataset}"
+    files = {}
+    if not args.no_figures:
+        files = {"corner": "posterior_corner.png", "predictive": "posterior_predictive.png",
+                 "correlation": "posterior_correlation.png", "trace": "posterior_trace.png"}
+        files["corner_names"] = ", ".join(corner_figure(run, out / files["corner"]))
+        correlation_figure(run, out / files["correlation"])
+        trace_figure(run, out / files["trace"])
+        if pred["validation"]:
+            predictive_figure(pred["validation"], out / files["predictive"], dataset.output_unit)
+    command = canonical_command(args)
     summary["command"] = command
     write_json(json_path, summary)
     write_atomic(out / "posterior.md", render_markdown(summary, ident, files, command,

@@ -134,7 +134,8 @@ def correlation_figure(run: PosteriorRun, path: Path) -> None:
 def predictive_figure(pred: list[dict], path: Path, unit: str = "", level: float = 0.9) -> None:
     plt = pyplot()
     n = len(pred)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 2.6 * n), squeeze=False)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 2.9 * n), squeeze=False)
+    fig.subplots_adjust(hspace=0.45, wspace=0.2)
     for row, p in zip(axes, pred):
         t, y, med = p["_t"], p["_y"], p["_median"]
         (olo, ohi), (mlo, mhi) = p["_obs"], p["_model"]
@@ -194,8 +195,10 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
         f"{sm['acceptance_fraction']['mean']:.2f} (walkers {sm['acceptance_fraction']['min']:.2f}–"
         f"{sm['acceptance_fraction']['max']:.2f}); smallest ESS {_g(s['min_ess'])}; "
         f"**converged: {'yes' if s['converged'] else 'NO'}**",
-        f"- wall time {s['wall_seconds']:.1f} s (sampling {s['sampling_seconds']:.1f} s, "
-        f"{sm['log_posterior_evaluations']} log-posterior evaluations this run)",
+        f"- wall time {s['wall_seconds']:.1f} s (sampling {s['sampling_seconds']:.1f} s"
+        + (f"; over the runs that built the chain, this one {s['this_run_seconds']:.1f} s"
+           if sm["resumed_from_step"] else "")
+        + f"; {sm['log_posterior_evaluations']} log-posterior evaluations this run)",
         "",
         "## Priors", "",
         "| parameter | prior |", "|---|---|",
@@ -224,10 +227,11 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
     L += ["", "## Identifiability", ""]
     L += identifiability_text(s, ident)
     names, M = s["correlation"]["names"], s["correlation"]["matrix"]
-    L += ["", f"![correlation matrix]({files['correlation']})", "",
-          f"Most correlated parameters (corner plot, {files['corner_names']}):", "",
-          f"![corner plot]({files['corner']})", "",
-          "<details><summary>Correlation matrix (posterior)</summary>", "",
+    if files:
+        L += ["", f"![correlation matrix]({files['correlation']})", "",
+              f"Most correlated parameters (corner plot, {files['corner_names']}):", "",
+              f"![corner plot]({files['corner']})"]
+    L += ["", "<details><summary>Correlation matrix (posterior)</summary>", "",
           "| | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
     for n, row in zip(names, M):
         L.append(f"| **{n}** | " + " | ".join(f"{v:.2f}" for v in row) + " |")
@@ -245,10 +249,13 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
                 L.append(f"| {p['file']} | {f} | {role} | {p['fraction_inside_observation_band']:.1%} | "
                          f"{p['fraction_inside_model_band']:.1%} | {_g(p['mean_observation_band_width'], 3)} | "
                          f"{_g(p['mean_model_band_width'], 3)} | {_g(p['rms_error_of_median'], 3)} |")
-        L += ["", f"![posterior predictive bands on the validation records]({files['predictive']})", ""]
+        if files:
+            L += ["", f"![posterior predictive bands on the validation records]({files['predictive']})"]
+        L += [""]
     else:
         L += ["The dataset has no validation records: no predictive bands.", ""]
-    L += [f"Chains: ![traces]({files['trace']})", ""]
+    if files:
+        L += [f"Chains: ![traces]({files['trace']})", ""]
     for note in s.get("notes", []):
         L += [f"Note: {note}", ""]
     return "\n".join(L).rstrip() + "\n"

@@ -329,7 +329,7 @@ def test_cli_writes_outputs_warns_when_not_converged_and_resumes(tiny_dataset, t
     assert 0 <= summary["predictive"]["validation"][0]["fraction_inside_observation_band"] <= 1
     # same settings: the chain file is resumed and extended
     code, _, err = _hysbench(capsys, "posterior", str(tiny_dataset), "--out", str(out), "--steps", "60",
-                             "--fixed-steps", "--walkers", "8", "--draws", "20", "--quiet")
+                             "--fixed-steps", "--walkers", "8", "--draws", "20", "--quiet", "--no-figures")
     assert code == 0, err
     summary = json.loads((out / "posterior.json").read_text())
     assert summary["sampler"]["resumed_from_step"] == 40 and summary["sampler"]["steps"] == 60

@@ -14,6 +14,8 @@ noise (sigma 0.005 mm, phi 0.95), and the benchmark says so.
     python -m pytest benchmarks/speed/bench_posterior.py --benchmark-only -s
 """
 
+import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -50,14 +52,18 @@ def test_posterior_ess_per_second(benchmark, tmp_path):
         return sample_posterior(model, ds, n_walkers=16, max_steps=6000, min_ess=TARGET_ESS, seed=0,
                                 chain_file=tmp_path / "chain.h5", restart=True, progress=False)
 
+    cpu0 = time.process_time()
     result = benchmark.pedantic(run, rounds=1, iterations=1)
+    cpu = time.process_time() - cpu0  # all threads: on an idle 2-core machine wall ~ cpu / 2 at best
     wall = benchmark.stats.stats.max
     c = result.conv
     _, ess = result.reported_tau()
-    benchmark.extra_info.update(dataset=which, wall_seconds=wall, sampling_seconds=result.sampling_seconds,
+    benchmark.extra_info.update(dataset=which, wall_seconds=wall, cpu_seconds=cpu,
+                                sampling_seconds=result.sampling_seconds,
                                 steps=c.n_steps, burn=c.burn, tau_max=c.tau_max, min_ess=float(np.min(ess)),
                                 evaluations=result.post.n_evaluations)
-    print(f"\nposterior on {which}: {wall:.1f} s wall ({result.sampling_seconds:.1f} s sampling), {c.n_steps} steps "
+    print(f"\nposterior on {which}: {wall:.1f} s wall ({result.sampling_seconds:.1f} s sampling; process CPU "
+          f"{cpu:.1f} s, load average {os.getloadavg()[0]:.1f}), {c.n_steps} steps "
           f"x 16 walkers, burn-in {c.burn}, tau_max {c.tau_max:.1f}, chain {c.length_in_tau:.0f} tau, "
           f"min ESS {np.min(ess):.0f}, {result.post.n_evaluations} log-posterior evaluations")
     assert c.converged, c.problems
