@@ -266,8 +266,8 @@ class LogPosterior:
         if n_nl:
             width = self.priors.nonlinear_upper - self.priors.nonlinear_lower
             checks += [self.priors.nonlinear_lower + 0.3 * width, self.priors.nonlinear_upper - 0.2 * width]
-        self.segments = build_segments(model, records, self.input_range, np.array(checks).reshape(-1, n_nl),
-                                       shorten)
+        self.segments = build_segments(model, records, self.input_range,
+                                       np.array(checks, dtype=float).reshape(len(checks), n_nl), shorten)
         self.n_rows = sum(s.n for s in self.segments)
         self.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7]))
         self.n_evaluations = 0

@@ -9,7 +9,8 @@ Calibration test, reduced to stay within CI's budget (same property checked):
 MRPIM with 4 operators and a quadratic polynomial (11 parameters instead of
 21), the four identification frequencies at a 20 ms step (instead of 1 ms)
 over two periods, 16 walkers run until the chain is >= 50 tau long with
->= 300 effective samples (instead of 1000). Its truth is that reduced
+>= 300 effective samples (instead of 1000); the independent-noise contrast on
+10 of the 20 data sets. Its truth is that reduced
 model's varpro fit to Table 2's noise-free output at a 10 ms step (rounded).
 """
 
@@ -239,6 +240,7 @@ def test_autocorrelation_time_and_convergence_flags():
 
 # --- calibration -------------------------------------------------------------------------
 N_DATASETS = 20
+N_IID = 10  # the independent-noise contrast on the first 10 (it is printed, and must be clearly off)
 
 
 def test_credible_intervals_are_calibrated_under_ar1_noise():
@@ -250,7 +252,7 @@ def test_credible_intervals_are_calibrated_under_ar1_noise():
     for k in range(N_DATASETS):
         ds = simulated_ar1_dataset(model, TRUTH, sigma=SIGMA, phi=PHI, seed=1000 + k, n_periods=2, dt=0.02,
                                    frequencies=tuple(IDENTIFICATION_WEIGHTS))
-        for noise in ("ar1", "iid"):
+        for noise in ("ar1", "iid") if k < N_IID else ("ar1",):
             run = sample_posterior(model, ds, noise=noise, n_walkers=16, max_steps=3000, min_ess=300, seed=k,
                                    progress=False)
             assert run.conv.converged, (k, noise, run.conv.problems)
@@ -258,8 +260,8 @@ def test_credible_intervals_are_calibrated_under_ar1_noise():
             truth = truth_ar1 if noise == "ar1" else TRUTH  # under iid, sigma is another quantity
             hits[noise] += [table[n]["q05"] <= v <= table[n]["q95"] for n, v in truth.items()]
     ar1, iid = float(np.mean(hits["ar1"])), float(np.mean(hits["iid"]))
-    print(f"\n90 % interval coverage over {N_DATASETS} data sets: AR(1) likelihood {ar1:.1%} "
-          f"({len(hits['ar1'])} pairs), independent-noise likelihood {iid:.1%} ({len(hits['iid'])} pairs)")
+    print(f"\n90 % interval coverage: AR(1) likelihood {ar1:.1%} ({N_DATASETS} data sets, {len(hits['ar1'])} "
+          f"pairs), independent-noise likelihood {iid:.1%} ({N_IID} data sets, {len(hits['iid'])} pairs)")
     assert 0.80 <= ar1 <= 0.97
     # the data are autocorrelated enough that ignoring it is visibly wrong (the check above has teeth)
     assert iid < 0.80
