@@ -1,0 +1,295 @@
+"""posterior.md and its figures: parameter table, convergence, correlations and
+what they say about identifiability, corner plot, posterior predictive bands."""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hysbench.benchmarks.output import pyplot, save_figure
+
+from .posterior import PosteriorRun, build_segments
+
+STRONG_CORRELATION = 0.9
+PRIOR_DOMINATED = 0.5  # posterior sd / prior sd above this: the data barely move the prior
+N_CORNER = 6
+
+
+# --- identifiability ---------------------------------------------------------------
+def identifiability(run: PosteriorRun, table: dict) -> dict:
+    """Which parameters the data determine: prior contraction, constant regressor
+    columns over the fitted windows, strongly correlated pairs."""
+    post = run.post
+    prior_sd = {p["name"]: p["sd"] for p in post.priors.describe() if p["prior"] == "normal"}
+    contraction = {n: table[n]["sd"] / s for n, s in prior_sd.items()}
+    nl = np.array([[table[n]["mean"] for n in post.nonlinear_names]]).reshape(1, -1)
+    segs = build_segments(post.model, [r for r in _records(run)], post.input_range, nl)
+    constant = {}
+    for j, name in enumerate(post.linear_names):
+        values, spans = [], []
+        for s in segs:
+            col = post.model.windowed_regressors_batch(s.u, s.dt, nl, s.window, post.input_range)[0][:, j]
+            values.append(float(col[0]))
+            spans.append(float(np.ptp(col)))
+        scale = max(1.0, max(abs(v) for v in values))
+        if max(spans) <= 1e-9 * scale:
+            constant[name] = {"values": dict(zip([s.file for s in segs], values))}
+    names, corr = run.correlation()
+    pairs = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if abs(corr[i, j]) >= STRONG_CORRELATION:
+                pairs.append({"a": names[i], "b": names[j], "r": float(corr[i, j])})
+    pairs.sort(key=lambda p: -abs(p["r"]))
+    out = {
+        "posterior_sd_over_prior_sd": contraction,
+        "prior_dominated": sorted((n for n, c in contraction.items() if c > PRIOR_DOMINATED),
+                                  key=lambda n: post.linear_names.index(n)),
+        "constant_columns": constant,
+        "strong_correlations": pairs,
+    }
+    thresholds = getattr(post.model, "thresholds", None)
+    if callable(thresholds):
+        lo, hi = post.input_range
+        r = thresholds(np.array([lo, hi]), post.input_range)
+        out["play_thresholds"] = [float(v) for v in r]
+        out["input_span"] = float(hi - lo)
+    return out
+
+
+def _records(run: PosteriorRun):
+    return run.post.problem.records
+
+
+# --- figures -----------------------------------------------------------------------
+def corner_names(names: list[str], corr: np.ndarray, k: int = N_CORNER) -> list[int]:
+    """Indices of the k parameters most correlated with another one, strongest pairs first."""
+    a = np.abs(corr - np.eye(len(names)))
+    order = np.dstack(np.unravel_index(np.argsort(-a, axis=None), a.shape))[0]
+    chosen: list[int] = []
+    for i, j in order:
+        if i >= j:
+            continue
+        for v in (int(i), int(j)):
+            if v not in chosen and len(chosen) < k:
+                chosen.append(v)
+        if len(chosen) >= k:
+            break
+    return chosen
+
+
+def corner_figure(run: PosteriorRun, path: Path) -> list[str]:
+    import corner
+
+    names, corr = run.correlation()
+    idx = corner_names(names, corr)
+    S = run.samples()
+    cols = [run.names.index(names[i]) for i in idx]
+    pyplot()
+    root = logging.getLogger()
+    level = root.level
+    root.setLevel(logging.ERROR)  # corner logs a warning for sparse tails of a contour
+    try:
+        fig = corner.corner(S[:, cols], labels=[names[i] for i in idx], quantiles=[0.05, 0.5, 0.95],
+                            show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8},
+                            label_kwargs={"fontsize": 9})
+    finally:
+        root.setLevel(level)
+    fig.suptitle("most correlated parameters (5, 50, 95 % quantiles)", y=1.02)
+    save_figure(fig, path)
+    return [names[i] for i in idx]
+
+
+def trace_figure(run: PosteriorRun, path: Path) -> None:
+    plt = pyplot()
+    post = run.post
+    d = post.ndim
+    fig, axes = plt.subplots(d + 1, 1, figsize=(8, 1.6 * (d + 1)), sharex=True)
+    for k in range(d):
+        axes[k].plot(run.chain[:, :, k], lw=0.4, alpha=0.5)
+        axes[k].set_ylabel(post.coord_names[k], fontsize=8)
+        axes[k].axvline(run.conv.burn, color="k", ls="--", lw=0.8)
+    axes[d].plot(run.log_prob - np.max(run.log_prob), lw=0.4, alpha=0.5)
+    axes[d].set_ylabel("log post.\n(- max)", fontsize=8)
+    axes[d].set_ylim(-5 * post.ndim, 1)
+    axes[d].axvline(run.conv.burn, color="k", ls="--", lw=0.8)
+    axes[d].set_xlabel("step (dashed: end of burn-in)")
+    save_figure(fig, path)
+
+
+def correlation_figure(run: PosteriorRun, path: Path) -> None:
+    plt = pyplot()
+    names, corr = run.correlation()
+    fig, ax = plt.subplots(figsize=(0.34 * len(names) + 2, 0.34 * len(names) + 1.5))
+    im = ax.imshow(corr, cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
+    ax.set_yticks(range(len(names)), names, fontsize=7)
+    fig.colorbar(im, ax=ax, shrink=0.7, label="posterior correlation")
+    save_figure(fig, path)
+
+
+def predictive_figure(pred: list[dict], path: Path, unit: str = "", level: float = 0.9) -> None:
+    plt = pyplot()
+    n = len(pred)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 2.9 * n), squeeze=False)
+    fig.subplots_adjust(hspace=0.45, wspace=0.2)
+    for row, p in zip(axes, pred):
+        t, y, med = p["_t"], p["_y"], p["_median"]
+        (olo, ohi), (mlo, mhi) = p["_obs"], p["_model"]
+        f = f"{p['frequency_hz']:g} Hz" if p["frequency_hz"] else p["file"]
+        row[0].fill_between(t, olo, ohi, color="C0", alpha=0.3, lw=0, label=f"{level:.0%} predictive band")
+        row[0].plot(t, med, color="C0", lw=0.8, label="median prediction")
+        row[0].plot(t, y, color="k", lw=0.5, label="measured")
+        row[0].set_title(f"{f}: {p['fraction_inside_observation_band']:.1%} of samples inside", fontsize=9)
+        row[0].set_ylabel(f"y {unit}".strip(), fontsize=8)
+        row[1].fill_between(t, olo - med, ohi - med, color="C0", alpha=0.3, lw=0, label="predictive (with noise)")
+        row[1].fill_between(t, mlo - med, mhi - med, color="C3", alpha=0.5, lw=0, label="model only")
+        row[1].plot(t, y - med, color="k", lw=0.5, label="measured - median")
+        row[1].set_title(f"{f}: residual about the median prediction", fontsize=9)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[0, 1].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time in the scored window (s)")
+    axes[-1, 1].set_xlabel("time in the scored window (s)")
+    save_figure(fig, path)
+
+
+# --- markdown ------------------------------------------------------------------------
+def _g(x, digits: int = 4) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+def render_markdown(summary: dict, ident: dict, files: dict, command: str, dataset_note: str = "") -> str:
+    s = summary
+    sm = s["sampler"]
+    L = []
+    if not s["converged"]:
+        L += ["> **NOT CONVERGED.** " + " ".join(f"{p[0].upper()}{p[1:]}." for p in s["convergence_problems"])
+              + " Treat every number below as provisional.", ""]
+    if not s["ess_target_met"]:
+        L += [f"> **ESS target not met**: the smallest effective sample size is {_g(s['min_ess'])} "
+              f"(target {s['ess_target']:g}).", ""]
+    L += [f"# Posterior of {s['model']} on {s['dataset']}", ""]
+    if dataset_note:
+        L += [dataset_note, ""]
+    L += [
+        f"Command: `{command}`", "",
+        f"- noise model: **{s['noise_model']['name']}** — {s['noise_model']['description']}",
+        f"- linear parameters: {s['linear_parameters']}; emcee walks over "
+        f"{', '.join(sm['sampled_coordinates'])}",
+        f"- data: {s['data']['rows']} fitted samples (scored windows of "
+        + ", ".join(f"{r['file']}" + (" [simulated on a verified periodic proxy of "
+                                      f"{r['simulated_samples']} of its {r['samples']} samples]"
+                                      if r["shortened"] else "") for r in s["data"]["records"])
+        + f"), every sample weighted alike; input range {s['data']['input_range'][0]:g}–"
+          f"{s['data']['input_range'][1]:g}",
+        f"- sampler: emcee, {sm['walkers']} walkers, {sm['moves']} moves, {sm['steps']} steps, burn-in "
+        f"{sm['burn_in']} ({sm['kept_steps']} kept), seed {sm['seed']}"
+        + (f", resumed from step {sm['resumed_from_step']}" if sm["resumed_from_step"] else ""),
+        f"- convergence: largest autocorrelation time {_g(sm['tau_max'], 3)} steps, chain after burn-in "
+        f"{_g(sm['chain_length_in_tau'], 3)} tau long (needs >= {sm['tau_factor_required']}); acceptance "
+        f"{sm['acceptance_fraction']['mean']:.2f} (walkers {sm['acceptance_fraction']['min']:.2f}–"
+        f"{sm['acceptance_fraction']['max']:.2f}); smallest ESS {_g(s['min_ess'])}; "
+        f"**converged: {'yes' if s['converged'] else 'NO'}**",
+        f"- wall time {s['wall_seconds']:.1f} s (sampling {s['sampling_seconds']:.1f} s"
+        + (f"; over the runs that built the chain, this one {s['this_run_seconds']:.1f} s"
+           if sm["resumed_from_step"] else "")
+        + f"; {sm['log_posterior_evaluations']} log-posterior evaluations this run)",
+        "",
+        "## Priors", "",
+        "| parameter | prior |", "|---|---|",
+    ]
+    for p in s["priors"]:
+        if p["prior"] == "uniform":
+            d = f"uniform on [{_g(p['low'])}, {_g(p['high'])}]"
+        elif p["prior"] == "log-uniform":
+            d = f"log-uniform on [{_g(p['low'])}, {_g(p['high'])}]"
+        elif p["prior"] == "normal":
+            d = f"normal, mean {_g(p['mean'])}, sd {_g(p['sd'])}"
+        else:
+            d = f"fixed at {_g(p['value'])}"
+        note = f" ({p['note']})" if p.get("note") and p["name"] in ("sigma", "phi") else ""
+        L.append(f"| {p['name']} | {d}{note} |")
+    L += ["", "Linear parameters: integrated out of the likelihood analytically, then drawn from their "
+          "Gaussian conditional for every kept state.", "",
+          "## Parameters", "",
+          "| parameter | mean | sd | 5 % | median | 95 % | ESS | tau | sd / prior sd |", "|---|---|---|---|---|---|---|---|---|"]
+    contraction = ident["posterior_sd_over_prior_sd"]
+    for n, v in s["parameters"].items():
+        c = contraction.get(n)
+        L.append(f"| {n} | {_g(v['mean'])} | {_g(v['sd'], 3)} | {_g(v['q05'])} | {_g(v['q50'])} | {_g(v['q95'])} | "
+                 f"{_g(v['ess'], 4) if v['ess'] is None else round(v['ess'])} | {_g(v['tau'], 3)} | "
+                 f"{_g(c, 2) if c is not None else ''} |")
+    L += ["", "## Identifiability", ""]
+    L += identifiability_text(s, ident)
+    names, M = s["correlation"]["names"], s["correlation"]["matrix"]
+    if files:
+        L += ["", f"![correlation matrix]({files['correlation']})", "",
+              f"Most correlated parameters (corner plot, {files['corner_names']}):", "",
+              f"![corner plot]({files['corner']})"]
+    L += ["", "<details><summary>Correlation matrix (posterior)</summary>", "",
+          "| | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    for n, row in zip(names, M):
+        L.append(f"| **{n}** | " + " | ".join(f"{v:.2f}" for v in row) + " |")
+    L += ["", "</details>", "", "## Posterior predictive bands", ""]
+    pv = s.get("predictive", {})
+    if pv.get("validation"):
+        L += ["90 % bands from posterior draws with their noise path added (\"with noise\": where a new "
+              "measurement should fall) and without it (\"model only\": the parameter uncertainty alone). "
+              "A calibrated posterior puts about 90 % of the measured samples inside the band with noise.", "",
+              "| record | f (Hz) | role | inside band with noise | inside model-only band | mean band width "
+              "with noise | model only | rms error of median |", "|---|---|---|---|---|---|---|---|"]
+        for role in ("identification", "validation"):
+            for p in pv.get(role, []):
+                f = f"{p['frequency_hz']:g}" if p["frequency_hz"] else "-"
+                L.append(f"| {p['file']} | {f} | {role} | {p['fraction_inside_observation_band']:.1%} | "
+                         f"{p['fraction_inside_model_band']:.1%} | {_g(p['mean_observation_band_width'], 3)} | "
+                         f"{_g(p['mean_model_band_width'], 3)} | {_g(p['rms_error_of_median'], 3)} |")
+        if files:
+            L += ["", f"![posterior predictive bands on the validation records]({files['predictive']})"]
+        L += [""]
+    else:
+        L += ["The dataset has no validation records: no predictive bands.", ""]
+    if files:
+        L += [f"Chains: ![traces]({files['trace']})", ""]
+    for note in s.get("notes", []):
+        L += [f"Note: {note}", ""]
+    return "\n".join(L).rstrip() + "\n"
+
+
+def identifiability_text(s: dict, ident: dict) -> list[str]:
+    L = []
+    const = ident["constant_columns"]
+    if const:
+        for n, c in const.items():
+            vals = sorted(set(round(v, 6) for v in c["values"].values()))
+            L.append(f"- **{n}**: its regressor is constant over every fitted window "
+                     f"({', '.join(f'{v:g}' for v in vals)}), so it acts as an output offset.")
+        thr = ident.get("play_thresholds")
+        if thr is not None:
+            span = ident["input_span"]
+            wide = [i + 1 for i, r in enumerate(thr) if r >= span]
+            if wide:
+                L.append(f"  Play thresholds r_i = (i-1)/N ||u||_inf: {', '.join(f'r{i} = {thr[i - 1]:.4g}' for i in wide)} "
+                         f"exceed the input span {span:.4g}: after the input's first maximum such an operator never "
+                         "moves again (it would need the input to fall by more than r_i), so its output is the "
+                         "constant max(h_l) - r_i over every later sample.")
+    dom = ident["prior_dominated"]
+    if dom:
+        L.append(f"- **Not determined by the data** (posterior sd > {PRIOR_DOMINATED:g} x prior sd): "
+                 + ", ".join(f"{n} ({ident['posterior_sd_over_prior_sd'][n]:.2f})" for n in dom)
+                 + ". Their posteriors are essentially the prior; any single value quoted for them (for MRPIM, "
+                 "Table 2's large opposite-signed a12, a13) is one point on a ridge the data cannot resolve.")
+    else:
+        L.append("- Every linear parameter is determined by the data (posterior sd <= "
+                 f"{PRIOR_DOMINATED:g} x prior sd).")
+    pairs = ident["strong_correlations"]
+    if pairs:
+        L.append(f"- Strongly correlated pairs (|r| >= {STRONG_CORRELATION}): "
+                 + ", ".join(f"{p['a']}–{p['b']} ({p['r']:+.3f})" for p in pairs[:12])
+                 + (f" and {len(pairs) - 12} more" if len(pairs) > 12 else "") + ".")
+    return L
