@@ -3,14 +3,18 @@
 from .base import DataScale, HysteresisModel, Parameter
 from .classical_pi import ClassicalPI
 from .errors import HysbenchError, ModelError
+from .extended import CAUSES, ExtendedModel, register_extensions
 from .mrpim import MRPIM, PAPER_TABLE2
 from .registry import get_model, list_models, register
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
+register_extensions(MRPIM.name)  # mrpim+relaxation, mrpim+delay, ... (see extended.py)
 
 __all__ = [
+    "CAUSES",
     "ClassicalPI",
+    "ExtendedModel",
     "DataScale",
     "HysbenchError",
     "HysteresisModel",
