@@ -19,6 +19,8 @@ COMMANDS = {
     "check": ("hysbench.data.check_cli", "check a dataset folder and summarise its records"),
     "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "diagnose": ("hysbench.benchmarks.diagnosis.cli",
+                 "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
 }
 
 

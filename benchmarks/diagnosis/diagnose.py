@@ -64,6 +64,7 @@ class Diagnosis:
     relaxation_variants: list[Candidate]
     chosen: Candidate | None
     also: list[Candidate]
+    secondary_tried: list[Candidate] = field(default_factory=list)
     extended_fit: Fit | None = None
     after: list[RecordResidual] = field(default_factory=list)
     base_whole_fit: Fit | None = None
@@ -84,6 +85,12 @@ class Diagnosis:
         if not self.extended_fit:
             return {}
         return estimates_of(self.cause, self.extended_fit.params, self.extended_fit.model_instance())
+
+    @property
+    def decision_rule(self) -> str:
+        return (f"the candidate with the lowest BIC, if BIC(base alone) - BIC > {self.settings['bic_threshold']:g} "
+                f"and it explains >= {self.settings['min_explained']:.1%} of the base-alone identification residual "
+                "sum of squares, else none; the validation records take no part")
 
     def gain(self) -> dict:
         if not self.after:
@@ -107,10 +114,8 @@ class Diagnosis:
             "null": cand(self.screen.null),
             "candidates": [cand(c) for c in sorted(self.candidates, key=lambda c: c.bic)],
             "relaxation_variants": [cand(c) for c in self.relaxation_variants],
-            "also": [cand(c) for c in self.also],
-            "decision_rule": (f"lowest BIC among the candidates, if BIC(null) - BIC > {self.settings['bic_threshold']:g} "
-                              f"and it explains >= {self.settings['min_explained']:.1%} of the null's identification "
-                              "residual sum of squares; validation records not used"),
+            "secondary_tried": [{**cand(c), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
+            "decision_rule": self.decision_rule,
             "screen_rows": self.screen.n,
         }
         extended = None
@@ -189,21 +194,24 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     result = run_screen(screen, before, max_relaxation=max_relaxation, bic_threshold=bic_threshold, progress=say)
     candidates = result["candidates"]
     chosen = decide(screen.null, candidates, bic_threshold, min_explained)
-    also = []
+    also, tried = [], []
     if chosen is not None:  # secondary causes: the strongest other candidates on top of the named one
         others = sorted([c for c in candidates if c.cause != chosen.cause and c.delta_bic < -bic_threshold
                          and c.explained >= min_explained], key=lambda c: c.bic)[:max_secondary]
         for c in others:
             say(f"trying {chosen.cause} + {c.cause}")
             comp = screen.composite(chosen, c)
-            if comp is not None and comp.delta_bic < -bic_threshold and comp.explained >= min_explained:
+            if comp is None:
+                continue
+            tried.append(comp)
+            if comp.delta_bic < -bic_threshold and comp.explained >= min_explained:
                 also.append(comp)
     timings["screen"] = time.perf_counter() - t1
 
     diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=candidates, relaxation_variants=result["relaxation_variants"], chosen=chosen,
-                     also=also, timings=timings,
+                     also=also, secondary_tried=tried, timings=timings,
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "bic_threshold": bic_threshold,
                                "min_explained": min_explained})
     if chosen is None or not extend:
