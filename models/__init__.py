@@ -6,9 +6,11 @@ from .errors import HysbenchError, ModelError
 from .extended import CAUSES, ExtendedModel, register_extensions
 from .mrpim import MRPIM, PAPER_TABLE2
 from .registry import get_model, list_models, register
+from .viscoelastic import Viscoelastic
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
+register(Viscoelastic.name, Viscoelastic)
 register_extensions(MRPIM.name)  # mrpim+relaxation, mrpim+delay, ... (see extended.py)
 
 __all__ = [
@@ -22,6 +24,7 @@ __all__ = [
     "ModelError",
     "PAPER_TABLE2",
     "Parameter",
+    "Viscoelastic",
     "get_model",
     "list_models",
     "register",
