@@ -20,6 +20,7 @@ COMMANDS = {
     "data": ("hysbench.data.cli", "generate a dataset: virtual-dea (the default dataset)"),
     "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
     "diagnose": ("hysbench.benchmarks.diagnosis.cli",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
 }

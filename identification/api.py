@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import weakref
 from importlib import metadata
 from typing import Mapping
 
@@ -150,6 +151,23 @@ def _fit_records(dataset: Dataset, fit_on, model_name: str, method: str):
     return [r for r in dataset.records if r.file in set(fit_on)]
 
 
+_HASHES: dict[int, tuple] = {}
+
+
+def dataset_hash(dataset: Dataset) -> str:
+    """``dataset.content_hash()``, remembered per Dataset object while its records
+    stay the same objects (the ablation and the matrix fit one dataset many times)."""
+    key = tuple((id(r), id(r.u), id(r.y), r.file, r.role, r.weight, r.start, r.stop) for r in dataset.records)
+    held = _HASHES.get(id(dataset))
+    if held is not None and held[0]() is dataset and held[1] == key:
+        return held[2]
+    value = dataset.content_hash()
+    if len(_HASHES) > 64:
+        _HASHES.clear()
+    _HASHES[id(dataset)] = (weakref.ref(dataset), key, value)
+    return value
+
+
 def _version() -> str:
     try:
         return metadata.version("hysbench")
@@ -223,7 +241,7 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         options={**{k: v for k, v in common.items()}, **{s: o for s, o in zip(stages, per_stage)}},
         seed=None if seed is None else int(seed),
         dataset=dataset.name,
-        dataset_hash=dataset.content_hash(),
+        dataset_hash=dataset_hash(dataset),
         fitted_on=[r.file for r in records],
         diagnostics=diagnostics,
         notes=notes,

@@ -4,7 +4,7 @@ The residual vector is the weighted stack of eq. 9 (rows sqrt(k_m / n_m)),
 minimised with the bounded trust-region reflective method, each parameter
 scaled by its bound width (``x_scale``). The Jacobian is by forward
 differences, all n_params perturbed sets simulated as one batch per record
-(``simulate_batch``, parallel over sets); a step that would leave the bounds
+(``simulate_window_batch``, parallel over sets); a step that would leave the bounds
 is taken backwards.
 
 Starts: the start point (the model's defaults, or ``start``, or the result
@@ -20,11 +20,12 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import least_squares
 
+from .errors import IdentificationError
 from .problem import Problem
 
 OPTIONS = {
     "n_starts": 1,
-    "max_nfev": 200,  # residual evaluations per start (Jacobians not counted by scipy)
+    "max_nfev": 200,  # residual evaluations per start, as scipy counts them (Jacobians are extra)
     "tol": 1e-10,  # ftol = xtol = gtol
     "fd_step": 1e-7,  # forward-difference step, relative to each bound's width
 }
@@ -32,18 +33,25 @@ OPTIONS = {
 
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x0: np.ndarray | None = None,
         **options) -> dict:
-    opts = {**OPTIONS, **options}
+    with problem.parallel_records():
+        return _run(problem, seed, start, x0, {**OPTIONS, **options})
+
+
+def _run(problem: Problem, seed, start, x0, opts) -> dict:
     rng = np.random.default_rng(seed)
     lo, hi = problem.lower, problem.upper
-    width = np.where(hi > lo, hi - lo, 1.0)
     free = hi > lo  # a parameter fixed by equal bounds is not varied
+    width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
     step = opts["fd_step"] * width
-    x_first = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
-    starts = [x_first] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
+    if opts["n_starts"] > 1 and not np.all(np.isfinite(hi - lo)):
+        raise IdentificationError(f"method 'lsq' on model {problem.model.name!r}: random starts (n_starts > 1) "
+                                  "need finite bounds for every parameter")
+    base = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
+    starts = [base] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
     cache: dict = {}
 
     def residual(zf):
-        x = x_first.copy()
+        x = base.copy()
         x[free] = zf
         key = x.tobytes()
         if key not in cache:
@@ -54,7 +62,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
         return cache[key]
 
     def jacobian(zf):
-        x = x_first.copy()
+        x = base.copy()
         x[free] = zf
         r0 = residual(zf)
         h = np.where(x + step <= hi, step, -step)[free]
@@ -68,7 +76,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
     best_x, best_f, searches = None, np.inf, []
     for x_s in starts:
         n0 = problem.n_evaluations
-        x_first = x_s.copy()
+        base = x_s.copy()
         cache.clear()
         if not np.all(np.isfinite(residual(x_s[free]))):
             searches.append({"fitness": float("inf"), "status": -1, "message": "start is not finite",
@@ -85,5 +93,5 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
         if f < best_f:
             best_x, best_f = x, f
     if best_x is None:
-        best_x = x_first
+        best_x = base
     return {"x": best_x, "diagnostics": {"local_searches": searches}, "notes": []}

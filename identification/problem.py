@@ -16,9 +16,12 @@ Identifiers use the model only through its interface: ``simulate_window_batch``,
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
+import numba
 import numpy as np
 
 from hysbench.benchmarks.protocol import input_range as records_input_range
@@ -59,6 +62,7 @@ class Problem:
     n_evaluations: int = 0
     history: list[tuple[int, float]] = field(default_factory=list)
     best_fitness: float = math.inf
+    record_pool: ThreadPoolExecutor | None = None  # see ``parallel_records``
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
@@ -80,6 +84,29 @@ class Problem:
             i = names.index(name)
             lower[i], upper[i] = lo, hi
         return cls(model, records, scale, lower, upper, records_input_range(records))
+
+    @contextmanager
+    def parallel_records(self, enabled: bool = True):
+        """Within this block, single-set evaluations run their records in
+        threads, if the model declares ``concurrent_calls_safe`` (nogil
+        kernels) and numba has more than one thread."""
+        n = min(numba.get_num_threads(), len(self.records))
+        if not (enabled and n > 1 and getattr(self.model, "concurrent_calls_safe", False)):
+            yield
+            return
+        with ThreadPoolExecutor(n) as pool:
+            self.record_pool = pool
+            try:
+                yield
+            finally:
+                self.record_pool = None
+
+    @classmethod
+    def for_fit(cls, fit, dataset) -> "Problem":
+        """The problem a Fit solved: its model, fitted records and bounds (e.g.
+        to get varpro's linear solve around a fit's optimum)."""
+        records = [dataset.record(f) for f in fit.fitted_on]
+        return cls.build(fit.model_instance(), records, fit.bounds)
 
     # --- sizes and names -------------------------------------------------
     @property
@@ -110,14 +137,24 @@ class Problem:
         P = np.atleast_2d(np.asarray(P, dtype=float))
         n_set = P.shape[0]
         out = np.empty((n_set, self.n_rows))
-        col = 0
-        for r, w in zip(self.records, self.row_weights):
-            chunk = max(1, MAX_BATCH_ELEMENTS // r.n_scored)
+        starts = np.cumsum([0] + [r.n_scored for r in self.records])
+        # the base class's window is a slice of the full output: size its batches by the record
+        windowed = type(self.model).simulate_window_batch is not HysteresisModel.simulate_window_batch
+
+        def one(m):
+            r, w, col = self.records[m], self.row_weights[m], starts[m]
+            chunk = max(1, MAX_BATCH_ELEMENTS // (r.n_scored if windowed else r.u.size))
             ya = r.y[r.scored]
             for a in range(0, n_set, chunk):
                 Y = self.model.simulate_window_batch(r.u, r.dt, P[a:a + chunk], r.scored, input_range=self.input_range)
                 out[a:a + chunk, col:col + r.n_scored] = w * (Y - ya)
-            col += r.n_scored
+
+        pool = self.record_pool if n_set == 1 else None
+        if pool is not None:
+            list(pool.map(one, range(len(self.records))))
+        else:
+            for m in range(len(self.records)):
+                one(m)
         out[~np.isfinite(out)] = np.inf
         self.n_evaluations += n_set
         return out

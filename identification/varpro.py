@@ -23,7 +23,7 @@ is eq. 9 exactly, and is solved exactly:
 
 The nonlinear parameters are searched with several starts: the start point
 (the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
-Sobol sequence in their bounds (seeded) are evaluated as one batch; local
+Halton sequence in their bounds (seeded) are evaluated as one batch; local
 searches (scipy.optimize.least_squares, trust-region reflective, bounded,
 Jacobian by forward differences evaluated as one batch) run from the
 ``n_starts`` best; the best result wins. A model with no nonlinear parameter
@@ -46,10 +46,10 @@ from .problem import MAX_BATCH_ELEMENTS, Problem
 
 OPTIONS = {
     "n_starts": 2,  # local searches, from the best candidates
-    "n_candidates": 16,  # Sobol points evaluated before the local searches
+    "n_candidates": 16,  # Halton points evaluated before the local searches
     "max_nfev": 40,  # residual evaluations per local search
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
-    "tol": 1e-8,  # ftol = xtol = gtol of least_squares
+    "tol": 1e-6,  # ftol = xtol = gtol of least_squares
     "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
 }
 
@@ -96,12 +96,21 @@ class SeparableProblem:
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
 
     # --- design matrices ---------------------------------------------------
+    def _as_sets(self, nonlinear_sets) -> np.ndarray:
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        return sets.reshape(1, len(self.nonlinear_names)) if sets.ndim < 2 else sets
+
     def blocks(self, nonlinear_sets: np.ndarray) -> list[np.ndarray]:
         """Per fit record, the unweighted regressors on its scored rows for each
         set: a list of (n_sets, n_m, n_linear) arrays. Counts the evaluations."""
-        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        sets = self._as_sets(nonlinear_sets)
         p = self.problem
-        out = [self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range) for r in p.records]
+
+        def one(r):
+            return self.model.windowed_regressors_batch(r.u, r.dt, sets, r.scored, p.input_range)
+
+        pool = p.record_pool if sets.shape[0] == 1 else None
+        out = list(pool.map(one, p.records)) if pool is not None else [one(r) for r in p.records]
         p.n_evaluations += sets.shape[0]
         return out
 
@@ -130,6 +139,10 @@ class SeparableProblem:
         w = self.problem.row_weights
         ys = self._ys
         n = len(self.linear_names)
+        blown_up = LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
+                                  [])
+        if not all(np.all(np.isfinite(Phi)) for Phi in blocks):  # a model that blew up: worst possible fit
+            return blown_up
 
         def times(x):  # residual blocks w_m (Phi_m x - y_m)
             return [wm * (Phi @ x - y) for wm, Phi, y in zip(w, blocks, ys)]
@@ -139,7 +152,10 @@ class SeparableProblem:
 
         if accurate:
             A = np.concatenate([wm * Phi for wm, Phi in zip(w, blocks)])
-            D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            with np.errstate(over="ignore"):
+                D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            if not np.all(np.isfinite(D)):
+                return blown_up
             D[~(D > 0)] = 1.0
             Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
             U, s, Vt = np.linalg.svd(Rb[:n, :n])  # A_s = Q U S V^T
@@ -147,12 +163,16 @@ class SeparableProblem:
             ev = s * s
             rhs = s * (U.T @ Rb[:n, n])  # V^T A_s^T b, with Rb[:n, n] = Q^T b
         else:
-            G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+            with np.errstate(over="ignore", invalid="ignore"):
+                G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
+                Atb = self._Atb(blocks)
+            if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
+                return blown_up
             D = np.sqrt(np.diag(G)).copy()
             D[~(D > 0)] = 1.0
             ev, V = np.linalg.eigh(G / np.outer(D, D))
             ev, V = ev[::-1], V[:, ::-1]
-            rhs = V.T @ (self._Atb(blocks) / D)
+            rhs = V.T @ (Atb / D)
         ev = np.maximum(ev, 0.0)
         ev_max = float(ev[0]) if ev.size else 0.0
         ev_min = float(ev[-1]) if ev.size else 0.0
@@ -220,7 +240,7 @@ class SeparableProblem:
 
     def projected_batch(self, nonlinear_sets: np.ndarray) -> list[LinearSolution]:
         """Linear solves for many nonlinear sets; the best fitness goes to the history."""
-        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, len(self.nonlinear_names))
+        sets = self._as_sets(nonlinear_sets)
         n_lin = len(self.linear_names)
         chunk = max(1, MAX_BATCH_ELEMENTS // max(1, self.problem.n_rows * n_lin))
         sols = []
@@ -241,55 +261,79 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
     sep = SeparableProblem(problem, opts["max_condition"])
+    with problem.parallel_records():
+        return _run(problem, sep, seed, start, opts)
+
+
+def _run(problem: Problem, sep: SeparableProblem, seed, start, opts) -> dict:
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
-    if d == 0:
+    if d == 0:  # a purely linear model: the final solve below is the whole identification
         best_nl = np.zeros(0)
-        sep.projected_batch(np.zeros((1, 0)))
         diag["local_searches"] = []
     else:
         lo, hi = sep.nl_lower, sep.nl_upper
-        width = np.where(hi > lo, hi - lo, 1.0)
-        cands = [x_start[sep.nl_idx]]
+        free = hi > lo  # a nonlinear parameter fixed by equal bounds is not searched
+        width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
+        cands = [np.clip(x_start[sep.nl_idx], lo, hi)]
         if opts["n_candidates"] > 0:
-            sobol = qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed))
-            cands.extend(lo + sobol.random(int(opts["n_candidates"])) * (hi - lo))
+            if not np.all(np.isfinite(hi - lo)):
+                bad = [n for n, ok in zip(sep.nonlinear_names, np.isfinite(hi - lo)) if not ok]
+                raise IdentificationError(
+                    f"method 'varpro' on model {problem.model.name!r}: candidate starts need finite bounds for "
+                    f"{', '.join(bad)} (give bounds, or n_candidates=0)")
+            halton = qmc.Halton(d, scramble=True, seed=np.random.default_rng(seed))
+            cands.extend(lo + halton.random(int(opts["n_candidates"])) * (hi - lo))
         cands = np.array(cands)
         sols = sep.projected_batch(cands)
         order = np.argsort([s.fitness for s in sols], kind="stable")
         searches = []
         best_nl, best_f = cands[order[0]], sols[order[0]].fitness
-        step = opts["fd_step"] * width
+        step = (opts["fd_step"] * width)[free]
+        base = cands[order[0]].copy()
         cache: dict = {}
 
-        def residual(z):
-            key = z.tobytes()
+        def full(zf):
+            z = base.copy()
+            z[free] = zf
+            return z
+
+        def residual(zf):
+            key = zf.tobytes()
             if key not in cache:
                 cache.clear()
-                cache[key] = sep.projected_batch(z[None])[0].residuals
+                cache[key] = sep.projected_batch(full(zf)[None])[0].residuals
             return cache[key]
 
-        def jacobian(z):
-            r0 = residual(z)
-            h = np.where(z + step <= hi, step, -step)
-            Z = z[None, :] + np.diag(h)
+        def jacobian(zf):
+            r0 = residual(zf)
+            h = np.where(zf + step <= hi[free], step, -step)
+            Z = np.repeat(full(zf)[None], h.size, axis=0)
+            Z[np.arange(h.size), np.flatnonzero(free)] += h
             sols_h = sep.projected_batch(Z)
             return np.column_stack([(s.residuals - r0) / h[j] for j, s in enumerate(sols_h)])
 
+        if not free.any():
+            order = order[:0]
         for k in order[: max(1, int(opts["n_starts"]))]:
-            z0 = np.clip(cands[k], lo, hi)
+            if not math.isfinite(sols[k].fitness):  # the model gave no finite output there
+                continue
+            base = cands[k].copy()
             n0 = problem.n_evaluations
-            res = least_squares(residual, z0, jac=jacobian, bounds=(lo, hi), method="trf", x_scale=width,
-                                ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"], max_nfev=int(opts["max_nfev"]))
+            res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
+                                x_scale=width[free], ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"],
+                                max_nfev=int(opts["max_nfev"]))
             f = float(2.0 * res.cost)
-            searches.append({"start": [float(v) for v in z0], "start_fitness": float(sols[k].fitness),
-                             "end": [float(v) for v in res.x], "fitness": f, "status": int(res.status),
+            end = full(res.x)
+            searches.append({"start": [float(v) for v in cands[k]], "start_fitness": float(sols[k].fitness),
+                             "end": [float(v) for v in end], "fitness": f, "status": int(res.status),
                              "message": str(res.message), "n_evaluations": problem.n_evaluations - n0})
             if f < best_f:
-                best_nl, best_f = res.x.copy(), f
+                best_nl, best_f = end, f
         diag["local_searches"] = searches
     final = sep.solve(best_nl, accurate=True)
+    problem.note(final.fitness)
     x = sep.full_vector(best_nl, final.linear)
     diag.update(condition_number=final.condition_number, regularised=final.regularised, ridge=final.ridge,
                 bounded_linear_solve=final.bounded, max_condition=sep.max_condition)

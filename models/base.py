@@ -68,6 +68,10 @@ class HysteresisModel:
 
     name: ClassVar[str] = ""
     presets_available: ClassVar[tuple[str, ...]] = ()
+    # True when single-set calls of the *_batch methods may run concurrently in
+    # threads (numba kernels compiled with nogil); identifiers then evaluate
+    # the records of one parameter set in parallel.
+    concurrent_calls_safe: ClassVar[bool] = False
 
     # --- configuration -------------------------------------------------
     @classmethod

@@ -212,3 +212,11 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
             for j in range(n_poly - 1, -1, -1):
                 p = (p + poly[j]) * uk
             out[k - start] = acc + p + q * d2 + offset
+
+
+@njit(cache=True, nogil=True)
+def pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, start, stop):
+    """Samples [start, stop) of ``pi_output`` for one parameter set (no threads: safe to call concurrently)."""
+    out = np.empty(stop - start)
+    _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, start, out)
+    return out

@@ -24,6 +24,7 @@ from .errors import ModelError
 from .kernels import (
     pi_output,
     pi_output_batch,
+    pi_output_window,
     pi_output_window_batch,
     play_operators,
     play_operators_window,
@@ -40,6 +41,8 @@ OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 
 class PlayOperatorModel(HysteresisModel):
     """Shared implementation; use ``ClassicalPI`` or ``MRPIM``."""
+
+    concurrent_calls_safe = True  # single-set calls run nogil kernels without a thread pool
 
     def __init__(
         self,
@@ -154,6 +157,9 @@ class PlayOperatorModel(HysteresisModel):
         u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets = self._batch_arguments(
             u, dt, param_sets, input_range)
         start, stop = self._window_bounds(u, window)
+        if gammas.shape[0] == 1:  # no thread pool: identifiers may call this from several threads
+            return pi_output_window(u, dt, backward, abs_du, ddu, gammas[0], lams[0], r, weights[0], polys[0], qs[0],
+                                    offsets[0], 0.0, start, stop)[None, :]
         return pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets,
                                       0.0, start, stop)
 
@@ -191,7 +197,7 @@ class PlayOperatorModel(HysteresisModel):
     def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
         start, stop, step = window.indices(u.size)
         if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+            raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
         return start, stop
 
     def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int) -> dict[str, np.ndarray]:

@@ -1,0 +1,70 @@
+"""``hysbench fit DATASET --model NAME --method NAME [--seed N] [--json FILE]``: one identification.
+
+Prints a short table (fitness, evaluations, time, e_m / e_rms per record,
+parameters). ``--json`` writes the Fit (keys ``model``, ``method``,
+``params``, ``fitness``, ``fit_seconds``, ``n_evaluations``, ``records`` and
+more; see ``Fit.to_dict``). ``--hyper key=value`` sets model
+hyperparameters, ``--option key=value`` identifier options (values are read
+as JSON, e.g. ``--option n_starts=4 --option 'bounds={"gamma": [0, 0.1]}'``,
+falling back to a plain string).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from hysbench.benchmarks.output import ensure_dir, write_json
+from hysbench.models import get_model
+
+from .api import identify, list_methods
+from .errors import IdentificationError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", metavar="DATASET", help="dataset folder (holding dataset.toml) or its dataset.toml")
+    parser.add_argument("--model", required=True, help="registered model name, e.g. mrpim")
+    parser.add_argument("--method", default="auto",
+                        help=f"identifier: {', '.join(list_methods())} (default: auto = varpro when the model has a "
+                             "linear part, else lsq)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--json", metavar="FILE", help="write the fit as JSON to FILE")
+    parser.add_argument("--hyper", metavar="KEY=VALUE", action="append", default=[],
+                        help="model hyperparameter, e.g. --hyper offset=false (repeatable)")
+    parser.add_argument("--option", metavar="KEY=VALUE", action="append", default=[],
+                        help="identifier option, e.g. --option n_starts=4 or --option lsq.max_nfev=50 (repeatable)")
+
+
+def parse_assignments(items: list[str], what: str) -> dict:
+    """['a=1', 'b=[1, 2]'] -> {'a': 1, 'b': [1, 2]} (JSON values, else strings)."""
+    out = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise IdentificationError(f"{what} {item!r} is not KEY=VALUE")
+        raw = raw.strip()
+        try:
+            value = json.loads(raw)
+        except json.JSONDecodeError:
+            lowered = raw.lower()
+            value = {"true": True, "false": False, "none": None}.get(lowered, raw)
+        out[key] = value
+    return out
+
+
+def main(args) -> int:
+    if args.seed < 0:
+        raise IdentificationError(f"--seed must be a non-negative integer, got {args.seed}")
+    hyper = parse_assignments(args.hyper, "--hyper")
+    options = parse_assignments(args.option, "--option")
+    model = get_model(args.model, **hyper)
+    if args.json:  # refuse an unwritable destination before spending time on the fit
+        ensure_dir(Path(args.json).parent)
+    fit = identify(model, args.dataset, method=args.method, seed=args.seed, **options)
+    print(fit.summary())
+    if args.json:
+        write_json(args.json, fit.to_dict())
+        print(f"\nwrote {args.json}")
+    return 0
