@@ -289,36 +289,80 @@ class ExtendedModel(HysteresisModel):
             Y = np.minimum(Y, levels) if self.saturation_side == "upper" else np.maximum(Y, levels)
         return Y
 
-    def regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None = None, input_range=None) -> np.ndarray:
+    def _nonlinear(self, nonlinear) -> dict:
         if self.has("saturation"):
             raise ModelError(f"model {self.name!r} has no linear part to solve exactly (clipping); use lsq or mpso")
-        u = self._check_input(u, dt)
         nonlinear = dict(nonlinear or {})
         expected = set(self.nonlinear_names)
         if set(nonlinear) != expected:
             raise ModelError(f"{self.name}: regressors need exactly the nonlinear parameters {sorted(expected)}, "
                              f"got {sorted(nonlinear)}")
         self._check_range(nonlinear)
-        in_range = self._input_range(u, input_range)
+        return nonlinear
+
+    def _window_columns(self, u: np.ndarray, dt: float, nonlinear: Mapping[str, float], start: int, stop: int,
+                        in_range, out: np.ndarray) -> None:
+        """Fill out (n_linear, stop - start) with the regressor rows [start, stop), the model run from sample 0."""
         base_nl = {k: nonlinear[k] for k in self.base_model.nonlinear_names}
-        n = u.size
         u_a, k0, t0 = self.delayed_input(u, dt, nonlinear["delay"]) if self.has("delay") else (u, 0, 0.0)
-        out = np.empty((len(self.linear_names), n))  # columns contiguous
-        if k0 < n:
-            cols = self.assemble_columns(u_a, dt, self.base_columns(u_a, dt, base_nl, in_range), nonlinear, t0)
-        else:
-            cols = {}
-        rest = self.base_rest(dt, base_nl, in_range) if k0 > 0 else {}
-        for j, name in enumerate(self.linear_names):
-            if name in ("interference_sin", "interference_cos"):
-                continue
-            out[j, :k0] = rest.get(name, 0.0)
-            out[j, k0:] = cols[name] if k0 < n else 0.0
+        names = self.linear_names
+        n_rest = min(max(k0 - start, 0), stop - start)  # leading rows before the actuator starts
+        if n_rest:
+            rest = self.base_rest(dt, base_nl, in_range)
+            for j, name in enumerate(names):
+                out[j, :n_rest] = rest.get(name, 0.0)
+        a0, a1 = max(start, k0) - k0, stop - k0  # the window in the actuator's samples
+        if a1 > a0:
+            if self.has("resonance"):  # the filter needs every sample up to the window's end
+                cols = self.assemble_columns(u_a[:a1], dt, self.base_columns(u_a[:a1], dt, base_nl, in_range),
+                                             nonlinear, t0)
+                cols = {k: v[a0:a1] for k, v in cols.items()}
+            else:
+                B = self.base_model.windowed_regressors(u_a, dt, base_nl, slice(a0, a1), input_range=in_range)
+                cols = {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
+                if self.has("relaxation"):
+                    taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
+                    R = self._relaxation_columns(u_a[:a1], dt, taus)
+                    for j, w in enumerate(self._relaxation_weight_names()):
+                        cols[w] = R[j, a0:a1]
+                if self.has("creep"):
+                    cols["creep_size"] = self._creep_column(a1 - a0, dt, nonlinear["creep_time"], t0 + a0 * dt)
+            for j, name in enumerate(names):
+                if name in cols:
+                    out[j, n_rest:] = cols[name]
         if self.has("interference"):
-            inter = self.interference_columns(n, dt, nonlinear["interference_frequency"])
-            out[self.linear_names.index("interference_sin")] = inter[0]
-            out[self.linear_names.index("interference_cos")] = inter[1]
-        return out.T
+            phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * np.arange(start, stop)
+            out[names.index("interference_sin")] = np.sin(phase)
+            out[names.index("interference_cos")] = np.cos(phase)
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None = None, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        return self.windowed_regressors(u, dt, nonlinear, slice(0, u.size), input_range=input_range)
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window: slice,
+                            input_range=None) -> np.ndarray:
+        nonlinear = self._nonlinear(nonlinear)
+        sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
+        return self.windowed_regressors_batch(u, dt, sets, window, input_range)[0]
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        sets = sets.reshape(1, -1) if sets.ndim < 2 else sets
+        names = self.nonlinear_names
+        if sets.shape[1] != len(names):
+            raise ModelError(f"{self.name}: regressors need the nonlinear parameters {list(names)}, "
+                             f"got sets of shape {sets.shape}")
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        in_range = self._input_range(u, input_range)
+        out = np.empty((sets.shape[0], len(self.linear_names), stop - start))
+        for i, row in enumerate(sets):
+            nonlinear = self._nonlinear(dict(zip(names, (float(v) for v in row))))
+            self._window_columns(u, dt, nonlinear, start, stop, in_range, out[i])
+        return out.transpose(0, 2, 1)
 
     def base_columns(self, u: np.ndarray, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict:
         """The base's regressor columns over the whole input, by linear parameter name."""

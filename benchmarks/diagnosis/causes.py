@@ -54,7 +54,7 @@ from hysbench.models.extended import (
     RESONANCE_HZ_BOUNDS,
     TAU_BOUNDS,
 )
-from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank
+from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank, lowpass2_rows, second_order_foh
 
 from .residuals import RecordResidual, coherent_spectrum, spectral_peaks
 
@@ -291,6 +291,11 @@ class Screen:
         u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
         self._q0 = np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])  # basis of the base's columns on these rows
         self.null_residual = res
+        full = self.base_columns(z, full=True).full
+        self._null_prediction = [sum(theta[j] * f[name] for j, name in enumerate(self.base_lin)) for f in full]
+        self._null_rest = float(self.base.simulate(np.zeros(1), self.parts[0].record.dt, params,
+                                                   input_range=self.input_range)[0])
+        self._null_offset = float(params.get("offset", 0.0))
         self.base_nl = dict(z)
         return c
 
@@ -311,7 +316,7 @@ class Screen:
 
     # --- nonlinear search --------------------------------------------------
     def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
-               max_nfev: int = 40) -> dict:
+               max_nfev: int = 40, residual: Callable | None = None) -> dict:
         """Bounded local least squares over the named nonlinear parameters (log scale where flagged);
         the others stay at ``start`` (the base's, when not named, at the null's)."""
         start = {**getattr(self, "base_nl", {}), **dict(start)}
@@ -335,20 +340,21 @@ class Screen:
             return z
 
         def fun(x):
-            return self.evaluate(model, unpack(x))[2]
+            return residual(unpack(x)) if residual else self.evaluate(model, unpack(x))[2]
 
         res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=width,
                             max_nfev=max_nfev, ftol=1e-8, xtol=1e-8)
         return unpack(res.x)
 
     def line_search(self, model: ExtendedModel, name: str, grid: Sequence[float], log: bool = False,
-                    fixed: Mapping[str, float] | None = None) -> dict:
+                    fixed: Mapping[str, float] | None = None, evaluate: Callable | None = None) -> dict:
         """One nonlinear parameter: the best grid point, then Brent's bounded search between its neighbours."""
         fixed = {**self.base_nl, **dict(fixed or {})}
         grid = np.asarray(sorted(grid), dtype=float)
+        evaluate = evaluate or (lambda z: self.evaluate(model, z))
 
         def rss(v):
-            return self.evaluate(model, {**fixed, name: float(v)})[0]
+            return evaluate({**fixed, name: float(v)})[0]
 
         vals = [rss(g) for g in grid]
         i = int(np.argmin(vals))
@@ -395,22 +401,57 @@ class Screen:
                                       {"n_relaxation": k, "relaxation_powers": list(powers)}))
         return out
 
+    def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
+        """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's
+        prediction; ``column_of(m)`` gives T[y0] - y0 over record m. Evaluated against the null."""
+        E = np.concatenate([column_of(m)[p.rows] for m, p in enumerate(self.parts)])[:, None]
+        E = E - self._q0 @ (self._q0.T @ E)
+        c, _ = self.solve(E, self.null_residual)
+        res = self.null_residual - E @ c
+        self.n_evaluations += 1
+        return float(res @ res), None, res
+
+    def _delayed_null(self, z):
+        def column(m):
+            y0 = self._null_prediction[m]
+            pos = np.arange(y0.size) - z["delay"] / self.parts[m].record.dt
+            return np.interp(pos, np.arange(y0.size), y0, left=self._null_rest) - y0
+        return self.first_order(column)
+
+    def _resonant_null(self, z):
+        phi, g0, g1 = second_order_foh(z["natural_frequency"], z["damping_ratio"], self.parts[0].record.dt)
+
+        def column(m):
+            y0 = self._null_prediction[m] - self._null_offset
+            return lowpass2_rows(np.ascontiguousarray(y0[None, :]), phi, g0, g1)[0] - y0
+        return self.first_order(column)
+
     def delay(self) -> Candidate:
+        """Searched to first order (the null's prediction delayed) on a grid of about two samples,
+        then exactly (Brent) within a sample or two of the best grid point."""
         model = self.extension(("delay",))
+        dt = min(p.record.dt for p in self.parts)
         hi = DELAY_BOUND * self.scale.time
-        z = self.line_search(model, "delay", np.linspace(0.0, hi, 26))
+        grid = np.linspace(0.0, hi, int(min(max(hi / (2 * dt), 10), 400)) + 1)
+        z = self.line_search(model, "delay", grid, evaluate=self._delayed_null)
+        d0 = z["delay"]
+        z = self.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
         return self.candidate("delay", "pure delay", model, z)
 
     def resonance(self) -> Candidate:
+        """Searched to first order (the null's prediction through the mode), then evaluated exactly."""
         model = self.extension(("resonance",))
         T = self.scale.time
         dt = min(p.record.dt for p in self.parts)
         f_lo = RESONANCE_HZ_BOUNDS[0] / T
         f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
         fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 9))
-        pts = [{"natural_frequency": float(f), "damping_ratio": z} for f in fs for z in (0.07, 0.25, 0.8)]
-        z, _ = self.grid(model, pts)
-        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=12)
+        pts = [{**self.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
+               for zeta in (0.07, 0.25, 0.8)]
+        vals = [self._resonant_null(z)[0] for z in pts]
+        z = pts[int(np.argmin(vals))]
+        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=20,
+                        residual=lambda q: self._resonant_null(q)[2])
         return self.candidate("resonance", "second-order mode", model, z)
 
     def creep(self) -> Candidate:
@@ -420,13 +461,19 @@ class Screen:
         z = self.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
         return self.candidate("creep", "slow drift since the start", model, z)
 
-    def interference(self, residuals: Sequence[RecordResidual], n_peaks: int = 3) -> Candidate:
+    def null_residuals(self) -> list[RecordResidual]:
+        """The null's residual over every identification record, whole length."""
+        return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
+
+    def interference(self, n_peaks: int = 3) -> Candidate:
+        """Candidate frequencies: the most prominent peaks of the pooled coherent spectrum of the
+        null's residual (amplitude over its running median); each refined by a line search."""
         model = self.extension(("interference",))
         lo, hi = self.bounds_of(model, "interference_frequency")
         dt = min(p.record.dt for p in self.parts)
         hi = min(hi, 0.45 / dt)
-        f, amp = coherent_spectrum(list(residuals), lo, hi)
-        peaks = spectral_peaks(f, amp, n=n_peaks, min_separation_hz=max(lo, 0.05))
+        f, amp = coherent_spectrum(self.null_residuals(), lo, hi)
+        peaks = spectral_peaks(f, prominence(amp), n=n_peaks, min_separation_hz=max(lo, 0.05))
         n_max = max(p.record.t.size for p in self.parts)
         step = 1.0 / (n_max * dt)  # the Fourier resolution of the longest record
         best, best_rss = {**self.base_nl, "interference_frequency": float(min(max(10.0, lo), hi))}, math.inf
@@ -555,6 +602,14 @@ class Screen:
         return c
 
 
+def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
+    """A spectrum over its running median (a peak stands out of its neighbourhood, whatever the slope)."""
+    from scipy.ndimage import median_filter
+
+    med = median_filter(amp, size=2 * half_width + 1, mode="nearest")
+    return amp / np.maximum(med, 1e-300)
+
+
 # --- library screen (pysindy) -------------------------------------------------------
 def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_terms: int = 8,
                    n_taus: int = 10) -> dict:
@@ -574,8 +629,8 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
     bc = screen.base_columns(screen.base_nl, full=True)
     # an interference candidate frequency: the pooled coherent spectrum's peak
     dt = min(p.record.dt for p in screen.parts)
-    f, amp = coherent_spectrum([rr for rr in residuals if rr.record.role == "identification"], 1.0 / T, 0.45 / dt)
-    peak = spectral_peaks(f, amp, n=1)
+    f, amp = coherent_spectrum(screen.null_residuals(), 1.0 / T, 0.45 / dt)
+    peak = spectral_peaks(f, prominence(amp), n=1)
     names, groups, blocks = [], [], []
     y_hat_rows = np.concatenate([rows @ null_theta for rows in bc.rows])
     q_hi = np.quantile(y_hat_rows, [0.90, 0.97])
@@ -657,7 +712,7 @@ def run_screen(screen: Screen, residuals: Sequence[RecordResidual], max_relaxati
     say("creep")
     cands.append(screen.creep())
     say("interference")
-    cands.append(screen.interference([rr for rr in residuals if rr.record.role == "identification"]))
+    cands.append(screen.interference())
     say("saturation")
     cands.append(screen.saturation())
     # stage 2: what could be named is refined with the base's nonlinear parameters free: the best

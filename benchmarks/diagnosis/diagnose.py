@@ -12,14 +12,15 @@
    residual sum of squares; otherwise ``none``. The validation records take
    no part in this choice: each candidate's share of the validation residual
    explained is printed as evidence only.
-5. The strongest ``max_secondary`` other causes that pass the same test
-   alone are tried on top of the named one (composite extension); those
-   that pass it again against the named one alone are "also".
-6. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
+5. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
    identified with the identifiers on the identification records' whole
    length, every parameter free, from the screen's estimate; the base model
    is refitted the same way. e_m / e_rms per record before and after, and the
    gain on the validation records, which took part in no fit and no choice.
+6. The strongest ``max_secondary`` other causes that pass the test of 4.
+   alone are tried on top of the named extension at its identified
+   parameters (composite extension, refined on the screen's rows); those
+   that pass it again against the named one alone are "also".
 """
 
 from __future__ import annotations
@@ -147,6 +148,31 @@ class Diagnosis:
         })
 
 
+def secondary_causes(diag: Diagnosis, max_secondary: int, bic_threshold: float, min_explained: float,
+                     say: Callable[[str], None]) -> None:
+    """The strongest other candidates, each added to the named extension (composite) and refined on the
+    screen from the identified parameters; "also" if it passes the test against the named one alone
+    (at its identified parameters, linear ones re-solved on the screen)."""
+    screen, chosen = diag.screen, diag.chosen
+    primary = chosen
+    if chosen.cause != "saturation":
+        nl = {k: diag.extended_fit.params[k] for k in chosen.model.nonlinear_names}
+        identified = screen.candidate(chosen.cause, chosen.label, chosen.model, nl, chosen.hyperparameters,
+                                      stage="identified")
+        if identified.bic < primary.bic:
+            primary = identified
+    others = sorted([c for c in diag.candidates if c.cause != chosen.cause and c.delta_bic < -bic_threshold
+                     and c.explained >= min_explained], key=lambda c: c.bic)[:max_secondary]
+    for c in others:
+        say(f"trying {chosen.cause} + {c.cause}")
+        comp = screen.composite(primary, c)
+        if comp is None:
+            continue
+        diag.secondary_tried.append(comp)
+        if comp.delta_bic < -bic_threshold and comp.explained >= min_explained:
+            diag.also.append(comp)
+
+
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, bic_threshold: float = BIC_THRESHOLD,
              min_explained: float = MIN_EXPLAINED, max_secondary: int = 2, extend: bool = True,
@@ -194,24 +220,12 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     result = run_screen(screen, before, max_relaxation=max_relaxation, bic_threshold=bic_threshold, progress=say)
     candidates = result["candidates"]
     chosen = decide(screen.null, candidates, bic_threshold, min_explained)
-    also, tried = [], []
-    if chosen is not None:  # secondary causes: the strongest other candidates on top of the named one
-        others = sorted([c for c in candidates if c.cause != chosen.cause and c.delta_bic < -bic_threshold
-                         and c.explained >= min_explained], key=lambda c: c.bic)[:max_secondary]
-        for c in others:
-            say(f"trying {chosen.cause} + {c.cause}")
-            comp = screen.composite(chosen, c)
-            if comp is None:
-                continue
-            tried.append(comp)
-            if comp.delta_bic < -bic_threshold and comp.explained >= min_explained:
-                also.append(comp)
     timings["screen"] = time.perf_counter() - t1
 
     diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=candidates, relaxation_variants=result["relaxation_variants"], chosen=chosen,
-                     also=also, secondary_tried=tried, timings=timings,
+                     also=[], secondary_tried=[], timings=timings,
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "bic_threshold": bic_threshold,
                                "min_explained": min_explained})
     if chosen is None or not extend:
@@ -225,6 +239,9 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on)
     diag.after = residuals_of_fit(diag.extended_fit, dataset)
     timings["extended_fit"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    secondary_causes(diag, max_secondary, bic_threshold, min_explained, say)
+    timings["secondary"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     say(f"refitting {base.name} on the identification records' whole length (for comparison)")
     diag.base_whole_fit = identify_whole(base, dataset, base_fit.params, seed, fit_on)

@@ -28,8 +28,8 @@ from hysbench.models.registry import list_models
 from .residuals import RecordResidual
 
 # Options of the final identification (the start is already close; see module docstring).
-VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 30}
-LSQ_OPTIONS = {"max_nfev": 60}
+VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 10}
+LSQ_OPTIONS = {"max_nfev": 30}
 
 
 def whole_record(record: Record) -> Record:

@@ -20,8 +20,8 @@ relaxation     y += c L_tau[u], L_tau first-order low-pass of u from rest;
 delay          y(t) -> y(t - d), the actuator at rest (y = 0) before d; d uniform in [5, 40] ms
 resonance      y -> H[y], H second-order low-pass of unit static gain from rest;
                f_n log-uniform in [2, 8] Hz, damping ratio uniform in [0.05, 0.4]
-creep          y += s (1 - exp(-t / T_c)); T_c log-uniform in [20, 100] s, |s| uniform in
-               [0.1, 0.5] mm, random sign
+creep          y += s (1 - exp(-t / T_c)); T_c log-uniform in [0.2, 1] x the longest record
+               ([20, 100] s on the full protocol), |s| uniform in [0.1, 0.5] mm, random sign
 interference   y += A sin(2 pi f t + phi) in each record's own time; f uniform in [3, 40] Hz,
                A uniform in [0.02, 0.08] mm, phi uniform (the same in every record)
 saturation     y -> min(y, level); level = (top of the scored loops) - q * (their range),
@@ -57,7 +57,7 @@ RANGES = {
     "relaxation": {"tau_s": (0.3, 10.0), "weight_mm_per_kv": (0.15, 0.5)},
     "delay": {"delay_s": (0.005, 0.040)},
     "resonance": {"natural_frequency_hz": (2.0, 8.0), "damping_ratio": (0.05, 0.4)},
-    "creep": {"time_scale_s": (20.0, 100.0), "size": (0.1, 0.5)},
+    "creep": {"time_scale_of_longest_record": (0.2, 1.0), "size": (0.1, 0.5)},
     "interference": {"frequency_hz": (3.0, 40.0), "amplitude": (0.02, 0.08)},
     "saturation": {"clipped_fraction_of_range": (0.03, 0.10)},
 }
@@ -67,7 +67,7 @@ def _log_uniform(rng, lo, hi) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_effect(cause: str, rng: np.random.Generator) -> dict:
+def draw_effect(cause: str, rng: np.random.Generator, longest_record_s: float = 100.0) -> dict:
     """The planted parameters, drawn from ``RANGES``."""
     if cause not in PLANTABLE:
         raise HysbenchError(f"unknown cause {cause!r}; choose one of {', '.join(PLANTABLE)}")
@@ -81,7 +81,8 @@ def draw_effect(cause: str, rng: np.random.Generator) -> dict:
         return {"natural_frequency_hz": _log_uniform(rng, *r["natural_frequency_hz"]),
                 "damping_ratio": float(rng.uniform(*r["damping_ratio"]))}
     if cause == "creep":
-        return {"time_scale_s": _log_uniform(rng, *r["time_scale_s"]),
+        lo, hi = r["time_scale_of_longest_record"]
+        return {"time_scale_s": _log_uniform(rng, lo * longest_record_s, hi * longest_record_s),
                 "size": float(rng.choice([-1.0, 1.0]) * rng.uniform(*r["size"]))}
     if cause == "interference":
         return {"frequency_hz": float(rng.uniform(*r["frequency_hz"])), "amplitude": float(rng.uniform(*r["amplitude"])),
@@ -136,7 +137,8 @@ def planted_dataset(cause: str, seed: int = 0, frequencies: Sequence[float] = FR
     Roles and weights follow Table 1; frequencies not in Table 1 are validation.
     """
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), PLANTABLE.index(cause) if cause in PLANTABLE else 99]))
-    drawn = draw_effect(cause, rng)
+    longest = max(float(protocol_time(f, n_periods, dt)[-1]) + dt for f in frequencies)
+    drawn = draw_effect(cause, rng, longest)
     effect = dict(effect) if effect is not None else drawn
     sd = float(noise_sd) if noise_sd is not None else float(rng.uniform(*NOISE_SD_RANGE))
     model = get_model("mrpim")
