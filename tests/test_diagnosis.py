@@ -237,3 +237,18 @@ def test_cli_refuses_bad_input_in_one_line(args, needle):
     res = _hysbench(*args)
     assert res.returncode == 2
     assert needle in res.stderr and len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
+
+
+# --- the virtual DEA ---------------------------------------------------------------------------
+def test_virtual_dea_is_relaxation_and_a_planted_interference_is_found_on_top():
+    """The virtual DEA's physics from rest (its own relaxation) with an interference planted: the
+    diagnosis names relaxation, finds the interference as a secondary cause (frequency and amplitude
+    within 25 %), and the extension gains on the validation records."""
+    ds, truth = planted_dataset("interference", 4, source="virtual-dea", **FAST)
+    d = diagnose(ds, seed=0)
+    assert d.cause == "relaxation", [c.summary() for c in d.candidates]
+    assert d.gain()["validation"]["explained_whole"] > 0.5
+    assert d.gain()["validation_vs_base_refit_on_whole_records"]["explained_whole"] > 0
+    found = [c for c in d.also if c.cause == "interference"]
+    assert found, [c.summary() for c in d.secondary_tried]
+    _check_parameters("interference", found[0].estimates, truth["parameters"])

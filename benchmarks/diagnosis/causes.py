@@ -32,7 +32,8 @@ extension finally named is identified afterwards with every parameter free.
   scored on all samples.
 * Relaxation is fitted with 1, 2, ... ``max_relaxation`` time constants
   (greedy: each new one by a grid search with the others fixed, then all
-  jointly); the variant with the lowest BIC stands for the cause.
+  jointly; it stops when one more lowers BIC by less than the threshold);
+  the variant with the lowest BIC stands for the cause.
 """
 
 from __future__ import annotations
@@ -59,9 +60,11 @@ from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank, lowpa
 from .residuals import RecordResidual, coherent_spectrum, spectral_peaks
 
 MAX_ROWS = 10_000  # rows per record in the screen
-MAX_RELAXATION = 3
+MAX_RELAXATION = 4
 BIC_THRESHOLD = 10.0  # a cause needs BIC lower than the null's by this much
 MIN_EXPLAINED = 0.01  # ... and to explain this share of the null's residual sum of squares
+CREEP_PERIODS = 2.0  # creep's time scale is at least this many of the longest drive period
+MAX_DAMPING = 1.0  # a resonance (a mode) is underdamped
 
 
 @dataclass
@@ -83,12 +86,14 @@ class Candidate:
     validation_explained: float = math.nan  # share of the null's validation RSS explained (evidence only)
     hyperparameters: dict = field(default_factory=dict)
     stage: str = "joint"  # "fixed base": the base's nonlinear parameters held at the null's
+    limit: str = ""  # why the candidate cannot be named (a parameter at the vocabulary's limit), if so
 
     def __post_init__(self):
         self.bic = bic(self.rss, self.n, self.k)
 
     def summary(self) -> dict:
-        return {"cause": self.cause, "label": self.label, "model": self.model.name, "stage": self.stage, "k": self.k,
+        return {"cause": self.cause, "label": self.label, "model": self.model.name, "stage": self.stage,
+                "admissible": not self.limit, "limit": self.limit, "k": self.k,
                 "bic": self.bic, "delta_bic": self.delta_bic, "rss": self.rss, "n_rows": self.n,
                 "explained_identification": self.explained, "explained_validation": self.validation_explained,
                 "estimates": self.estimates}
@@ -147,7 +152,7 @@ def _is_log(name: str) -> bool:
 class Screen:
     """The candidate fits on a fixed row subset of the identification records.
 
-    Stage 1 (``stage1``): each cause's extension with the base's nonlinear
+    Stage 1: each cause's extension with the base's nonlinear
     parameters held at the null's; only the components' columns are new, so
     they are projected off the base's columns and regressed on the null's
     residual (cheap). Stage 2 (``joint``): a candidate refined with the
@@ -188,9 +193,19 @@ class Screen:
             self._extension_cache[key] = m
         return m
 
+    @property
+    def creep_min(self) -> float:
+        """Creep is a drift much slower than the drive: at least twice the longest drive period."""
+        periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
+        return max(CREEP_TIME_BOUNDS[0] * self.scale.time, CREEP_PERIODS * max(periods, default=0.0))
+
     def bounds_of(self, model: HysteresisModel, name: str) -> tuple[float, float]:
         for p in model.parameters(self.scale):
             if p.name == name:
+                if name == "creep_time":
+                    return max(float(p.min), self.creep_min), float(p.max)
+                if name == "damping_ratio":  # a resonance is a mode: underdamped
+                    return float(p.min), min(float(p.max), MAX_DAMPING)
                 return float(p.min), float(p.max)
         raise KeyError(name)
 
@@ -312,7 +327,17 @@ class Screen:
     def _finish(self, c: Candidate) -> Candidate:
         c.delta_bic = c.bic - self.null.bic
         c.explained = 1.0 - c.rss / self.null.rss
+        c.limit = self.limit_of(c.cause, c.estimates)
         return c
+
+    def limit_of(self, cause: str, estimates: Mapping) -> str:
+        """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
+        creep slower than the drive; a fit pinned at those limits is not named."""
+        if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
+            return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
+        if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
+            return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
+        return ""
 
     # --- nonlinear search --------------------------------------------------
     def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
@@ -362,10 +387,10 @@ class Screen:
         if b > a:
             if log:
                 res = minimize_scalar(lambda x: rss(math.exp(x)), bounds=(math.log(a), math.log(b)), method="bounded",
-                                      options={"xatol": 1e-4})
+                                      options={"xatol": 1e-3})
                 v = math.exp(res.x)
             else:
-                res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 1e-4 * (b - a)})
+                res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 2e-3 * (b - a)})
                 v = float(res.x)
             if res.fun < vals[i]:
                 return {**fixed, name: v}
@@ -382,7 +407,7 @@ class Screen:
 
     # --- stage 1: each cause with the base's nonlinear parameters fixed -------------
     def relaxation(self, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
-                   powers: Sequence[int] = (1,)) -> list[Candidate]:
+                   powers: Sequence[int] = (1,), stop_threshold: float = BIC_THRESHOLD) -> list[Candidate]:
         T = self.scale.time
         lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
         grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25))) + [float(s) for s in seeds if lo <= s <= hi]
@@ -399,12 +424,14 @@ class Screen:
             label = f"relaxation, {k} time constant{'s' if k > 1 else ''}"
             out.append(self.candidate("relaxation", label, model, z,
                                       {"n_relaxation": k, "relaxation_powers": list(powers)}))
+            if k > 1 and out[-1].bic > out[-2].bic - stop_threshold:  # one more did not help: stop
+                break
         return out
 
     def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
         """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's
-        prediction; ``column_of(m)`` gives T[y0] - y0 over record m. Evaluated against the null."""
-        E = np.concatenate([column_of(m)[p.rows] for m, p in enumerate(self.parts)])[:, None]
+        prediction; ``column_of(m)`` gives T[y0] - y0 on record m's screen rows. Evaluated against the null."""
+        E = np.concatenate([column_of(m) for m in range(len(self.parts))])[:, None]
         E = E - self._q0 @ (self._q0.T @ E)
         c, _ = self.solve(E, self.null_residual)
         res = self.null_residual - E @ c
@@ -413,9 +440,9 @@ class Screen:
 
     def _delayed_null(self, z):
         def column(m):
-            y0 = self._null_prediction[m]
-            pos = np.arange(y0.size) - z["delay"] / self.parts[m].record.dt
-            return np.interp(pos, np.arange(y0.size), y0, left=self._null_rest) - y0
+            y0, rows = self._null_prediction[m], self.parts[m].rows
+            pos = rows - z["delay"] / self.parts[m].record.dt
+            return np.interp(pos, np.arange(y0.size), y0, left=self._null_rest) - y0[rows]
         return self.first_order(column)
 
     def _resonant_null(self, z):
@@ -423,23 +450,31 @@ class Screen:
 
         def column(m):
             y0 = self._null_prediction[m] - self._null_offset
-            return lowpass2_rows(np.ascontiguousarray(y0[None, :]), phi, g0, g1)[0] - y0
+            rows = self.parts[m].rows
+            return lowpass2_rows(np.ascontiguousarray(y0[None, :]), phi, g0, g1)[0][rows] - y0[rows]
         return self.first_order(column)
 
     def delay(self) -> Candidate:
-        """Searched to first order (the null's prediction delayed) on a grid of about two samples,
-        then exactly (Brent) within a sample or two of the best grid point."""
+        """Searched to first order (the null's prediction delayed) on a grid of about two samples;
+        the best few grid points and a one-sample delay are then searched exactly (Brent within two
+        samples), since a first-order search can be led astray by a misfit of another kind."""
         model = self.extension(("delay",))
         dt = min(p.record.dt for p in self.parts)
         hi = DELAY_BOUND * self.scale.time
         grid = np.linspace(0.0, hi, int(min(max(hi / (2 * dt), 10), 400)) + 1)
-        z = self.line_search(model, "delay", grid, evaluate=self._delayed_null)
-        d0 = z["delay"]
-        z = self.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
-        return self.candidate("delay", "pure delay", model, z)
+        vals = np.array([self._delayed_null({**self.base_nl, "delay": float(d)})[0] for d in grid])
+        starts = [float(grid[i]) for i in _local_minima(vals, 2)] + [min(dt, hi)]
+        best, best_rss = None, math.inf
+        for d0 in starts:
+            z = self.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
+            rss = self.evaluate(model, z)[0]
+            if rss < best_rss:
+                best, best_rss = z, rss
+        return self.candidate("delay", "pure delay", model, best)
 
     def resonance(self) -> Candidate:
-        """Searched to first order (the null's prediction through the mode), then evaluated exactly."""
+        """Searched to first order (the null's prediction through the mode) on a grid; the best few
+        grid points and a fast, well-damped mode are evaluated exactly, the best refined exactly."""
         model = self.extension(("resonance",))
         T = self.scale.time
         dt = min(p.record.dt for p in self.parts)
@@ -448,16 +483,21 @@ class Screen:
         fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 9))
         pts = [{**self.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
                for zeta in (0.07, 0.25, 0.8)]
-        vals = [self._resonant_null(z)[0] for z in pts]
-        z = pts[int(np.argmin(vals))]
-        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=20,
-                        residual=lambda q: self._resonant_null(q)[2])
+        vals = np.array([self._resonant_null(z)[0] for z in pts])
+        starts = []
+        for i in np.argsort(vals)[:2]:
+            z = self.refine(model, pts[int(i)], [("natural_frequency", True), ("damping_ratio", True)], max_nfev=12,
+                            residual=lambda q: self._resonant_null(q)[2])
+            starts.append(z)
+        starts.append({**self.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
+        starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
+        z = min(starts, key=lambda q: self.evaluate(model, q)[0])
+        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=8)
         return self.candidate("resonance", "second-order mode", model, z)
 
     def creep(self) -> Candidate:
         model = self.extension(("creep",))
-        T = self.scale.time
-        lo, hi = CREEP_TIME_BOUNDS[0] * T, CREEP_TIME_BOUNDS[1] * T
+        lo, hi = self.bounds_of(model, "creep_time")
         z = self.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
         return self.candidate("creep", "slow drift since the start", model, z)
 
@@ -465,15 +505,30 @@ class Screen:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
 
-    def interference(self, n_peaks: int = 3) -> Candidate:
+    def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
+        """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
+        there a disturbance cannot be told from the model's misfit."""
+        out = np.ones(f.shape, dtype=bool)
+        for p in self.parts:
+            fd = p.record.frequency_hz
+            if not fd:
+                return np.zeros(f.shape, dtype=bool)
+            k = np.maximum(np.round(f / fd), 1.0)
+            out &= np.abs(f - k * fd) <= tolerance_hz
+        return out
+
+    def interference(self, n_peaks: int = 5) -> Candidate:
         """Candidate frequencies: the most prominent peaks of the pooled coherent spectrum of the
-        null's residual (amplitude over its running median); each refined by a line search."""
+        null's residual (amplitude over its running median), harmonics common to every drive left
+        out; each refined by a line search."""
         model = self.extension(("interference",))
         lo, hi = self.bounds_of(model, "interference_frequency")
         dt = min(p.record.dt for p in self.parts)
         hi = min(hi, 0.45 / dt)
         f, amp = coherent_spectrum(self.null_residuals(), lo, hi)
-        peaks = spectral_peaks(f, prominence(amp), n=n_peaks, min_separation_hz=max(lo, 0.05))
+        prom = prominence(amp)
+        prom[self.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
+        peaks = spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))
         n_max = max(p.record.t.size for p in self.parts)
         step = 1.0 / (n_max * dt)  # the Fourier resolution of the longest record
         best, best_rss = {**self.base_nl, "interference_frequency": float(min(max(10.0, lo), hi))}, math.inf
@@ -586,7 +641,7 @@ class Screen:
             c.validation_explained = 1.0 - c.validation_rss / self.null.validation_rss
 
     # --- composite (secondary causes) ---------------------------------------------
-    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 15) -> Candidate | None:
+    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10) -> Candidate | None:
         """The primary's extension plus another cause, refined from both fits (separable causes only)."""
         if "saturation" in (primary.cause, other.cause):
             return None
@@ -599,7 +654,19 @@ class Screen:
         c.estimates = estimates_of(other.cause, c.params, model)
         c.delta_bic = c.bic - primary.bic  # against the primary alone
         c.explained = 1.0 - c.rss / primary.rss
+        c.limit = self.limit_of(other.cause, c.estimates)
         return c
+
+
+def _local_minima(vals: np.ndarray, n: int) -> list[int]:
+    """Indices of the n lowest local minima of a sampled curve (ends included)."""
+    v = np.asarray(vals, dtype=float)
+    if v.size < 3:
+        return [int(np.argmin(v))]
+    left = np.r_[True, v[1:] <= v[:-1]]
+    right = np.r_[v[:-1] <= v[1:], True]
+    idx = np.flatnonzero(left & right)
+    return [int(i) for i in idx[np.argsort(v[idx])][:n]]
 
 
 def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
@@ -624,7 +691,7 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
 
     T = screen.scale.time
     taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), n_taus))
-    creeps = np.exp(np.linspace(math.log(CREEP_TIME_BOUNDS[0] * T * 10), math.log(CREEP_TIME_BOUNDS[1] * T / 10), 5))
+    creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(CREEP_TIME_BOUNDS[1] * T / 10), 5))
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
     # an interference candidate frequency: the pooled coherent spectrum's peak
@@ -695,7 +762,7 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
 
 
 def run_screen(screen: Screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
-               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int = 12, joint_share: float = 0.05,
+               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int = 10, joint_share: float = 0.05,
                max_joint: int = 3,
                progress: Callable[[str], None] | None = None) -> dict:
     """Every candidate on the screen; returns {"library", "candidates" (best per cause), "relaxation_variants"}."""
@@ -736,7 +803,8 @@ def run_screen(screen: Screen, residuals: Sequence[RecordResidual], max_relaxati
 
 def decide(null: Candidate, candidates: Sequence[Candidate], bic_threshold: float = BIC_THRESHOLD,
            min_explained: float = MIN_EXPLAINED) -> Candidate | None:
-    """The named cause: the lowest BIC, if it beats the null by ``bic_threshold`` and explains at
-    least ``min_explained`` of the null's sum of squares; else None (cause 'none')."""
-    ok = [c for c in candidates if c.delta_bic < -bic_threshold and c.explained >= min_explained]
+    """The named cause: the lowest BIC, if it beats the null by ``bic_threshold``, explains at
+    least ``min_explained`` of the null's sum of squares and is within the cause's meaning (see
+    ``Screen.limit_of``); else None (cause 'none')."""
+    ok = [c for c in candidates if c.delta_bic < -bic_threshold and c.explained >= min_explained and not c.limit]
     return min(ok, key=lambda c: c.bic) if ok else None

@@ -89,9 +89,10 @@ class Diagnosis:
 
     @property
     def decision_rule(self) -> str:
-        return (f"the candidate with the lowest BIC, if BIC(base alone) - BIC > {self.settings['bic_threshold']:g} "
-                f"and it explains >= {self.settings['min_explained']:.1%} of the base-alone identification residual "
-                "sum of squares, else none; the validation records take no part")
+        return (f"the candidate with the lowest BIC, if BIC(base alone) - BIC > {self.settings['bic_threshold']:g}, "
+                f"it explains >= {self.settings['min_explained']:.1%} of the base-alone identification residual "
+                "sum of squares and its parameters are within the cause's meaning (a resonance underdamped, creep "
+                "slower than twice the longest drive period), else none; the validation records take no part")
 
     def gain(self) -> dict:
         if not self.after:
@@ -161,21 +162,22 @@ def secondary_causes(diag: Diagnosis, max_secondary: int, bic_threshold: float, 
                                       stage="identified")
         if identified.bic < primary.bic:
             primary = identified
-    others = sorted([c for c in diag.candidates if c.cause != chosen.cause and c.delta_bic < -bic_threshold
-                     and c.explained >= min_explained], key=lambda c: c.bic)[:max_secondary]
+    others = sorted([c for c in diag.candidates if c.cause not in (chosen.cause, "saturation")
+                     and c.delta_bic < -bic_threshold and c.explained >= min_explained and not c.limit],
+                    key=lambda c: c.bic)[:max_secondary]  # (no composite with clipping: not separable)
     for c in others:
         say(f"trying {chosen.cause} + {c.cause}")
         comp = screen.composite(primary, c)
         if comp is None:
             continue
         diag.secondary_tried.append(comp)
-        if comp.delta_bic < -bic_threshold and comp.explained >= min_explained:
+        if comp.delta_bic < -bic_threshold and comp.explained >= min_explained and not comp.limit:
             diag.also.append(comp)
 
 
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, bic_threshold: float = BIC_THRESHOLD,
-             min_explained: float = MIN_EXPLAINED, max_secondary: int = 2, extend: bool = True,
+             min_explained: float = MIN_EXPLAINED, max_secondary: int = 3, extend: bool = True,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose ``model`` on ``dataset``; see the module docstring."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
@@ -236,7 +238,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     fit_on = [r.file for r in dataset.identification]
     ext = registered_extension(base.name, chosen.cause, chosen.hyperparameters, base.get_hyperparameters())
     say(f"identifying {ext.name} on the identification records' whole length")
-    diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on)
+    bounds = {n: list(screen.bounds_of(ext, n)) for n in ("creep_time", "damping_ratio") if n in ext.param_names}
+    diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds)
     diag.after = residuals_of_fit(diag.extended_fit, dataset)
     timings["extended_fit"] = time.perf_counter() - t1
     t1 = time.perf_counter()

@@ -28,7 +28,7 @@ from hysbench.models.registry import list_models
 from .residuals import RecordResidual
 
 # Options of the final identification (the start is already close; see module docstring).
-VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 10}
+VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 8}
 LSQ_OPTIONS = {"max_nfev": 30}
 
 
@@ -52,13 +52,16 @@ def registered_extension(base: str, cause: str, hyper: Mapping | None = None,
     return get_model(name, base_hyperparameters=dict(base_hyperparameters or {}), **dict(hyper or {}))
 
 
-def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: int, fit_on: Sequence[str]) -> Fit:
-    """Identify on the whole length of the ``fit_on`` records, from ``start``."""
+def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: int, fit_on: Sequence[str],
+                   bounds: Mapping | None = None) -> Fit:
+    """Identify on the whole length of the ``fit_on`` records, from ``start`` (``bounds`` replace defaults)."""
     whole = whole_record_dataset(dataset)
+    extra = {"bounds": dict(bounds)} if bounds else {}
     if model.has_linear_part:
         return identify(model, whole, method="varpro", seed=seed, fit_on=list(fit_on), start=dict(start),
-                        **VARPRO_OPTIONS)
-    return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **LSQ_OPTIONS)
+                        **extra, **VARPRO_OPTIONS)
+    return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
+                    **LSQ_OPTIONS)
 
 
 def residuals_of_fit(fit: Fit, dataset: Dataset) -> list[RecordResidual]:

@@ -256,7 +256,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     null = d.screen.null
     lines.append(f"| none | {null.label} | joint | {null.k} | 0 | 0 | 0 | - |")
     for c in sorted(d.candidates, key=lambda c: c.bic):
-        mark = " **(named)**" if c is d.chosen else ""
+        mark = " **(named)**" if c is d.chosen else (f" (not named: {c.limit})" if c.limit else "")
         lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {c.delta_bic:.1f} | "
                      f"{100 * c.explained:.3f} % | {100 * c.validation_explained:.3f} % | "
                      + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items()) + " |")
@@ -273,7 +273,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
             for t in tried:
                 lines.append(f"| {t.cause} | {t.delta_bic:.1f} | {100 * t.explained:.3f} % | "
                              + ", ".join(f"{k} = {_fmt(v)}" for k, v in t.estimates.items())
-                             + f" | {'yes' if any(t is a for a in d.also) else 'no'} |")
+                             + f" | {'yes' if any(t is a for a in d.also) else ('no: ' + t.limit if t.limit else 'no')} |")
         else:
             lines.append("(no other candidate passed the test alone)")
     lib = d.library
