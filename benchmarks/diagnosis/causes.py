@@ -65,6 +65,7 @@ BIC_THRESHOLD = 10.0  # a cause needs BIC lower than the null's by this much
 MIN_EXPLAINED = 0.01  # ... and to explain this share of the null's residual sum of squares
 CREEP_PERIODS = 2.0  # creep's time scale is at least this many of the longest drive period
 MAX_DAMPING = 1.0  # a resonance (a mode) is underdamped
+LARGE_SAMPLES = 500_000  # identification samples above which the joint refinements get a smaller budget
 
 
 @dataclass
@@ -177,6 +178,7 @@ class Screen:
             self.parts.append(_Part(r, rows, r.y[rows].copy()))
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
+        self.n_samples = sum(p.record.t.size for p in self.parts)  # whole length, all identification records
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
         self.n_evaluations = 0
@@ -259,12 +261,13 @@ class Screen:
                 cols = model.assemble_columns(r.u, r.dt, bc.full[m], nonlinear)
             else:
                 cols = model.assemble_columns(r.u, r.dt, {}, nonlinear)
-            if model.has("interference"):
-                inter = model.interference_columns(r.t.size, r.dt, nonlinear["interference_frequency"])
-                cols["interference_sin"], cols["interference_cos"] = inter[0], inter[1]
             out = np.empty((p.rows.size, len(names)))
             for j, c in enumerate(names):
-                out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c][p.rows]
+                if c in ("interference_sin", "interference_cos"):  # on the rows only
+                    phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
+                    out[:, j] = np.sin(phase) if c == "interference_sin" else np.cos(phase)
+                else:
+                    out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c][p.rows]
             blocks.append(out)
         return np.concatenate(blocks)
 
@@ -473,8 +476,8 @@ class Screen:
         return self.candidate("delay", "pure delay", model, best)
 
     def resonance(self) -> Candidate:
-        """Searched to first order (the null's prediction through the mode) on a grid; the best few
-        grid points and a fast, well-damped mode are evaluated exactly, the best refined exactly."""
+        """Searched to first order (the null's prediction through the mode) on a grid and refined; that
+        and a fast, well-damped mode are evaluated exactly, the better refined exactly."""
         model = self.extension(("resonance",))
         T = self.scale.time
         dt = min(p.record.dt for p in self.parts)
@@ -485,14 +488,13 @@ class Screen:
                for zeta in (0.07, 0.25, 0.8)]
         vals = np.array([self._resonant_null(z)[0] for z in pts])
         starts = []
-        for i in np.argsort(vals)[:2]:
-            z = self.refine(model, pts[int(i)], [("natural_frequency", True), ("damping_ratio", True)], max_nfev=12,
-                            residual=lambda q: self._resonant_null(q)[2])
-            starts.append(z)
+        z = self.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
+                        max_nfev=12, residual=lambda q: self._resonant_null(q)[2])
+        starts.append(z)
         starts.append({**self.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
         starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
         z = min(starts, key=lambda q: self.evaluate(model, q)[0])
-        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=8)
+        z = self.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=6)
         return self.candidate("resonance", "second-order mode", model, z)
 
     def creep(self) -> Candidate:
@@ -670,11 +672,12 @@ def _local_minima(vals: np.ndarray, n: int) -> list[int]:
 
 
 def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
-    """A spectrum over its running median (a peak stands out of its neighbourhood, whatever the slope)."""
-    from scipy.ndimage import median_filter
+    """A spectrum over its running geometric mean (a peak stands out of its neighbourhood, whatever
+    the slope)."""
+    from scipy.ndimage import uniform_filter1d
 
-    med = median_filter(amp, size=2 * half_width + 1, mode="nearest")
-    return amp / np.maximum(med, 1e-300)
+    log_amp = np.log(np.maximum(amp, 1e-300))
+    return np.exp(log_amp - uniform_filter1d(log_amp, size=2 * half_width + 1, mode="nearest"))
 
 
 # --- library screen (pysindy) -------------------------------------------------------
@@ -762,11 +765,13 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
 
 
 def run_screen(screen: Screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
-               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int = 10, joint_share: float = 0.05,
+               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int | None = None, joint_share: float = 0.05,
                max_joint: int = 3,
                progress: Callable[[str], None] | None = None) -> dict:
     """Every candidate on the screen; returns {"library", "candidates" (best per cause), "relaxation_variants"}."""
     say = progress or (lambda s: None)
+    if joint_nfev is None:  # every joint evaluation recomputes the base over whole records
+        joint_nfev = 10 if screen.n_samples <= LARGE_SAMPLES else 6
     say("library screen (pysindy FROLS)")
     library = library_screen(screen, residuals)
     say("relaxation")

@@ -29,6 +29,8 @@ from .residuals import RecordResidual
 
 # Options of the final identification (the start is already close; see module docstring).
 VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 8}
+LARGE_SAMPLES = 500_000  # fit samples above which the local search gets LARGE_MAX_NFEV
+LARGE_MAX_NFEV = 5
 LSQ_OPTIONS = {"max_nfev": 30}
 
 
@@ -58,8 +60,11 @@ def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: in
     whole = whole_record_dataset(dataset)
     extra = {"bounds": dict(bounds)} if bounds else {}
     if model.has_linear_part:
+        opts = dict(VARPRO_OPTIONS)
+        if sum(r.t.size for r in dataset.records if r.file in set(fit_on)) > LARGE_SAMPLES:
+            opts["max_nfev"] = LARGE_MAX_NFEV  # each evaluation builds every regressor over whole records
         return identify(model, whole, method="varpro", seed=seed, fit_on=list(fit_on), start=dict(start),
-                        **extra, **VARPRO_OPTIONS)
+                        **extra, **opts)
     return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
                     **LSQ_OPTIONS)
 

@@ -225,8 +225,10 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         f"* cause: **{d.cause}**",
     ]
     if d.chosen is not None:
-        lines.append(f"* parameters: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in d.parameters.items())
-                     + f" ({unit} for sizes and levels)")
+        units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
+                 "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "phase_rad": "rad"}
+        lines.append("* parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
+                                                  for k, v in d.parameters.items()))
         lines.append(f"* extended model: `{d.extended_model}` ({d.extended_fit.n_params} parameters, identified "
                      f"with {d.extended_fit.method} on the identification records' whole length)")
     lines.append(f"* also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
