@@ -431,6 +431,10 @@ class Screen:
                 break
         return out
 
+    def promising(self, rss: float, k_extra: int) -> bool:
+        """Whether a first-order fit with k_extra more parameters than the null passes the BIC threshold."""
+        return bic(rss, self.n, self.null.k + k_extra) - self.null.bic < -BIC_THRESHOLD
+
     def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
         """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's
         prediction; ``column_of(m)`` gives T[y0] - y0 on record m's screen rows. Evaluated against the null."""
@@ -459,13 +463,16 @@ class Screen:
 
     def delay(self) -> Candidate:
         """Searched to first order (the null's prediction delayed) on a grid of about two samples;
-        the best few grid points and a one-sample delay are then searched exactly (Brent within two
-        samples), since a first-order search can be led astray by a misfit of another kind."""
+        if that passes the BIC threshold, the best grid points and a one-sample delay are searched
+        exactly (Brent within two samples), since a first-order search can be led astray by a misfit
+        of another kind; otherwise the first-order optimum is evaluated exactly, once."""
         model = self.extension(("delay",))
         dt = min(p.record.dt for p in self.parts)
         hi = DELAY_BOUND * self.scale.time
         grid = np.linspace(0.0, hi, int(min(max(hi / (2 * dt), 10), 400)) + 1)
         vals = np.array([self._delayed_null({**self.base_nl, "delay": float(d)})[0] for d in grid])
+        if not self.promising(float(vals.min()), 2):  # not even to first order: one exact evaluation
+            return self.candidate("delay", "pure delay", model, {**self.base_nl, "delay": float(grid[np.argmin(vals)])})
         starts = [float(grid[i]) for i in _local_minima(vals, 2)] + [min(dt, hi)]
         best, best_rss = None, math.inf
         for d0 in starts:
@@ -476,8 +483,9 @@ class Screen:
         return self.candidate("delay", "pure delay", model, best)
 
     def resonance(self) -> Candidate:
-        """Searched to first order (the null's prediction through the mode) on a grid and refined; that
-        and a fast, well-damped mode are evaluated exactly, the better refined exactly."""
+        """Searched to first order (the null's prediction through the mode) on a grid and refined; if
+        that passes the BIC threshold, it and a fast, well-damped mode are evaluated exactly and the
+        better refined exactly; otherwise the first-order optimum is evaluated exactly, once."""
         model = self.extension(("resonance",))
         T = self.scale.time
         dt = min(p.record.dt for p in self.parts)
@@ -490,6 +498,9 @@ class Screen:
         starts = []
         z = self.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
                         max_nfev=12, residual=lambda q: self._resonant_null(q)[2])
+        z = {**z, "damping_ratio": min(z["damping_ratio"], MAX_DAMPING)}
+        if not self.promising(self._resonant_null(z)[0], 3):  # not even to first order: one exact evaluation
+            return self.candidate("resonance", "second-order mode", model, z)
         starts.append(z)
         starts.append({**self.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
         starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
