@@ -129,6 +129,28 @@ def test_extended_models_are_registered_and_round_trip():
     assert set(get_model("mrpim+delay").nonlinear_names) == {"gamma", "lambda", "delay"}
 
 
+def test_windowed_regressors_are_rows_of_the_whole():
+    m = ExtendedModel("mrpim", ("relaxation", "delay", "resonance", "creep", "interference"))
+    p = {**get_model("mrpim").preset("paper"), **{k: v for k, v in PARAMS.items() if k in m.param_names}}
+    _, u = _input(1.0, 3)
+    nl = {k: p[k] for k in m.nonlinear_names}
+    whole = m.regressors(u, DT, nl)
+    for w in (slice(0, 7), slice(10, 40), slice(1500, 3000)):
+        np.testing.assert_allclose(m.windowed_regressors(u, DT, nl, w), whole[w], atol=1e-12)
+
+
+def test_an_extended_model_is_identified_and_round_trips_through_json():
+    """The identifiers know the extension only through the interface; a Fit rebuilds it from the registry."""
+    from hysbench.identification import identify
+
+    ds, _ = planted_dataset("relaxation", 1, **FAST)
+    fit = identify("mrpim+relaxation", ds, method="varpro", seed=0, n_candidates=4)
+    again = Fit.from_dict(json.loads(json.dumps(fit.to_dict())))
+    r = ds.records[-1]
+    np.testing.assert_allclose(again.predict(r), fit.predict(r), atol=1e-12)
+    assert again.model == "mrpim+relaxation" and again.params == fit.params
+
+
 # --- residual statistics ------------------------------------------------------------------
 def test_noise_estimate_and_whiteness():
     rng = np.random.default_rng(5)

@@ -9,31 +9,41 @@ same weight, so the sum of squares is a Gaussian log-likelihood and
     BIC = N ln(RSS / N) + k ln N
 
 (N rows, k free parameters) compares candidates that are not nested.
-The base model's nonlinear parameters stay at the base fit's values in this
-screen (its linear parameters are re-solved for every candidate); the
-extension finally named is identified afterwards with every parameter free.
+Linear parameters are solved exactly at every step (separable least squares).
 
-* The null: the base model alone, its linear parameters re-solved on these rows.
+* The null: the base model alone, its nonlinear parameters refined on these
+  rows (from the base fit on the windows), its linear ones solved.
 * Library screen (pysindy): the null's residual regressed, by forward
-  orthogonal least squares (``pysindy.FROLS``, number of terms by BIC), on a library of candidate
-  terms -- first-order low-pass histories of the input on a grid of time
-  constants, the derivatives of the model's own output, slow exponential
-  drifts, a sinusoid at the pooled spectrum's peak, hinge functions of the
-  model's output at high and low levels -- each made orthogonal to the base
-  model's regressors and scaled to unit norm. The terms it keeps, and the
-  share of the residual each explains, are evidence; their time constants
-  seed the relaxation fits.
-* Explicit fits: each cause's extension (``hysbench.models.extended``) with
-  its nonlinear parameters found by a grid (or, for interference, the
-  pooled coherent spectrum) and a bounded local least-squares refinement;
-  its linear parameters are solved exactly at every step. Saturation is fit
-  as censored regression: for a clipping level, the linear parameters are
-  solved on the samples that are not at the level, and the clipped model is
-  scored on all samples.
+  orthogonal least squares (``pysindy.FROLS``, number of terms by BIC), on
+  a library of candidate terms -- first-order low-pass histories of the
+  input on a grid of time constants, the derivatives of the model's own
+  output, slow exponential drifts, a sinusoid at the pooled spectrum's
+  peak, hinge functions of the model's output at high and low levels --
+  each made orthogonal to the base model's regressors and scaled to unit
+  norm. The terms it keeps, and the share of the residual each explains,
+  are evidence; their time constants seed the relaxation fits.
+* Stage 1, explicit fits with the base's nonlinear parameters held at the
+  null's: each cause's extension (``hysbench.models.extended``), its own
+  nonlinear parameters found by a grid (interference: the peaks of the
+  pooled coherent spectrum of the null's residual) and a bounded local
+  refinement. Components that only add columns (relaxation, creep,
+  interference) are regressed on the null's residual after projecting off
+  the base's columns. Delay and resonance change every column: they are
+  searched to first order (the null's prediction delayed / filtered, one
+  extra column) and, where that passes the threshold, exactly. Saturation
+  is fitted as censored regression: for a clipping level, the linear
+  parameters are solved on the samples not at the level, and the clipped
+  model is scored on all samples; both sides are tried.
 * Relaxation is fitted with 1, 2, ... ``max_relaxation`` time constants
   (greedy: each new one by a grid search with the others fixed, then all
   jointly; it stops when one more lowers BIC by less than the threshold);
   the variant with the lowest BIC stands for the cause.
+* Stage 2 (``run_screen``): the best candidates (and every relaxation
+  variant, when relaxation is among them) are refined with the base's
+  nonlinear parameters free as well.
+* A candidate whose parameters leave the cause's meaning is scored but not
+  named (``Screen.limit_of``): a resonance must be underdamped (a mode),
+  creep slower than twice the longest drive period.
 """
 
 from __future__ import annotations
