@@ -238,7 +238,7 @@ class ExtendedModel(HysteresisModel):
         receives u from its own time t0 on."""
         names = self.param_names
         nb = len(self.base_names)
-        n_set, n = P.shape[0], u.size
+        n = u.size
         Y = np.array(self.base_model.simulate_batch(u, dt, np.ascontiguousarray(P[:, :nb]), input_range=input_range),
                      dtype=float, copy=True)
         sets = [dict(zip(names, row)) for row in P]

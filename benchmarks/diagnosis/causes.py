@@ -56,11 +56,10 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
-from hysbench.models import ExtendedModel, get_model
+from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import (
     CREEP_TIME_BOUNDS,
-    DAMPING_BOUNDS,
     DELAY_BOUND,
     RESONANCE_HZ_BOUNDS,
     TAU_BOUNDS,

@@ -13,7 +13,6 @@ import argparse
 import sys
 import time
 
-from hysbench.models.errors import HysbenchError
 
 
 def _positive_int(text: str) -> int:
