@@ -24,6 +24,8 @@ COMMANDS = {
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
     "ablate": ("hysbench.benchmarks.ablation_cli", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
+    "diagnose": ("hysbench.benchmarks.diagnosis.cli",
+                 "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
 }
 
 

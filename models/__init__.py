@@ -6,6 +6,7 @@ from .classical_pi import ClassicalPI
 from .dual_polynomial import DualPolynomial
 from .elliptical import Elliptical
 from .errors import HysbenchError, ModelError
+from .extended import CAUSES, ExtendedModel, register_extensions
 from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
@@ -21,10 +22,13 @@ register(DualPolynomial.name, DualPolynomial)
 register(BoucWen.name, BoucWen)
 register(Preisach.name, Preisach)
 register(RateDependentPI.name, RateDependentPI)
+register_extensions(MRPIM.name)  # mrpim+relaxation, mrpim+delay, ... (see extended.py)
 
 __all__ = [
     "BoucWen",
+    "CAUSES",
     "ClassicalPI",
+    "ExtendedModel",
     "DataScale",
     "DualPolynomial",
     "Elliptical",

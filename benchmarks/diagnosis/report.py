@@ -1,0 +1,343 @@
+"""diagnosis.md, its PNG figures and the JSON of a ``Diagnosis``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hysbench.benchmarks.output import ensure_dir, pyplot, save_figure, write_atomic, write_json
+
+from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
+
+MAX_PLOT_POINTS = 20_000  # per record and curve
+
+
+def _fmt(v, digits: int = 4) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_fmt(x, digits) for x in v) + "]"
+    if isinstance(v, float):
+        return f"{v:.{digits}g}"
+    return str(v)
+
+
+def _stride(n: int) -> int:
+    return max(1, int(math.ceil(n / MAX_PLOT_POINTS)))
+
+
+def _label(rec) -> str:
+    return f"{rec.label} ({'id' if rec.role == 'identification' else 'val'})"
+
+
+# --- figures --------------------------------------------------------------------
+def figure_residual_time(diag, path: Path) -> None:
+    plt = pyplot()
+    recs = diag.before
+    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False)
+    after = {rr.file: rr for rr in diag.after}
+    for ax, rr in zip(axes[:, 0], recs):
+        r = rr.record
+        k = _stride(r.t.size)
+        ax.plot(r.t[::k], rr.residual[::k], lw=0.6, color="0.35", label=f"{diag.model} (before)")
+        if rr.file in after:
+            ax.plot(r.t[::k], after[rr.file].residual[::k], lw=0.6, color="C3", label=f"{diag.extended_model} (after)")
+        ax.axvspan(r.t[r.start], r.t[r.stop - 1], color="C0", alpha=0.12, lw=0)
+        ax.axhline(0, color="k", lw=0.4)
+        ax.set_ylabel(_label(r), fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[0, 0].set_title(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
+                         "records; shaded: scored window", fontsize=9)
+    axes[-1, 0].set_xlabel("time (s)")
+    save_figure(fig, path)
+
+
+def figure_residual_input(diag, path: Path) -> None:
+    plt = pyplot()
+    recs = diag.before
+    n = len(recs)
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+    for ax, rr in zip(axes.flat, recs):
+        r = rr.record
+        k = _stride(r.t.size)
+        ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
+        w = r.scored
+        ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
+        ax.set_title(_label(r), fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    axes[0, 0].legend(fontsize=6)
+    fig.supxlabel(f"input ({diag.dataset.input_unit or 'input units'})", fontsize=8)
+    fig.supylabel("residual (base model)", fontsize=8)
+    save_figure(fig, path)
+
+
+def figure_residual_phase(diag, path: Path) -> None:
+    plt = pyplot()
+    recs = [rr for rr in diag.before if rr.record.frequency_hz]
+    if not recs:
+        return
+    n = len(recs)
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+    for ax, rr in zip(axes.flat, recs):
+        r = rr.record
+        ph = phase_of(r)
+        k = _stride(r.t.size)
+        ax.plot(ph[::k], rr.residual[::k], ".", ms=1, color="0.7", label="all periods")
+        w = r.scored
+        order = np.argsort(ph[w])
+        ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
+        ax.set_title(_label(r), fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    axes[0, 0].legend(fontsize=6)
+    fig.supxlabel("phase within the drive period (0: input minimum)", fontsize=8)
+    fig.supylabel("residual (base model)", fontsize=8)
+    save_figure(fig, path)
+
+
+def figure_spectrum(diag, path: Path) -> None:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    ax = axes[0]
+    for i, rr in enumerate(diag.before):
+        f, a = periodogram(rr.residual, rr.record.dt)
+        keep = f > 0
+        ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
+    ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("residual amplitude")
+    ax.set_title("residual spectrum per record (base model)", fontsize=9)
+    ax.legend(fontsize=6)
+    ax = axes[1]
+    ids = [rr for rr in diag.before if rr.record.role == "identification"]
+    dt = min(rr.record.dt for rr in ids)
+    f, a = coherent_spectrum(ids, 1.0 / (ids[0].record.t.size * dt), 0.45 / dt, pad=2)
+    ax.loglog(f, np.maximum(a, 1e-12), lw=0.5, color="C0")
+    if diag.cause == "interference":
+        ax.axvline(diag.parameters["frequency_hz"], color="C3", lw=0.8, ls="--", label="named interference")
+        ax.legend(fontsize=7)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("pooled coherent amplitude")
+    ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
+                 fontsize=9)
+    save_figure(fig, path)
+
+
+def figure_error_vs_frequency(diag, path: Path) -> None:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    series = [("before", diag.before, "0.3", "o")]
+    if diag.base_whole:
+        series.append(("base refit, whole records", diag.base_whole, "C0", "s"))
+    if diag.after:
+        series.append(("after", diag.after, "C3", "^"))
+    for ax, key, title in ((axes[0], "e_rms", "scored window"), (axes[1], "e_rms_whole", "whole record")):
+        for name, recs, color, marker in series:
+            pts = sorted((rr.record.frequency_hz, rr.scores()[key], rr.record.role) for rr in recs
+                         if rr.record.frequency_hz)
+            if not pts:
+                continue
+            f = [p[0] for p in pts]
+            ax.plot(f, [p[1] for p in pts], "-", color=color, lw=0.8, label=name)
+            for fr, v, role in pts:
+                ax.plot(fr, v, marker, color=color, mfc=color if role == "identification" else "white", ms=5)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("drive frequency (Hz)")
+        ax.set_ylabel("e_rms (% of measured peak-to-peak)")
+        ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
+    axes[0].legend(fontsize=7)
+    save_figure(fig, path)
+
+
+def figure_whiteness(diag, path: Path) -> None:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    lags = np.arange(1, LAGS + 1)
+    for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
+        rho = autocorrelation(rr.residual, LAGS)
+        ax.plot(lags, rho, "o-", ms=2, lw=0.7, color=f"C{i % 10}",
+                label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
+    n = min(rr.record.t.size for rr in diag.before)
+    ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")
+    ax.axhline(0, color="k", lw=0.4)
+    ax.set_xlabel("lag (samples)")
+    ax.set_ylabel("autocorrelation of the residual")
+    ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
+    ax.legend(fontsize=6)
+    save_figure(fig, path)
+
+
+def figure_candidates(diag, path: Path) -> None:
+    plt = pyplot()
+    cands = sorted(diag.candidates, key=lambda c: c.bic)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4))
+    names = [c.cause for c in cands]
+    colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
+    axes[0].barh(names, [-c.delta_bic for c in cands], color=colors)
+    axes[0].set_xscale("symlog", linthresh=10)
+    axes[0].axvline(diag.settings["bic_threshold"], color="k", ls=":", lw=0.8)
+    axes[0].set_xlabel("BIC(base alone) - BIC(candidate)  (identification)")
+    axes[0].invert_yaxis()
+    axes[1].barh(names, [100 * c.validation_explained for c in cands], color=colors)
+    axes[1].set_xlabel("% of validation residual explained (evidence only)")
+    axes[1].invert_yaxis()
+    fig.suptitle("candidate causes (red: named)", fontsize=9)
+    save_figure(fig, path)
+
+
+FIGURES = {
+    "residual_time": (figure_residual_time, "Residual against time, whole records (shaded: the scored window)"),
+    "residual_input": (figure_residual_input, "Residual against the input"),
+    "residual_phase": (figure_residual_phase, "Residual against the phase within the drive period, per frequency"),
+    "residual_spectrum": (figure_spectrum, "Residual spectrum"),
+    "error_vs_frequency": (figure_error_vs_frequency, "How the error grows with frequency"),
+    "whiteness": (figure_whiteness, "Whiteness of the residual"),
+    "candidates": (figure_candidates, "Candidate causes"),
+}
+
+
+# --- markdown ---------------------------------------------------------------------
+def markdown(diag, figures: dict[str, str], note: str = "") -> str:
+    d = diag
+    unit = d.dataset.output_unit or "output units"
+    lines = [f"# Diagnosis: {d.model} on {d.dataset.name}", ""]
+    if note:
+        lines += [note, ""]
+    lines += [
+        f"`hysbench diagnose` (seed {d.seed}): the base model identified with varpro on the identification "
+        "records' scored windows, simulated over every record whole; candidate causes screened and fitted on the "
+        "identification records' whole length, compared by BIC; the named extension identified with the "
+        "identifiers and scored on validation records that took part in no fit and no choice.",
+        "",
+        "## Verdict",
+        "",
+        f"* cause: **{d.cause}**",
+    ]
+    if d.chosen is not None:
+        units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
+                 "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "phase_rad": "rad"}
+        lines.append("* parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
+                                                  for k, v in d.parameters.items()))
+        lines.append(f"* extended model: `{d.extended_model}` ({d.extended_fit.n_params} parameters, identified "
+                     f"with {d.extended_fit.method} on the identification records' whole length)")
+    lines.append(f"* also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
+    lines.append(f"* measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}")
+    g = d.gain()
+    if g:
+        v = g["validation"]
+        lines += [
+            f"* validation gain (records {', '.join(v['records'])}): the extension removes "
+            f"**{100 * v['explained_whole']:.2f} %** of the base model's residual sum of squares over whole records "
+            f"and {100 * v['explained_window']:.2f} % over the scored windows; mean e_rms on the windows "
+            f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %, on whole records "
+            f"{v['mean_e_rms_whole_before']:.3g} % -> {v['mean_e_rms_whole_after']:.3g} %.",
+        ]
+        vb = g.get("validation_vs_base_refit_on_whole_records")
+        if vb:
+            lines.append(f"* against the base model refitted on the same whole records: the extension removes "
+                         f"{100 * vb['explained_whole']:.2f} % of its validation residual sum of squares (whole "
+                         f"records), {100 * vb['explained_window']:.2f} % on the windows.")
+    lines += ["", "## Evidence: candidate causes", "",
+              f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
+              f"{d.settings['max_rows']} per record). Rule: {d.decision_rule}. "
+              "\"fixed base\": screened with the base's nonlinear parameters held at the base-alone fit; \"joint\": "
+              "refined with them free.", "",
+              "| cause | candidate | stage | k | BIC - BIC(base) | identification RSS explained | "
+              "validation RSS explained | estimates |", "|---|---|---|---|---|---|---|---|"]
+    null = d.screen.null
+    lines.append(f"| none | {null.label} | joint | {null.k} | 0 | 0 | 0 | - |")
+    for c in sorted(d.candidates, key=lambda c: c.bic):
+        mark = " **(named)**" if c is d.chosen else (f" (not named: {c.limit})" if c.limit else "")
+        lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {c.delta_bic:.1f} | "
+                     f"{100 * c.explained:.3f} % | {100 * c.validation_explained:.3f} % | "
+                     + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items()) + " |")
+    lines += ["", "Relaxation with 1, 2, ... time constants:", "",
+              "| candidate | stage | k | BIC - BIC(base) | time constants (s) |", "|---|---|---|---|---|"]
+    for c in d.relaxation_variants:
+        lines.append(f"| {c.label} | {c.stage} | {c.k} | {c.delta_bic:.1f} | {_fmt(c.estimates.get('tau_s'))} |")
+    if d.also or d.chosen is not None:
+        lines += ["", "Secondary causes tried on top of the named one (BIC against the named extension alone):", ""]
+        tried = d.secondary_tried
+        if tried:
+            lines += ["| cause | BIC - BIC(named alone) | share of its RSS explained | estimates | also? |",
+                      "|---|---|---|---|---|"]
+            for t in tried:
+                lines.append(f"| {t.cause} | {t.delta_bic:.1f} | {100 * t.explained:.3f} % | "
+                             + ", ".join(f"{k} = {_fmt(v)}" for k, v in t.estimates.items())
+                             + f" | {'yes' if any(t is a for a in d.also) else ('no: ' + t.limit if t.limit else 'no')} |")
+        else:
+            lines.append("(no other candidate passed the test alone)")
+    lib = d.library
+    lines += ["", "## Evidence: library screen (pysindy)", "",
+              f"{lib['method']}: the base-alone residual regressed on {lib['n_library']} candidate terms (each made "
+              f"orthogonal to the base model's regressors). {lib['n_terms']} term(s) kept, explaining "
+              f"{100 * lib['explained_total']:.2f} % of the residual sum of squares.", ""]
+    if lib["terms"]:
+        lines += ["| order | term | group | share explained |", "|---|---|---|---|"]
+        for t in lib["terms"]:
+            lines.append(f"| {t['order']} | `{t['name']}` | {t['group']} | {100 * t['explained']:.3f} % |")
+        lines += ["", "Share by cause: " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in lib["groups"].items()), ""]
+    lines += ["## Residuals of the base model", "",
+              f"| record | role | f (Hz) | noise sd | rms whole | rms window | lag-1 autocorr. | Ljung-Box p ({LAGS} lags) |",
+              "|---|---|---|---|---|---|---|---|"]
+    for s in d.summaries:
+        lines.append(f"| {s.file} | {s.role} | {_fmt(s.frequency_hz)} | {_fmt(s.noise_sd, 3)} | {_fmt(s.rms, 3)} | "
+                     f"{_fmt(s.rms_window, 3)} | {s.lag1_autocorrelation:.3f} | {_fmt(s.ljung_box_p, 3)} |")
+    lines += ["", "## e_m / e_rms per record (% of the measured peak-to-peak)", "",
+              "Window: the record's scored window (the benchmark's metric); whole: every sample.", ""]
+    header = "| record | role | before e_m | before e_rms | before e_rms whole |"
+    sep = "|---|---|---|---|---|"
+    if d.base_whole:
+        header += " base refit e_rms | base refit e_rms whole |"
+        sep += "---|---|"
+    if d.after:
+        header += " after e_m | after e_rms | after e_rms whole |"
+        sep += "---|---|---|"
+    lines += [header, sep]
+    bw = {rr.file: rr.scores() for rr in d.base_whole}
+    af = {rr.file: rr.scores() for rr in d.after}
+    for rr in d.before:
+        s = rr.scores()
+        row = f"| {rr.file} | {rr.record.role} | {s['e_m']:.3f} | {s['e_rms']:.3f} | {s['e_rms_whole']:.3f} |"
+        if d.base_whole:
+            row += f" {bw[rr.file]['e_rms']:.3f} | {bw[rr.file]['e_rms_whole']:.3f} |"
+        if d.after:
+            row += f" {af[rr.file]['e_m']:.3f} | {af[rr.file]['e_rms']:.3f} | {af[rr.file]['e_rms_whole']:.3f} |"
+        lines.append(row)
+    lines += ["", "## Figures", ""]
+    for key, file in figures.items():
+        lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]
+    t = d.timings
+    lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()) + ".", ""]
+    if d.extended_fit and d.extended_fit.notes:
+        lines += ["Notes of the extended fit:", ""] + [f"* {n}" for n in d.extended_fit.notes] + [""]
+    return "\n".join(lines)
+
+
+def write_report(diag, out: str | Path, json_path: str | Path | None = None, note: str = "",
+                 prefix: str = "diagnosis") -> dict:
+    """Write ``prefix``.md, ``prefix``_*.png and the JSON (``json_path`` or ``prefix``.json in ``out``)."""
+    out = ensure_dir(out)
+    figures = {}
+    for key, (fn, _) in FIGURES.items():
+        file = f"{prefix}_{key}.png"
+        fn(diag, out / file)
+        if (out / file).exists():
+            figures[key] = file
+    data = diag.to_json()
+    json_path = Path(json_path) if json_path else out / f"{prefix}.json"
+    ensure_dir(json_path.parent)
+    write_json(json_path, data)
+    write_atomic(out / f"{prefix}.md", markdown(diag, figures, note) + "\n")
+    return data

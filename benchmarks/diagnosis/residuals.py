@@ -1,0 +1,169 @@
+"""Residuals of a fitted model over whole records, and what they look like.
+
+A model is fitted on each record's scored window, but a slow drift or a
+start-up transient shows only outside it; here every record is simulated
+from its first sample and the residual r = y_measured - y_model is kept for
+all of it. From it:
+
+* the noise level, from first differences (white noise of sd s has
+  differences of sd s sqrt(2); a smooth misfit hardly changes from one 1 ms
+  sample to the next): s = 1.4826 MAD(diff r) / sqrt(2);
+* a whiteness test per record: Ljung-Box Q over the first ``LAGS`` lags of
+  the residual's autocorrelation, chi-square with LAGS degrees of freedom;
+* the residual against phase within the drive period, its spectrum
+  (periodogram), and e_m / e_rms against frequency;
+* the pooled coherent spectrum of the identification records,
+  |sum_m R_m(f)|^2 / sum_m n_m, where R_m is the Fourier sum of record m in
+  its own time: a disturbance with the same phase in every record adds up
+  there, the drive's harmonics (different in each record) do not.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from hysbench.benchmarks.metrics import e_m, e_rms
+from hysbench.data.dataset import Dataset, Record
+
+LAGS = 20
+
+
+@dataclass
+class RecordResidual:
+    """A record, the model's output over all of it, and the residual."""
+
+    record: Record
+    prediction: np.ndarray
+
+    @property
+    def residual(self) -> np.ndarray:
+        return self.record.y - self.prediction
+
+    @property
+    def file(self) -> str:
+        return self.record.file
+
+    def scores(self) -> dict:
+        """e_m / e_rms (percent of the measured peak-to-peak) on the scored window and on the whole record."""
+        r = self.record
+        w = r.scored
+        return {"e_m": e_m(self.prediction[w], r.y[w]), "e_rms": e_rms(self.prediction[w], r.y[w]),
+                "e_m_whole": e_m(self.prediction, r.y), "e_rms_whole": e_rms(self.prediction, r.y)}
+
+
+def residuals_of(simulate, dataset: Dataset) -> list[RecordResidual]:
+    """``simulate(record) -> y`` over every record of the dataset, from its first sample."""
+    return [RecordResidual(r, np.asarray(simulate(r), dtype=float)) for r in dataset.records]
+
+
+def noise_sd(r: np.ndarray) -> float:
+    """Measurement-noise sd estimated from first differences (robust: MAD)."""
+    d = np.diff(np.asarray(r, dtype=float))
+    if d.size < 2:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def autocorrelation(r: np.ndarray, lags: int = LAGS) -> np.ndarray:
+    """Sample autocorrelation at lags 1..lags (mean removed)."""
+    x = np.asarray(r, dtype=float) - np.mean(r)
+    den = float(x @ x)
+    if den <= 0:
+        return np.zeros(lags)
+    return np.array([float(x[:-k] @ x[k:]) / den for k in range(1, lags + 1)])
+
+
+def ljung_box(r: np.ndarray, lags: int = LAGS) -> tuple[float, float]:
+    """(Q, p-value) of the Ljung-Box test of whiteness."""
+    n = r.size
+    if n <= lags + 1:
+        return float("nan"), float("nan")
+    rho = autocorrelation(r, lags)
+    q = float(n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, lags + 1))))
+    return q, float(stats.chi2.sf(q, lags))
+
+
+def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided amplitude spectrum (output units) of the mean-removed residual: (f, |R| * 2 / n)."""
+    x = np.asarray(r, dtype=float) - np.mean(r)
+    spec = np.fft.rfft(x * np.hanning(x.size))
+    amp = 2.0 * np.abs(spec) / np.sum(np.hanning(x.size))
+    return np.fft.rfftfreq(x.size, dt), amp
+
+
+def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4):
+    """Pooled coherent amplitude spectrum over records with a common sample time:
+    (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in [f_min, f_max]."""
+    dts = [rr.record.dt for rr in residuals]
+    dt = float(np.median(dts))
+    n_max = max(rr.record.t.size for rr in residuals)
+    n_fft = 1 << int(math.ceil(math.log2(pad * n_max)))
+    total = None
+    n_total = 0
+    for rr in residuals:
+        x = rr.residual - np.mean(rr.residual)
+        spec = np.fft.rfft(x, n_fft)
+        total = spec if total is None else total + spec
+        n_total += x.size
+    f = np.fft.rfftfreq(n_fft, dt)
+    keep = (f >= f_min) & (f <= f_max)
+    return f[keep], 2.0 * np.abs(total[keep]) / n_total
+
+
+def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz: float = 0.5) -> list[tuple[float, float]]:
+    """The n largest local maxima of a spectrum, at least ``min_separation_hz`` apart: [(f, amplitude)]."""
+    if f.size < 3:
+        return []
+    is_peak = np.r_[False, (amp[1:-1] >= amp[:-2]) & (amp[1:-1] >= amp[2:]), False]
+    idx = np.flatnonzero(is_peak)
+    idx = idx[np.argsort(-amp[idx])]
+    out: list[tuple[float, float]] = []
+    for i in idx:
+        if all(abs(f[i] - g) >= min_separation_hz for g, _ in out):
+            out.append((float(f[i]), float(amp[i])))
+        if len(out) == n:
+            break
+    return out
+
+
+@dataclass
+class ResidualSummary:
+    """Per-record statistics of a residual."""
+
+    file: str
+    role: str
+    frequency_hz: float | None
+    noise_sd: float
+    rms: float
+    rms_window: float
+    ljung_box_q: float
+    ljung_box_p: float
+    lag1_autocorrelation: float
+    scores: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def summarise(residuals: list[RecordResidual]) -> list[ResidualSummary]:
+    out = []
+    for rr in residuals:
+        r = rr.residual
+        q, p = ljung_box(r)
+        w = r[rr.record.scored]
+        out.append(ResidualSummary(
+            file=rr.file, role=rr.record.role, frequency_hz=rr.record.frequency_hz, noise_sd=noise_sd(r),
+            rms=float(np.sqrt(np.mean(r**2))), rms_window=float(np.sqrt(np.mean(w**2))), ljung_box_q=q,
+            ljung_box_p=p, lag1_autocorrelation=float(autocorrelation(r, 1)[0]), scores=rr.scores()))
+    return out
+
+
+def phase_of(record: Record) -> np.ndarray | None:
+    """Phase within the drive period (0..1) of every sample, or None for a non-periodic record."""
+    if not record.frequency_hz:
+        return None
+    return np.mod((record.t - record.t[0]) * record.frequency_hz, 1.0)

@@ -1,0 +1,427 @@
+"""A hysteresis model extended by the components a diagnosis can name.
+
+``ExtendedModel(base="mrpim", components=("relaxation",))`` is registered as
+``mrpim+relaxation`` (and likewise for every cause; see ``CAUSES``). The
+output is built in the order of a physical measurement chain:
+
+    actuator   y_a(t') = B[v](t') + sum_k sum_p c_kp L_tau_k[v^p](t') + s (1 - exp(-t' / T_c))
+    mechanics  y_m     = H[y_a - c] + c                      (resonance; c = the base's ``offset``)
+    timing     v(t') = u(t' - d) ... the actuator receives the input d late: it starts at t = d
+               (own time t' = t - d) and shows its rest output before (delay)
+    sensor     y(t)  = clip(y_m(t - d) + a sin(2 pi f_i t) + b cos(2 pi f_i t), level)
+
+* ``relaxation``: first-order low-pass histories L_tau of the input's powers
+  (``relaxation_powers``, default u only) with ``n_relaxation`` time constants
+  tau_k (nonlinear) and weights c_kp (linear). A Maxwell-type branch: the
+  output depends on how the input was a time tau ago.
+* ``creep``: a slow drift since the record's start, size s (linear, output
+  units) and time scale T_c (nonlinear, s).
+* ``resonance``: H is the second-order low-pass of unit static gain,
+  natural frequency f_n (Hz) and damping ratio zeta (both nonlinear). The
+  base's output offset (a sensor zero) is not filtered.
+* ``delay``: a pure delay d (s, nonlinear): the whole actuator (base and the
+  components above) runs on the input sampled at t - d (linear between
+  samples), from rest at t = d; before that the output is the base's rest
+  output (its output for a zero input).
+* ``interference``: a sinusoid at f_i (Hz, nonlinear) with linear sine and
+  cosine weights, in the record's own time (t = 0 at its first sample); a
+  disturbance with the same phase relative to every record's start.
+* ``saturation``: the output clipped at ``level`` (nonlinear, output units)
+  from above (``saturation_side="upper"``) or below ("lower"). Clipping makes
+  no parameter enter linearly, so this model has no regressors (identify it
+  with ``lsq`` or ``mpso``).
+
+Every dynamic block starts from rest (the signal it receives is zero before
+t = 0; see ``filter_kernels``); the rest output of the base is its output
+for a zero input. Without saturation the model stays linear in the base's
+linear parameters and in the components' weights, so ``regressors`` applies
+the same blocks to each column of the base's regressor matrix and varpro
+identifies it directly.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .base import DataScale, HysteresisModel, Parameter
+from .errors import ModelError
+from .filter_kernels import (
+    first_order_foh,
+    lowpass1_bank,
+    lowpass2_rows,
+    lowpass2_sets,
+    second_order_foh,
+)
+
+CAUSES = ("relaxation", "delay", "resonance", "creep", "interference", "saturation")
+ORDER = {c: i for i, c in enumerate(CAUSES)}
+
+# Default bounds, in units of the data scale (DataScale: u, y, time = shortest drive period).
+TAU_BOUNDS = (0.01, 1000.0)  # x time
+RELAX_WEIGHT_BOUND = 20.0  # |c_kp| <= bound * y / u^p
+DELAY_BOUND = 0.25  # 0 <= d <= bound * time
+RESONANCE_HZ_BOUNDS = (1.0, 500.0)  # x 1 / time
+DAMPING_BOUNDS = (0.01, 3.0)
+CREEP_TIME_BOUNDS = (1.0, 10000.0)  # x time
+CREEP_SIZE_BOUND = 2.0  # x y
+INTERFERENCE_HZ_BOUNDS = (0.5, 500.0)  # x 1 / time
+INTERFERENCE_BOUND = 1.0  # x y
+SATURATION_BOUND = 2.0  # |level| <= bound * y
+
+
+def extended_name(base: str, components: Sequence[str]) -> str:
+    return "+".join([base, *components])
+
+
+class ExtendedModel(HysteresisModel):
+    """A registered base model plus named components; see the module docstring."""
+
+    name = "extended"
+
+    def __init__(self, base: str = "mrpim", components: Sequence[str] = ("relaxation",),
+                 base_hyperparameters: Mapping | None = None, n_relaxation: int = 1,
+                 relaxation_powers: Sequence[int] = (1,), saturation_side: str = "upper"):
+        from .registry import get_model
+
+        self.base = base
+        self.components = tuple(sorted(set(components), key=lambda c: ORDER.get(c, len(ORDER))))
+        self.base_hyperparameters = dict(base_hyperparameters or {})
+        self.n_relaxation = n_relaxation
+        self.relaxation_powers = tuple(int(p) for p in relaxation_powers)
+        self.saturation_side = saturation_side
+        unknown = [c for c in components if c not in CAUSES]
+        if unknown or not self.components:
+            raise ModelError(f"extended model: unknown or no components {list(components)!r}; "
+                             f"choose from {', '.join(CAUSES)}")
+        if not (isinstance(n_relaxation, (int, np.integer)) and 1 <= n_relaxation <= 6):
+            raise ModelError(f"extended model: n_relaxation must be an integer in 1..6, got {n_relaxation!r}")
+        if not self.relaxation_powers or any(p < 1 or p > 4 for p in self.relaxation_powers):
+            raise ModelError(f"extended model: relaxation_powers must be integers in 1..4, got {relaxation_powers!r}")
+        if saturation_side not in ("upper", "lower"):
+            raise ModelError(f"extended model: saturation_side must be 'upper' or 'lower', got {saturation_side!r}")
+        self.base_model = get_model(base, **self.base_hyperparameters)
+        if isinstance(self.base_model, ExtendedModel):
+            raise ModelError("extended model: the base must not itself be extended (list all components instead)")
+        self.name = extended_name(base, self.components)
+        self._parameter_cache: dict = {}
+
+    def get_hyperparameters(self) -> dict:
+        return {"base": self.base, "components": list(self.components),
+                "base_hyperparameters": dict(self.base_hyperparameters), "n_relaxation": self.n_relaxation,
+                "relaxation_powers": list(self.relaxation_powers), "saturation_side": self.saturation_side}
+
+    def has(self, component: str) -> bool:
+        return component in self.components
+
+    # --- parameters ------------------------------------------------------
+    def component_parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        """The components' own parameters (the base's come first in ``parameters``)."""
+        s = scale or DataScale()
+        T, y, u = s.time, s.y, s.u
+        linear = not self.has("saturation")
+        out = []
+        if self.has("relaxation"):
+            lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
+            for k in range(1, self.n_relaxation + 1):
+                start = min(hi, max(lo, T * 10.0 ** (k - 1)))
+                out.append(Parameter(f"tau{k}", start, lo, hi, False, f"relaxation time {k} (s)"))
+            for k in range(1, self.n_relaxation + 1):
+                for p in self.relaxation_powers:
+                    b = RELAX_WEIGHT_BOUND * y / u**p
+                    out.append(Parameter(f"c{k}" + ("" if p == 1 else f"_u{p}"), 0.0, -b, b, linear,
+                                         f"weight of the low-pass history of u^{p} with tau{k}"))
+        if self.has("delay"):
+            out.append(Parameter("delay", 0.0, 0.0, DELAY_BOUND * T, False, "pure time delay (s)"))
+        if self.has("resonance"):
+            lo, hi = RESONANCE_HZ_BOUNDS[0] / T, RESONANCE_HZ_BOUNDS[1] / T
+            out.append(Parameter("natural_frequency", min(hi, 20.0 / T), lo, hi, False,
+                                 "natural frequency of the mode (Hz)"))
+            out.append(Parameter("damping_ratio", 0.5, *DAMPING_BOUNDS, False, "damping ratio of the mode"))
+        if self.has("creep"):
+            out.append(Parameter("creep_time", 100.0 * T, CREEP_TIME_BOUNDS[0] * T, CREEP_TIME_BOUNDS[1] * T,
+                                 False, "creep time scale (s)"))
+            out.append(Parameter("creep_size", 0.0, -CREEP_SIZE_BOUND * y, CREEP_SIZE_BOUND * y, linear,
+                                 "creep size (output units): s in s (1 - exp(-t / T_c))"))
+        if self.has("interference"):
+            lo, hi = INTERFERENCE_HZ_BOUNDS[0] / T, INTERFERENCE_HZ_BOUNDS[1] / T
+            out.append(Parameter("interference_frequency", min(hi, 10.0 / T), lo, hi, False,
+                                 "frequency of the disturbance (Hz)"))
+            b = INTERFERENCE_BOUND * y
+            out.append(Parameter("interference_sin", 0.0, -b, b, linear, "sine weight of the disturbance"))
+            out.append(Parameter("interference_cos", 0.0, -b, b, linear, "cosine weight of the disturbance"))
+        if self.has("saturation"):
+            b = SATURATION_BOUND * y
+            out.append(Parameter("saturation_level", y if self.saturation_side == "upper" else -y, -b, b, False,
+                                 f"level the output is clipped at from {'above' if self.saturation_side == 'upper' else 'below'}"))
+        return tuple(out)
+
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        base = self.base_model.parameters(scale)
+        if self.has("saturation"):  # clipping: nothing enters the output linearly
+            base = tuple(Parameter(p.name, p.value, p.min, p.max, False, p.description) for p in base)
+        params = base + self.component_parameters(scale)
+        names = [p.name for p in params]
+        if len(set(names)) != len(names):
+            raise ModelError(f"{self.name}: base parameter names clash with the components' ({names})")
+        self._parameter_cache[scale] = params
+        return params
+
+    @property
+    def base_names(self) -> tuple[str, ...]:
+        return self.base_model.param_names
+
+    # --- pieces --------------------------------------------------------------
+    def _relaxation_columns(self, u: np.ndarray, dt: float, taus: Sequence[float]) -> np.ndarray:
+        """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order."""
+        a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(t), dt) for t in taus)))
+        rows = []
+        for p in self.relaxation_powers:
+            rows.append(lowpass1_bank(np.ascontiguousarray(u**p), a, b0, b1))  # (K, T)
+        n_p = len(self.relaxation_powers)
+        out = np.empty((len(taus) * n_p, u.size))
+        for k in range(len(taus)):
+            for j in range(n_p):
+                out[k * n_p + j] = rows[j][k]
+        return out
+
+    def _relaxation_weight_names(self) -> list[str]:
+        """c{k}[_u{p}], k-major: the order of ``_relaxation_columns``."""
+        return [f"c{k}" + ("" if p == 1 else f"_u{p}") for k in range(1, self.n_relaxation + 1)
+                for p in self.relaxation_powers]
+
+    @staticmethod
+    def _creep_column(n: int, dt: float, creep_time: float, t0: float = 0.0) -> np.ndarray:
+        return -np.expm1(-(t0 + np.arange(n) * dt) / creep_time)
+
+    @staticmethod
+    def interference_columns(n: int, dt: float, f: float) -> np.ndarray:
+        phase = 2.0 * np.pi * f * dt * np.arange(n)
+        return np.stack([np.sin(phase), np.cos(phase)])
+
+    def _check_range(self, params: Mapping[str, float]) -> None:
+        for name in ("tau1", "creep_time", "natural_frequency", "interference_frequency"):
+            if name in params and not params[name] > 0:
+                raise ModelError(f"{self.name}: {name} must be positive, got {params[name]!r}")
+        for k in range(2, self.n_relaxation + 1):
+            if self.has("relaxation") and not params[f"tau{k}"] > 0:
+                raise ModelError(f"{self.name}: tau{k} must be positive, got {params[f'tau{k}']!r}")
+        if self.has("delay") and not params["delay"] >= 0:
+            raise ModelError(f"{self.name}: delay must not be negative, got {params['delay']!r}")
+        if self.has("resonance") and not params["damping_ratio"] > 0:
+            raise ModelError(f"{self.name}: damping_ratio must be positive, got {params['damping_ratio']!r}")
+
+    # --- evaluation ------------------------------------------------------
+    @staticmethod
+    def delayed_input(u: np.ndarray, dt: float, delay: float) -> tuple[np.ndarray, int, float]:
+        """The input as a late actuator receives it: (u_a, k0, t0). The actuator starts at record
+        sample k0 = ceil(d / dt); its sample j is record sample k0 + j, at its own time
+        t0 + j dt = (k0 + j) dt - d, where it receives u((k0 + j) dt - d) (linear between samples)."""
+        ds = delay / dt
+        k0 = int(math.ceil(ds - 1e-9))
+        frac0 = max(k0 - ds, 0.0)
+        n = u.size
+        if k0 <= 0:
+            return u, 0, 0.0
+        if k0 >= n:
+            return u[:0], n, 0.0
+        pos = np.arange(n - k0) + frac0
+        return np.interp(pos, np.arange(n), u), k0, frac0 * dt
+
+    def _actuator_batch(self, u: np.ndarray, dt: float, t0: float, P: np.ndarray, input_range) -> np.ndarray:
+        """Base + relaxation + creep, through the resonance: (n_sets, len(u)), for an actuator that
+        receives u from its own time t0 on."""
+        names = self.param_names
+        nb = len(self.base_names)
+        n = u.size
+        Y = np.array(self.base_model.simulate_batch(u, dt, np.ascontiguousarray(P[:, :nb]), input_range=input_range),
+                     dtype=float, copy=True)
+        sets = [dict(zip(names, row)) for row in P]
+        if self.has("relaxation"):
+            weights = self._relaxation_weight_names()
+            for i, s in enumerate(sets):
+                cols = self._relaxation_columns(u, dt, [s[f"tau{k}"] for k in range(1, self.n_relaxation + 1)])
+                Y[i] += np.array([s[w] for w in weights]) @ cols
+        if self.has("creep"):
+            for i, s in enumerate(sets):
+                Y[i] += s["creep_size"] * self._creep_column(n, dt, s["creep_time"], t0)
+        if self.has("resonance"):
+            off = np.array([s.get("offset", 0.0) for s in sets])[:, None] if "offset" in self.base_names else 0.0
+            coef = [second_order_foh(s["natural_frequency"], s["damping_ratio"], dt) for s in sets]
+            phis = np.ascontiguousarray(np.stack([c[0] for c in coef]))
+            g0 = np.ascontiguousarray(np.stack([c[1] for c in coef]))
+            g1 = np.ascontiguousarray(np.stack([c[2] for c in coef]))
+            Y = lowpass2_sets(np.ascontiguousarray(Y - off), phis, g0, g1) + off
+        return Y
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        P = self._check_param_sets(param_sets)
+        names = self.param_names
+        n_set, n = P.shape[0], u.size
+        sets = [dict(zip(names, row)) for row in P]
+        for s in sets:
+            self._check_range(s)
+        in_range = self._input_range(u, input_range)  # the record's structure, also for a late actuator
+        if not self.has("delay"):
+            Y = self._actuator_batch(u, dt, 0.0, P, in_range)
+        else:
+            nb = len(self.base_names)
+            rest = self.base_model.simulate_batch(np.zeros(1), dt, np.ascontiguousarray(P[:, :nb]),
+                                                  input_range=in_range)[:, 0]
+            Y = np.empty((n_set, n))
+            for i, s in enumerate(sets):
+                u_a, k0, t0 = self.delayed_input(u, dt, s["delay"])
+                Y[i, :k0] = rest[i]
+                if k0 < n:
+                    Y[i, k0:] = self._actuator_batch(u_a, dt, t0, P[i:i + 1], in_range)[0]
+        if self.has("interference"):
+            for i, s in enumerate(sets):
+                cols = self.interference_columns(n, dt, s["interference_frequency"])
+                Y[i] += s["interference_sin"] * cols[0] + s["interference_cos"] * cols[1]
+        if self.has("saturation"):
+            levels = np.array([s["saturation_level"] for s in sets])[:, None]
+            Y = np.minimum(Y, levels) if self.saturation_side == "upper" else np.maximum(Y, levels)
+        return Y
+
+    def _nonlinear(self, nonlinear) -> dict:
+        if self.has("saturation"):
+            raise ModelError(f"model {self.name!r} has no linear part to solve exactly (clipping); use lsq or mpso")
+        nonlinear = dict(nonlinear or {})
+        expected = set(self.nonlinear_names)
+        if set(nonlinear) != expected:
+            raise ModelError(f"{self.name}: regressors need exactly the nonlinear parameters {sorted(expected)}, "
+                             f"got {sorted(nonlinear)}")
+        self._check_range(nonlinear)
+        return nonlinear
+
+    def _window_columns(self, u: np.ndarray, dt: float, nonlinear: Mapping[str, float], start: int, stop: int,
+                        in_range, out: np.ndarray) -> None:
+        """Fill out (n_linear, stop - start) with the regressor rows [start, stop), the model run from sample 0."""
+        base_nl = {k: nonlinear[k] for k in self.base_model.nonlinear_names}
+        u_a, k0, t0 = self.delayed_input(u, dt, nonlinear["delay"]) if self.has("delay") else (u, 0, 0.0)
+        names = self.linear_names
+        n_rest = min(max(k0 - start, 0), stop - start)  # leading rows before the actuator starts
+        if n_rest:
+            rest = self.base_rest(dt, base_nl, in_range)
+            for j, name in enumerate(names):
+                out[j, :n_rest] = rest.get(name, 0.0)
+        a0, a1 = max(start, k0) - k0, stop - k0  # the window in the actuator's samples
+        if a1 > a0:
+            if self.has("resonance"):  # the filter needs every sample up to the window's end
+                cols = self.assemble_columns(u_a[:a1], dt, self.base_columns(u_a[:a1], dt, base_nl, in_range),
+                                             nonlinear, t0)
+                cols = {k: v[a0:a1] for k, v in cols.items()}
+            else:
+                B = self.base_model.windowed_regressors(u_a, dt, base_nl, slice(a0, a1), input_range=in_range)
+                cols = {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
+                if self.has("relaxation"):
+                    taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
+                    R = self._relaxation_columns(u_a[:a1], dt, taus)
+                    for j, w in enumerate(self._relaxation_weight_names()):
+                        cols[w] = R[j, a0:a1]
+                if self.has("creep"):
+                    cols["creep_size"] = self._creep_column(a1 - a0, dt, nonlinear["creep_time"], t0 + a0 * dt)
+            for j, name in enumerate(names):
+                if name in cols:
+                    out[j, n_rest:] = cols[name]
+        if self.has("interference"):
+            phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * np.arange(start, stop)
+            out[names.index("interference_sin")] = np.sin(phase)
+            out[names.index("interference_cos")] = np.cos(phase)
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None = None, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        return self.windowed_regressors(u, dt, nonlinear, slice(0, u.size), input_range=input_range)
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window: slice,
+                            input_range=None) -> np.ndarray:
+        nonlinear = self._nonlinear(nonlinear)
+        sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
+        return self.windowed_regressors_batch(u, dt, sets, window, input_range)[0]
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float)
+        sets = sets.reshape(1, -1) if sets.ndim < 2 else sets
+        names = self.nonlinear_names
+        if sets.shape[1] != len(names):
+            raise ModelError(f"{self.name}: regressors need the nonlinear parameters {list(names)}, "
+                             f"got sets of shape {sets.shape}")
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        in_range = self._input_range(u, input_range)
+        out = np.empty((sets.shape[0], len(self.linear_names), stop - start))
+        for i, row in enumerate(sets):
+            nonlinear = self._nonlinear(dict(zip(names, (float(v) for v in row))))
+            self._window_columns(u, dt, nonlinear, start, stop, in_range, out[i])
+        return out.transpose(0, 2, 1)
+
+    def base_columns(self, u: np.ndarray, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict:
+        """The base's regressor columns over the whole input, by linear parameter name."""
+        B = self.base_model.windowed_regressors(u, dt, dict(base_nonlinear), slice(0, u.size), input_range=input_range)
+        return {name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_model.linear_names)}
+
+    def base_rest(self, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict[str, float]:
+        """The base's regressor row for a zero input (the actuator at rest), by linear parameter name."""
+        row = np.asarray(self.base_model.regressors(np.zeros(1), dt, dict(base_nonlinear), input_range=input_range))[0]
+        return {name: float(row[j]) for j, name in enumerate(self.base_model.linear_names)}
+
+    def assemble_columns(self, u: np.ndarray, dt: float, base_columns: Mapping[str, np.ndarray],
+                         nonlinear: Mapping[str, float], t0: float = 0.0) -> dict[str, np.ndarray]:
+        """The actuator's regressor columns (by linear parameter name) from the base's columns:
+        relaxation and creep columns added, all but the offset through the resonance. No delay or
+        interference here (see ``regressors``). ``base_columns`` may hold only some of the base's
+        columns (or none); ``t0`` is the actuator's own time at u's first sample."""
+        n = u.size
+        cols: dict[str, np.ndarray] = dict(base_columns)
+        if self.has("relaxation"):
+            taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
+            R = self._relaxation_columns(u, dt, taus)
+            for j, w in enumerate(self._relaxation_weight_names()):
+                cols[w] = R[j]
+        if self.has("creep"):
+            cols["creep_size"] = self._creep_column(n, dt, nonlinear["creep_time"], t0)
+        if self.has("resonance"):
+            actuator = [name for name in cols if name != "offset"]
+            if actuator:
+                phi, g0, g1 = second_order_foh(nonlinear["natural_frequency"], nonlinear["damping_ratio"], dt)
+                F = lowpass2_rows(np.ascontiguousarray(np.stack([cols[c] for c in actuator])), phi, g0, g1)
+                for j, c in enumerate(actuator):
+                    cols[c] = F[j]
+        return cols
+
+
+def factory(base: str, components: Sequence[str]):
+    """A registry factory for ``base+components`` (hyperparameters may repeat base/components)."""
+
+    def make(**hyper):
+        hyper = dict(hyper)
+        given_base = hyper.pop("base", base)
+        given = tuple(hyper.pop("components", components))
+        if given_base != base or tuple(sorted(given, key=ORDER.get)) != tuple(sorted(components, key=ORDER.get)):
+            raise ModelError(f"model {extended_name(base, components)!r} cannot be built with base {given_base!r} "
+                             f"and components {list(given)!r}")
+        return ExtendedModel(base=base, components=tuple(components), **hyper)
+
+    return make
+
+
+def register_extensions(base: str) -> list[str]:
+    """Register ``base+cause`` for every cause (those not yet registered); returns the names."""
+    from .registry import _REGISTRY, register
+
+    names = []
+    for cause in CAUSES:
+        name = extended_name(base, (cause,))
+        if name not in _REGISTRY:
+            register(name, factory(base, (cause,)))
+        names.append(name)
+    return names

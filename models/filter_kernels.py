@@ -1,0 +1,109 @@
+"""Numba kernels of the linear dynamic blocks that extend a hysteresis model.
+
+Every block starts from rest: the signal it filters is zero before the
+record's first sample and jumps to its first value at t = 0 (an actuator at
+rest before the record, as the play operators' zero initial state). Between
+samples the filtered signal is taken linear (first-order hold), and each block
+is discretised exactly for that (no half-sample lag, unlike a zero-order hold):
+
+* first-order low-pass  tau x' = v - x:
+      x[k+1] = a x[k] + b0 v[k] + b1 v[k+1],  a = exp(-h / tau),
+      b1 = 1 - (tau / h)(1 - a),  b0 = (1 - a) - b1,  x[0] = 0.
+* second-order low-pass (unit static gain) x'' + 2 zeta w x' + w^2 x = w^2 v,
+  state s = (x, x'):  s[k+1] = Phi s[k] + G0 v[k] + G1 v[k+1],  s[0] = 0,
+  Phi, G0, G1 from the matrix exponential (``second_order_foh``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+from numba import njit, prange
+
+
+# --- coefficients ----------------------------------------------------------------
+def first_order_foh(tau: float, h: float) -> tuple[float, float, float]:
+    """(a, b0, b1) of the exact first-order-hold discretisation of tau x' = v - x."""
+    r = h / tau
+    a = math.exp(-r)
+    one_minus_a = -math.expm1(-r)
+    b1 = 1.0 - one_minus_a / r if r > 1e-8 else 0.5 * r  # series for tiny steps
+    return a, one_minus_a - b1, b1
+
+
+def second_order_foh(natural_frequency_hz: float, damping_ratio: float, h: float):
+    """(Phi (2, 2), G0 (2,), G1 (2,)) of the exact first-order-hold discretisation of
+    x'' + 2 zeta w x' + w^2 x = w^2 v with w = 2 pi f_n."""
+    w = 2.0 * math.pi * natural_frequency_hz
+    A = np.array([[0.0, 1.0], [-w * w, -2.0 * damping_ratio * w]])
+    B = np.array([0.0, w * w])
+    M = np.zeros((4, 4))
+    M[:2, :2] = A * h
+    M[:2, 2] = B * h
+    M[2, 3] = 1.0
+    E = scipy.linalg.expm(M)
+    Phi, Ga, Gb = E[:2, :2], E[:2, 2], E[:2, 3]  # Ga = int e^{A s} B ds, Gb = the ramp part
+    return np.ascontiguousarray(Phi), np.ascontiguousarray(Ga - Gb), np.ascontiguousarray(Gb)
+
+
+# --- kernels ---------------------------------------------------------------------
+@njit(cache=True, fastmath=True)
+def _lowpass1(v, a, b0, b1, out):
+    x = 0.0
+    out[0] = 0.0
+    for k in range(v.shape[0] - 1):
+        x = a * x + b0 * v[k] + b1 * v[k + 1]
+        out[k + 1] = x
+
+
+@njit(cache=True)
+def lowpass1(v, a, b0, b1):
+    """First-order low-pass of v from rest, shape (T,)."""
+    out = np.empty(v.shape[0])
+    _lowpass1(v, a, b0, b1, out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def lowpass1_bank(v, a, b0, b1):
+    """One signal through several first-order low-passes (coefficient arrays (m,)): (m, T)."""
+    m = a.shape[0]
+    out = np.empty((m, v.shape[0]))
+    for j in prange(m):
+        _lowpass1(v, a[j], b0[j], b1[j], out[j])
+    return out
+
+
+@njit(cache=True, fastmath=True)
+def _lowpass2(v, phi, g0, g1, out):
+    x0 = 0.0
+    x1 = 0.0
+    out[0] = 0.0
+    for k in range(v.shape[0] - 1):
+        vk = v[k]
+        vn = v[k + 1]
+        n0 = phi[0, 0] * x0 + phi[0, 1] * x1 + g0[0] * vk + g1[0] * vn
+        n1 = phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn
+        x0 = n0
+        x1 = n1
+        out[k + 1] = x0
+
+
+@njit(cache=True, parallel=True)
+def lowpass2_rows(V, phi, g0, g1):
+    """Every row of V (m, T) through the same second-order low-pass: (m, T)."""
+    out = np.empty_like(V)
+    for j in prange(V.shape[0]):
+        _lowpass2(V[j], phi, g0, g1, out[j])
+    return out
+
+
+@njit(cache=True, parallel=True)
+def lowpass2_sets(V, phis, g0s, g1s):
+    """Row j of V (n, T) through its own second-order low-pass (phis (n, 2, 2)): (n, T)."""
+    out = np.empty_like(V)
+    for j in prange(V.shape[0]):
+        _lowpass2(V[j], phis[j], g0s[j], g1s[j], out[j])
+    return out
