@@ -26,8 +26,10 @@ The nonlinear parameters are searched with several starts: the start point
 Halton sequence in their bounds (seeded) are evaluated as one batch; local
 searches (scipy.optimize.least_squares, trust-region reflective, bounded,
 Jacobian by forward differences evaluated as one batch) run from the
-``n_starts`` best; the best result wins. A model with no nonlinear parameter
-is a single linear solve.
+``n_starts`` best; a later search that comes within ``merge_radius`` (2 % of
+each bound's width) of an earlier search's optimum stops there, since it
+would end in the same place; the best result wins. A model with no
+nonlinear parameter is a single linear solve.
 """
 
 from __future__ import annotations
@@ -51,7 +53,12 @@ OPTIONS = {
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
     "tol": 1e-6,  # ftol = xtol = gtol of least_squares
     "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
+    "merge_radius": 0.02,  # a search this close (fraction of each width) to an earlier optimum stops
 }
+
+
+class _SameBasin(Exception):
+    """A local search reached the neighbourhood of an earlier search's optimum."""
 
 
 @dataclass
@@ -290,7 +297,13 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
             z[free] = zf
             return z
 
+        ends: list[tuple[int, np.ndarray]] = []  # (search index, optimum) of finished searches
+
         def residual(zf):
+            z = full(zf)
+            for j, e in ends:
+                if np.max(np.abs(z - e) / width) < opts["merge_radius"]:
+                    raise _SameBasin(j)
             key = zf.tobytes()
             if key not in cache:
                 cache.clear()
@@ -312,14 +325,24 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                 continue
             base = cands[k].copy()
             n0 = problem.n_evaluations
-            res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
-                                x_scale=width[free], ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"],
-                                max_nfev=int(opts["max_nfev"]))
+            entry = {"start": [float(v) for v in cands[k]], "start_fitness": float(sols[k].fitness)}
+            try:
+                res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
+                                    x_scale=width[free], ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"],
+                                    max_nfev=int(opts["max_nfev"]))
+            except _SameBasin as same:
+                j = same.args[0]
+                entry.update(end=searches[j]["end"], fitness=searches[j]["fitness"], status=-2,
+                             message=f"stopped: reached the neighbourhood of search {j + 1}'s optimum",
+                             n_evaluations=problem.n_evaluations - n0)
+                searches.append(entry)
+                continue
             f = float(2.0 * res.cost)
             end = full(res.x)
-            searches.append({"start": [float(v) for v in cands[k]], "start_fitness": float(sols[k].fitness),
-                             "end": [float(v) for v in end], "fitness": f, "status": int(res.status),
-                             "message": str(res.message), "n_evaluations": problem.n_evaluations - n0})
+            entry.update(end=[float(v) for v in end], fitness=f, status=int(res.status), message=str(res.message),
+                         n_evaluations=problem.n_evaluations - n0)
+            searches.append(entry)
+            ends.append((len(searches) - 1, end))
             if f < best_f:
                 best_nl, best_f = end, f
         diag["local_searches"] = searches
