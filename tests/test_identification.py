@@ -264,6 +264,14 @@ def test_varpro_reaches_the_noise_floor(paper_model, paper, noisy, varpro_noisy)
         assert abs(fit.params[name] - paper[name]) <= 0.02 * abs(paper[name])
 
 
+def test_a_search_reaching_an_earlier_optimum_stops_there(varpro_noisy):
+    searches = varpro_noisy.diagnostics["varpro"]["local_searches"]
+    assert len(searches) == 2
+    merged = [s for s in searches if s["status"] == -2]
+    for s in merged:  # it reports the optimum it joined, and spent fewer evaluations than a full search
+        assert s["end"] == searches[0]["end"] and s["n_evaluations"] < searches[0]["n_evaluations"]
+
+
 def test_fitness_is_eq9_and_scores_are_per_record(paper_model, noisy, varpro_noisy):
     fit = varpro_noisy
     assert fit.fitness == pytest.approx(
