@@ -154,6 +154,10 @@ def findings(results) -> list[str]:
             verdict = ("found the same optimum" if ratio < 1.01 else
                        f"stopped in a local minimum {ratio:.3g} times above varpro's")
             out.append(f"- {label}: lsq from the default start {verdict}.")
+        for f in fits:
+            if f.diagnostics.get("at_bounds"):
+                out.append(f"- {label}: {f.method} ended with {', '.join(f.diagnostics['at_bounds'])} at their "
+                           "bounds (default bounds scale with the data; see the Fit's notes).")
         for polished, base in (("varpro+lsq", "varpro"), ("mpso+lsq", "mpso")):
             if polished in by and base in by:
                 p, b = by[polished], by[base]
@@ -188,10 +192,9 @@ def collinear_operators(results) -> list[str]:
         else:
             vals = ", ".join(f"a{i} = {fit.params[f'a{i}']:.3f} (Table 2: {PAPER_TABLE2.get(f'a{i}', math.nan):.3f})"
                              for i in flat)
-            line += (f"; varpro finds {vals}. Together the pair acts as an output offset (this configuration has "
-                     "none), and only those small differences between records separate the two weights: this is "
-                     "how large weights of opposite sign, like Table 2's, arise; how well measured data determine "
-                     "them is for the posterior to say.")
+            line += (f" (not regularised); varpro finds {vals}. Together the pair acts as an output offset (this "
+                     "configuration has none), and only those small differences between records separate the two "
+                     "weights; how well measured data determine them is for the posterior to say.")
         out.append(line)
     return out
 
