@@ -151,8 +151,9 @@ def _fit_records(dataset: Dataset, fit_on, model_name: str, method: str):
     return [r for r in dataset.records if r.file in set(fit_on)]
 
 
-def _at_bounds(problem: Problem, x: np.ndarray, rel: float = 1e-9) -> list[tuple[str, str, float]]:
-    """(name, 'lower'/'upper', bound) of the parameters that sit on a finite bound."""
+def _at_bounds(problem: Problem, x: np.ndarray, rel: float = 1e-6) -> list[tuple[str, str, float]]:
+    """(name, "lower"/"upper", bound) of the parameters within 1e-6 of the width from a finite bound
+    (trust-region methods stop just inside)."""
     out = []
     width = np.where(np.isfinite(problem.upper - problem.lower), problem.upper - problem.lower, 1.0)
     for i, name in enumerate(problem.names):
