@@ -16,7 +16,11 @@ from hysbench.models.errors import HysbenchError
 
 # subcommand -> (module, one-line help)
 COMMANDS = {
+    "check": ("hysbench.data.check_cli", "check a dataset folder and summarise its records"),
+    "data": ("hysbench.data.cli", "generate a dataset: virtual-dea (the default dataset)"),
+    "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
     "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "ablate": ("hysbench.benchmarks.ablation_cli", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
 }
 

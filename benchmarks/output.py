@@ -10,6 +10,17 @@ from pathlib import Path
 from hysbench.models.errors import HysbenchError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def default_mode(folder: bool = False) -> int:
+    """Permissions a plain open()/mkdir() would give (temp files start private)."""
+    return (0o777 if folder else 0o666) & ~_umask()
+
+
 class OutputError(HysbenchError):
     """An output folder or file that cannot be written."""
 
@@ -37,6 +48,7 @@ def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
+        os.chmod(tmp, default_mode())
         with os.fdopen(fd, mode, **({} if isinstance(data, bytes) else {"encoding": "utf-8"})) as fh:
             fh.write(data)
         os.replace(tmp, path)

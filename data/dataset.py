@@ -376,11 +376,12 @@ def save_dataset(dataset: Dataset, folder: str | os.PathLike, compress: bool = T
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
+        os.chmod(tmp, 0o777 & ~_umask())
         for r in dataset.records:
             target = tmp / r.file
             target.parent.mkdir(parents=True, exist_ok=True)
             arrays = {dataset.time_column: r.t, dataset.input_column: r.u, dataset.output_column: r.y}
-            if target.suffix == ".npz":
+            if target.suffix == ".npz":  # numpy writes with the default (umask) permissions
                 (np.savez_compressed if compress else np.savez)(target, **arrays)
             elif target.suffix == ".csv":
                 header = ",".join(arrays)
@@ -394,6 +395,12 @@ def save_dataset(dataset: Dataset, folder: str | os.PathLike, compress: bool = T
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return folder
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def replace_folder(new: Path, target: Path) -> None:

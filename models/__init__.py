@@ -1,23 +1,42 @@
 """Hysteresis models behind one interface (see ``base.HysteresisModel``)."""
 
 from .base import DataScale, HysteresisModel, Parameter
+from .bouc_wen import BoucWen
 from .classical_pi import ClassicalPI
+from .dual_polynomial import DualPolynomial
+from .elliptical import Elliptical
 from .errors import HysbenchError, ModelError
 from .mrpim import MRPIM, PAPER_TABLE2
+from .preisach import Preisach
+from .rate_dependent_pi import RateDependentPI
 from .registry import get_model, list_models, register
+from .viscoelastic import Viscoelastic
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
+register(Viscoelastic.name, Viscoelastic)
+# baselines (issue 5)
+register(Elliptical.name, Elliptical)
+register(DualPolynomial.name, DualPolynomial)
+register(BoucWen.name, BoucWen)
+register(Preisach.name, Preisach)
+register(RateDependentPI.name, RateDependentPI)
 
 __all__ = [
+    "BoucWen",
     "ClassicalPI",
     "DataScale",
+    "DualPolynomial",
+    "Elliptical",
     "HysbenchError",
     "HysteresisModel",
     "MRPIM",
     "ModelError",
     "PAPER_TABLE2",
     "Parameter",
+    "Preisach",
+    "RateDependentPI",
+    "Viscoelastic",
     "get_model",
     "list_models",
     "register",

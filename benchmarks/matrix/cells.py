@@ -1,0 +1,176 @@
+"""One cell of the matrix: identify a model with one method on one dataset, then score it."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.models import get_model, list_models
+from hysbench.models.errors import HysbenchError
+
+
+def package_version() -> str:
+    try:
+        return version("hysbench")
+    except PackageNotFoundError:  # running from a source tree
+        return "0+unknown"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """What a cell computes; everything that can change its result is in ``key``."""
+
+    dataset_path: str
+    dataset_name: str
+    dataset_hash: str
+    model: str
+    method: str
+    seed: int
+    options: tuple = ()  # sorted (name, value) pairs for the identifier
+
+    @property
+    def name(self) -> str:
+        return f"{self.dataset_name}/{self.model}/{self.method}"
+
+    @property
+    def key(self) -> str:
+        ident = {
+            "dataset": self.dataset_hash,
+            "model": self.model,
+            "method": self.method,
+            "seed": self.seed,
+            "options": [list(o) for o in self.options],
+            "version": package_version(),
+        }
+        return hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:20]
+
+
+@dataclass
+class CellResult:
+    key: str
+    dataset: str
+    model: str
+    method: str
+    seed: int
+    options: dict
+    status: str  # "ok" or "failed"
+    n_params: int = 0
+    fitness: float = float("nan")
+    fit_seconds: float = float("nan")
+    simulate_seconds: float = float("nan")
+    n_evaluations: int = 0
+    params: dict = field(default_factory=dict)
+    input_range: list = field(default_factory=list)
+    records: list = field(default_factory=list)  # {file, frequency_hz, role, e_m, e_rms}
+    error: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CellResult":
+        return cls(**d)
+
+
+# The default matrix runs the three identifiers; chains such as varpro+lsq are run when named.
+DEFAULT_METHODS = ("varpro", "mpso", "lsq")
+
+
+def applicable_methods(model_name: str) -> list[str]:
+    """Identifiers that apply to a model, through the interface only."""
+    from hysbench.identification import applicable_methods as applicable
+
+    return applicable(model_name)
+
+
+def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, methods: list[str] | None,
+               seed: int, method_options: dict | None = None) -> list[Cell]:
+    """Every requested model x applicable method x dataset (unknown names raise HysbenchError)."""
+    from hysbench.identification import METHODS
+
+    known_methods = list(METHODS)
+    models = models or list_models()
+    for m in models:
+        get_model(m)  # raises on an unknown name
+    for m in methods or []:
+        if m not in known_methods:
+            raise HysbenchError(f"unknown method {m!r}; known methods: {', '.join(known_methods)}")
+    method_options = method_options or {}
+    _check_options(models, methods, method_options)
+    cells = []
+    for path, ds in datasets:
+        digest = ds.content_hash()
+        for model in models:
+            for method in applicable_methods(model):
+                if method not in (methods or DEFAULT_METHODS):
+                    continue
+                opts = tuple(sorted(method_options.get(method, {}).items()))
+                cells.append(Cell(str(path), ds.name, digest, model, method, seed, opts))
+    return cells
+
+
+def _check_options(models, methods, method_options) -> None:
+    """Refuse unknown or bad identifier options before anything runs."""
+    from hysbench.identification.api import resolve_method, split_options
+
+    for method, opts in method_options.items():
+        if method not in (methods or DEFAULT_METHODS):
+            raise HysbenchError(f"--option names method {method!r}, which is not being run")
+        for model in models:
+            if method in applicable_methods(model):
+                stages = resolve_method(method, get_model(model))
+                split_options(stages, method, opts)
+                break
+
+
+_DATASET_CACHE: dict[str, Dataset] = {}
+
+
+def _dataset(cell: Cell) -> Dataset:
+    ds = _DATASET_CACHE.get(cell.dataset_path)
+    if ds is None or ds.content_hash() != cell.dataset_hash:
+        ds = load_dataset(cell.dataset_path)
+        _DATASET_CACHE.clear()
+        _DATASET_CACHE[cell.dataset_path] = ds
+    return ds
+
+
+def run_cell(cell: Cell) -> dict:
+    """Identify and score; returns CellResult.to_dict(). Never raises for a failed fit."""
+    from hysbench.identification import identify
+
+    base = dict(key=cell.key, dataset=cell.dataset_name, model=cell.model, method=cell.method, seed=cell.seed,
+                options=dict(cell.options))
+    try:
+        ds = _dataset(cell)
+        model = get_model(cell.model)
+        fit = identify(model, ds, method=cell.method, seed=cell.seed, **dict(cell.options))
+        t0 = time.perf_counter()
+        for r in ds.records:
+            fit.simulate(r.u, r.dt)
+        simulate_seconds = time.perf_counter() - t0
+        return CellResult(
+            **base, status="ok", n_params=model.n_params, fitness=float(fit.fitness),
+            fit_seconds=float(fit.fit_seconds), simulate_seconds=simulate_seconds,
+            n_evaluations=int(fit.n_evaluations), params=dict(fit.params),
+            input_range=[float(x) for x in fit.input_range],
+            records=[_record_dict(s) for s in fit.records],
+        ).to_dict()
+    except Exception as exc:  # a failed cell is reported, not fatal to the run
+        detail = "".join(traceback.format_exception_only(type(exc), exc)).strip().splitlines()[-1]
+        return CellResult(**base, status="failed", error=detail).to_dict()
+
+
+def _record_dict(score) -> dict:
+    d = score if isinstance(score, dict) else score.as_dict()
+    return {k: d[k] for k in ("file", "frequency_hz", "role", "e_m", "e_rms")}
+
+
+def dataset_path_label(path: str) -> str:
+    return Path(path).name

@@ -1,0 +1,114 @@
+"""Run the cells: skip what the store has, run the rest in local processes or on Dask.
+
+Every finished cell is written to the store the moment it arrives, and
+matrix.csv is rewritten (atomically) after each, so an interrupted run loses
+nothing that finished. Worker processes run numba single-threaded: the
+parallelism is across cells.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from multiprocessing import get_context
+from typing import Callable
+
+from .cells import Cell, run_cell
+from .store import CellStore
+
+
+def _single_threaded_worker():
+    import numba
+
+    numba.set_num_threads(1)
+
+
+def _progress(total: int, quiet: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="cell", disable=quiet or not sys.stderr.isatty(), file=sys.stderr,
+                dynamic_ncols=True)
+
+
+def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, dask_address: str | None = None,
+               force: bool = False, on_result: Callable[[dict], None] | None = None, quiet: bool = False) -> dict:
+    """Run cells not already in the store; return {key: result dict} for all cells."""
+    results: dict[str, dict] = {}
+    todo = []
+    for cell in cells:
+        cached = None if force else store.get(cell.key)
+        if cached is not None:
+            results[cell.key] = cached
+        else:
+            todo.append(cell)
+    bar = _progress(len(cells), quiet)
+    bar.update(len(cells) - len(todo))
+
+    def finished(result: dict):
+        if result["status"] == "ok":
+            store.put(result)
+        results[result["key"]] = result
+        bar.update(1)
+        if on_result:
+            on_result(result)
+
+    try:
+        if not todo:
+            pass
+        elif dask_address:
+            _run_dask(todo, dask_address, finished, bar)
+        else:
+            jobs = jobs or os.cpu_count() or 1
+            if jobs == 1 or len(todo) == 1:
+                for cell in todo:
+                    bar.set_description(cell.name)
+                    finished(run_cell(cell))
+            else:
+                _run_processes(todo, jobs, finished, bar)
+    finally:
+        bar.close()
+    return results
+
+
+def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
+    ctx = get_context("spawn")  # numba's threads do not survive fork
+    with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=ctx,
+                             initializer=_single_threaded_worker) as pool:
+        pending = {pool.submit(run_cell, c): c for c in todo}
+        try:
+            while pending:
+                running = ", ".join(c.name for c in list(pending.values())[:jobs])
+                bar.set_description(running)
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    pending.pop(fut)
+                    finished(fut.result())
+        except BaseException:
+            for fut in pending:
+                fut.cancel()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+
+
+def _run_dask(todo: list[Cell], address: str, finished, bar) -> None:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        from hysbench.models.errors import HysbenchError
+
+        raise HysbenchError("--dask needs the optional extra: pip install 'hysbench[dask]'") from None
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        from hysbench.models.errors import HysbenchError
+
+        raise HysbenchError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
+    try:
+        futures = [client.submit(run_cell, c, pure=False, key=f"hysbench-{c.key}") for c in todo]
+        names = {f.key: c.name for f, c in zip(futures, todo)}
+        for fut in as_completed(futures):
+            bar.set_description(names.get(fut.key, ""))
+            finished(fut.result())
+    finally:
+        client.close()

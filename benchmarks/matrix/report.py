@@ -1,0 +1,219 @@
+"""matrix.csv, report.md and figures from finished cells."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hysbench.benchmarks.output import pyplot, save_figure, write_atomic
+from hysbench.data.dataset import Dataset
+from hysbench.models import get_model
+
+CSV_COLUMNS = ("dataset", "model", "method", "record", "frequency_hz", "role", "e_m", "e_rms", "fitness",
+               "fit_seconds", "simulate_seconds", "n_params", "n_evaluations", "seed")
+TIMING_COLUMNS = ("fit_seconds", "simulate_seconds")
+
+
+def _ordered(results: list[dict]) -> list[dict]:
+    return sorted(results, key=lambda r: (r["dataset"], r["model"], r["method"]))
+
+
+def matrix_rows(results: list[dict]) -> list[dict]:
+    rows = []
+    for res in _ordered(results):
+        if res["status"] != "ok":
+            continue
+        for rec in res["records"]:
+            rows.append({
+                "dataset": res["dataset"], "model": res["model"], "method": res["method"], "record": rec["file"],
+                "frequency_hz": rec["frequency_hz"], "role": rec["role"], "e_m": rec["e_m"], "e_rms": rec["e_rms"],
+                "fitness": res["fitness"], "fit_seconds": res["fit_seconds"],
+                "simulate_seconds": res["simulate_seconds"], "n_params": res["n_params"],
+                "n_evaluations": res["n_evaluations"], "seed": res["seed"],
+            })
+    return rows
+
+
+def matrix_csv(results: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for row in matrix_rows(results):
+        w.writerow({k: ("" if row[k] is None else (repr(row[k]) if isinstance(row[k], float) else row[k]))
+                    for k in CSV_COLUMNS})
+    return buf.getvalue()
+
+
+def write_matrix_csv(out: Path, results: list[dict]) -> None:
+    write_atomic(out / "matrix.csv", matrix_csv(results))
+
+
+# --- summaries ------------------------------------------------------------
+def cell_summary(res: dict) -> dict:
+    val = [r for r in res["records"] if r["role"] == "validation"]
+    ide = [r for r in res["records"] if r["role"] == "identification"]
+    scored = val or ide  # a dataset without validation records is ranked on identification
+    return {
+        "val_mean": float(np.mean([r["e_rms"] for r in scored])),
+        "val_worst": float(np.max([r["e_rms"] for r in scored])),
+        "val_em_worst": float(np.max([r["e_m"] for r in scored])),
+        "id_mean": float(np.mean([r["e_rms"] for r in ide])) if ide else math.nan,
+        "ranked_on": "validation" if val else "identification",
+    }
+
+
+def ranking(results: list[dict], dataset: str) -> list[tuple[dict, dict]]:
+    cells = [r for r in results if r["dataset"] == dataset and r["status"] == "ok"]
+    scored = [(r, cell_summary(r)) for r in cells]
+    return sorted(scored, key=lambda rs: (rs[1]["val_mean"], rs[1]["val_worst"], rs[0]["model"], rs[0]["method"]))
+
+
+def best_per_model(ranked: list[tuple[dict, dict]]) -> list[tuple[dict, dict]]:
+    seen, best = set(), []
+    for res, summ in ranked:
+        if res["model"] not in seen:
+            seen.add(res["model"])
+            best.append((res, summ))
+    return best
+
+
+def _fmt(x, nd=2) -> str:
+    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
+
+
+def _secs(x) -> str:
+    return "–" if x is None or math.isnan(x) else (f"{x:.3g}" if x < 100 else f"{x:.0f}")
+
+
+def _freq_label(rec: dict) -> str:
+    return f"{rec['frequency_hz']:g}" if rec["frequency_hz"] else rec["file"]
+
+
+def ranking_table(ranked) -> list[str]:
+    on = ranked[0][1]["ranked_on"] if ranked else "validation"
+    lines = [
+        f"| rank | model | method | parameters | {on} e_rms mean (%) | {on} e_rms worst (%) | {on} e_m worst (%) "
+        "| fitness (eq. 9) | fit (s) | simulate all records (s) |",
+        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for i, (res, s) in enumerate(ranked, 1):
+        lines.append(
+            f"| {i} | {res['model']} | {res['method']} | {res['n_params']} | {_fmt(s['val_mean'])} | "
+            f"{_fmt(s['val_worst'])} | {_fmt(s['val_em_worst'])} | {res['fitness']:.4g} | "
+            f"{_secs(res['fit_seconds'])} | {_secs(res['simulate_seconds'])} |"
+        )
+    return lines
+
+
+def paper_layout(best, role: str) -> list[str]:
+    """Tables 3/4 of the paper: per frequency e_m / e_rms, one column per model's best cell."""
+    if not best:
+        return []
+    recs = [r for r in best[0][0]["records"] if r["role"] == role]
+    if not recs:
+        return []
+    head = "| frequency (Hz) | " + " | ".join(f"{res['model']} ({res['method']})" for res, _ in best) + " |"
+    lines = [head, "|---:|" + "---:|" * len(best)]
+    for rec in recs:
+        cells = []
+        for res, _ in best:
+            match = next((r for r in res["records"] if r["file"] == rec["file"]), None)
+            cells.append(f"{match['e_m']:.2f} / {match['e_rms']:.2f}" if match else "–")
+        lines.append(f"| {_freq_label(rec)} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def dataset_section(ds_name: str, results: list[dict], failed: list[dict], figures: dict) -> list[str]:
+    ranked = ranking(results, ds_name)
+    best = best_per_model(ranked)
+    lines = [f"## Dataset `{ds_name}`", ""]
+    if not ranked:
+        return lines + ["No cell finished on this dataset.", ""]
+    on = ranked[0][1]["ranked_on"]
+    lines += [f"Ranked by mean {on} e_rms (ties by worst). e_m and e_rms in % of the measured peak-to-peak "
+              "of each scored window (eq. 10).", ""]
+    lines += ranking_table(ranked) + [""]
+    lines += ["### Identification errors, best cell of each model (layout of the paper's Table 3: e_m / e_rms, %)",
+              ""] + paper_layout(best, "identification") + [""]
+    val = paper_layout(best, "validation")
+    if val:
+        lines += ["### Prediction errors on validation records (layout of the paper's Table 4: e_m / e_rms, %)",
+                  ""] + val + [""]
+    for title, fname in figures.items():
+        lines += [f"![{title}]({fname})", ""]
+    fails = [f for f in failed if f["dataset"] == ds_name]
+    if fails:
+        lines += ["### Cells that failed", ""] + [f"- {f['model']} / {f['method']}: {f['error']}" for f in fails] + [""]
+    return lines
+
+
+# --- figures ---------------------------------------------------------------
+def _slug(s: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in s)
+
+
+def loops_figure(ds: Dataset, best, out: Path, n_models: int = 3) -> str:
+    plt = pyplot()
+    recs = ds.records
+    ncol = min(4, len(recs))
+    nrow = int(math.ceil(len(recs) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.4 * ncol, 2.9 * nrow), squeeze=False)
+    for ax in axes.flat[len(recs):]:
+        ax.set_visible(False)
+    for ax, rec in zip(axes.flat, recs):
+        s = rec.scored
+        ax.plot(rec.u[s], rec.y[s], color="black", lw=1.4, label="measured")
+        for res, _ in best[:n_models]:
+            model = get_model(res["model"])
+            y = model.simulate(rec.u, rec.dt, res["params"], input_range=res["input_range"] or None)
+            ax.plot(rec.u[s], y[s], lw=0.9, label=f"{res['model']} ({res['method']})")
+        ax.set_title(f"{rec.label} ({rec.role[:3]}.)", fontsize=9)
+        ax.tick_params(labelsize=7)
+    axes.flat[0].legend(fontsize=6)
+    fig.supxlabel(f"input ({ds.input_unit})" if ds.input_unit else "input", fontsize=9)
+    fig.supylabel(f"output ({ds.output_unit})" if ds.output_unit else "output", fontsize=9)
+    fig.tight_layout()
+    name = f"loops_{_slug(ds.name)}.png"
+    save_figure(fig, out / name)
+    return name
+
+
+def error_figure(ds: Dataset, best, out: Path) -> str:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    periodic = all(r.frequency_hz for r in ds.records)
+    for res, _ in best:
+        recs = sorted(res["records"], key=lambda r: (r["frequency_hz"] or 0, r["file"]))
+        x = [r["frequency_hz"] if periodic else i for i, r in enumerate(recs)]
+        ax.plot(x, [r["e_rms"] for r in recs], marker="o", ms=3, lw=1, label=f"{res['model']} ({res['method']})")
+    if periodic:
+        ax.set_xscale("log")
+        ax.set_xlabel("drive frequency (Hz)")
+        for r in ds.validation:
+            ax.axvline(r.frequency_hz, color="0.85", lw=3, zorder=0)
+    else:
+        ax.set_xlabel("record")
+    ax.set_ylabel("e_rms (% of peak-to-peak)")
+    ax.set_title(f"{ds.name}: e_rms per record, best cell of each model (grey: validation)", fontsize=9)
+    ax.legend(fontsize=7)
+    name = f"erms_{_slug(ds.name)}.png"
+    save_figure(fig, out / name)
+    return name
+
+
+def write_report(out: Path, results: list[dict], datasets: list[Dataset], header: list[str]) -> None:
+    ok = [r for r in results if r["status"] == "ok"]
+    failed = [r for r in results if r["status"] != "ok"]
+    lines = ["# hysbench benchmark matrix", ""] + header + [""]
+    for ds in datasets:
+        best = best_per_model(ranking(ok, ds.name))
+        figures = {}
+        if best:
+            figures["measured vs predicted loops"] = loops_figure(ds, best, out)
+            figures["e_rms per frequency"] = error_figure(ds, best, out)
+        lines += dataset_section(ds.name, ok, failed, figures)
+    write_atomic(out / "report.md", "\n".join(lines) + "\n")

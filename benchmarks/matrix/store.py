@@ -1,0 +1,37 @@
+"""Finished cells on disk: one JSON file per cell, written atomically.
+
+A cell file is named by the cell's key (a hash of dataset content, model,
+method, options, seed and package version), so a rerun finds what is still
+valid and computes only the rest. Temporary files left by a killed run are
+removed when a store is opened.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from hysbench.benchmarks.output import ensure_dir, write_json
+
+
+class CellStore:
+    def __init__(self, out_dir: str | Path):
+        self.folder = ensure_dir(Path(out_dir) / "cells")
+        for stray in self.folder.glob(".*.tmp"):
+            stray.unlink(missing_ok=True)
+
+    def path(self, key: str) -> Path:
+        return self.folder / f"{key}.json"
+
+    def get(self, key: str) -> dict | None:
+        p = self.path(key)
+        if not p.is_file():
+            return None
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError):
+            return None  # unreadable: recompute
+        return d if d.get("key") == key and d.get("status") == "ok" else None
+
+    def put(self, result: dict) -> Path:
+        return write_json(self.path(result["key"]), result)

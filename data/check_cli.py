@@ -1,0 +1,23 @@
+"""``hysbench check DATASET``: load a dataset, refuse it in one line, or summarise it."""
+
+from __future__ import annotations
+
+import argparse
+
+from .dataset import load_dataset
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", help="dataset folder (holding dataset.toml)")
+
+
+def main(args) -> int:
+    ds = load_dataset(args.dataset)
+    print(f"{ds.name}: {len(ds.records)} records ({len(ds.identification)} identification, "
+          f"{len(ds.validation)} validation); input {ds.input_unit or '?'}, output {ds.output_unit or '?'}")
+    print(f"{'file':<28} {'role':<15} {'f (Hz)':>8} {'weight':>6} {'samples':>9} {'dt (s)':>10} {'scored':>16}")
+    for r in ds.records:
+        f = f"{r.frequency_hz:g}" if r.frequency_hz else "-"
+        scored = f"{r.t[r.start]:.6g}-{r.t[r.stop - 1]:.6g} s"
+        print(f"{r.file:<28} {r.role:<15} {f:>8} {r.weight:>6g} {r.t.size:>9} {r.dt:>10.4g} {scored:>16}")
+    return 0

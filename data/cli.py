@@ -1,0 +1,64 @@
+"""``hysbench data virtual-dea --out DIR [--seed N]``: write the virtual DEA dataset.
+
+The dataset is the paper's seven-frequency protocol applied to the virtual DEA
+(``hysbench.data.virtual_dea``): one record per frequency from t = 0 through the
+creep transition to two stable periods, measured by the virtual laser sensor with
+the given seed. The default dataset shipped in data/virtual_dea/ is this command's
+output with the default seed.
+
+DIR is replaced as a whole (written beside it, then moved into place). To protect
+other files, DIR must be absent, empty, or a dataset folder (holding dataset.toml).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from hysbench.benchmarks.output import OutputError
+from hysbench.models.errors import HysbenchError
+
+from .virtual_dea import DEFAULT_SEED, write_dataset
+
+SEED_MAX = 2**63 - 1
+
+
+class DataCommandError(HysbenchError):
+    """A bad option of ``hysbench data``."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="data_command", metavar="DATASET")
+    sub.required = True
+    p = sub.add_parser("virtual-dea", help="the virtual DEA's seven records (the default dataset)",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("--out", required=True, help="output folder (replaced if it is a dataset folder)")
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED,
+                   help=f"seed of the sensor noise (default {DEFAULT_SEED}, the shipped dataset's)")
+
+
+def check_output_folder(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / "dataset.toml").is_file():
+        raise OutputError(f"--out {out} is a non-empty folder without dataset.toml; refusing to replace it")
+    parent = out.parent if str(out.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f"cannot write {out}: {parent} is not a folder")
+
+
+def main(args) -> int:
+    if args.data_command != "virtual-dea":  # argparse allows only the listed choices
+        raise DataCommandError(f"unknown dataset {args.data_command!r}")
+    if not 0 <= args.seed <= SEED_MAX:
+        raise DataCommandError(f"--seed must be an integer in 0..{SEED_MAX}, got {args.seed}")
+    out = Path(args.out)
+    check_output_folder(out)
+    t0 = time.perf_counter()
+    try:
+        write_dataset(out, seed=args.seed)
+    except OSError as exc:
+        raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
+    print(f"wrote the virtual DEA dataset (seed {args.seed}) to {out} in {time.perf_counter() - t0:.1f} s")
+    return 0

@@ -1,0 +1,309 @@
+"""Classical Bouc-Wen hysteresis model (registry name ``bouc-wen``).
+
+Form of the survey by Ismail, Ikhouane & Rodellar, "The hysteresis Bouc-Wen
+model, a survey", Arch. Comput. Methods Eng. 16 (2009) 161-188 (its basic
+form): Phi(x) = alpha k x + (1 - alpha) k z, dz/dt = A dx/dt - beta |dx/dt| |z|^(n-1) z
+- gamma dx/dt |z|^n. Here, with the input scaled to xi in [-1, 1] over the
+input range (so beta, gamma, n are dimensionless and the same for kV and V):
+
+    xi   = (2u - (u_max + u_min)) / (u_max - u_min)
+    dz/dt = dxi/dt - beta |dxi/dt| |z|^(n-1) z - gamma dxi/dt |z|^n,   z(0) = 0
+    y    = c + k_x xi + k_z z
+
+A = 1: with A free the parameters are redundant (z -> A z rescales beta,
+gamma and k_z; the survey discusses this redundancy), so it is fixed, as in
+the normalised forms. k_x, k_z and c enter linearly (``regressors`` gives
+[xi, z, 1] for fixed beta, gamma, n); beta, gamma, n are nonlinear.
+With beta >= 0 (the bounds) and beta + gamma > 0, z starting from 0 stays
+within |z| <= (beta + gamma)^(-1/n) (the hysteretic part is bounded); for
+beta + gamma <= 0 it grows without bound: once |z| reaches Z_CAP it is held
+there for the rest of the record (no further integration, which would need
+ever smaller steps), so such sets fit badly instead of overflowing or
+stalling an optimiser.
+
+Integration at the data's step: the equation is rate-independent,
+dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
+so each sample interval is integrated in xi (xi taken linear between samples),
+whatever its length:
+- n = 1: exactly. In each sign region of z the equation is linear,
+  z(xi0 + h) = 1/a + (z0 - 1/a) exp(-a h) with a = sigma beta + gamma sgn(z);
+  a step that crosses z = 0 is split there.
+- n != 1: classical Runge-Kutta 4 in m sub-steps, m = ceil(|dxi| L / RK_STEP),
+  L = n (|beta| + |gamma|) max(1, |z|)^(n-1) the local stiffness bound (at most
+  MAX_SUBSTEPS); a sub-step in which z changes sign lands on 0 first (where
+  dz/dxi = 1), and for n < 2 the sub-steps near z = 0 are split NEAR_ZERO_SPLIT
+  times, since |z|^n is not smooth there. Where an interval is tiny
+  (|dxi| L <= TAYLOR_STEP and |dxi| <= TAYLOR_STEP |z|: slow records sampled
+  finely) one third-order Taylor step replaces RK4 (local error
+  ~ (|dxi| L)^4 |z| / 24 < 1e-11 |z|), which needs one power instead of four.
+Against scipy's solve_ivp (DOP853, rtol 1e-11) the error is below 1e-8 for
+every case in the tests, and the scheme is stable at any sampling step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .base import DataScale, HysteresisModel, Parameter
+from .branches import normalised_input
+from .errors import ModelError
+
+Z_CAP = 1e3
+MAX_SUBSTEPS = 4096
+RK_STEP = 0.05  # RK4 sub-step: |h| * stiffness <= RK_STEP
+NEAR_ZERO_SPLIT = 32  # finer RK4 steps where z is near 0 and n < 2
+TAYLOR_STEP = 3e-3  # a 3rd-order Taylor step replaces RK4 where |dxi| L and |dxi| / |z| are below this
+GAIN_BOUND = 50.0  # |k_x|, |k_z| <= GAIN_BOUND * y
+OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
+SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
+N_MAX = 4.0
+
+
+@njit(cache=True, nogil=True)
+def _rate(z, sigma, beta, gamma, n):
+    """dz/dxi for the sign sigma of dxi."""
+    az = abs(z)
+    p = az**n if n != 1.0 else az
+    sz = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
+    return 1.0 - p * (sigma * beta * sz + gamma)
+
+
+@njit(cache=True, nogil=True)
+def _exact_linear(z, h, sigma, beta, gamma):
+    """n = 1: dz/dxi = 1 - a z with a = sigma beta + gamma sgn(z), exact over a step h
+    (signed), split where z crosses 0 (dz/dxi = 1 there, so z crosses in the
+    direction of h)."""
+    remaining = h
+    for _ in range(3):  # at most one crossing per step; guard against round-off loops
+        if remaining == 0.0:
+            break
+        # the sign region z is in, or enters when it starts at 0 (it moves like h)
+        side = 1.0 if (z > 0.0 or (z == 0.0 and remaining > 0.0)) else -1.0
+        a = sigma * beta + gamma * side
+        # crossing of 0 within this step? z moves towards 0 from the side opposite to h
+        hc = remaining + 1.0  # none
+        if z != 0.0 and (z > 0.0) != (remaining > 0.0):
+            arg = 1.0 - a * z
+            if a == 0.0:
+                hc = -z
+            elif arg > 0.0:
+                hc = math.log(arg) / a
+        if hc != remaining + 1.0 and abs(hc) < abs(remaining):
+            z = 0.0
+            remaining -= hc
+            continue
+        if a == 0.0:
+            z += remaining
+        else:
+            z = 1.0 / a + (z - 1.0 / a) * math.exp(-a * remaining)
+        remaining = 0.0
+    return z
+
+
+@njit(cache=True, nogil=True)
+def _rk4(z, h, sigma, beta, gamma, n):
+    k1 = _rate(z, sigma, beta, gamma, n)
+    k2 = _rate(z + 0.5 * h * k1, sigma, beta, gamma, n)
+    k3 = _rate(z + 0.5 * h * k2, sigma, beta, gamma, n)
+    k4 = _rate(z + h * k3, sigma, beta, gamma, n)
+    return z + h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0
+
+
+@njit(cache=True, nogil=True)
+def _rk4_crossing(z, h, sigma, beta, gamma, n):
+    """One RK4 step; where z changes sign, land on 0 (dz/dxi = 1 there) and finish from it."""
+    z_new = _rk4(z, h, sigma, beta, gamma, n)
+    if z != 0.0 and (z_new > 0.0) != (z > 0.0):
+        hc = -z
+        if abs(hc) < abs(h):
+            z_new = _rk4(0.0, h - hc, sigma, beta, gamma, n)
+    return z_new
+
+
+@njit(cache=True, nogil=True)
+def _taylor3(z, h, sigma, beta, gamma, n):
+    """Third-order Taylor step of dz/dxi = f(z) = 1 - A |z|^n, A = sigma beta sgn(z) + gamma,
+    for z != 0 (one power instead of RK4's four); used only where |h| L and |h| / |z| are tiny."""
+    az = abs(z)
+    s = 1.0 if z > 0.0 else -1.0
+    a = sigma * beta * s + gamma
+    p = az**n
+    f = 1.0 - a * p
+    f1 = -a * n * s * p / az  # f'
+    f2 = -a * n * (n - 1.0) * p / (az * az)  # f''
+    return z + h * f + 0.5 * h * h * f * f1 + h * h * h * (f * f1 * f1 + f * f * f2) / 6.0
+
+
+@njit(cache=True, nogil=True)
+def _bouc_wen_z(xi, beta, gamma, n, out):
+    """z(k) for one parameter set into ``out``."""
+    n_t = xi.shape[0]
+    z = 0.0
+    out[0] = 0.0
+    stiff0 = n * (abs(beta) + abs(gamma))
+    for k in range(1, n_t):
+        d = xi[k] - xi[k - 1]
+        if d != 0.0:
+            sigma = 1.0 if d > 0.0 else -1.0
+            if n == 1.0:
+                z = _exact_linear(z, d, sigma, beta, gamma)
+            else:
+                az = abs(z)
+                L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
+                m = int(math.ceil(abs(d) * L / RK_STEP))
+                if m < 1:
+                    m = 1
+                elif m > MAX_SUBSTEPS:
+                    m = MAX_SUBSTEPS
+                h = d / m
+                if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
+                    z_new = _taylor3(z, d, sigma, beta, gamma, n)
+                    if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
+                        z = z_new
+                        m = 0
+                for _ in range(m):
+                    if n < 2.0 and abs(z) <= 2.0 * abs(h):
+                        # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
+                        for _ in range(NEAR_ZERO_SPLIT):
+                            z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
+                    else:
+                        z = _rk4_crossing(z, h, sigma, beta, gamma, n)
+            if not abs(z) < Z_CAP:  # a diverging set (or NaN): hold z at the cap from here on
+                z = -Z_CAP if z < 0.0 else Z_CAP
+                for j in range(k, n_t):
+                    out[j] = z
+                return
+        out[k] = z
+
+
+@njit(cache=True, nogil=True)
+def bouc_wen_z(xi, beta, gamma, n):
+    out = np.empty(xi.shape[0])
+    _bouc_wen_z(xi, beta, gamma, n, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def bouc_wen_output(xi, beta, gamma, n, kx, kz, offset):
+    """y for one parameter set (no threads: callers may run it concurrently)."""
+    z = np.empty(xi.shape[0])
+    _bouc_wen_z(xi, beta, gamma, n, z)
+    return offset + kx * xi + kz * z
+
+
+@njit(cache=True, parallel=True)
+def bouc_wen_z_batch(xi, betas, gammas, ns):
+    """z (B, T) for many (beta, gamma, n), in parallel over sets."""
+    out = np.empty((betas.shape[0], xi.shape[0]))
+    for b in prange(betas.shape[0]):
+        _bouc_wen_z(xi, betas[b], gammas[b], ns[b], out[b])
+    return out
+
+
+@njit(cache=True, parallel=True)
+def bouc_wen_batch(xi, betas, gammas, ns, kxs, kzs, offsets):
+    """y for many parameter sets, in parallel over sets; returns (B, T)."""
+    n_set = betas.shape[0]
+    n_t = xi.shape[0]
+    out = np.empty((n_set, n_t))
+    for b in prange(n_set):
+        z = np.empty(n_t)
+        _bouc_wen_z(xi, betas[b], gammas[b], ns[b], z)
+        for k in range(n_t):
+            out[b, k] = offsets[b] + kxs[b] * xi[k] + kzs[b] * z[k]
+    return out
+
+
+class BoucWen(HysteresisModel):
+    """Classical Bouc-Wen on the normalised input; see the module docstring."""
+
+    name = "bouc-wen"
+    concurrent_calls_safe = True  # single-set calls run nogil kernels without threads
+
+    def __init__(self, offset: bool = True):
+        self.offset = offset
+        self._parameter_cache: dict = {}
+
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        scale = scale or DataScale()
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        g = GAIN_BOUND * scale.y
+        params = [
+            Parameter("beta", 1.0, 0.0, SHAPE_BOUND, False, "Bouc-Wen beta (dimensionless, input in [-1, 1])"),
+            Parameter("gamma", 0.0, -SHAPE_BOUND, SHAPE_BOUND, False, "Bouc-Wen gamma (beta + gamma > 0: bounded z)"),
+            Parameter("n", 1.0, 1.0, N_MAX, False, "Bouc-Wen exponent n (sharpness of the transition)"),
+            Parameter("kx", 0.0, -g, g, True, "gain of the scaled input xi (alpha k)"),
+            Parameter("kz", 0.0, -g, g, True, "gain of the hysteretic state z ((1 - alpha) k)"),
+        ]
+        if self.offset:
+            b = OFFSET_BOUND * scale.y
+            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
+        params = tuple(params)
+        self._parameter_cache[scale] = params
+        return params
+
+    def normalised(self, u, input_range=None) -> np.ndarray:
+        lo, hi = self._input_range(u, input_range)
+        if not hi > lo:
+            raise ModelError(
+                f"model {self.name!r} needs an input that varies (or an input_range of positive width), "
+                f"got range ({lo!r}, {hi!r})"
+            )
+        return normalised_input(np.ascontiguousarray(u, dtype=float), lo, hi)
+
+    def hysteretic_state(self, u, dt: float, beta: float, gamma: float, n: float, input_range=None) -> np.ndarray:
+        """z(k) for one (beta, gamma, n)."""
+        u = self._check_input(u, dt)
+        return bouc_wen_z(self.normalised(u, input_range), float(beta), float(gamma), float(n))
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        P = self._check_param_sets(param_sets)
+        xi = self.normalised(u, input_range)
+        col = {name: np.ascontiguousarray(P[:, i]) for i, name in enumerate(self.param_names)}
+        offsets = col["offset"] if self.offset else np.zeros(P.shape[0])
+        if P.shape[0] == 1:
+            return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
+                                   offsets[0])[None, :]
+        return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        nonlinear = dict(nonlinear or {})
+        if set(nonlinear) != set(self.nonlinear_names):
+            raise ModelError(
+                f"{self.name}: regressors need exactly the nonlinear parameters "
+                f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}"
+            )
+        xi = self.normalised(u, input_range)
+        z = bouc_wen_z(xi, float(nonlinear["beta"]), float(nonlinear["gamma"]), float(nonlinear["n"]))
+        cols = [xi, z]
+        if self.offset:
+            cols.append(np.ones_like(xi))
+        return np.stack(cols, axis=1)
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+        """Rows ``window`` of ``regressors`` for many (beta, gamma, n): (n_sets, n_rows, n_linear)."""
+        u = self._check_input(u, dt)
+        sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 3)
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        xi = self.normalised(u, input_range)
+        order = [self.nonlinear_names.index(n) for n in ("beta", "gamma", "n")]
+        b, g, n = (np.ascontiguousarray(sets[:, i]) for i in order)
+        if sets.shape[0] == 1:
+            Z = bouc_wen_z(xi[:stop], b[0], g[0], n[0])[None, :]
+        else:
+            Z = bouc_wen_z_batch(xi[:stop], b, g, n)
+        out = np.empty((sets.shape[0], stop - start, len(self.linear_names)))
+        out[:, :, 0] = xi[start:stop]
+        out[:, :, 1] = Z[:, start:stop]
+        if self.offset:
+            out[:, :, 2] = 1.0
+        return out

@@ -1,0 +1,182 @@
+"""Discrete Preisach model (registry name ``preisach``).
+
+Mayergoyz, "Mathematical Models of Hysteresis" (Springer, 1991), ch. 1: the
+output is a weighted superposition of relay hysterons gamma_{alpha,beta}
+(alpha >= beta) over the Preisach triangle; discretised on a grid of cells
+with one relay per cell and a weight mu >= 0 per relay:
+
+    y(k) = c + sum_{i >= j} w_ij R_ij(k)
+    R_ij(k) = +1 if u(k) >= alpha_i;  -1 if u(k) <= beta_j;  R_ij(k-1) otherwise
+    R_ij(-1) = -1                                   (negative saturation)
+
+Grid (hyperparameter ``grid_size`` M): the input range (u_min, u_max) is cut
+into M equal cells with centres L_m = u_min + (m + 1/2)(u_max - u_min)/M,
+m = 0..M-1; alpha_i = L_i, beta_j = L_j, for every i >= j: M(M+1)/2 relays.
+The diagonal relays (alpha = beta) switch without hysteresis and carry the
+reversible part. (u_min, u_max) is ``input_range`` (None: the input's own
+range), so piezo data at +-150 V and the DEA at 0.5-2.5 kV get the same grid
+in relative terms.
+
+Initial state: every relay at -1, as if the input had come up from below the
+range; the paper's drive starts at its minimum, where this is exact.
+
+The model is linear in its weights and offset (``regressors`` returns the
+relay states and a column of ones); the weights have lower bound 0 (a Preisach
+density is non-negative), so the exact solve is a non-negative least squares
+(scipy.optimize.nnls / lsq_linear with these bounds). Non-negative weights
+give the wiping-out and congruency properties of the Preisach model; the model
+is rate-independent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .base import DataScale, HysteresisModel, Parameter
+from .errors import ModelError
+
+WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
+OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
+
+
+@njit(cache=True)
+def relay_states(u, alphas, betas):
+    """States (T, n_relays) in {-1, +1} as int8, from all relays at -1."""
+    n_t = u.shape[0]
+    n_r = alphas.shape[0]
+    out = np.empty((n_t, n_r), dtype=np.int8)
+    state = -np.ones(n_r, dtype=np.int8)
+    for k in range(n_t):
+        uk = u[k]
+        for i in range(n_r):
+            if uk >= alphas[i]:
+                state[i] = 1
+            elif uk <= betas[i]:
+                state[i] = -1
+            out[k, i] = state[i]
+    return out
+
+
+@njit(cache=True)
+def _switches(u, alphas, betas, ev_k, ev_i, ev_s, record):
+    """Walk the relays through u; count switches, and store them if ``record``."""
+    n_r = alphas.shape[0]
+    state = -np.ones(n_r, dtype=np.int8)
+    count = 0
+    for k in range(u.shape[0]):
+        uk = u[k]
+        for i in range(n_r):
+            new = state[i]
+            if uk >= alphas[i]:
+                new = 1
+            elif uk <= betas[i]:
+                new = -1
+            if new != state[i]:
+                state[i] = new
+                if record:
+                    ev_k[count] = k
+                    ev_i[count] = i
+                    ev_s[count] = new
+                count += 1
+    return count
+
+
+@njit(cache=True)
+def relay_events(u, alphas, betas):
+    """Switching events (sample index, relay, new state), in time order."""
+    ev_k = np.empty(0, dtype=np.int64)
+    ev_i = np.empty(0, dtype=np.int64)
+    ev_s = np.empty(0, dtype=np.int8)
+    total = _switches(u, alphas, betas, ev_k, ev_i, ev_s, False)
+    ev_k = np.empty(total, dtype=np.int64)
+    ev_i = np.empty(total, dtype=np.int64)
+    ev_s = np.empty(total, dtype=np.int8)
+    _switches(u, alphas, betas, ev_k, ev_i, ev_s, True)
+    return ev_k, ev_i, ev_s
+
+
+@njit(cache=True, parallel=True)
+def preisach_batch(n_t, ev_k, ev_i, ev_s, weights, offsets):
+    """y (B, T) from the switching events, in parallel over parameter sets."""
+    n_set = weights.shape[0]
+    n_ev = ev_k.shape[0]
+    out = np.empty((n_set, n_t))
+    for b in prange(n_set):
+        acc = 0.0
+        for i in range(weights.shape[1]):
+            acc -= weights[b, i]
+        e = 0
+        for k in range(n_t):
+            while e < n_ev and ev_k[e] == k:
+                acc += 2.0 * weights[b, ev_i[e]] * ev_s[e]
+                e += 1
+            out[b, k] = offsets[b] + acc
+    return out
+
+
+class Preisach(HysteresisModel):
+    """Discrete Preisach model on a triangular relay grid; see the module docstring."""
+
+    name = "preisach"
+
+    def __init__(self, grid_size: int = 10, offset: bool = True):
+        self.grid_size = grid_size
+        self.offset = offset
+        if not (isinstance(grid_size, (int, np.integer)) and 1 <= grid_size <= 100):
+            raise ModelError(f"preisach: grid_size must be an integer in 1..100, got {grid_size!r}")
+        self._parameter_cache: dict = {}
+        self._index = [(i, j) for i in range(grid_size) for j in range(i + 1)]
+
+    @property
+    def n_relays(self) -> int:
+        return len(self._index)
+
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        scale = scale or DataScale()
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        b = WEIGHT_BOUND * scale.y
+        params = [
+            Parameter(f"w{i + 1}_{j + 1}", 0.0, 0.0, b, True,
+                      f"weight of the relay up at level {i + 1}, down at level {j + 1} (>= 0)")
+            for i, j in self._index
+        ]
+        if self.offset:
+            b = OFFSET_BOUND * scale.y
+            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
+        params = tuple(params)
+        self._parameter_cache[scale] = params
+        return params
+
+    def grid(self, u, input_range=None) -> tuple[np.ndarray, np.ndarray]:
+        """(alphas, betas) of the relays, in parameter order."""
+        lo, hi = self._input_range(np.asarray(u, dtype=float), input_range)
+        if not hi > lo:
+            raise ModelError(
+                f"model {self.name!r} needs an input that varies (or an input_range of positive width), "
+                f"got range ({lo!r}, {hi!r})"
+            )
+        levels = lo + (np.arange(self.grid_size) + 0.5) * (hi - lo) / self.grid_size
+        idx = np.array(self._index)
+        return levels[idx[:, 0]].copy(), levels[idx[:, 1]].copy()
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        P = self._check_param_sets(param_sets)
+        alphas, betas = self.grid(u, input_range)
+        ev_k, ev_i, ev_s = relay_events(u, alphas, betas)
+        weights = np.ascontiguousarray(P[:, : self.n_relays])
+        offsets = np.ascontiguousarray(P[:, -1]) if self.offset else np.zeros(P.shape[0])
+        return preisach_batch(u.size, ev_k, ev_i, ev_s, weights, offsets)
+
+    def regressors(self, u, dt: float, nonlinear=None, input_range=None) -> np.ndarray:
+        u = self._check_input(u, dt)
+        if nonlinear:
+            raise ModelError(f"model {self.name!r} has no nonlinear parameters; got {sorted(nonlinear)}")
+        alphas, betas = self.grid(u, input_range)
+        Phi = relay_states(u, alphas, betas).astype(float)
+        if self.offset:
+            Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
+        return Phi

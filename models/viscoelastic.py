@@ -1,0 +1,238 @@
+"""``viscoelastic``: the virtual DEA's physics as a benchmark model.
+
+The lumped planar DEA of ``hysbench.data.virtual_dea`` (equations in its docstring):
+Gent spring + K Gent-Maxwell branches (Zhao-Koh-Suo flow rule) + parallel dashpot,
+ideal dielectric, platform force balance; the same numba kernel
+(``hysbench.data.dea_physics``) simulates the data and this model.
+
+    y(t) = length * (lam_a(t) - lam0) + offset
+
+Identified parameters (2K + 2 nonlinear, 2 linear):
+
+    mu, eta_v              Gent spring modulus (kPa), parallel dashpot viscosity (kPa s)
+    mu1..muK, tau1..tauK   branch moduli (kPa) and relaxation times (s)
+    length   (linear)      unstretched length of the active region (output units per unit stretch;
+                           mm for a mm output)
+    offset   (linear)      output offset (sensor zero)
+
+The output is exactly linear in ``length`` because the force balance depends on the
+two regions' lengths only through their ratio, a hyperparameter (``length_ratio`` =
+L_passive / L_active). Fixed as hyperparameters: the Gent limit J, the prestretch,
+the thickness, eps_r and the input's unit: they are the device's geometry and material
+constants, and the moduli trade off against them exactly (all stresses scale together
+with eps_r / H^2), so fitting them too would leave the fit undetermined.
+
+Default bounds scale with the data: stresses with S = s_M(u_max) * length0 / y_max, the
+stiffness per unit stretch that turns the Maxwell stress at the largest input,
+s_M = eps (u_max / H)^2 lam0 lam_t^2, into the largest output; times with the shortest
+period. ``input_range`` is accepted and ignored (no input-dependent structure).
+``simulate`` and ``simulate_batch`` integrate every sample interval with RK4 (exactly the data
+generator's computation). The windowed forms the identifiers call (``simulate_window_batch``,
+``windowed_regressors[_batch]``) cross the warm-up before the window with RK4 steps of up to
+``warmup_stride`` samples (5 ms at 1 ms sampling, within RK4's stability limit): on the
+virtual DEA's records that changes the window's output by about 2e-7 of its peak-to-peak and
+cuts the cost of an evaluation about four times; ``warmup_stride=1`` is exact.
+Parameter sets the actuator cannot sustain (a Gent lock-up, a loss of stability) give
+NaN from the sample where that happens: identifiers must treat NaN as infeasible.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from hysbench.data import dea_physics
+from hysbench.data.dea_physics import TRUTH
+
+from .base import DataScale, HysteresisModel, Parameter
+from .errors import ModelError
+
+# Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
+MU_BOUNDS = (1e-3, 3.0)  # x S
+BRANCH_MU_BOUNDS = (1e-3, 30.0)  # x S
+ETA_BOUNDS = (1e-2, 10.0)  # x S T
+TAU_BOUNDS = (0.02, 500.0)  # x T
+LENGTH_BOUNDS = (0.1, 10.0)  # x the hyperparameter length0
+OFFSET_BOUND = 2.0  # |offset| <= OFFSET_BOUND * y
+
+
+class Viscoelastic(HysteresisModel):
+    """Physics-based DEA model; hyperparameters default to the virtual DEA's constants."""
+
+    name = "viscoelastic"
+    presets_available = ("virtual-dea",)
+
+    def __init__(
+        self,
+        n_branches: int = 3,
+        gent_limit: float = TRUTH.J,
+        prestretch: float = TRUTH.lam0,
+        transverse_prestretch: float = TRUTH.lam_t,
+        length_ratio: float = TRUTH.L_passive / TRUTH.L_active,
+        length0: float = TRUTH.L_active * 1e3,
+        thickness: float = TRUTH.H,
+        eps_r: float = TRUTH.eps_r,
+        volts_per_input_unit: float = 1000.0,
+        offset: bool = True,
+        warmup_stride: int = 5,
+    ):
+        self.n_branches = n_branches
+        self.gent_limit = gent_limit
+        self.prestretch = prestretch
+        self.transverse_prestretch = transverse_prestretch
+        self.length_ratio = length_ratio
+        self.length0 = length0
+        self.thickness = thickness
+        self.eps_r = eps_r
+        self.volts_per_input_unit = volts_per_input_unit
+        self.offset = offset
+        self.warmup_stride = warmup_stride
+        if not (isinstance(warmup_stride, (int, np.integer)) and 1 <= warmup_stride <= 1000):
+            raise ModelError(f"{self.name}: warmup_stride must be an integer in 1..1000, got {warmup_stride!r}")
+        if not (isinstance(n_branches, (int, np.integer)) and 0 <= n_branches <= 8):
+            raise ModelError(f"{self.name}: n_branches must be an integer in 0..8, got {n_branches!r}")
+        for key in ("gent_limit", "prestretch", "transverse_prestretch", "length_ratio", "length0", "thickness",
+                    "eps_r", "volts_per_input_unit"):
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
+                raise ModelError(f"{self.name}: {key} must be a positive number, got {v!r}")
+        self._parameter_cache: dict = {}
+
+    # --- scales ------------------------------------------------------------
+    def stress_scale_kpa(self, scale: DataScale) -> float:
+        """S: the stiffness (kPa per unit stretch) that gives the data's output at its largest input."""
+        phi = scale.u * self.volts_per_input_unit
+        s_maxwell = self.eps_r * dea_physics.EPS0 * (phi / self.thickness) ** 2 * self.prestretch \
+            * self.transverse_prestretch**2
+        return 1e-3 * s_maxwell * self.length0 / scale.y
+
+    # --- parameters ------------------------------------------------------
+    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
+        scale = scale or DataScale()
+        cached = self._parameter_cache.get(scale)
+        if cached is not None:
+            return cached
+        S, T = self.stress_scale_kpa(scale), scale.time
+        K = self.n_branches
+        params = [
+            Parameter("mu", 0.1 * S, MU_BOUNDS[0] * S, MU_BOUNDS[1] * S, False, "Gent spring modulus (kPa)"),
+            Parameter("eta_v", 0.1 * S * T, ETA_BOUNDS[0] * S * T, ETA_BOUNDS[1] * S * T, False,
+                      "parallel dashpot viscosity (kPa s)"),
+        ]
+        for k in range(K):
+            params.append(Parameter(f"mu{k + 1}", S, BRANCH_MU_BOUNDS[0] * S, BRANCH_MU_BOUNDS[1] * S, False,
+                                    f"modulus of Maxwell branch {k + 1} (kPa)"))
+        for k in range(K):
+            tau = min(T * 0.3 * 10.0**k, 0.5 * TAU_BOUNDS[1] * T)
+            params.append(Parameter(f"tau{k + 1}", tau, TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T, False,
+                                    f"relaxation time of Maxwell branch {k + 1} (s)"))
+        params.append(Parameter("length", self.length0, LENGTH_BOUNDS[0] * self.length0,
+                                LENGTH_BOUNDS[1] * self.length0, True,
+                                "unstretched length of the active region (output units per unit stretch)"))
+        if self.offset:
+            b = OFFSET_BOUND * scale.y
+            params.append(Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)"))
+        params = tuple(params)
+        self._parameter_cache[scale] = params
+        return params
+
+    def preset(self, name: str) -> dict[str, float]:
+        if name != "virtual-dea":
+            return super().preset(name)
+        if (self.n_branches, self.gent_limit, self.prestretch, self.transverse_prestretch, self.length_ratio,
+                self.thickness, self.eps_r, self.volts_per_input_unit) != (
+                TRUTH.n_branches, TRUTH.J, TRUTH.lam0, TRUTH.lam_t, TRUTH.L_passive / TRUTH.L_active, TRUTH.H,
+                TRUTH.eps_r, 1000.0):
+            raise ModelError(f"preset 'virtual-dea' needs the default hyperparameters; this model is {self!r}")
+        p = {"mu": TRUTH.mu * 1e-3, "eta_v": TRUTH.eta_v * 1e-3}
+        p.update({f"mu{k + 1}": m * 1e-3 for k, m in enumerate(TRUTH.mu_k)})
+        p.update({f"tau{k + 1}": t for k, t in enumerate(TRUTH.tau_k)})
+        p["length"] = TRUTH.L_active * 1e3
+        if self.offset:
+            p["offset"] = 0.0
+        return p
+
+    # --- physics -------------------------------------------------------------
+    def physical_vectors(self, nonlinear_sets: np.ndarray) -> np.ndarray:
+        """Rows of nonlinear parameters (``nonlinear_names`` order; full parameter rows are
+        accepted too, their linear columns are ignored) -> ``dea_physics`` parameter vectors (SI)."""
+        N = np.ascontiguousarray(np.atleast_2d(np.asarray(nonlinear_sets, dtype=float)))
+        K = self.n_branches
+        if N.ndim != 2 or N.shape[1] not in (2 + 2 * K, self.n_params):
+            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters ({', '.join(self.param_names)}), "
+                             f"got an array of shape {np.shape(nonlinear_sets)}")
+        phys = np.empty((N.shape[0], dea_physics.N_FIXED + 2 * K))
+        L = 1e-3 * self.length0  # any length: the output scales with ``length``, only the ratio matters here
+        phys[:, 0] = N[:, 0] * 1e3
+        phys[:, 1] = self.gent_limit
+        phys[:, 2] = N[:, 1] * 1e3
+        phys[:, 3] = self.prestretch
+        phys[:, 4] = self.transverse_prestretch
+        phys[:, 5] = L
+        phys[:, 6] = L * self.length_ratio
+        phys[:, 7] = self.thickness
+        phys[:, 8] = self.eps_r
+        phys[:, 9:9 + K] = N[:, 2:2 + K] * 1e3
+        phys[:, 9 + K:9 + 2 * K] = N[:, 2 + K:2 + 2 * K]
+        return phys
+
+    def stretch_batch(self, u, dt: float, nonlinear_sets, window: slice | None = None) -> np.ndarray:
+        """lam_a - lam0 for each parameter set, shape (n_sets, samples of ``window``); the
+        actuator is always simulated from the first sample, only the window is stored, and the
+        samples before the window are crossed with RK4 steps of up to ``warmup_stride`` samples."""
+        u = self._check_input(u, dt)
+        phys = self.physical_vectors(nonlinear_sets)
+        start, stop, step = (window or slice(None)).indices(u.size)
+        if step != 1:
+            raise ModelError(f"{self.name}: a window must be a contiguous slice, got step {step}")
+        stop = max(stop, start)
+        u_kv = u * (self.volts_per_input_unit / 1000.0)
+        stride = self.warmup_stride if window is not None else 1
+        return dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
+
+    # --- evaluation ------------------------------------------------------
+    def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:
+        K = self.n_branches
+        y = P[:, 2 + 2 * K, None] * dlam
+        if self.offset:
+            y += P[:, 3 + 2 * K, None]
+        return y
+
+    def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:
+        P = self._check_param_sets(param_sets)
+        return self._linear_part(P, self.stretch_batch(u, dt, P))
+
+    def simulate_window_batch(self, u, dt: float, param_sets, window: slice, input_range=None) -> np.ndarray:
+        P = self._check_param_sets(param_sets)
+        return self._linear_part(P, self.stretch_batch(u, dt, P, window))
+
+    def _check_nonlinear(self, nonlinear: Mapping[str, float]) -> np.ndarray:
+        expected = set(self.nonlinear_names)
+        if set(nonlinear) != expected:
+            raise ModelError(f"{self.name}: regressors need exactly the nonlinear parameters {sorted(expected)}, "
+                             f"got {sorted(nonlinear)}")
+        return np.array([float(nonlinear[n]) for n in self.nonlinear_names])
+
+    def _regressor_columns(self, dlam: np.ndarray) -> np.ndarray:
+        """(n_sets, rows) stretches -> (n_sets, rows, n_linear) in ``linear_names`` order."""
+        cols = [dlam] + ([np.ones_like(dlam)] if self.offset else [])
+        return np.stack(cols, axis=-1)
+
+    def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
+        row = self._check_nonlinear(dict(nonlinear))
+        return self._regressor_columns(self.stretch_batch(u, dt, row[None, :]))[0]
+
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
+                            input_range=None) -> np.ndarray:
+        row = self._check_nonlinear(dict(nonlinear))
+        return self._regressor_columns(self.stretch_batch(u, dt, row[None, :], window))[0]
+
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window: slice,
+                                  input_range=None) -> np.ndarray:
+        N = np.asarray(nonlinear_sets, dtype=float)
+        N = N.reshape(1, -1) if N.ndim < 2 else N
+        if N.shape[1] != len(self.nonlinear_names):
+            raise ModelError(f"{self.name}: nonlinear parameter sets need {len(self.nonlinear_names)} columns "
+                             f"({', '.join(self.nonlinear_names)}), got shape {N.shape}")
+        return self._regressor_columns(self.stretch_batch(u, dt, N, window))

@@ -1,0 +1,209 @@
+"""`hysbench run`: resume after a kill, determinism by seed, Dask, bad input, measured data."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks.matrix.report import TIMING_COLUMNS
+from hysbench.benchmarks.protocol import simulated_dataset
+from hysbench.data import save_dataset
+from hysbench.models import get_model
+
+CLI = [sys.executable, "-m", "hysbench.benchmarks.cli"]
+FAST = ["--models", "mrpim,classical-pi", "--methods", "varpro,lsq", "--option", "lsq.max_nfev=60"]
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory) -> Path:
+    """Table-2 MRPIM on three of the protocol's frequencies, with noise."""
+    model = get_model("mrpim")
+    ds = simulated_dataset(model, model.preset("paper"), n_periods=1.5, noise_sd=0.01, seed=5,
+                           frequencies=(0.4, 0.8, 1.0), name="small")
+    return save_dataset(ds, tmp_path_factory.mktemp("data") / "small")
+
+
+def run(args, **kw):
+    return subprocess.run(CLI + ["run", "--quiet"] + args, capture_output=True, text=True, **kw)
+
+
+def read_matrix(path: Path, drop_timing=True):
+    with open(path / "matrix.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    if drop_timing:
+        for r in rows:
+            for c in TIMING_COLUMNS:
+                r.pop(c)
+    return rows
+
+
+def test_matrix_columns_and_report(small_dataset, tmp_path):
+    proc = run(["--dataset", str(small_dataset), "--out", str(tmp_path), "--jobs", "2", *FAST])
+    assert proc.returncode == 0, proc.stderr
+    rows = read_matrix(tmp_path, drop_timing=False)
+    needed = {"dataset", "model", "method", "record", "frequency_hz", "role", "e_m", "e_rms", "fitness",
+              "fit_seconds", "simulate_seconds", "n_params", "seed"}
+    assert needed <= set(rows[0])
+    assert {(r["model"], r["method"]) for r in rows} == {
+        ("mrpim", "varpro"), ("mrpim", "lsq"), ("classical-pi", "varpro"), ("classical-pi", "lsq")}
+    assert len(rows) == 4 * 3
+    assert all(np.isfinite(float(r["e_rms"])) for r in rows)
+    report = (tmp_path / "report.md").read_text()
+    assert "rank" in report and "Table 3" in report and "Table 4" in report
+    assert list(tmp_path.glob("loops_*.png")) and list(tmp_path.glob("erms_*.png"))
+    # the generating model, identified exactly, is ranked first
+    first = report.split("| 1 |")[1].split("|")[0].strip()
+    assert first == "mrpim"
+
+
+def test_same_seed_gives_identical_matrix(small_dataset, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        proc = run(["--dataset", str(small_dataset), "--out", str(out), "--jobs", "1", "--seed", "3", *FAST])
+        assert proc.returncode == 0, proc.stderr
+    assert read_matrix(a) == read_matrix(b)  # all but the wall-clock columns
+
+
+def test_resume_after_kill(small_dataset, tmp_path):
+    args = CLI + ["run", "--quiet", "--dataset", str(small_dataset), "--out", str(tmp_path), "--jobs", "1",
+                  "--models", "mrpim,classical-pi", "--methods", "mpso,lsq",
+                  "--option", "mpso.iterations=15", "--option", "lsq.max_nfev=80"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    cells = tmp_path / "cells"
+    deadline = time.time() + 240
+    while time.time() < deadline and not (cells.is_dir() and list(cells.glob("*.json"))):
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p.name: (p.stat().st_mtime_ns, p.read_text()) for p in cells.glob("*.json")}
+    assert finished, "no cell finished before the kill"
+    for name, (_, text) in finished.items():
+        json.loads(text)  # complete, parseable
+    proc2 = subprocess.run(args[:4] + args[5:], capture_output=True, text=True)  # not quiet: prints the summary
+    assert proc2.returncode == 0, proc2.stderr
+    assert f"{len(finished)} reused" in proc2.stdout
+    for name, (mtime, text) in finished.items():
+        p = cells / name
+        assert p.stat().st_mtime_ns == mtime and p.read_text() == text  # not recomputed
+    assert not [p for p in tmp_path.rglob(".*") if p.is_file()]  # no temporary or partial file
+    assert len(read_matrix(tmp_path)) == 4 * 3
+    # a rerun with nothing changed computes nothing
+    proc3 = subprocess.run(args[:4] + args[5:], capture_output=True, text=True)
+    assert "0 computed, 4 reused" in proc3.stdout
+
+
+def test_dask_cluster_gives_the_same_matrix(small_dataset, tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    local = tmp_path / "local"
+    proc = run(["--dataset", str(small_dataset), "--out", str(local), "--jobs", "1", *FAST])
+    assert proc.returncode == 0, proc.stderr
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        on_dask = tmp_path / "dask"
+        proc = run(["--dataset", str(small_dataset), "--out", str(on_dask), "--dask", cluster.scheduler_address,
+                    *FAST])
+        assert proc.returncode == 0, proc.stderr
+    assert read_matrix(local) == read_matrix(on_dask)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--models", "mrpim,nosuch"], "unknown model 'nosuch'"),
+    (["--methods", "gradient-descent"], "unknown method 'gradient-descent'"),
+    (["--jobs", "0"], "--jobs must be at least 1"),
+    (["--seed", "-4"], "--seed must not be negative"),
+    (["--jobs", "many"], "invalid int value"),
+    (["--models", ","], "--models needs at least one name"),
+    (["--option", "mpso-max=3"], "expected METHOD.KEY=VALUE"),
+    (["--methods", "varpro", "--option", "mpso.iterations=3"], "not being run"),
+    (["--methods", "mpso", "--option", "mpso.warp_speed=3"], "unknown option 'warp_speed'"),
+    (["--methods", "mpso", "--option", "mpso.iterations=-3"], "must be an integer"),
+])
+def test_bad_options(small_dataset, tmp_path, args, message):
+    out = tmp_path / "out"
+    proc = run(["--dataset", str(small_dataset), "--out", str(out), *args])
+    assert proc.returncode == 2
+    assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert not out.exists()  # nothing written
+
+
+def test_refused_dataset(tmp_path):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "dataset.toml").write_text('name = "x"\n')
+    proc = run(["--dataset", str(bad), "--out", str(tmp_path / "out")])
+    assert proc.returncode == 2 and "missing key(s)" in proc.stderr and proc.stderr.count("\n") == 1
+
+
+def test_unwritable_output(small_dataset, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    proc = run(["--dataset", str(small_dataset), "--out", str(blocker / "out"), *FAST])
+    assert proc.returncode == 2 and "cannot create output folder" in proc.stderr
+    assert proc.stderr.count("\n") == 1
+
+
+# --- real measured data (read in place, never copied) ------------------------------
+def piezo_dataset(shared: Path, folder: Path) -> Path:
+    src = shared / "piezo_sindy_1hz" / "hysteresis_v_150_1hz.csv"
+    folder.mkdir()
+    (folder / "dataset.toml").write_text(f'''name = "piezo-sindy-1hz"
+description = "piezo actuator, 150 V 1 Hz sine (Chandra et al. 2023), read in place"
+time_column = "t"
+input_column = "u"
+output_column = "y"
+input_unit = "V"
+output_unit = "um"
+csv_columns = ["index", "t", "y", "u"]
+
+[[records]]
+file = "{src}"
+frequency_hz = 1.0
+role = "identification"
+''')
+    return folder
+
+
+def pzt_dataset(shared: Path, folder: Path) -> Path:
+    src = shared / "pzt_ceramic_aixacct"
+    folder.mkdir()
+    files = {0.01: "tri_T02_TEST_0.01Hz_1400V_0.01Hz.csv", 0.1: "tri_T01_TEST_0.1Hz_1400V_0.1Hz.csv",
+             1.0: "tri_T06_TEST_1400V_1400V_1Hz.csv"}
+    roles = {0.01: "identification", 0.1: "validation", 1.0: "identification"}
+    recs = "".join(f'\n[[records]]\nfile = "{src / f}"\nfrequency_hz = {fr}\nrole = "{roles[fr]}"\n'
+                   for fr, f in files.items())
+    (folder / "dataset.toml").write_text(
+        'name = "pzt-ceramic"\ntime_column = "t_s"\ninput_column = "V_V"\noutput_column = "P_uC_per_cm2"\n'
+        'input_unit = "V"\noutput_unit = "uC/cm2"\n' + recs)
+    return folder
+
+
+def test_measured_data_matrix(shared_datasets, tmp_path):
+    piezo = piezo_dataset(shared_datasets, tmp_path / "piezo")
+    pzt = pzt_dataset(shared_datasets, tmp_path / "pzt")
+    out = tmp_path / "out"
+    proc = run(["--dataset", str(piezo), "--dataset", str(pzt), "--out", str(out), "--jobs", "2",
+                "--models", "mrpim,classical-pi,preisach", "--methods", "varpro"])
+    assert proc.returncode == 0, proc.stderr
+    rows = read_matrix(out)
+    assert {r["dataset"] for r in rows} == {"piezo-sindy-1hz", "pzt-ceramic"}
+    assert {r["model"] for r in rows} == {"mrpim", "classical-pi", "preisach"}
+    errors = np.array([float(r["e_rms"]) for r in rows])
+    assert np.all(np.isfinite(errors))
+    # a fitted hysteresis model must beat predicting each window's mean by far
+    from hysbench.benchmarks.metrics import e_rms
+    from hysbench.data import load_dataset
+
+    for folder in (piezo, pzt):
+        ds = load_dataset(folder)
+        for rec in ds.records:
+            ya = rec.y[rec.scored]
+            constant = e_rms(np.full_like(ya, ya.mean()), ya)
+            best = min(float(r["e_rms"]) for r in rows if r["dataset"] == ds.name and r["record"] == rec.file)
+            assert best < 0.5 * constant, (ds.name, rec.file, best, constant)

@@ -1,0 +1,133 @@
+"""MRPIM (eq. 5-8) with Table 2 against a slow, obvious per-sample implementation."""
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks.protocol import paper_voltage, protocol_time
+from hysbench.models import PAPER_TABLE2, ModelError, get_model
+
+
+def mrpim_reference(V, T, p, n_ops=13, w0=0.0):
+    """Eq. 6-8 written out sample by sample, as in the paper."""
+    norm = max(abs(v) for v in V)
+    r = [(i - 1) / n_ops * norm for i in range(1, n_ops + 1)]
+    W = [w0] * n_ops
+    y = []
+    for k in range(len(V)):
+        v_prev = V[k - 1] if k >= 1 else V[0]
+        v_prev2 = V[k - 2] if k >= 2 else V[0]
+        dV = (V[k] - v_prev) / T
+        ddV = (V[k] - 2 * v_prev + v_prev2) / T**2
+        h_l = V[k] - p["gamma"] * abs(dV)
+        h_r = V[k] + p["lambda"] * abs(dV)
+        for i in range(n_ops):
+            W[i] = max(h_l - r[i], min(h_r, W[i]))
+        g = p["p1"] * V[k] + p["p2"] * V[k] ** 2 + p["p3"] * V[k] ** 3 + p["p4"] * V[k] ** 4
+        y.append(g + p["q"] * ddV + sum(p[f"a{i + 1}"] * W[i] for i in range(n_ops)))
+    return np.array(y)
+
+
+@pytest.mark.parametrize("f,n_periods", [(1.0, 2), (0.4, 1.5), (0.1, 0.3)])
+def test_table2_matches_reference(f, n_periods):
+    model = get_model("mrpim")
+    params = model.preset("paper")
+    t = protocol_time(f, n_periods)
+    V = paper_voltage(t, f)
+    y = model.simulate(V, 1e-3, params)
+    ref = mrpim_reference(list(V), 1e-3, PAPER_TABLE2)
+    np.testing.assert_allclose(y, ref, rtol=1e-10, atol=1e-9)
+
+
+def test_paper_preset_is_exactly_eq8():
+    """With the offset on, preset 'paper' sets it to 0; with offset=False the model has the paper's 20 parameters."""
+    with_offset = get_model("mrpim")
+    without = get_model("mrpim", offset=False)
+    assert with_offset.preset("paper")["offset"] == 0.0
+    assert without.n_params == 20 and set(without.param_names) == set(PAPER_TABLE2)
+    V = paper_voltage(protocol_time(0.4, 1), 0.4)
+    np.testing.assert_array_equal(with_offset.simulate(V, 1e-3, with_offset.preset("paper")),
+                                  without.simulate(V, 1e-3, without.preset("paper")))
+
+
+def test_batch_equals_single():
+    model = get_model("mrpim")
+    rng = np.random.default_rng(1)
+    lo, hi = model.bounds()
+    P = lo + (hi - lo) * rng.random((5, model.n_params))
+    V = paper_voltage(protocol_time(0.8, 1), 0.8)
+    Y = model.simulate_batch(V, 1e-3, P)
+    for b in range(5):
+        np.testing.assert_allclose(Y[b], model.simulate(V, 1e-3, P[b]), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("hyper", [{}, {"poly_order": 2, "q_term": False}, {"envelopes": False, "offset": False},
+                                   {"derivative": "smoothed"}, {"n_operators": 5, "poly_order": 0}])
+def test_regressors_reproduce_simulation(hyper):
+    model = get_model("mrpim", **hyper)
+    rng = np.random.default_rng(2)
+    lo, hi = model.bounds()
+    theta = model.unpack(lo + (hi - lo) * rng.random(model.n_params))
+    V = paper_voltage(protocol_time(0.4, 1), 0.4) + rng.normal(0, 1e-3, 2500)
+    Phi = model.regressors(V, 1e-3, {n: theta[n] for n in model.nonlinear_names}, input_range=(0.4, 2.6))
+    y_lin = Phi @ np.array([theta[n] for n in model.linear_names])
+    np.testing.assert_allclose(y_lin, model.simulate(V, 1e-3, theta, input_range=(0.4, 2.6)), rtol=1e-9, atol=1e-9)
+
+
+def test_thresholds_follow_input_range():
+    model = get_model("mrpim", n_operators=4)
+    np.testing.assert_allclose(model.thresholds(np.array([-90.0, 90.0])), [0, 22.5, 45, 67.5])
+    np.testing.assert_allclose(model.thresholds(np.array([0.5, 2.5])), [0, 0.625, 1.25, 1.875])
+    np.testing.assert_allclose(model.thresholds(np.zeros(3), input_range=(0.5, 2.5)), [0, 0.625, 1.25, 1.875])
+
+
+def test_piezo_range_works():
+    """A piezo at +-90 V gives a finite hysteretic loop with the paper's structure."""
+    model = get_model("mrpim", q_term=False)
+    t = np.arange(2000) * 1e-3
+    u = 90 * np.sin(2 * np.pi * t)
+    params = {n: 0.0 for n in model.param_names} | {"p1": 0.1, "a2": 0.05, "a5": 0.05}
+    y = model.simulate(u, 1e-3, params)
+    assert np.all(np.isfinite(y))
+    up = (np.diff(u, prepend=u[0]) > 0)
+    k = np.argmin(np.abs(u[1000:]) + 100 * ~up[1000:]) + 1000
+    j = np.argmin(np.abs(u[1000:]) + 100 * up[1000:]) + 1000
+    assert abs(y[k] - y[j]) > 1.0  # a loop: different output at u = 0 going up and going down
+
+
+@pytest.mark.parametrize("bad", [{"n_operators": 0}, {"poly_order": -1}, {"derivative": "magic"},
+                                 {"derivative_window": 0.0}, {"nonsense": 1}])
+def test_bad_hyperparameters(bad):
+    with pytest.raises(ModelError):
+        get_model("mrpim", **bad)
+
+
+def test_bad_parameters_and_inputs():
+    model = get_model("mrpim")
+    with pytest.raises(ModelError, match="missing"):
+        model.simulate(np.ones(10), 1e-3, {"gamma": 0.0})
+    with pytest.raises(ModelError, match="NaN"):
+        model.simulate(np.array([1.0, np.nan]), 1e-3, model.preset("paper"))
+    with pytest.raises(ModelError, match="time step"):
+        model.simulate(np.ones(3), 0.0, model.preset("paper"))
+    with pytest.raises(ModelError, match="unknown model"):
+        get_model("mrpm")
+    with pytest.raises(ModelError, match="no preset"):
+        model.preset("nope")
+
+
+def test_smoothed_derivative_survives_noise():
+    """On a quantised, noisy input, the smoothed derivative stays close to the true one; backward does not."""
+    from hysbench.models.derivatives import derivatives
+
+    t = protocol_time(1.0, 1)
+    V = paper_voltage(t, 1.0)
+    rng = np.random.default_rng(3)
+    Vn = np.round((V + rng.normal(0, 2e-3, V.size)) / 1e-3) * 1e-3
+    true_dd = (2 * np.pi) ** 2 * np.cos(2 * np.pi * t)
+    _, dd_back = derivatives(Vn, 1e-3, "backward")
+    _, dd_smooth = derivatives(Vn, 1e-3, "smoothed", window_s=0.1)
+    inner = slice(100, -100)
+    err_back = np.sqrt(np.mean((dd_back[inner] - true_dd[inner]) ** 2))
+    err_smooth = np.sqrt(np.mean((dd_smooth[inner] - true_dd[inner]) ** 2))
+    assert err_smooth < 0.05 * np.max(np.abs(true_dd))
+    assert err_back > 50 * err_smooth

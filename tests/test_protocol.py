@@ -1,0 +1,72 @@
+"""Metrics (eq. 9-10), loop geometry, the protocol and `hysbench reproduce`."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks import metrics, protocol
+from hysbench.models import get_model
+
+
+def test_e_m_and_e_rms_by_hand():
+    ya = np.array([0.0, 1.0, 2.0, 3.0, 4.0])  # peak-to-peak 4
+    y = ya + np.array([0.0, 0.4, -0.2, 0.0, 0.0])
+    assert metrics.e_m(y, ya) == pytest.approx(10.0)  # 0.4 / 4
+    assert metrics.e_rms(y, ya) == pytest.approx(100 * np.sqrt(0.2 / 5) / 4)
+
+
+def test_fitness_is_eq9():
+    y1, ya1 = np.array([1.0, 2.0]), np.array([1.0, 1.0])  # mean sq 0.5
+    y2, ya2 = np.zeros(4), np.full(4, 2.0)  # mean sq 4
+    assert metrics.fitness([y1, y2], [ya1, ya2], [4, 1]) == pytest.approx(4 * 0.5 + 4)
+
+
+def test_loop_width_of_an_ellipse():
+    """u = cos, y = b sin: the vertical opening is 2b at the centre."""
+    phi = np.linspace(0, 2 * np.pi, 20001)[:-1]
+    u, y = 1.5 - np.cos(phi), 0.3 * np.sin(phi) + 2 * (1.5 - np.cos(phi))
+    assert metrics.loop_width(u, y) == pytest.approx(0.6, rel=1e-4)
+    assert metrics.peak_to_peak(y) == pytest.approx(np.ptp(y))
+    # a rate-independent single-valued curve has no opening
+    assert metrics.loop_width(u, u**2) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_protocol_constants_match_table1():
+    assert protocol.FREQUENCIES_HZ == (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.0)
+    assert protocol.IDENTIFICATION_WEIGHTS == {0.02: 4, 0.1: 1, 0.4: 4, 1.0: 1}
+    assert [protocol.period_samples(f) for f in (0.02, 0.1, 0.4, 1.0)] == [50000, 10000, 2500, 1000]  # n_m
+    total = sum(2 * protocol.period_samples(f) for f in protocol.FREQUENCIES_HZ)
+    assert total == 179500
+    v = protocol.paper_voltage(np.array([0.0, 12.5, 25.0]), 0.02)
+    np.testing.assert_allclose(v, [0.5, 1.5, 2.5], atol=1e-12)
+
+
+def test_simulated_dataset_scores_zero_against_itself():
+    model = get_model("mrpim")
+    ds = protocol.simulated_dataset(model, model.preset("paper"), n_periods=1.2, frequencies=(0.4, 0.8, 1.0))
+    scores = protocol.score_records(model, model.preset("paper"), ds.records)
+    assert [s.role for s in scores] == ["identification", "validation", "identification"]
+    assert all(s.e_m == 0 and s.e_rms == 0 for s in scores)
+    assert ds.records[0].n_scored == 2500
+
+
+def test_reproduce_writes_report(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "reproduce", "--out", str(tmp_path)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    r = json.loads((tmp_path / "paper_reproduction.json").read_text())
+    assert set(r["frequencies"]) == {"0.02", "0.05", "0.1", "0.2", "0.4", "0.8", "1"}
+    p2p = [r["frequencies"][f]["p2p"] for f in ("0.02", "1")]
+    assert r["p2p_change_pct"] == pytest.approx(100 * (p2p[1] - p2p[0]) / p2p[0])
+    assert "width_change_pct" in r and (tmp_path / "paper_reproduction.md").is_file()
+
+
+def test_reproduce_unwritable_output_is_one_line(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "reproduce", "--out", str(blocker / "sub")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
