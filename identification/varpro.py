@@ -48,7 +48,7 @@ from .problem import MAX_BATCH_ELEMENTS, Problem
 
 OPTIONS = {
     "n_starts": 2,  # local searches, from the best candidates
-    "n_candidates": 16,  # Halton points evaluated before the local searches
+    "n_candidates": 12,  # Halton points evaluated before the local searches
     "max_nfev": 40,  # residual evaluations per local search
     "max_condition": 1e6,  # ridge above this condition number of the scaled design
     "tol": 1e-6,  # ftol = xtol = gtol of least_squares
