@@ -151,6 +151,22 @@ def _fit_records(dataset: Dataset, fit_on, model_name: str, method: str):
     return [r for r in dataset.records if r.file in set(fit_on)]
 
 
+def _at_bounds(problem: Problem, x: np.ndarray, rel: float = 1e-6) -> list[tuple[str, str, float]]:
+    """(name, "lower"/"upper", bound) of the parameters within 1e-6 of the width from a finite bound
+    (trust-region methods stop just inside)."""
+    out = []
+    width = np.where(np.isfinite(problem.upper - problem.lower), problem.upper - problem.lower, 1.0)
+    for i, name in enumerate(problem.names):
+        lo, hi = problem.lower[i], problem.upper[i]
+        if not hi > lo:
+            continue  # fixed by the user
+        if np.isfinite(lo) and x[i] - lo <= rel * width[i]:
+            out.append((name, "lower", float(lo)))
+        elif np.isfinite(hi) and hi - x[i] <= rel * width[i]:
+            out.append((name, "upper", float(hi)))
+    return out
+
+
 _HASHES: dict[int, tuple] = {}
 
 
@@ -217,6 +233,11 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
     fit_seconds = time.perf_counter() - t0
 
     params = model.unpack(problem.clip(x))
+    at_bounds = _at_bounds(problem, model.pack(params))
+    if at_bounds:
+        notes.append("parameters at their bounds: " + ", ".join(f"{n} ({side} {v:.4g})" for n, side, v in at_bounds)
+                     + "; the optimum may lie beyond (option bounds widens them)")
+    diagnostics["at_bounds"] = [n for n, _, _ in at_bounds]
     residual = problem.residuals_batch(problem.vector(params)[None])[0]
     problem.n_evaluations -= 1  # the final scoring is not part of the search
     fitness = float(residual @ residual)
