@@ -414,14 +414,17 @@ def factory(base: str, components: Sequence[str]):
     return make
 
 
-def register_extensions(base: str) -> list[str]:
-    """Register ``base+cause`` for every cause (those not yet registered); returns the names."""
+def register_extensions(base: str, in_matrix: tuple[str, ...] = ()) -> list[str]:
+    """Register ``base+cause`` for every cause (those not yet registered); returns the names.
+
+    Only the causes in ``in_matrix`` join the default benchmark matrix.
+    """
     from .registry import _REGISTRY, register
 
     names = []
     for cause in CAUSES:
         name = extended_name(base, (cause,))
         if name not in _REGISTRY:
-            register(name, factory(base, (cause,)))
+            register(name, factory(base, (cause,)), in_matrix=cause in in_matrix)
         names.append(name)
     return names

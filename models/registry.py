@@ -8,22 +8,29 @@ from .base import HysteresisModel
 from .errors import ModelError
 
 _REGISTRY: dict[str, Callable[..., HysteresisModel]] = {}
+_NOT_IN_MATRIX: set[str] = set()
 
 
-def register(name: str, factory: Callable[..., HysteresisModel] | None = None):
-    """Register a model class or factory under ``name`` (usable as a decorator)."""
+def register(name: str, factory: Callable[..., HysteresisModel] | None = None, *, in_matrix: bool = True):
+    """Register a model class or factory under ``name`` (usable as a decorator).
+
+    ``in_matrix=False`` keeps a model out of the default benchmark matrix
+    (``hysbench run`` without ``--models``); it can still be named there.
+    """
 
     def add(f):
         if name in _REGISTRY and _REGISTRY[name] is not f:
             raise ModelError(f"a model is already registered as {name!r}")
         _REGISTRY[name] = f
+        (_NOT_IN_MATRIX.discard if in_matrix else _NOT_IN_MATRIX.add)(name)
         return f
 
     return add(factory) if factory is not None else add
 
 
-def list_models() -> list[str]:
-    return sorted(_REGISTRY)
+def list_models(matrix_only: bool = False) -> list[str]:
+    """Registered names; ``matrix_only``: those the default benchmark matrix runs."""
+    return sorted(n for n in _REGISTRY if not (matrix_only and n in _NOT_IN_MATRIX))
 
 
 def get_model(name: str, **hyperparameters) -> HysteresisModel:

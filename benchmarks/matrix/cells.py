@@ -95,7 +95,7 @@ def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, me
     from hysbench.identification import METHODS
 
     known_methods = list(METHODS)
-    models = models or list_models()
+    models = models or list_models(matrix_only=True)
     for m in models:
         get_model(m)  # raises on an unknown name
     for m in methods or []:
