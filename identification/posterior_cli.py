@@ -20,6 +20,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from hysbench.benchmarks.cli import nonnegative_int, positive_int
 from hysbench.benchmarks.output import ensure_dir, write_atomic, write_json
 from hysbench.data.dataset import load_dataset
 from hysbench.models import get_model
@@ -30,28 +31,8 @@ from .posterior_report import (corner_figure, correlation_figure, identifiabilit
                                render_markdown, trace_figure)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return v
-
-
 def _burn(text: str):
-    return "auto" if text == "auto" else _non_negative_int(text)
+    return "auto" if text == "auto" else nonnegative_int(text)
 
 
 def _non_negative_float(text: str) -> float:
@@ -69,8 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", default="mrpim", help="registry name of a partly linear model (default mrpim)")
     parser.add_argument("--noise", default="ar1", choices=NOISE_MODELS,
                         help="residual noise model: ar1 (default) or iid (independent, for contrast)")
-    parser.add_argument("--walkers", type=_positive_int, default=16, help="emcee walkers (even, default 16)")
-    parser.add_argument("--steps", type=_positive_int, default=4000,
+    parser.add_argument("--walkers", type=positive_int, default=16, help="emcee walkers (even, default 16)")
+    parser.add_argument("--steps", type=positive_int, default=4000,
                         help="most steps in total (default 4000); sampling stops earlier once converged "
                              "with --min-ess effective samples, unless --fixed-steps")
     parser.add_argument("--min-ess", type=_non_negative_float, default=1000.0,
@@ -80,8 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="burn-in steps, or auto (default: 5 autocorrelation times)")
     parser.add_argument("--moves", default="de", choices=sorted(MOVES),
                         help="emcee moves: de (differential evolution 0.8 + snooker 0.2, default) or stretch")
-    parser.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
-    parser.add_argument("--draws", type=_positive_int, default=200,
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
+    parser.add_argument("--draws", type=positive_int, default=200,
                         help="posterior draws for the predictive bands (default 200)")
     parser.add_argument("--out", default="results", help="output folder (default results/)")
     parser.add_argument("--json", default=None, help="JSON summary file (default OUT/posterior.json)")

@@ -253,7 +253,7 @@ def test_cli_writes_report_and_json(tmp_path):
 @pytest.mark.parametrize("args,needle", [
     (["diagnose", "/nonexistent/dataset"], "no such dataset"),
     (["diagnose", ".", "--model", "no-such-model"], "unknown model"),
-    (["diagnose", ".", "--max-rows", "0"], "positive integer"),
+    (["diagnose", ".", "--max-rows", "0"], "integer >= 1"),
 ])
 def test_cli_refuses_bad_input_in_one_line(args, needle):
     res = _hysbench(*args)

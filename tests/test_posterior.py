@@ -292,7 +292,7 @@ def tiny_dataset(tmp_path_factory):
     (["/no/such/folder"], "no such dataset"),
     (["{ds}", "--model", "nope"], "unknown model"),
     (["{ds}", "--walkers", "7"], "walkers must be an even number"),
-    (["{ds}", "--walkers", "x"], "expected a positive integer"),
+    (["{ds}", "--walkers", "x"], "expected an integer >= 1"),
     (["{ds}", "--noise", "white"], "invalid choice"),
     (["{ds}", "--burn", "-3"], "expected an integer >= 0"),
     (["{ds}", "--min-ess", "nan"], "expected a finite number"),

@@ -13,26 +13,7 @@ import argparse
 import sys
 import time
 
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _nonnegative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return v
+from hysbench.benchmarks.cli import nonnegative_int, positive_int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,8 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", default="mrpim", help="base model (registry name, default mrpim)")
     parser.add_argument("--out", default="results", help="folder for diagnosis.md, figures and JSON (default results/)")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the JSON here (default OUT/diagnosis.json)")
-    parser.add_argument("--seed", type=_nonnegative_int, default=0, help="seed of the identifiers and the row subset")
-    parser.add_argument("--max-rows", type=_positive_int, default=None,
+    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the identifiers and the row subset")
+    parser.add_argument("--max-rows", type=positive_int, default=None,
                         help="samples per record in the candidate screen (default 10000)")
     parser.add_argument("--note", default="", help="a line put at the top of diagnosis.md")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
