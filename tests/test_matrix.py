@@ -207,3 +207,14 @@ def test_measured_data_matrix(shared_datasets, tmp_path):
             constant = e_rms(np.full_like(ya, ya.mean()), ya)
             best = min(float(r["e_rms"]) for r in rows if r["dataset"] == ds.name and r["record"] == rec.file)
             assert best < 0.5 * constant, (ds.name, rec.file, best, constant)
+
+
+def test_matrix_budget_and_overrides():
+    from hysbench.benchmarks.matrix.cells import MATRIX_BUDGET, method_options
+
+    assert method_options(None, {}, False) == MATRIX_BUDGET
+    assert method_options(None, {}, True) == {}
+    opts = method_options(["mpso", "varpro+lsq"], {"mpso": {"iterations": 3}}, False)
+    assert opts["mpso"] == {**MATRIX_BUDGET["mpso"], "iterations": 3}
+    assert opts["varpro+lsq"] == {"varpro.n_candidates": 8, "varpro.n_starts": 1,
+                                  "lsq.max_nfev": MATRIX_BUDGET["lsq"]["max_nfev"]}

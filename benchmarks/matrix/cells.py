@@ -81,6 +81,31 @@ class CellResult:
 # The default matrix runs the three identifiers; chains such as varpro+lsq are run when named.
 DEFAULT_METHODS = ("varpro", "mpso", "lsq")
 
+# The matrix's default budget per cell, so that every model x identifier on the virtual DEA fits in
+# well under five minutes on two cores: mpso gets 400 model evaluations (20 particles x 20 iterations),
+# lsq 20 residual evaluations plus their batched Jacobians, varpro one local search from the best of 8
+# candidates. ``--full-budget`` runs the identifiers' own defaults instead.
+MATRIX_BUDGET = {
+    "varpro": {"n_candidates": 8, "n_starts": 1},
+    "mpso": {"swarm_size": 20, "iterations": 19},
+    "lsq": {"max_nfev": 20},
+}
+
+
+def method_options(methods: list[str] | None, user: dict, full_budget: bool) -> dict:
+    """Options per method: the matrix budget (unless ``full_budget``) overridden by the user's."""
+    out = {}
+    for method in methods or DEFAULT_METHODS:
+        chain = "+" in method  # a chain's stages take prefixed options
+        base = {} if full_budget else {(f"{stage}.{k}" if chain else k): v for stage in method.split("+")
+                                       for k, v in MATRIX_BUDGET.get(stage, {}).items()}
+        merged = {**base, **user.get(method, {})}
+        if merged:
+            out[method] = merged
+    for method in user:
+        out.setdefault(method, user[method])
+    return out
+
 
 def applicable_methods(model_name: str) -> list[str]:
     """Identifiers that apply to a model, through the interface only."""

@@ -13,7 +13,7 @@ from hysbench.benchmarks.output import ensure_dir
 from hysbench.data.dataset import load_dataset
 from hysbench.models.errors import HysbenchError
 
-from .cells import package_version, plan_cells
+from .cells import DEFAULT_METHODS, method_options, package_version, plan_cells
 from .execute import run_matrix
 from .report import write_matrix_csv, write_report
 from .store import CellStore
@@ -36,6 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dask", metavar="ADDRESS", help="run the cells on this Dask scheduler instead")
     parser.add_argument("--option", action="append", default=[], metavar="METHOD.KEY=VALUE",
                         help="an identifier option, e.g. mpso.iterations=50 (repeatable)")
+    parser.add_argument("--full-budget", action="store_true",
+                        help="the identifiers' own default budgets instead of the matrix's (much slower)")
     parser.add_argument("--force", action="store_true", help="recompute cells that are already finished")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
@@ -73,12 +75,16 @@ def main(args) -> int:
         raise HysbenchError(f"--seed must not be negative, got {args.seed}")
     models = _names(args.models, "models")
     methods = _names(args.methods, "methods")
-    options = parse_options(args.option)
+    user_options = parse_options(args.option)
     paths = [Path(p) for p in (args.dataset or [default_dataset()])]
     datasets = [(p, load_dataset(p)) for p in paths]
     names = [ds.name for _, ds in datasets]
     if len(set(names)) != len(names):
         raise HysbenchError(f"two datasets share a name ({', '.join(names)}); names label the results")
+    for method in user_options:
+        if method not in (methods or DEFAULT_METHODS):
+            raise HysbenchError(f"--option names method {method!r}, which is not being run")
+    options = method_options(methods, user_options, args.full_budget)
     cells = plan_cells(datasets, models, methods, args.seed, options)
     if not cells:
         raise HysbenchError("no model/method combination applies; check --models and --methods")
@@ -105,9 +111,10 @@ def main(args) -> int:
         "|---|---|---|---|",
     ] + [f"| {ds.name} | `{p}` | {len(ds.identification)} / {len(ds.validation)} | `{ds.content_hash()[:12]}` |"
          for p, ds in datasets]
-    if options:
-        header += ["", "Identifier options: " + ", ".join(f"{m}.{k}={v}" for m, o in options.items()
-                                                          for k, v in o.items())]
+    budget = "the identifiers' own defaults" if args.full_budget else "the matrix's default budget"
+    header += ["", f"Identifier options ({budget} and any `--option`): "
+               + (", ".join(f"{m}.{k}={v}" for m, o in options.items() for k, v in o.items()) or "none")
+               + ". Budgets are part of each cell's key: a rerun with other options recomputes."]
     write_report(out, ordered, [ds for _, ds in datasets], header)
     failed = [r for r in ordered if r["status"] != "ok"]
     if not args.quiet:
