@@ -67,6 +67,14 @@ def parse_options(items: list[str]) -> dict[str, dict]:
     return out
 
 
+def _shown(path: Path) -> str:
+    """A dataset folder as the report shows it: relative to the working folder when inside it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def main(args) -> int:
     started = time.perf_counter()
     if args.jobs is not None and args.jobs < 1:
@@ -109,8 +117,8 @@ def main(args) -> int:
         "",
         "| dataset | folder | records (identification / validation) | content hash |",
         "|---|---|---|---|",
-    ] + [f"| {ds.name} | `{p}` | {len(ds.identification)} / {len(ds.validation)} | `{ds.content_hash()[:12]}` |"
-         for p, ds in datasets]
+    ] + [f"| {ds.name} | `{_shown(p)}` | {len(ds.identification)} / {len(ds.validation)} | "
+         f"`{ds.content_hash()[:12]}` |" for p, ds in datasets]
     budget = "the identifiers' own defaults" if args.full_budget else "the matrix's default budget"
     header += ["", f"Identifier options ({budget} and any `--option`): "
                + (", ".join(f"{m}.{k}={v}" for m, o in options.items() for k, v in o.items()) or "none")
