@@ -276,7 +276,7 @@ def fit_once(model, dataset: Dataset, fit_on: list[str], bounds: dict, seed: int
     nonlinear parameter and varpro is one linear solve: done here with the
     identifiers' ``SeparableProblem`` on regressors shared between the variants
     (``columns``) and varpro's search solve (``accurate=False``: the
-    column-scaled normal equations by eigen-decomposition, one refinement step,
+    column-scaled normal equations by eigen-decomposition,
     the same ridge above condition 1e6) instead of ``identify``'s final QR, which
     costs more than the whole rest of such a fit. tests/test_ablation.py checks
     that both give the same fit.

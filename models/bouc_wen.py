@@ -221,7 +221,6 @@ class BoucWen(HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
-    concurrent_calls_safe = True  # single-set calls run nogil kernels without threads
 
     def __init__(self, offset: bool = True):
         self.offset = offset

@@ -150,7 +150,6 @@ class RateDependentPI(HysteresisModel):
     """P-I with thresholds growing with |du/dt|; see the module docstring."""
 
     name = "rate-dependent-pi"
-    concurrent_calls_safe = True  # single-set calls run nogil kernels without threads
 
     def __init__(
         self,
