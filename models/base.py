@@ -91,8 +91,23 @@ class HysteresisModel:
 
     # --- parameters ------------------------------------------------------
     def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        """Named parameters with default bounds, scaled to the data's units."""
+        """Named parameters with default bounds, scaled to the data's units (cached per scale)."""
+        scale = scale or DataScale()
+        cache = self.__dict__.setdefault("_parameter_cache", {})
+        params = cache.get(scale)
+        if params is None:
+            params = cache[scale] = tuple(self.declare_parameters(scale))
+        return params
+
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
+        """The parameters for this data scale; subclasses implement this, callers use ``parameters``."""
         raise NotImplementedError
+
+    @staticmethod
+    def offset_parameter(scale: DataScale, bound: float = 2.0) -> Parameter:
+        """The output offset every model may carry: |c| <= bound * max |y|."""
+        b = bound * scale.y
+        return Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)")
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -206,6 +221,13 @@ class HysteresisModel:
                 f"got an array of shape {np.shape(param_sets)}"
             )
         return P
+
+    def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
+        """(start, stop) of a window over ``u``: a non-empty slice with step 1."""
+        start, stop, step = window.indices(u.size)
+        if step != 1 or stop <= start:
+            raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
+        return start, stop
 
     @staticmethod
     def _input_range(u: np.ndarray, input_range) -> tuple[float, float]:

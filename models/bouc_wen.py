@@ -57,7 +57,6 @@ RK_STEP = 0.05  # RK4 sub-step: |h| * stiffness <= RK_STEP
 NEAR_ZERO_SPLIT = 32  # finer RK4 steps where z is near 0 and n < 2
 TAYLOR_STEP = 3e-3  # a 3rd-order Taylor step replaces RK4 where |dxi| L and |dxi| / |z| are below this
 GAIN_BOUND = 50.0  # |k_x|, |k_z| <= GAIN_BOUND * y
-OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 SHAPE_BOUND = 20.0  # 0 <= beta <= SHAPE_BOUND, |gamma| <= SHAPE_BOUND
 N_MAX = 4.0
 
@@ -224,13 +223,8 @@ class BoucWen(HysteresisModel):
 
     def __init__(self, offset: bool = True):
         self.offset = offset
-        self._parameter_cache: dict = {}
 
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         g = GAIN_BOUND * scale.y
         params = [
             Parameter("beta", 1.0, 0.0, SHAPE_BOUND, False, "Bouc-Wen beta (dimensionless, input in [-1, 1])"),
@@ -240,10 +234,7 @@ class BoucWen(HysteresisModel):
             Parameter("kz", 0.0, -g, g, True, "gain of the hysteretic state z ((1 - alpha) k)"),
         ]
         if self.offset:
-            b = OFFSET_BOUND * scale.y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     def normalised(self, u, input_range=None) -> np.ndarray:
@@ -290,9 +281,7 @@ class BoucWen(HysteresisModel):
         """Rows ``window`` of ``regressors`` for many (beta, gamma, n): (n_sets, n_rows, n_linear)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 3)
-        start, stop, step = window.indices(u.size)
-        if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        start, stop = self._window_bounds(u, window)
         xi = self.normalised(u, input_range)
         order = [self.nonlinear_names.index(n) for n in ("beta", "gamma", "n")]
         b, g, n = (np.ascontiguousarray(sets[:, i]) for i in order)

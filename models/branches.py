@@ -112,7 +112,6 @@ def branch_regressors(xi, s, centre_basis, halfwidth_basis):
 
 # --- the shared model class ---------------------------------------------------
 COEF_BOUND = 10.0  # |coefficient| <= COEF_BOUND * y (basis functions are O(1) on [-1, 1])
-OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 
 
 class BranchModel(HysteresisModel):
@@ -124,7 +123,6 @@ class BranchModel(HysteresisModel):
 
     def __init__(self, offset: bool = True):
         self.offset = offset
-        self._parameter_cache: dict = {}
 
     # subclasses -----------------------------------------------------------
     def _centre_parameters(self) -> list[tuple[str, str]]:
@@ -155,19 +153,12 @@ class BranchModel(HysteresisModel):
         raise NotImplementedError
 
     # interface ------------------------------------------------------------
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         b = COEF_BOUND * scale.y
         params = [Parameter(n, 0.0, -b, b, True, d) for n, d in self._centre_parameters()]
         params += [Parameter(n, 0.0, -b, b, True, d) for n, d in self._halfwidth_parameters()]
         if self.offset:
-            b = OFFSET_BOUND * scale.y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     def normalised(self, u, input_range=None) -> np.ndarray:

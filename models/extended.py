@@ -106,7 +106,6 @@ class ExtendedModel(HysteresisModel):
         if isinstance(self.base_model, ExtendedModel):
             raise ModelError("extended model: the base must not itself be extended (list all components instead)")
         self.name = extended_name(base, self.components)
-        self._parameter_cache: dict = {}
 
     def get_hyperparameters(self) -> dict:
         return {"base": self.base, "components": list(self.components),
@@ -158,10 +157,7 @@ class ExtendedModel(HysteresisModel):
                                  f"level the output is clipped at from {'above' if self.saturation_side == 'upper' else 'below'}"))
         return tuple(out)
 
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         base = self.base_model.parameters(scale)
         if self.has("saturation"):  # clipping: nothing enters the output linearly
             base = tuple(Parameter(p.name, p.value, p.min, p.max, False, p.description) for p in base)
@@ -169,8 +165,7 @@ class ExtendedModel(HysteresisModel):
         names = [p.name for p in params]
         if len(set(names)) != len(names):
             raise ModelError(f"{self.name}: base parameter names clash with the components' ({names})")
-        self._parameter_cache[scale] = params
-        return params
+        return list(params)
 
     @property
     def base_names(self) -> tuple[str, ...]:
@@ -354,9 +349,7 @@ class ExtendedModel(HysteresisModel):
         if sets.shape[1] != len(names):
             raise ModelError(f"{self.name}: regressors need the nonlinear parameters {list(names)}, "
                              f"got sets of shape {sets.shape}")
-        start, stop, step = window.indices(u.size)
-        if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        start, stop = self._window_bounds(u, window)
         in_range = self._input_range(u, input_range)
         out = np.empty((sets.shape[0], len(self.linear_names), stop - start))
         for i, row in enumerate(sets):

@@ -36,7 +36,6 @@ POLY_BOUND = 20.0  # |p_j| <= POLY_BOUND * y / u**j (5 would exclude Table 2: p2
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
 Q_BOUND = 1.0  # |q| <= Q_BOUND * y * time**2 / u
 ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
-OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 
 
 class PlayOperatorModel(HysteresisModel):
@@ -60,7 +59,6 @@ class PlayOperatorModel(HysteresisModel):
         self.derivative = derivative
         self.derivative_window = derivative_window
         self._validate()
-        self._parameter_cache: dict = {}
 
     def _validate(self) -> None:
         if not (isinstance(self.n_operators, (int, np.integer)) and self.n_operators >= 1):
@@ -75,11 +73,7 @@ class PlayOperatorModel(HysteresisModel):
             raise ModelError(f"{self.name}: derivative_window must be positive, got {self.derivative_window!r}")
 
     # --- parameters ------------------------------------------------------
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         u, y, T = scale.u, scale.y, scale.time
         params = []
         if self.envelopes:
@@ -96,10 +90,7 @@ class PlayOperatorModel(HysteresisModel):
             b = WEIGHT_BOUND * y / u
             params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}"))
         if self.offset:
-            b = OFFSET_BOUND * y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     # --- structure -------------------------------------------------------
@@ -192,12 +183,6 @@ class PlayOperatorModel(HysteresisModel):
         return np.stack([cols[n] for n in self.linear_names], axis=1)
 
     # --- windowed regressors (what identifiers fit) -----------------------
-    def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
-        start, stop, step = window.indices(u.size)
-        if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
-        return start, stop
-
     def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int) -> dict[str, np.ndarray]:
         """Columns that do not depend on gamma, lambda, on rows [start, stop)."""
         uw = u[start:stop]

@@ -37,7 +37,6 @@ from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 
 WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
-OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 
 
 @njit(cache=True)
@@ -125,18 +124,13 @@ class Preisach(HysteresisModel):
         self.offset = offset
         if not (isinstance(grid_size, (int, np.integer)) and 1 <= grid_size <= 100):
             raise ModelError(f"preisach: grid_size must be an integer in 1..100, got {grid_size!r}")
-        self._parameter_cache: dict = {}
         self._index = [(i, j) for i in range(grid_size) for j in range(i + 1)]
 
     @property
     def n_relays(self) -> int:
         return len(self._index)
 
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         b = WEIGHT_BOUND * scale.y
         params = [
             Parameter(f"w{i + 1}_{j + 1}", 0.0, 0.0, b, True,
@@ -144,10 +138,7 @@ class Preisach(HysteresisModel):
             for i, j in self._index
         ]
         if self.offset:
-            b = OFFSET_BOUND * scale.y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     def grid(self, u, input_range=None) -> tuple[np.ndarray, np.ndarray]:

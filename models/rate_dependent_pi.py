@@ -44,7 +44,6 @@ from .errors import ModelError
 
 POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
-OFFSET_BOUND = 2.0  # |c| <= OFFSET_BOUND * y
 BETA_BOUND = 0.5  # 0 <= beta <= BETA_BOUND * time (s)
 
 
@@ -174,13 +173,8 @@ class RateDependentPI(HysteresisModel):
             )
         if not derivative_window > 0:
             raise ModelError(f"{self.name}: derivative_window must be positive, got {derivative_window!r}")
-        self._parameter_cache: dict = {}
 
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         u, y, T = scale.u, scale.y, scale.time
         params = [Parameter("beta", 0.0, 0.0, BETA_BOUND * T, False,
                             "threshold growth with the input rate: r_i = r0_i + beta |u'| (s)")]
@@ -191,10 +185,7 @@ class RateDependentPI(HysteresisModel):
             b = WEIGHT_BOUND * y / u
             params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}"))
         if self.offset:
-            b = OFFSET_BOUND * y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset c (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     def base_thresholds(self, u, input_range=None) -> np.ndarray:
@@ -240,9 +231,7 @@ class RateDependentPI(HysteresisModel):
         """Rows ``window`` of ``regressors`` for many betas (n_sets, 1): (n_sets, n_rows, n_linear)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 1)
-        start, stop, step = window.indices(u.size)
-        if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a regressor window must be a non-empty slice with step 1, got {window!r}")
+        start, stop = self._window_bounds(u, window)
         abs_du, r0 = self.abs_rate(u, dt), self.base_thresholds(u, input_range)
         if sets.shape[0] == 1:
             F = rd_play_window(u, abs_du, r0, float(sets[0, 0]), 0.0, start, stop)[None]

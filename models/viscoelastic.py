@@ -54,7 +54,6 @@ BRANCH_MU_BOUNDS = (1e-3, 30.0)  # x S
 ETA_BOUNDS = (1e-2, 10.0)  # x S T
 TAU_BOUNDS = (0.02, 500.0)  # x T
 LENGTH_BOUNDS = (0.1, 10.0)  # x the hyperparameter length0
-OFFSET_BOUND = 2.0  # |offset| <= OFFSET_BOUND * y
 
 
 class Viscoelastic(HysteresisModel):
@@ -97,7 +96,6 @@ class Viscoelastic(HysteresisModel):
             v = getattr(self, key)
             if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
                 raise ModelError(f"{self.name}: {key} must be a positive number, got {v!r}")
-        self._parameter_cache: dict = {}
 
     # --- scales ------------------------------------------------------------
     def stress_scale_kpa(self, scale: DataScale) -> float:
@@ -108,11 +106,7 @@ class Viscoelastic(HysteresisModel):
         return 1e-3 * s_maxwell * self.length0 / scale.y
 
     # --- parameters ------------------------------------------------------
-    def parameters(self, scale: DataScale | None = None) -> tuple[Parameter, ...]:
-        scale = scale or DataScale()
-        cached = self._parameter_cache.get(scale)
-        if cached is not None:
-            return cached
+    def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         S, T = self.stress_scale_kpa(scale), scale.time
         K = self.n_branches
         params = [
@@ -131,10 +125,7 @@ class Viscoelastic(HysteresisModel):
                                 LENGTH_BOUNDS[1] * self.length0, True,
                                 "unstretched length of the active region (output units per unit stretch)"))
         if self.offset:
-            b = OFFSET_BOUND * scale.y
-            params.append(Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)"))
-        params = tuple(params)
-        self._parameter_cache[scale] = params
+            params.append(self.offset_parameter(scale))
         return params
 
     def preset(self, name: str) -> dict[str, float]:
