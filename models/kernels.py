@@ -46,47 +46,15 @@ def play_operators(h_left, h_right, thresholds, w0):
     return out
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _pi_output(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, out):
     """out[k] = sum_j poly[j-1] u^j + q u''(k) + offset + sum_i weights[i] W_i(k).
 
     With ``backward`` the derivatives are the backward differences computed
     here (input held at u(0) before the record); otherwise they are read from
-    ``abs_du`` (|u'|) and ``ddu`` (u'').
+    ``abs_du`` (|u'|) and ``ddu`` (u''). The whole record: the window kernel from 0.
     """
-    n_t = u.shape[0]
-    n_op = thresholds.shape[0]
-    n_poly = poly.shape[0]
-    w = np.empty(n_op)
-    for i in range(n_op):
-        w[i] = w0
-    u1 = u[0]
-    u2 = u[0]
-    inv_dt = 1.0 / dt
-    inv_dt2 = inv_dt * inv_dt
-    for k in range(n_t):
-        uk = u[k]
-        if backward:
-            a_du = abs(uk - u1) * inv_dt
-            d2 = (uk - 2.0 * u1 + u2) * inv_dt2
-            u2 = u1
-            u1 = uk
-        else:
-            a_du = abs_du[k]
-            d2 = ddu[k]
-        hl = uk - gamma * a_du
-        hr = uk + lam * a_du
-        acc = 0.0
-        for i in range(n_op):
-            v = min(hr, w[i])
-            lo = hl - thresholds[i]
-            v = v if v > lo else lo
-            w[i] = v
-            acc += weights[i] * v
-        p = 0.0
-        for j in range(n_poly - 1, -1, -1):
-            p = (p + poly[j]) * uk
-        out[k] = acc + p + q * d2 + offset
+    _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, 0, out)
 
 
 @njit(cache=True)
