@@ -175,7 +175,8 @@ class HysteresisModel:
     def simulate_window_batch(self, u, dt: float, param_sets: np.ndarray, window: slice,
                               input_range=None) -> np.ndarray:
         """Samples ``window`` of ``simulate_batch`` (the model still runs from the first
-        sample), shape (n_sets, n_window). Identifiers score only a record's window;
+        sample), shape (n_sets, n_window). A window is a slice with step 1 or increasing
+        sample indices (see ``_window_bounds``). Identifiers score only a record's window;
         models with long records override this to store only those samples."""
         return np.ascontiguousarray(self.simulate_batch(u, dt, param_sets, input_range=input_range)[:, window])
 
@@ -185,7 +186,8 @@ class HysteresisModel:
 
     def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
                             input_range=None) -> np.ndarray:
-        """Rows ``window`` of ``regressors`` (the model still runs from the first sample).
+        """Rows ``window`` of ``regressors`` (the model still runs from the first sample); a
+        window is a slice with step 1 or increasing sample indices.
 
         Identifiers fit only a record's scored window; models with long
         records override this to avoid building the full matrix.
@@ -222,12 +224,33 @@ class HysteresisModel:
             )
         return P
 
-    def _window_bounds(self, u: np.ndarray, window: slice) -> tuple[int, int]:
-        """(start, stop) of a window over ``u``: a non-empty slice with step 1."""
+    def _window_bounds(self, u: np.ndarray, window) -> tuple[int, int]:
+        """(start, stop): the samples a window spans. A window is a non-empty slice with step 1
+        or a non-empty, increasing array of sample indices (a row subset)."""
+        rows = self._window_rows(u, window)
+        if rows is not None:
+            return int(rows[0]), int(rows[-1]) + 1
         start, stop, step = window.indices(u.size)
         if step != 1 or stop <= start:
             raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
         return start, stop
+
+    def _window_rows(self, u: np.ndarray, window) -> np.ndarray | None:
+        """A row-subset window's sample indices (checked), or None for a slice."""
+        if isinstance(window, slice):
+            return None
+        rows = np.asarray(window)
+        if (rows.ndim != 1 or rows.size == 0 or not np.issubdtype(rows.dtype, np.integer)
+                or rows[0] < 0 or rows[-1] >= u.size or np.any(np.diff(rows) <= 0)):
+            raise ModelError(f"{self.name}: a window must be a slice or increasing sample indices within the "
+                             f"record's {u.size} samples")
+        return np.ascontiguousarray(rows, dtype=np.int64)
+
+    def _in_span(self, u: np.ndarray, window, start: int):
+        """What to take from an array computed over a window's span [start, stop): all of it for a
+        slice, the rows (relative to ``start``) for a row subset."""
+        rows = self._window_rows(u, window)
+        return slice(None) if rows is None else rows - start
 
     @staticmethod
     def _input_range(u: np.ndarray, input_range) -> tuple[float, float]:

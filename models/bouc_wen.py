@@ -289,9 +289,11 @@ class BoucWen(HysteresisModel):
             Z = bouc_wen_z(xi[:stop], b[0], g[0], n[0])[None, :]
         else:
             Z = bouc_wen_z_batch(xi[:stop], b, g, n)
-        out = np.empty((sets.shape[0], stop - start, len(self.linear_names)))
-        out[:, :, 0] = xi[start:stop]
-        out[:, :, 1] = Z[:, start:stop]
+        pick = self._in_span(u, window, start)
+        xw = xi[start:stop][pick]
+        out = np.empty((sets.shape[0], xw.size, len(self.linear_names)))
+        out[:, :, 0] = xw
+        out[:, :, 1] = Z[:, start:stop][:, pick]
         if self.offset:
             out[:, :, 2] = 1.0
         return out

@@ -295,38 +295,48 @@ class ExtendedModel(HysteresisModel):
         self._check_range(nonlinear)
         return nonlinear
 
-    def _window_columns(self, u: np.ndarray, dt: float, nonlinear: Mapping[str, float], start: int, stop: int,
-                        in_range, out: np.ndarray) -> None:
-        """Fill out (n_linear, stop - start) with the regressor rows [start, stop), the model run from sample 0."""
+    def _window_columns(self, u: np.ndarray, dt: float, nonlinear: Mapping[str, float], window, in_range,
+                        out: np.ndarray) -> None:
+        """Fill out (n_linear, n_rows) with the regressor rows of ``window`` (a slice or increasing
+        sample indices), the model run from sample 0."""
         base_nl = {k: nonlinear[k] for k in self.base_model.nonlinear_names}
+        start, stop = self._window_bounds(u, window)
+        rows = self._window_rows(u, window)
         u_a, k0, t0 = self.delayed_input(u, dt, nonlinear["delay"]) if self.has("delay") else (u, 0, 0.0)
         names = self.linear_names
-        n_rest = min(max(k0 - start, 0), stop - start)  # leading rows before the actuator starts
+        # leading rows before the actuator starts
+        if rows is None:
+            n_rest = min(max(k0 - start, 0), stop - start)
+        else:
+            n_rest = int(np.searchsorted(rows, k0))
         if n_rest:
             rest = self.base_rest(dt, base_nl, in_range)
             for j, name in enumerate(names):
                 out[j, :n_rest] = rest.get(name, 0.0)
-        a0, a1 = max(start, k0) - k0, stop - k0  # the window in the actuator's samples
-        if a1 > a0:
+        a1 = stop - k0  # the actuator's samples needed: [0, a1)
+        if a1 > 0 and n_rest < out.shape[1]:
+            # the window in the actuator's samples
+            pick = slice(max(start, k0) - k0, a1) if rows is None else rows[n_rest:] - k0
             if self.has("resonance"):  # the filter needs every sample up to the window's end
                 cols = self.assemble_columns(u_a[:a1], dt, self.base_columns(u_a[:a1], dt, base_nl, in_range),
                                              nonlinear, t0)
-                cols = {k: v[a0:a1] for k, v in cols.items()}
+                cols = {k: v[pick] for k, v in cols.items()}
             else:
-                B = self.base_model.windowed_regressors(u_a, dt, base_nl, slice(a0, a1), input_range=in_range)
+                B = self.base_model.windowed_regressors(u_a, dt, base_nl, pick, input_range=in_range)
                 cols = {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
                 if self.has("relaxation"):
                     taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
                     R = self._relaxation_columns(u_a[:a1], dt, taus)
                     for j, w in enumerate(self._relaxation_weight_names()):
-                        cols[w] = R[j, a0:a1]
+                        cols[w] = R[j, pick]
                 if self.has("creep"):
-                    cols["creep_size"] = self._creep_column(a1 - a0, dt, nonlinear["creep_time"], t0 + a0 * dt)
+                    cols["creep_size"] = self._creep_column(a1, dt, nonlinear["creep_time"], t0)[pick]
             for j, name in enumerate(names):
                 if name in cols:
                     out[j, n_rest:] = cols[name]
         if self.has("interference"):
-            phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * np.arange(start, stop)
+            samples = np.arange(start, stop) if rows is None else rows
+            phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * samples
             out[names.index("interference_sin")] = np.sin(phase)
             out[names.index("interference_cos")] = np.cos(phase)
 
@@ -350,11 +360,12 @@ class ExtendedModel(HysteresisModel):
             raise ModelError(f"{self.name}: regressors need the nonlinear parameters {list(names)}, "
                              f"got sets of shape {sets.shape}")
         start, stop = self._window_bounds(u, window)
+        rows = self._window_rows(u, window)
         in_range = self._input_range(u, input_range)
-        out = np.empty((sets.shape[0], len(self.linear_names), stop - start))
+        out = np.empty((sets.shape[0], len(self.linear_names), stop - start if rows is None else rows.size))
         for i, row in enumerate(sets):
             nonlinear = self._nonlinear(dict(zip(names, (float(v) for v in row))))
-            self._window_columns(u, dt, nonlinear, start, stop, in_range, out[i])
+            self._window_columns(u, dt, nonlinear, window, in_range, out[i])
         return out.transpose(0, 2, 1)
 
     def base_columns(self, u: np.ndarray, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict:

@@ -82,15 +82,19 @@ def pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, thresholds, weig
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out):
-    """Play operators run from sample 0; rows [start, start + n) go to out (N, n), transposed."""
+def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, rows, out):
+    """Play operators run from sample 0; stored transposed in out (N, n): rows [start, start + n)
+    when ``rows`` is empty, else the samples ``rows`` (sorted, distinct; ``start`` unused)."""
     n_op = thresholds.shape[0]
-    stop = start + out.shape[1]
+    n_out = out.shape[1]
+    picked = rows.shape[0] > 0
+    stop = rows[n_out - 1] + 1 if picked else start + n_out
     w = np.empty(n_op)
     for i in range(n_op):
         w[i] = w0
     u1 = u[0]
     inv_dt = 1.0 / dt
+    j = 0
     for k in range(stop):
         uk = u[k]
         if backward:
@@ -105,30 +109,37 @@ def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out
             lo = hl - thresholds[i]
             v = v if v > lo else lo
             w[i] = v
-        if k >= start:
+        if picked:
+            if k == rows[j]:
+                for i in range(n_op):
+                    out[i, j] = w[i]
+                j += 1
+        elif k >= start:
             for i in range(n_op):
                 out[i, k - start] = w[i]
 
 
 @njit(cache=True, nogil=True)
-def play_operators_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out):
-    """Rows [start, start + n) of the play-operator outputs, written transposed into out (N, n).
+def play_operators_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, rows, out):
+    """Play-operator outputs at rows [start, start + n) (``rows`` empty) or at the samples ``rows``,
+    written transposed into out (N, n).
 
     The operators run from the first sample (their state needs the whole
     history) but only the requested rows are stored, which keeps the memory
-    traffic of long records with a short scored window small; the transposed
-    layout gives each regressor column contiguous memory. Envelopes as in
-    ``_pi_output``: h_l = u - gamma |u'|, h_r = u + lam |u'| with |u'| the
-    backward difference when ``backward``, else read from ``abs_du``.
+    traffic of long records with a short scored window (or a sparse row
+    subset) small; the transposed layout gives each regressor column
+    contiguous memory. Envelopes as in ``_pi_output``: h_l = u - gamma |u'|,
+    h_r = u + lam |u'| with |u'| the backward difference when ``backward``,
+    else read from ``abs_du``.
     """
-    _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, out)
+    _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, rows, out)
 
 
 @njit(cache=True, parallel=True)
-def play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, thresholds, w0, start, out):
+def play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, thresholds, w0, start, rows, out):
     """``play_operators_window`` for many (gamma, lam) pairs in parallel; out (B, N, n)."""
     for b in prange(gammas.shape[0]):
-        _play_window(u, dt, backward, abs_du, gammas[b], lams[b], thresholds, w0, start, out[b])
+        _play_window(u, dt, backward, abs_du, gammas[b], lams[b], thresholds, w0, start, rows, out[b])
 
 
 @njit(cache=True, parallel=True)

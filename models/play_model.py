@@ -36,6 +36,7 @@ POLY_BOUND = 20.0  # |p_j| <= POLY_BOUND * y / u**j (5 would exclude Table 2: p2
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
 Q_BOUND = 1.0  # |q| <= Q_BOUND * y * time**2 / u
 ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
+_NO_ROWS = np.empty(0, dtype=np.int64)  # the play kernels' "a contiguous window"
 
 
 class PlayOperatorModel(HysteresisModel):
@@ -147,10 +148,13 @@ class PlayOperatorModel(HysteresisModel):
             u, dt, param_sets, input_range)
         start, stop = self._window_bounds(u, window)
         if gammas.shape[0] == 1:  # the serial kernel: no parallel-region overhead
-            return pi_output_window(u, dt, backward, abs_du, ddu, gammas[0], lams[0], r, weights[0], polys[0], qs[0],
-                                    offsets[0], 0.0, start, stop)[None, :]
-        return pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets,
-                                      0.0, start, stop)
+            Y = pi_output_window(u, dt, backward, abs_du, ddu, gammas[0], lams[0], r, weights[0], polys[0], qs[0],
+                                 offsets[0], 0.0, start, stop)[None, :]
+        else:
+            Y = pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets,
+                                       0.0, start, stop)
+        rows = self._window_rows(u, window)
+        return Y if rows is None else np.ascontiguousarray(Y[:, rows - start])
 
     def play_outputs(self, u, dt: float, gamma: float = 0.0, lam: float = 0.0, input_range=None) -> np.ndarray:
         """Outputs of the N (rate-dependent) play operators, shape (T, N)."""
@@ -183,19 +187,21 @@ class PlayOperatorModel(HysteresisModel):
         return np.stack([cols[n] for n in self.linear_names], axis=1)
 
     # --- windowed regressors (what identifiers fit) -----------------------
-    def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int) -> dict[str, np.ndarray]:
-        """Columns that do not depend on gamma, lambda, on rows [start, stop)."""
-        uw = u[start:stop]
+    def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int,
+                        rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Columns that do not depend on gamma, lambda, on rows [start, stop) (or at ``rows`` within it)."""
+        pick = slice(None) if rows is None else rows - start
+        uw = u[start:stop][pick]
         cols = {f"p{j}": uw**j for j in range(1, self.poly_order + 1)}
         if self.q_term:
             if self.derivative == "backward":  # needs only two samples before the window
                 s0 = max(0, start - 2)
                 _, ddu = derivatives(u[s0:stop], dt, "backward")
-                cols["q"] = ddu[start - s0:]
+                cols["q"] = ddu[start - s0:][pick]
             else:
-                cols["q"] = self._signals(u, dt)[1][start:stop]
+                cols["q"] = self._signals(u, dt)[1][start:stop][pick]
         if self.offset:
-            cols["offset"] = np.ones(stop - start)
+            cols["offset"] = np.ones(uw.size)
         return cols
 
     def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
@@ -209,6 +215,8 @@ class PlayOperatorModel(HysteresisModel):
                 f"got sets of shape {sets.shape}"
             )
         start, stop = self._window_bounds(u, window)
+        rows = self._window_rows(u, window)
+        n_rows = stop - start if rows is None else rows.size
         n_set = sets.shape[0]
         if self.envelopes:
             gammas = np.ascontiguousarray(sets[:, self.nonlinear_names.index("gamma")])
@@ -219,14 +227,15 @@ class PlayOperatorModel(HysteresisModel):
         abs_du = u[:0] if backward else self._signals(u, dt)[0]
         r = self.thresholds(u, input_range)
         names = self.linear_names
-        out = np.empty((n_set, len(names), stop - start))  # columns contiguous
+        out = np.empty((n_set, len(names), n_rows))  # columns contiguous
         first = names.index("a1")  # a1..aN are consecutive
         ops = out[:, first:first + self.n_operators, :]
+        picked = _NO_ROWS if rows is None else rows
         if n_set == 1:
-            play_operators_window(u, dt, backward, abs_du, gammas[0], lams[0], r, 0.0, start, ops[0])
+            play_operators_window(u, dt, backward, abs_du, gammas[0], lams[0], r, 0.0, start, picked, ops[0])
         else:
-            play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, r, 0.0, start, ops)
-        for name, col in self._static_columns(u, dt, start, stop).items():
+            play_operators_window_batch(u, dt, backward, abs_du, gammas, lams, r, 0.0, start, picked, ops)
+        for name, col in self._static_columns(u, dt, start, stop, rows).items():
             out[:, names.index(name), :] = col
         return out.transpose(0, 2, 1)
 

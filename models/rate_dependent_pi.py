@@ -237,8 +237,10 @@ class RateDependentPI(HysteresisModel):
             F = rd_play_window(u, abs_du, r0, float(sets[0, 0]), 0.0, start, stop)[None]
         else:
             F = rd_play_window_batch(u, abs_du, r0, np.ascontiguousarray(sets[:, 0]), 0.0, start, stop)
-        uw = u[start:stop]
-        n_set, n_rows = sets.shape[0], stop - start
+        pick = self._in_span(u, window, start)
+        F = F[:, pick]
+        uw = u[start:stop][pick]
+        n_set, n_rows = sets.shape[0], uw.size
         out = np.empty((n_set, n_rows, len(self.linear_names)))
         for j in range(1, self.poly_order + 1):
             out[:, :, j - 1] = uw**j

@@ -174,13 +174,18 @@ class Viscoelastic(HysteresisModel):
         samples before the window are crossed with RK4 steps of up to ``warmup_stride`` samples."""
         u = self._check_input(u, dt)
         phys = self.physical_vectors(nonlinear_sets)
-        start, stop, step = (window or slice(None)).indices(u.size)
-        if step != 1:
-            raise ModelError(f"{self.name}: a window must be a contiguous slice, got step {step}")
-        stop = max(stop, start)
+        rows = None if window is None else self._window_rows(u, window)
+        if rows is not None:  # a row subset: its span is simulated, the rows kept
+            start, stop = int(rows[0]), int(rows[-1]) + 1
+        else:
+            start, stop, step = (window or slice(None)).indices(u.size)
+            if step != 1:
+                raise ModelError(f"{self.name}: a window must be a contiguous slice, got step {step}")
+            stop = max(stop, start)
         u_kv = u * (self.volts_per_input_unit / 1000.0)
         stride = self.warmup_stride if window is not None else 1
-        return dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
+        out = dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
+        return out if rows is None else np.ascontiguousarray(out[:, rows - start])
 
     # --- evaluation ------------------------------------------------------
     def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:
