@@ -74,7 +74,6 @@ BIC_THRESHOLD = 10.0  # a cause needs BIC lower than the null's by this much
 MIN_EXPLAINED = 0.01  # ... and to explain this share of the null's residual sum of squares
 CREEP_PERIODS = 2.0  # creep's time scale is at least this many of the longest drive period
 MAX_DAMPING = 1.0  # a resonance (a mode) is underdamped
-LARGE_SAMPLES = 500_000  # identification samples above which the joint refinements get a smaller budget
 
 
 @dataclass
@@ -187,7 +186,6 @@ class Screen:
             self.parts.append(_Part(r, rows, r.y[rows].copy()))
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
-        self.n_samples = sum(p.record.t.size for p in self.parts)  # whole length, all identification records
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
         self.n_evaluations = 0
@@ -231,9 +229,12 @@ class Screen:
         rows, fulls = [], []
         for p in self.parts:
             r = p.record
-            B = self.base.windowed_regressors(r.u, r.dt, dict(base_nl), slice(0, r.t.size), self.input_range)
-            rows.append(np.ascontiguousarray(B[p.rows]))
-            fulls.append({name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_lin)} if full else None)
+            if full:
+                B = self.base.windowed_regressors(r.u, r.dt, dict(base_nl), slice(0, r.t.size), self.input_range)
+                rows.append(np.ascontiguousarray(B[p.rows]))
+                fulls.append({name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_lin)})
+            else:  # the model runs over every sample; only the rows are stored
+                rows.append(self.base.windowed_regressors(r.u, r.dt, dict(base_nl), p.rows, self.input_range))
         cols = _BaseColumns(rows, fulls if full else None)
         for k in list(self._columns):  # keep full columns for one set only (memory)
             if self._columns[k].full is not None and full:
@@ -256,9 +257,9 @@ class Screen:
         base_nl = {k: nonlinear[k] for k in self.base_nl_names}
         names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
         if isinstance(model, ExtendedModel) and model.has("delay"):  # the base runs on a late input
-            return np.concatenate([np.asarray(model.regressors(p.record.u, p.record.dt, dict(nonlinear),
-                                                               self.input_range))[p.rows][:, [model.linear_names.index(c) for c in names]]
-                                   for p in self.parts])
+            cols = [model.linear_names.index(c) for c in names]
+            return np.concatenate([model.windowed_regressors(p.record.u, p.record.dt, dict(nonlinear), p.rows,
+                                                             self.input_range)[:, cols] for p in self.parts])
         transforms = self.transforms(model)
         bc = self.base_columns(base_nl, full=transforms)
         if not isinstance(model, ExtendedModel):
@@ -785,13 +786,11 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
 
 
 def run_screen(screen: Screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
-               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int | None = None, joint_share: float = 0.05,
+               bic_threshold: float = BIC_THRESHOLD, joint_nfev: int = 10, joint_share: float = 0.05,
                max_joint: int = 3,
                progress: Callable[[str], None] | None = None) -> dict:
     """Every candidate on the screen; returns {"library", "candidates" (best per cause), "relaxation_variants"}."""
     say = progress or (lambda s: None)
-    if joint_nfev is None:  # every joint evaluation recomputes the base over whole records
-        joint_nfev = 10 if screen.n_samples <= LARGE_SAMPLES else 6
     say("library screen (pysindy FROLS)")
     library = library_screen(screen, residuals)
     say("relaxation")

@@ -238,7 +238,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     ext = registered_extension(base.name, chosen.cause, chosen.hyperparameters, base.get_hyperparameters())
     say(f"identifying {ext.name} on the identification records' whole length")
     bounds = {n: list(screen.bounds_of(ext, n)) for n in ("creep_time", "damping_ratio") if n in ext.param_names}
-    diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds)
+    rows = {p.record.file: p.rows for p in screen.parts}
+    diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds, rows)
     diag.after = residuals_of_fit(diag.extended_fit, dataset)
     timings["extended_fit"] = time.perf_counter() - t1
     t1 = time.perf_counter()
@@ -246,7 +247,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     timings["secondary"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     say(f"refitting {base.name} on the identification records' whole length (for comparison)")
-    diag.base_whole_fit = identify_whole(base, dataset, base_fit.params, seed, fit_on)
+    diag.base_whole_fit = identify_whole(base, dataset, base_fit.params, seed, fit_on, rows=rows)
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, dataset)
     timings["base_refit"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0

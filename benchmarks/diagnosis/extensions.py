@@ -9,12 +9,18 @@ windows cover every sample; the records' weights k_m are kept), starting at
 the screen's estimate, every parameter free. The base model is refitted the
 same way, so the gain of the extension can be told apart from the gain of
 fitting whole records.
+
+The fit uses the screen's rows: a fixed random subset of at most ``max_rows``
+samples spread over each record's whole length (``SampledRecord``; the model
+still runs over every sample, only the least-squares rows are fewer), so a
+record of 500,000 samples costs one pass of the model, not a 500,000-row
+solve. Records no longer than ``max_rows`` are fitted on every sample.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -29,9 +35,23 @@ from .residuals import RecordResidual
 
 # Options of the final identification (the start is already close; see module docstring).
 VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 8}
-LARGE_SAMPLES = 500_000  # fit samples above which the local search gets LARGE_MAX_NFEV
-LARGE_MAX_NFEV = 5
 LSQ_OPTIONS = {"max_nfev": 30}
+
+
+@dataclass
+class SampledRecord(Record):
+    """A record fitted on a fixed subset of its samples (``rows``, increasing); every model
+    runs over all of them. What is scored is the same subset."""
+
+    rows: np.ndarray | None = None
+
+    @property
+    def scored(self):
+        return self.rows if self.rows is not None else super().scored
+
+    @property
+    def n_scored(self) -> int:
+        return int(self.rows.size) if self.rows is not None else super().n_scored
 
 
 def whole_record(record: Record) -> Record:
@@ -41,8 +61,18 @@ def whole_record(record: Record) -> Record:
                   weight=record.weight, window=(float(t[0]), float(t[-1] + record.dt)))
 
 
-def whole_record_dataset(dataset: Dataset) -> Dataset:
-    return replace(dataset, records=[whole_record(r) for r in dataset.records])
+def whole_record_dataset(dataset: Dataset, rows: Mapping[str, np.ndarray] | None = None) -> Dataset:
+    """Every record's window covering all its samples; records named in ``rows`` fitted on those rows."""
+    rows = dict(rows or {})
+    records = []
+    for r in dataset.records:
+        w = whole_record(r)
+        if r.file in rows and rows[r.file].size < r.t.size:
+            w = SampledRecord(file=w.file, t=w.t, u=w.u, y=w.y, role=w.role, frequency_hz=w.frequency_hz,
+                              weight=w.weight, window=w.window, rows=np.asarray(rows[r.file], dtype=np.int64))
+        records.append(w)
+    name = dataset.name + (" (whole records, sampled rows)" if rows else " (whole records)")
+    return replace(dataset, name=name, records=records)
 
 
 def registered_extension(base: str, cause: str, hyper: Mapping | None = None,
@@ -55,16 +85,14 @@ def registered_extension(base: str, cause: str, hyper: Mapping | None = None,
 
 
 def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: int, fit_on: Sequence[str],
-                   bounds: Mapping | None = None) -> Fit:
-    """Identify on the whole length of the ``fit_on`` records, from ``start`` (``bounds`` replace defaults)."""
-    whole = whole_record_dataset(dataset)
+                   bounds: Mapping | None = None, rows: Mapping[str, np.ndarray] | None = None) -> Fit:
+    """Identify on the whole length of the ``fit_on`` records (on ``rows`` of those named there), from
+    ``start`` (``bounds`` replace defaults)."""
+    whole = whole_record_dataset(dataset, rows)
     extra = {"bounds": dict(bounds)} if bounds else {}
     if model.has_linear_part:
-        opts = dict(VARPRO_OPTIONS)
-        if sum(r.t.size for r in dataset.records if r.file in set(fit_on)) > LARGE_SAMPLES:
-            opts["max_nfev"] = LARGE_MAX_NFEV  # each evaluation builds every regressor over whole records
         return identify(model, whole, method="varpro", seed=seed, fit_on=list(fit_on), start=dict(start),
-                        **extra, **opts)
+                        **extra, **VARPRO_OPTIONS)
     return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
                     **LSQ_OPTIONS)
 
