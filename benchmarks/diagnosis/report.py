@@ -230,7 +230,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         lines.append("* parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
                                                   for k, v in d.parameters.items()))
         lines.append(f"* extended model: `{d.extended_model}` ({d.extended_fit.n_params} parameters, identified "
-                     f"with {d.extended_fit.method} on the identification records' whole length)")
+                     f"with {d.extended_fit.method} on the identification records' whole length, on the "
+                     f"screen's {d.screen.n} rows)")
     lines.append(f"* also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
     lines.append(f"* measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}")
     g = d.gain()
