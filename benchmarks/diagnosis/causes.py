@@ -463,11 +463,10 @@ class Screen:
         return self.first_order(column)
 
     def _resonant_null(self, z):
-        phi, g0, g1 = second_order_foh(z["natural_frequency"], z["damping_ratio"], self.parts[0].record.dt)
-
         def column(m):
             y0 = self._null_prediction[m] - self._null_offset
             rows = self.parts[m].rows
+            phi, g0, g1 = second_order_foh(z["natural_frequency"], z["damping_ratio"], self.parts[m].record.dt)
             return lowpass2_rows(np.ascontiguousarray(y0[None, :]), phi, g0, g1)[0][rows] - y0[rows]
         return self.first_order(column)
 
@@ -546,14 +545,12 @@ class Screen:
         out; each refined by a line search."""
         model = self.extension(("interference",))
         lo, hi = self.bounds_of(model, "interference_frequency")
-        dt = min(p.record.dt for p in self.parts)
-        hi = min(hi, 0.45 / dt)
+        hi = min(hi, 0.45 / max(p.record.dt for p in self.parts))  # below every record's Nyquist frequency
         f, amp = coherent_spectrum(self.null_residuals(), lo, hi)
         prom = prominence(amp)
         prom[self.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
         peaks = spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))
-        n_max = max(p.record.t.size for p in self.parts)
-        step = 1.0 / (n_max * dt)  # the Fourier resolution of the longest record
+        step = 1.0 / max(p.record.t.size * p.record.dt for p in self.parts)  # the longest record's resolution
         best, best_rss = {**self.base_nl, "interference_frequency": float(min(max(10.0, lo), hi))}, math.inf
         for f0, _ in peaks:
             grid = [g for g in f0 + step * np.linspace(-1.0, 1.0, 21) if lo <= g <= hi]
@@ -719,7 +716,7 @@ def library_screen(screen: Screen, residuals: Sequence[RecordResidual], max_term
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
     # an interference candidate frequency: the pooled coherent spectrum's peak
-    dt = min(p.record.dt for p in screen.parts)
+    dt = max(p.record.dt for p in screen.parts)  # below every record's Nyquist frequency
     f, amp = coherent_spectrum(screen.null_residuals(), 1.0 / T, 0.45 / dt)
     peak = spectral_peaks(f, prominence(amp), n=1)
     names, groups, blocks = [], [], []

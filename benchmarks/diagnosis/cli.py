@@ -69,4 +69,6 @@ def verdict(diag, data: dict) -> str:
         lines.append(f"validation gain: {100 * v['explained_whole']:.2f} % of the residual sum of squares removed "
                      f"(whole records), {100 * v['explained_window']:.2f} % (windows); mean e_rms "
                      f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} % (windows)")
+    if diag.warning:
+        lines.append(f"warning: {diag.warning}")
     return "\n".join(lines)

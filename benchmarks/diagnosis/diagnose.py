@@ -102,6 +102,24 @@ class Diagnosis:
             out["validation_vs_base_refit_on_whole_records"] = gain(self.base_whole, self.after, "validation")
         return out
 
+    @property
+    def confirmed(self) -> bool | None:
+        """Whether the named extension lowers the validation residual, over whole records and on the
+        windows (None when nothing was named)."""
+        v = self.gain().get("validation")
+        if not v:
+            return None
+        return bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
+
+    @property
+    def warning(self) -> str:
+        if self.confirmed is not False:
+            return ""
+        v = self.gain()["validation"]
+        return (f"the extension does not improve the validation records (residual sum of squares removed: "
+                f"{100 * v['explained_whole']:.1f} % whole, {100 * v['explained_window']:.1f} % on the windows): "
+                f"'{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
+
     def to_json(self) -> dict:
         from hysbench.identification.fit import _jsonable
 
@@ -142,6 +160,8 @@ class Diagnosis:
             "after": scores_by_file(self.after) if self.after else {},
             "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
             "gain": self.gain(),
+            "confirmed_on_validation": self.confirmed,
+            "warning": self.warning,
             "also": [c.cause for c in self.also],
             "timings_s": self.timings,
             "settings": self.settings,
@@ -198,10 +218,6 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
         raise DiagnosisError(f"dataset {dataset.name!r} has no identification records")
     if not dataset.validation:
         raise DiagnosisError(f"dataset {dataset.name!r} has no validation records: the gain cannot be measured")
-    dts = [r.dt for r in dataset.records]
-    if max(dts) > 1.01 * min(dts):
-        raise DiagnosisError(f"dataset {dataset.name!r}: records have different sample times ({min(dts):g} to "
-                             f"{max(dts):g} s); the diagnosis needs one")
     timings = {}
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")

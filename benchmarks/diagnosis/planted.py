@@ -36,7 +36,7 @@ Noise: white, sd uniform in [0.005, 0.015] mm (the virtual DEA's sensor has 0.01
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import signal
@@ -147,10 +147,12 @@ def _source(source: str, dt: float):
 
 
 def planted_dataset(cause: str, seed: int = 0, frequencies: Sequence[float] = FREQUENCIES_HZ,
-                    n_periods: float = 2, dt: float = SAMPLE_TIME_S, effect: dict | None = None,
-                    noise_sd: float | None = None, source: str = "mrpim") -> tuple[Dataset, dict]:
+                    n_periods: float = 2, dt: float | Mapping[float, float] = SAMPLE_TIME_S,
+                    effect: dict | None = None, noise_sd: float | None = None,
+                    source: str = "mrpim") -> tuple[Dataset, dict]:
     """(dataset, truth): the source plant on the protocol + one effect drawn with ``seed`` + noise.
 
+    ``dt``: one sample time, or one per frequency ({frequency_hz: dt}; others get the protocol's).
     ``source``: "mrpim" (Table 2) or "virtual-dea" (its physics from rest).
     ``effect`` / ``noise_sd`` replace the drawn values (for demonstrations).
     Roles and weights follow Table 1; frequencies not in Table 1 are validation.
@@ -159,21 +161,22 @@ def planted_dataset(cause: str, seed: int = 0, frequencies: Sequence[float] = FR
     drawn = draw_effect(cause, rng, 1.0 / min(frequencies))
     effect = dict(effect) if effect is not None else drawn
     sd = float(noise_sd) if noise_sd is not None else float(rng.uniform(*NOISE_SD_RANGE))
-    simulate = _source(source, dt)
+    dt_of = (lambda f: float(dt.get(f, SAMPLE_TIME_S))) if isinstance(dt, Mapping) else (lambda f: float(dt))
     clean = []
     for f in frequencies:
-        t = protocol_time(f, n_periods, dt)
+        h = dt_of(f)
+        simulate = _source(source, h)
+        t = protocol_time(f, n_periods, h)
         u = paper_voltage(t, f)
-        clean.append((f, t, u, simulate(u)))
+        clean.append((f, t, u, simulate(u), simulate, h))
     if cause == "saturation" and "level" not in effect:
-        n = [int(round(1.0 / (f * dt))) for f, *_ in clean]
-        tops = [y[-k:] for (_, _, _, y), k in zip(clean, n)]
+        tops = [y[-int(round(1.0 / (f * h))):] for f, _, _, y, _, h in clean]
         hi = max(float(np.max(s)) for s in tops)
         lo = min(float(np.min(s)) for s in tops)
         effect["level"] = hi - effect["clipped_fraction_of_range"] * (hi - lo)
     records = []
-    for f, t, u, y in clean:
-        y_eff = apply_effect(cause, effect, t, u, y, f, simulate, dt)
+    for f, t, u, y, simulate, h in clean:
+        y_eff = apply_effect(cause, effect, t, u, y, f, simulate, h)
         noise = rng.normal(0.0, sd, y.size)
         records.append(Record(file=f"f{f:g}Hz.npz", t=t, u=u, y=y_eff + noise, role=role_of(f), frequency_hz=f,
                               weight=weight_of(f)))

@@ -120,8 +120,9 @@ def figure_spectrum(diag, path: Path) -> None:
     ax.legend(fontsize=6)
     ax = axes[1]
     ids = [rr for rr in diag.before if rr.record.role == "identification"]
-    dt = min(rr.record.dt for rr in ids)
-    f, a = coherent_spectrum(ids, 1.0 / (ids[0].record.t.size * dt), 0.45 / dt, pad=2)
+    duration = max(rr.record.t.size * rr.record.dt for rr in ids)
+    dt = max(rr.record.dt for rr in ids)  # below every record's Nyquist frequency
+    f, a = coherent_spectrum(ids, 1.0 / duration, 0.45 / dt, pad=2)
     ax.loglog(f, np.maximum(a, 1e-12), lw=0.5, color="C0")
     if diag.cause == "interference":
         ax.axvline(diag.parameters["frequency_hz"], color="C3", lw=0.8, ls="--", label="named interference")
@@ -244,6 +245,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
             f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %, on whole records "
             f"{v['mean_e_rms_whole_before']:.3g} % -> {v['mean_e_rms_whole_after']:.3g} %.",
         ]
+        if d.warning:
+            lines.append(f"* **warning:** {d.warning}.")
         vb = g.get("validation_vs_base_refit_on_whole_records")
         if vb:
             lines.append(f"* against the base model refitted on the same whole records: the extension removes "

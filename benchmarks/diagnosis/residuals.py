@@ -95,10 +95,19 @@ def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(x.size, dt), amp
 
 
+MAX_SPECTRUM_POINTS = 1 << 21
+
+
 def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4):
-    """Pooled coherent amplitude spectrum over records with a common sample time:
-    (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in [f_min, f_max]."""
-    dts = [rr.record.dt for rr in residuals]
+    """Pooled coherent amplitude spectrum: (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in
+    [f_min, f_max], each record's DFT R_m in its own time (t = 0 at its first sample).
+
+    Records with one sample time: zero-padded FFTs. Sample times that differ: each record's DFT on one
+    common grid (chirp z-transform, ``scipy.signal.zoom_fft``), spaced 1 / (pad x the longest duration)
+    and cut at the coarsest record's Nyquist frequency."""
+    dts = np.array([rr.record.dt for rr in residuals])
+    if dts.max() - dts.min() > 1e-9 * dts.max():
+        return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad)
     dt = float(np.median(dts))
     n_max = max(rr.record.t.size for rr in residuals)
     n_fft = 1 << int(math.ceil(math.log2(pad * n_max)))
@@ -112,6 +121,27 @@ def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: floa
     f = np.fft.rfftfreq(n_fft, dt)
     keep = (f >= f_min) & (f <= f_max)
     return f[keep], 2.0 * np.abs(total[keep]) / n_total
+
+
+def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi: float, pad: int):
+    from scipy.signal import zoom_fft
+
+    f_lo = max(f_lo, 0.0)
+    duration = max(rr.record.t.size * rr.record.dt for rr in residuals)
+    df = 1.0 / (pad * duration)
+    if not f_hi > f_lo:
+        return np.empty(0), np.empty(0)
+    m = int(math.floor((f_hi - f_lo) / df)) + 1
+    if m > MAX_SPECTRUM_POINTS:
+        m = MAX_SPECTRUM_POINTS
+        df = (f_hi - f_lo) / (m - 1)
+    total = np.zeros(m, dtype=complex)
+    n_total = 0
+    for rr in residuals:
+        x = rr.residual - np.mean(rr.residual)
+        total += zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / rr.record.dt)
+        n_total += x.size
+    return f_lo + df * np.arange(m), 2.0 * np.abs(total) / n_total
 
 
 def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz: float = 0.5) -> list[tuple[float, float]]:
