@@ -29,7 +29,10 @@ Jacobian by forward differences evaluated as one batch) run from the
 ``n_starts`` best; a later search that comes within ``merge_radius`` (2 % of
 each bound's width) of an earlier search's optimum stops there, since it
 would end in the same place; the best result wins. A model with no
-nonlinear parameter is a single linear solve.
+nonlinear parameter is a single linear solve. Parameters a model declares
+``log_scale`` (positive, spanning decades: relaxation times, a mode's
+frequency) are searched in log coordinates: candidates, steps, the trust
+region and the merge radius all see log z.
 """
 
 from __future__ import annotations
@@ -265,10 +268,20 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
         best_nl = np.zeros(0)
         diag["local_searches"] = []
     else:
-        lo, hi = sep.nl_lower, sep.nl_upper
+        # the search runs in coordinates s: log z for parameters declared log-scale (bounds > 0), else z
+        flags = {p.name: p.log_scale for p in problem.model.parameters(problem.scale)}
+        logs = np.array([flags.get(n, False) for n in sep.nonlinear_names]) & (sep.nl_lower > 0)
+
+        def to_s(z):
+            return np.where(logs, np.log(np.where(logs, z, 1.0)), z)
+
+        def from_s(v):
+            return np.where(logs, np.exp(np.where(logs, v, 0.0)), v)
+
+        lo, hi = to_s(sep.nl_lower), to_s(sep.nl_upper)
         free = hi > lo  # a nonlinear parameter fixed by equal bounds is not searched
         width = np.where(free & np.isfinite(hi - lo), hi - lo, 1.0)
-        cands = [np.clip(x_start[sep.nl_idx], lo, hi)]
+        cands = [np.clip(to_s(np.clip(x_start[sep.nl_idx], sep.nl_lower, sep.nl_upper)), lo, hi)]
         if opts["n_candidates"] > 0:
             if not np.all(np.isfinite(hi - lo)):
                 bad = [n for n, ok in zip(sep.nonlinear_names, np.isfinite(hi - lo)) if not ok]
@@ -278,10 +291,10 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
             halton = qmc.Halton(d, scramble=True, seed=np.random.default_rng(seed))
             cands.extend(lo + halton.random(int(opts["n_candidates"])) * (hi - lo))
         cands = np.array(cands)
-        sols = sep.projected_batch(cands)
+        sols = sep.projected_batch(from_s(cands))
         order = np.argsort([s.fitness for s in sols], kind="stable")
         searches = []
-        best_nl, best_f = cands[order[0]], sols[order[0]].fitness
+        best_nl, best_f = from_s(cands[order[0]]), sols[order[0]].fitness
         step = (opts["fd_step"] * width)[free]
         base = cands[order[0]].copy()
         cache: dict = {}
@@ -301,7 +314,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
             key = zf.tobytes()
             if key not in cache:
                 cache.clear()
-                cache[key] = sep.projected_batch(full(zf)[None])[0].residuals
+                cache[key] = sep.projected_batch(from_s(full(zf))[None])[0].residuals
             return cache[key]
 
         def jacobian(zf):
@@ -309,7 +322,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
             h = np.where(zf + step <= hi[free], step, -step)
             Z = np.repeat(full(zf)[None], h.size, axis=0)
             Z[np.arange(h.size), np.flatnonzero(free)] += h
-            sols_h = sep.projected_batch(Z)
+            sols_h = sep.projected_batch(from_s(Z))
             return np.column_stack([(s.residuals - r0) / h[j] for j, s in enumerate(sols_h)])
 
         if not free.any():
@@ -319,7 +332,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                 continue
             base = cands[k].copy()
             n0 = problem.n_evaluations
-            entry = {"start": [float(v) for v in cands[k]], "start_fitness": float(sols[k].fitness)}
+            entry = {"start": [float(v) for v in from_s(cands[k])], "start_fitness": float(sols[k].fitness)}
             try:
                 res = least_squares(residual, base[free], jac=jacobian, bounds=(lo[free], hi[free]), method="trf",
                                     x_scale=width[free], ftol=opts["tol"], xtol=opts["tol"], gtol=opts["tol"],
@@ -333,12 +346,12 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                 continue
             f = float(2.0 * res.cost)
             end = full(res.x)
-            entry.update(end=[float(v) for v in end], fitness=f, status=int(res.status), message=str(res.message),
-                         n_evaluations=problem.n_evaluations - n0)
+            entry.update(end=[float(v) for v in from_s(end)], fitness=f, status=int(res.status),
+                         message=str(res.message), n_evaluations=problem.n_evaluations - n0)
             searches.append(entry)
             ends.append((len(searches) - 1, end))
             if f < best_f:
-                best_nl, best_f = end, f
+                best_nl, best_f = from_s(end), f
         diag["local_searches"] = searches
     final = sep.solve(best_nl, accurate=True)
     problem.note(final.fitness)

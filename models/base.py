@@ -37,6 +37,7 @@ class Parameter:
     max: float
     linear: bool = False
     description: str = ""
+    log_scale: bool = False  # positive and spanning decades: searched on a log scale
 
     def scaled(self, factor: float) -> "Parameter":
         """Bounds and default multiplied by a positive factor (unit scaling)."""

@@ -42,6 +42,7 @@ identifies it directly.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -126,7 +127,7 @@ class ExtendedModel(HysteresisModel):
             lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
             for k in range(1, self.n_relaxation + 1):
                 start = min(hi, max(lo, T * 10.0 ** (k - 1)))
-                out.append(Parameter(f"tau{k}", start, lo, hi, False, f"relaxation time {k} (s)"))
+                out.append(Parameter(f"tau{k}", start, lo, hi, False, f"relaxation time {k} (s)", log_scale=True))
             for k in range(1, self.n_relaxation + 1):
                 for p in self.relaxation_powers:
                     b = RELAX_WEIGHT_BOUND * y / u**p
@@ -137,11 +138,12 @@ class ExtendedModel(HysteresisModel):
         if self.has("resonance"):
             lo, hi = RESONANCE_HZ_BOUNDS[0] / T, RESONANCE_HZ_BOUNDS[1] / T
             out.append(Parameter("natural_frequency", min(hi, 20.0 / T), lo, hi, False,
-                                 "natural frequency of the mode (Hz)"))
-            out.append(Parameter("damping_ratio", 0.5, *DAMPING_BOUNDS, False, "damping ratio of the mode"))
+                                 "natural frequency of the mode (Hz)", log_scale=True))
+            out.append(Parameter("damping_ratio", 0.5, *DAMPING_BOUNDS, False, "damping ratio of the mode",
+                                 log_scale=True))
         if self.has("creep"):
             out.append(Parameter("creep_time", 100.0 * T, CREEP_TIME_BOUNDS[0] * T, CREEP_TIME_BOUNDS[1] * T,
-                                 False, "creep time scale (s)"))
+                                 False, "creep time scale (s)", log_scale=True))
             out.append(Parameter("creep_size", 0.0, -CREEP_SIZE_BOUND * y, CREEP_SIZE_BOUND * y, linear,
                                  "creep size (output units): s in s (1 - exp(-t / T_c))"))
         if self.has("interference"):
@@ -160,7 +162,7 @@ class ExtendedModel(HysteresisModel):
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         base = self.base_model.parameters(scale)
         if self.has("saturation"):  # clipping: nothing enters the output linearly
-            base = tuple(Parameter(p.name, p.value, p.min, p.max, False, p.description) for p in base)
+            base = tuple(replace(p, linear=False) for p in base)
         params = base + self.component_parameters(scale)
         names = [p.name for p in params]
         if len(set(names)) != len(names):

@@ -476,3 +476,17 @@ def test_reflection_keeps_positions_inside(zs, v):
     moved = (z < 0) | (z > 1)
     assert np.all(np.abs(v2[moved]) == pytest.approx(0.5 * abs(v)))
     np.testing.assert_array_equal(z2[~moved], z[~moved])
+
+
+def test_varpro_searches_log_scale_parameters_in_log_coordinates():
+    """A relaxation time of 0.05 s in bounds [0.01, 1000] x T: log-scale candidates and steps find it
+    from the model's default start (tau1 = T); the start and end of each search are reported in z."""
+    model = get_model("mrpim+relaxation")
+    assert [p.name for p in model.parameters() if p.log_scale] == ["tau1"]
+    truth = {**get_model("mrpim").preset("paper"), "tau1": 0.05, "c1": 0.8}
+    ds = simulated_dataset(model, truth, frequencies=(0.2, 0.4, 1.0), n_periods=2)
+    fit = identify(model, ds, method="varpro", seed=0)
+    assert fit.params["tau1"] == pytest.approx(0.05, rel=0.01)
+    for s in fit.diagnostics["varpro"]["local_searches"]:
+        lo, hi = fit.bounds["tau1"]
+        assert lo <= s["start"][model.nonlinear_names.index("tau1")] <= hi
