@@ -50,19 +50,8 @@ BETA_BOUND = 0.5  # 0 <= beta <= BETA_BOUND * time (s)
 @njit(cache=True)
 def rd_play_operators(u, abs_du, r0, beta, w0):
     """Outputs (T, N) of the N symmetric plays with thresholds r0_i + beta |u'|."""
-    n_t = u.shape[0]
-    n_op = r0.shape[0]
-    out = np.empty((n_t, n_op))
-    w = np.full(n_op, w0)
-    for k in range(n_t):
-        uk = u[k]
-        extra = beta * abs_du[k]
-        for i in range(n_op):
-            r = r0[i] + extra
-            v = min(uk + r, w[i])
-            lo = uk - r
-            w[i] = v if v > lo else lo
-            out[k, i] = w[i]
+    out = np.empty((u.shape[0], r0.shape[0]))
+    _rd_play_window(u, abs_du, r0, beta, w0, 0, u.shape[0], out)  # the window kernel from sample 0
     return out
 
 

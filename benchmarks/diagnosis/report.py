@@ -55,13 +55,18 @@ def figure_residual_time(diag, path: Path) -> None:
     save_figure(fig, path)
 
 
+def _panels(plt, n: int):
+    """A figure with one small panel per record, four to a row."""
+    cols = min(4, n)
+    rows = int(math.ceil(n / cols))
+    return plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+
+
 def figure_residual_input(diag, path: Path) -> None:
     plt = pyplot()
     recs = diag.before
     n = len(recs)
-    cols = min(4, n)
-    rows = int(math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+    fig, axes = _panels(plt, n)
     for ax, rr in zip(axes.flat, recs):
         r = rr.record
         k = _stride(r.t.size)
@@ -84,9 +89,7 @@ def figure_residual_phase(diag, path: Path) -> None:
     if not recs:
         return
     n = len(recs)
-    cols = min(4, n)
-    rows = int(math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+    fig, axes = _panels(plt, n)
     for ax, rr in zip(axes.flat, recs):
         r = rr.record
         ph = phase_of(r)
