@@ -66,7 +66,7 @@ from hysbench.identification import Problem, SeparableProblem, data_scale, ident
 from hysbench.models import get_model
 from hysbench.models.errors import HysbenchError
 
-from .protocol import score_records
+from hysbench.data.protocol import score_records
 
 ORDERS = tuple(range(7))
 N_OPERATORS = (3, 5, 9, 13, 17, 25)

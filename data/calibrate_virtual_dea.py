@@ -33,10 +33,10 @@ import time
 import numpy as np
 from scipy.optimize import least_squares
 
-from hysbench.benchmarks.metrics import loop_width, peak_to_peak
-from hysbench.benchmarks.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, period_samples
+from hysbench.data.metrics import loop_width, peak_to_peak
+from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, period_samples
 
-from . import dea_physics
+from hysbench.models import dea_physics
 from .virtual_dea import (
     CALIBRATION_TARGETS,
     CREEP_TOLERANCE,

@@ -67,8 +67,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.metrics import loop_width, peak_to_peak
-from hysbench.benchmarks.protocol import (
+from hysbench.data.metrics import loop_width, peak_to_peak
+from hysbench.data.protocol import (
     AMPLITUDE_KV,
     FREQUENCIES_HZ,
     OFFSET_KV,
@@ -79,8 +79,8 @@ from hysbench.benchmarks.protocol import (
 )
 from hysbench.models.errors import HysbenchError
 
-from . import dea_physics
-from .dea_physics import ISSUE_START, TRUTH, DEAParameters  # noqa: F401 (re-exported)
+from hysbench.models import dea_physics
+from hysbench.models.dea_physics import ISSUE_START, TRUTH, DEAParameters  # noqa: F401 (re-exported)
 from .dataset import Dataset, Record, replace_folder, save_dataset
 from .dea_sensor import LaserSensor
 
@@ -370,7 +370,7 @@ def truth(seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH, sensor: Laser
 def write_dataset(folder: str | os.PathLike, seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH,
                   sensor: LaserSensor = LaserSensor()) -> Path:
     """Generate and write the dataset (records as compressed .npz, dataset.toml, truth.json), atomically."""
-    from hysbench.benchmarks.output import write_json
+    from hysbench.data.files import write_json
 
     folder = Path(folder)
     ds, runs = generate(seed, params, sensor)

@@ -37,7 +37,7 @@ from typing import Mapping
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from hysbench.benchmarks.protocol import score_records
+from hysbench.data.protocol import score_records
 from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel

@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from hysbench.benchmarks.protocol import RecordScore, score_records
+from hysbench.data.protocol import RecordScore, score_records
 from hysbench.data.dataset import Record
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel

@@ -1089,7 +1089,7 @@ def simulated_ar1_dataset(model: HysteresisModel, params: Mapping[str, float], *
     """The paper's protocol simulated from ``model`` with stationary AR(1) noise added to every record
     (innovation sd ``sigma``, coefficient ``phi`` per sample); ``protocol`` goes to
     ``benchmarks.protocol.simulated_dataset`` (n_periods, dt, frequencies, name)."""
-    from hysbench.benchmarks.protocol import simulated_dataset
+    from hysbench.data.protocol import simulated_dataset
 
     ds = simulated_dataset(model, params, noise_sd=0.0, **protocol)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 17]))

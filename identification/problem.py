@@ -21,7 +21,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from hysbench.benchmarks.protocol import input_range as records_input_range
+from hysbench.data.protocol import input_range as records_input_range
 from hysbench.data.dataset import Record
 from hysbench.models.base import DataScale, HysteresisModel
 

@@ -3,7 +3,7 @@
 The lumped planar DEA of ``hysbench.data.virtual_dea`` (equations in its docstring):
 Gent spring + K Gent-Maxwell branches (Zhao-Koh-Suo flow rule) + parallel dashpot,
 ideal dielectric, platform force balance; the same numba kernel
-(``hysbench.data.dea_physics``) simulates the data and this model.
+(``hysbench.models.dea_physics``) simulates the data and this model.
 
     y(t) = length * (lam_a(t) - lam0) + offset
 
@@ -42,8 +42,8 @@ from typing import Mapping
 
 import numpy as np
 
-from hysbench.data import dea_physics
-from hysbench.data.dea_physics import TRUTH
+from . import dea_physics
+from .dea_physics import TRUTH
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError

@@ -28,7 +28,7 @@ from hysbench.benchmarks.ablation import (
     trim_history,
 )
 from hysbench.benchmarks.cli import main as cli_main
-from hysbench.benchmarks.protocol import simulated_dataset
+from hysbench.data.protocol import simulated_dataset
 from hysbench.data.dataset import Dataset, Record, save_dataset
 from hysbench.models import get_model
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from hysbench.benchmarks.metrics import loop_width
+from hysbench.data.metrics import loop_width
 from hysbench.models import DataScale, ModelError, get_model, list_models
 from hysbench.models.bouc_wen import Z_CAP, BoucWen
 from hysbench.models.dual_polynomial import DualPolynomial

@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 from hysbench.benchmarks.cli import main as cli_main
-from hysbench.benchmarks.protocol import dataset_fitness, input_range, simulated_dataset
+from hysbench.data.protocol import dataset_fitness, input_range, simulated_dataset
 from hysbench.data.dataset import save_dataset
 from hysbench.identification import identify
 from hysbench.models import get_model

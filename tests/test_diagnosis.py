@@ -24,7 +24,7 @@ from scipy import signal
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.planted import PLANTABLE, planted_dataset
 from hysbench.benchmarks.diagnosis.residuals import coherent_spectrum, ljung_box, noise_sd, RecordResidual, spectral_peaks
-from hysbench.benchmarks.protocol import paper_voltage, protocol_time
+from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.identification import Fit
 from hysbench.models import CAUSES, ExtendedModel, get_model

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
 from hysbench.benchmarks.cli import main as cli_main
-from hysbench.benchmarks.protocol import dataset_fitness, simulated_dataset
+from hysbench.data.protocol import dataset_fitness, simulated_dataset
 from hysbench.data.dataset import Dataset, Record, save_dataset
 from hysbench.identification import (
     METHODS,

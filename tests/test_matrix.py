@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hysbench.benchmarks.matrix.report import TIMING_COLUMNS
-from hysbench.benchmarks.protocol import simulated_dataset
+from hysbench.data.protocol import simulated_dataset
 from hysbench.data import save_dataset
 from hysbench.models import get_model
 from measured_data import piezo_dataset, pzt_dataset
@@ -166,7 +166,7 @@ def test_measured_data_matrix(shared_datasets, tmp_path):
     errors = np.array([float(r["e_rms"]) for r in rows])
     assert np.all(np.isfinite(errors))
     # a fitted hysteresis model must beat predicting each window's mean by far
-    from hysbench.benchmarks.metrics import e_rms
+    from hysbench.data.metrics import e_rms
     from hysbench.data import load_dataset
 
     for folder in (piezo, pzt):

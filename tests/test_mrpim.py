@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.protocol import paper_voltage, protocol_time
+from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.models import PAPER_TABLE2, ModelError, get_model
 
 

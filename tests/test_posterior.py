@@ -27,7 +27,7 @@ from scipy.linalg import block_diag, toeplitz
 from scipy.stats import multivariate_normal
 
 from hysbench.benchmarks.cli import main as cli_main
-from hysbench.benchmarks.protocol import IDENTIFICATION_WEIGHTS
+from hysbench.data.protocol import IDENTIFICATION_WEIGHTS
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.identification.errors import IdentificationError
 from hysbench.identification.likelihood import (_whitened_gram_parallel, _whitened_gram_serial, ar1_loglik,

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from hysbench.benchmarks import metrics, protocol
+from hysbench.data import metrics, protocol
 from hysbench.models import get_model
 
 

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from hysbench.benchmarks import cli
-from hysbench.benchmarks.metrics import loop_width, peak_to_peak
-from hysbench.benchmarks.protocol import (
+from hysbench.data.metrics import loop_width, peak_to_peak
+from hysbench.data.protocol import (
     FREQUENCIES_HZ,
     IDENTIFICATION_WEIGHTS,
     VALIDATION_FREQUENCIES_HZ,
@@ -24,7 +24,7 @@ from hysbench.benchmarks.protocol import (
 )
 from hysbench.data import load_dataset
 from hysbench.data import virtual_dea as vd
-from hysbench.data.dea_physics import EPS0
+from hysbench.models.dea_physics import EPS0
 from hysbench.data.dea_sensor import LaserSensor
 
 DEFAULT_DATASET = vd.default_dataset_path()
@@ -136,7 +136,7 @@ def test_halving_the_step_changes_p2p_and_width_by_less_than_half_a_percent(figu
 
 def test_response_modes_predict_a_small_step():
     """The linearised modes (the time constants a diagnosis should find) against the simulated step."""
-    from hysbench.data import dea_physics
+    from hysbench.models import dea_physics
 
     modes = vd.response_modes()
     assert abs(sum(m.static_gain_share for m in modes) - 1) < 1e-9

@@ -41,7 +41,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import signal
 
-from hysbench.benchmarks.protocol import (
+from hysbench.data.protocol import (
     FREQUENCIES_HZ,
     SAMPLE_TIME_S,
     paper_voltage,

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.output import ensure_dir, pyplot, save_figure, write_atomic, write_json
+from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from hysbench.benchmarks.metrics import e_m, e_rms
+from hysbench.data.metrics import e_m, e_rms
 from hysbench.data.dataset import Dataset, Record
 
 LAGS = 20

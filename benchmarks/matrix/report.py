@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.output import pyplot, save_figure, write_atomic
+from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.data.files import write_atomic
 from hysbench.data.dataset import Dataset
 from hysbench.models import get_model
 

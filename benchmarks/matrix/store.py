@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from hysbench.benchmarks.output import ensure_dir, write_json
+from hysbench.data.files import ensure_dir, write_json
 
 
 class CellStore:

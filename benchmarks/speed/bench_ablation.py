@@ -14,7 +14,7 @@ import resource
 import time
 
 from hysbench.benchmarks.ablation import run_ablation
-from hysbench.benchmarks.ablation_cli import default_dataset
+from hysbench.benchmarks.cli.ablate import default_dataset
 from hysbench.benchmarks.cli import main as cli_main
 from hysbench.data.dataset import load_dataset
 

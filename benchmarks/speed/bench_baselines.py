@@ -7,7 +7,7 @@ No target is set by the issue; the figures go in README. Run with
 
 import numpy as np
 import pytest
-from hysbench.benchmarks.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, protocol_time
+from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, protocol_time
 from hysbench.models import DataScale, get_model
 
 DT = SAMPLE_TIME_S

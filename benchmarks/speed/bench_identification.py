@@ -22,10 +22,10 @@ import os
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.protocol import FREQUENCIES_HZ, paper_voltage, period_samples, role_of, weight_of
+from hysbench.data.protocol import FREQUENCIES_HZ, paper_voltage, period_samples, role_of, weight_of
 from hysbench.data.dataset import Dataset, Record, load_dataset
 from hysbench.identification import identify
-from hysbench.identification.report import default_dataset_path, table2_dataset
+from hysbench.benchmarks.reports.identification import default_dataset_path, table2_dataset
 from hysbench.models import get_model
 
 TARGET_SECONDS = {"varpro": 1.0, "mpso": 60.0}

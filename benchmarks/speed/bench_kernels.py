@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, protocol_time
+from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, protocol_time
 from hysbench.models import get_model
 
 DT = SAMPLE_TIME_S

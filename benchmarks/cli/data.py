@@ -16,10 +16,10 @@ import argparse
 import time
 from pathlib import Path
 
-from hysbench.benchmarks.output import OutputError
+from hysbench.data.files import OutputError
 from hysbench.models.errors import HysbenchError
 
-from .virtual_dea import DEFAULT_SEED, write_dataset
+from hysbench.data.virtual_dea import DEFAULT_SEED, write_dataset
 
 SEED_MAX = 2**63 - 1
 

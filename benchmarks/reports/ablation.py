@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .output import pyplot, save_figure, write_atomic, write_json
+from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.data.files import write_atomic, write_json
 
 FACTOR_LABELS = {"order": "polynomial order", "q_term": "q V'' term", "envelopes": "envelopes",
                  "n_operators": "play operators N"}

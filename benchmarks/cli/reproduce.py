@@ -16,9 +16,10 @@ import numpy as np
 
 from hysbench.models import get_model
 
-from .metrics import loop_width, peak_to_peak
-from .output import ensure_dir, pyplot, save_figure, write_atomic, write_json
-from .protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, period_samples, protocol_time
+from hysbench.data.metrics import loop_width, peak_to_peak
+from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, period_samples, protocol_time
 
 PAPER_P2P_CHANGE_PCT = -27.26
 PAPER_WIDTH_CHANGE_PCT = 21.8

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .dataset import load_dataset
+from hysbench.data.dataset import load_dataset
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -13,7 +13,7 @@ import argparse
 import sys
 import time
 
-from hysbench.benchmarks.cli import nonnegative_int, positive_int
+from hysbench.benchmarks.cli.common import nonnegative_int, positive_int
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,9 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args) -> int:
     from hysbench.models import get_model
 
-    from .causes import MAX_ROWS
-    from .diagnose import diagnose
-    from .report import write_report
+    from hysbench.benchmarks.diagnosis.causes import MAX_ROWS
+    from hysbench.benchmarks.diagnosis.diagnose import diagnose
+    from hysbench.benchmarks.diagnosis.report import write_report
 
     model = get_model(args.model)  # an unknown name fails here, before any work
     t0 = time.perf_counter()

@@ -15,11 +15,11 @@ import argparse
 import json
 from pathlib import Path
 
-from hysbench.benchmarks.output import ensure_dir, write_json
+from hysbench.data.files import ensure_dir, write_json
 from hysbench.models import get_model
 
-from .api import identify, list_methods
-from .errors import IdentificationError
+from hysbench.identification.api import identify, list_methods
+from hysbench.identification.errors import IdentificationError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.output import pyplot, save_figure
+from hysbench.benchmarks.plots import pyplot, save_figure
 
-from .posterior import PosteriorRun, build_segments
+from hysbench.identification.posterior import PosteriorRun, build_segments
 
 STRONG_CORRELATION = 0.9
 PRIOR_DOMINATED = 0.5  # posterior sd / prior sd above this: the data barely move the prior

@@ -9,14 +9,14 @@ import sys
 import time
 from pathlib import Path
 
-from hysbench.benchmarks.output import ensure_dir
+from hysbench.data.files import ensure_dir
 from hysbench.data.dataset import load_dataset
 from hysbench.models.errors import HysbenchError
 
-from .cells import DEFAULT_METHODS, method_options, package_version, plan_cells
-from .execute import run_matrix
-from .report import write_matrix_csv, write_report
-from .store import CellStore
+from hysbench.benchmarks.matrix.cells import DEFAULT_METHODS, method_options, package_version, plan_cells
+from hysbench.benchmarks.matrix.execute import run_matrix
+from hysbench.benchmarks.matrix.report import write_matrix_csv, write_report
+from hysbench.benchmarks.matrix.store import CellStore
 
 
 def default_dataset() -> Path:

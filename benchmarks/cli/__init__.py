@@ -14,47 +14,21 @@ import sys
 
 from hysbench.models.errors import HysbenchError
 
+from .common import OneLineParser
+
 # subcommand -> (module, one-line help)
 COMMANDS = {
-    "check": ("hysbench.data.check_cli", "check a dataset folder and summarise its records"),
-    "data": ("hysbench.data.cli", "generate a dataset: virtual-dea (the default dataset)"),
-    "run": ("hysbench.benchmarks.matrix.cli", "score every model x identifier on every dataset (writes results/)"),
-    "posterior": ("hysbench.identification.posterior_cli",
+    "check": ("hysbench.benchmarks.cli.check", "check a dataset folder and summarise its records"),
+    "data": ("hysbench.benchmarks.cli.data", "generate a dataset: virtual-dea (the default dataset)"),
+    "run": ("hysbench.benchmarks.cli.run", "score every model x identifier on every dataset (writes results/)"),
+    "posterior": ("hysbench.benchmarks.cli.posterior",
                   "posterior of a model's parameters with emcee (AR(1) noise; writes results/posterior.md)"),
-    "reproduce": ("hysbench.benchmarks.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
-    "ablate": ("hysbench.benchmarks.ablation_cli", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
-    "fit": ("hysbench.identification.cli", "identify one model on a dataset with one identifier"),
-    "diagnose": ("hysbench.benchmarks.diagnosis.cli",
+    "reproduce": ("hysbench.benchmarks.cli.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
+    "ablate": ("hysbench.benchmarks.cli.ablate", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
+    "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
+    "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
 }
-
-
-def integer_at_least(minimum: int):
-    """An argparse type: an integer >= ``minimum``, refused in one line otherwise."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < minimum:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}")
-        return value
-
-    parse.__name__ = f"integer >= {minimum}"
-    return parse
-
-
-positive_int = integer_at_least(1)
-nonnegative_int = integer_at_least(0)
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse that reports a usage error as one line and exit status 2."""
-
-    def error(self, message: str):
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
-        raise SystemExit(2)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -79,6 +53,3 @@ def main(argv=None) -> int:
         print(f"hysbench {args.command}: interrupted", file=sys.stderr)
         return 130
 
-
-if __name__ == "__main__":
-    sys.exit(main())

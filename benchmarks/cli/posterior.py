@@ -20,14 +20,14 @@ import shlex
 import sys
 from pathlib import Path
 
-from hysbench.benchmarks.cli import nonnegative_int, positive_int
-from hysbench.benchmarks.output import ensure_dir, write_atomic, write_json
+from hysbench.benchmarks.cli.common import nonnegative_int, positive_int
+from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.data.dataset import load_dataset
 from hysbench.models import get_model
 
-from .errors import IdentificationError
-from .posterior import MOVES, NOISE_MODELS, predictive, sample_posterior
-from .posterior_report import (corner_figure, correlation_figure, identifiability, predictive_figure,
+from hysbench.identification.errors import IdentificationError
+from hysbench.identification.posterior import MOVES, NOISE_MODELS, predictive, sample_posterior
+from hysbench.benchmarks.reports.posterior import (corner_figure, correlation_figure, identifiability, predictive_figure,
                                render_markdown, trace_figure)
 
 

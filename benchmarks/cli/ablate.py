@@ -9,9 +9,9 @@ from pathlib import Path
 
 from hysbench.data.dataset import load_dataset
 
-from .ablation import N_OPERATORS, ORDERS, AblationError, run_ablation
-from .ablation_report import write_outputs
-from .output import ensure_dir
+from hysbench.benchmarks.ablation import N_OPERATORS, ORDERS, AblationError, run_ablation
+from hysbench.benchmarks.reports.ablation import write_outputs
+from hysbench.data.files import ensure_dir
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
