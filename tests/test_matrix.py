@@ -12,7 +12,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.matrix.report import TIMING_COLUMNS
+from dataclasses import replace
+
+from hysbench.benchmarks.matrix import cells as cells_module
+from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
+from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows
+from hysbench.benchmarks.matrix.store import CellStore
+from hysbench.data import load_dataset
+from hysbench.identification import Fit
+from hysbench.models import HysteresisModel, Parameter, list_models, register
 from hysbench.data.protocol import simulated_dataset
 from hysbench.data import save_dataset
 from hysbench.models import get_model
@@ -178,12 +186,83 @@ def test_measured_data_matrix(shared_datasets, tmp_path):
             assert best < 0.5 * constant, (ds.name, rec.file, best, constant)
 
 
-def test_matrix_budget_and_overrides():
-    from hysbench.benchmarks.matrix.cells import MATRIX_BUDGET, method_options
+def test_the_matrix_budget_reaches_the_identifier(small_dataset):
+    """mpso at the matrix budget spends 20 particles x (19 + 1) = 400 model evaluations, lsq at most 20
+    residual evaluations (plus one Jacobian batch of n_params sets per iteration)."""
+    options = method_options(["mpso", "lsq"], {}, False)
+    ds = load_dataset(small_dataset)
+    cells = plan_cells([(small_dataset, ds)], ["classical-pi"], ["mpso", "lsq"], seed=0, method_options=options)
+    by_method = {c.method: run_cell(c) for c in cells}
+    assert by_method["mpso"]["status"] == "ok"
+    assert by_method["mpso"]["n_evaluations"] == 400
+    n_params = by_method["lsq"]["n_params"]
+    assert 0 < by_method["lsq"]["n_evaluations"] <= 20 * (1 + n_params)
+    # a user option overrides the budget
+    fewer = method_options(["mpso"], {"mpso": {"iterations": 4}}, False)
+    cell = plan_cells([(small_dataset, ds)], ["classical-pi"], ["mpso"], seed=0, method_options=fewer)[0]
+    assert run_cell(cell)["n_evaluations"] == 20 * 5
 
-    assert method_options(None, {}, False) == MATRIX_BUDGET
-    assert method_options(None, {}, True) == {}
-    opts = method_options(["mpso", "varpro+lsq"], {"mpso": {"iterations": 3}}, False)
-    assert opts["mpso"] == {**MATRIX_BUDGET["mpso"], "iterations": 3}
-    assert opts["varpro+lsq"] == {"varpro.n_candidates": 8, "varpro.n_starts": 1,
-                                  "lsq.max_nfev": MATRIX_BUDGET["lsq"]["max_nfev"]}
+
+def test_a_cell_key_changes_with_the_code_and_the_hyperparameters(small_dataset, monkeypatch):
+    ds = load_dataset(small_dataset)
+    cell = plan_cells([(small_dataset, ds)], ["mrpim"], ["varpro"], seed=0)[0]
+    key = cell.key
+    assert plan_cells([(small_dataset, ds)], ["mrpim"], ["varpro"], seed=0)[0].key == key
+    assert replace(cell, hyperparameters='{"n_operators": 5}').key != key
+    assert plan_cells([(small_dataset, ds)], ["mrpim"], ["varpro"], seed=1)[0].key != key
+    monkeypatch.setattr(cells_module, "code_fingerprint", lambda: "other code")
+    assert cell.key != key
+
+
+def test_code_fingerprint_follows_the_source(tmp_path, monkeypatch):
+    before = cells_module.code_fingerprint()
+    fake = tmp_path / "hysbench_extra.py"
+    fake.write_text("x = 1\n")
+    cells_module.code_fingerprint.cache_clear()
+    monkeypatch.setattr(cells_module, "__file__", str(fake))
+    changed = cells_module.code_fingerprint()
+    cells_module.code_fingerprint.cache_clear()
+    monkeypatch.undo()
+    assert changed != before and cells_module.code_fingerprint() == before
+
+
+def test_stored_cells_of_other_code_or_format_are_recomputed(small_dataset, tmp_path):
+    ds = load_dataset(small_dataset)
+    cell = plan_cells([(small_dataset, ds)], ["classical-pi"], ["varpro"], seed=0)[0]
+    store = CellStore(tmp_path)
+    result = run_cell(cell)
+    store.put(result)
+    assert store.get(cell.key) == json.loads(json.dumps(result))
+    assert Fit.from_dict(store.get(cell.key)["fit"]).params == result["params"]  # the Fit itself is stored
+    store.put({**result, "format": "hysbench-cell/1"})
+    assert store.get(cell.key) is None
+    store.put({**result, "key": "0" * 20})
+    assert store.get(cell.key) is None
+
+
+class _NaNModel(HysteresisModel):
+    """A test model whose output is NaN: the matrix must report it, not rank it."""
+
+    name = "test-nan-model"
+
+    def __init__(self):
+        pass
+
+    def declare_parameters(self, scale):
+        return [Parameter("gain", 1.0, 0.0, 2.0)]
+
+    def simulate_batch(self, u, dt, param_sets, input_range=None):
+        P = self._check_param_sets(param_sets)
+        return np.full((P.shape[0], np.size(u)), np.nan)
+
+
+def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tmp_path):
+    if "test-nan-model" not in list_models():
+        register("test-nan-model", _NaNModel, in_matrix=False)
+    ds = load_dataset(small_dataset)
+    cell = plan_cells([(small_dataset, ds)], ["test-nan-model"], ["lsq"], seed=0)[0]
+    result = run_cell(cell)
+    assert result["status"] == "nonfinite"
+    assert set(result["nonfinite_records"]) == {r.file for r in ds.records}
+    assert "non-finite" in result["error"]
+    assert matrix_rows([result]) == []  # not in the ranked table

@@ -2,17 +2,28 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+import math
 import time
 import traceback
 from dataclasses import asdict, dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+import numpy as np
+
+import hysbench.data
+import hysbench.identification
+import hysbench.models
 from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.identification import METHODS, applicable_methods as identifier_methods, identify
+from hysbench.identification.api import resolve_method, split_options
 from hysbench.models import get_model, list_models
 from hysbench.models.errors import HysbenchError
+
+CELL_FORMAT = "hysbench-cell/2"
 
 
 def package_version() -> str:
@@ -20,6 +31,20 @@ def package_version() -> str:
         return version("hysbench")
     except PackageNotFoundError:  # running from a source tree
         return "0+unknown"
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """SHA-256 over the source of everything a cell's result depends on: the models, the data
+    layer, the identifiers and this module (not the reports, the CLI or the figures). A cell
+    computed by other code gets another key, so ``hysbench run`` never reuses it."""
+    digest = hashlib.sha256()
+    folders = [Path(p) for pkg in (hysbench.models, hysbench.data, hysbench.identification) for p in pkg.__path__]
+    files = sorted({f for folder in folders for f in folder.rglob("*.py")} | {Path(__file__)})
+    for f in files:
+        digest.update(f.name.encode())
+        digest.update(f.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 @dataclass(frozen=True)
@@ -33,6 +58,7 @@ class Cell:
     method: str
     seed: int
     options: tuple = ()  # sorted (name, value) pairs for the identifier
+    hyperparameters: str = "{}"  # the model's constructor arguments, as sorted JSON
 
     @property
     def name(self) -> str:
@@ -46,7 +72,8 @@ class Cell:
             "method": self.method,
             "seed": self.seed,
             "options": [list(o) for o in self.options],
-            "version": package_version(),
+            "hyperparameters": self.hyperparameters,
+            "code": code_fingerprint(),
         }
         return hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:20]
 
@@ -69,6 +96,9 @@ class CellResult:
     input_range: list = field(default_factory=list)
     records: list = field(default_factory=list)  # {file, frequency_hz, role, e_m, e_rms}
     error: str = ""
+    nonfinite_records: list = field(default_factory=list)  # records whose prediction is not finite
+    fit: dict = field(default_factory=dict)  # the Fit itself (Fit.to_dict())
+    format: str = CELL_FORMAT
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -109,16 +139,16 @@ def method_options(methods: list[str] | None, user: dict, full_budget: bool) -> 
 
 def applicable_methods(model_name: str) -> list[str]:
     """Identifiers that apply to a model, through the interface only."""
-    from hysbench.identification import applicable_methods as applicable
+    return identifier_methods(model_name)
 
-    return applicable(model_name)
+
+def hyperparameters_key(model_name: str) -> str:
+    return json.dumps(get_model(model_name).get_hyperparameters(), sort_keys=True, default=str)
 
 
 def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, methods: list[str] | None,
                seed: int, method_options: dict | None = None) -> list[Cell]:
     """Every requested model x applicable method x dataset (unknown names raise HysbenchError)."""
-    from hysbench.identification import METHODS
-
     known_methods = list(METHODS)
     models = models or list_models(matrix_only=True)
     for m in models:
@@ -136,14 +166,12 @@ def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, me
                 if method not in (methods or DEFAULT_METHODS):
                     continue
                 opts = tuple(sorted(method_options.get(method, {}).items()))
-                cells.append(Cell(str(path), ds.name, digest, model, method, seed, opts))
+                cells.append(Cell(str(path), ds.name, digest, model, method, seed, opts, hyperparameters_key(model)))
     return cells
 
 
 def _check_options(models, methods, method_options) -> None:
     """Refuse unknown or bad identifier options before anything runs."""
-    from hysbench.identification.api import resolve_method, split_options
-
     for method, opts in method_options.items():
         if method not in (methods or DEFAULT_METHODS):
             raise HysbenchError(f"--option names method {method!r}, which is not being run")
@@ -167,9 +195,10 @@ def _dataset(cell: Cell) -> Dataset:
 
 
 def run_cell(cell: Cell) -> dict:
-    """Identify and score; returns CellResult.to_dict(). Never raises for a failed fit."""
-    from hysbench.identification import identify
+    """Identify and score; returns CellResult.to_dict(). Never raises for a failed fit.
 
+    A model whose prediction of a record is not finite is reported (status "nonfinite", the
+    records named), never scored as a bad fit."""
     base = dict(key=cell.key, dataset=cell.dataset_name, model=cell.model, method=cell.method, seed=cell.seed,
                 options=dict(cell.options))
     try:
@@ -177,11 +206,14 @@ def run_cell(cell: Cell) -> dict:
         model = get_model(cell.model)
         fit = identify(model, ds, method=cell.method, seed=cell.seed, **dict(cell.options))
         t0 = time.perf_counter()
-        for r in ds.records:
-            fit.simulate(r.u, r.dt)
+        nonfinite = [r.file for r in ds.records if not np.all(np.isfinite(fit.simulate(r.u, r.dt)))]
         simulate_seconds = time.perf_counter() - t0
+        if not math.isfinite(fit.fitness):
+            nonfinite = nonfinite or [r for r in fit.fitted_on]
+        status = "nonfinite" if nonfinite else "ok"
+        error = f"non-finite model output on {', '.join(nonfinite)}" if nonfinite else ""
         return CellResult(
-            **base, status="ok", n_params=model.n_params, fitness=float(fit.fitness),
+            **base, status=status, error=error, nonfinite_records=nonfinite, fit=fit.to_dict(), n_params=model.n_params, fitness=float(fit.fitness),
             fit_seconds=float(fit.fit_seconds), simulate_seconds=simulate_seconds,
             n_evaluations=int(fit.n_evaluations), params=dict(fit.params),
             input_range=[float(x) for x in fit.input_range],

@@ -14,8 +14,10 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from multiprocessing import get_context
 from typing import Callable
 
+from hysbench.models.errors import HysbenchError
+
 from .cells import Cell, run_cell
-from .store import CellStore
+from .store import KEPT, CellStore
 
 
 def _single_threaded_worker():
@@ -46,7 +48,7 @@ def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, 
     bar.update(len(cells) - len(todo))
 
     def finished(result: dict):
-        if result["status"] == "ok":
+        if result["status"] in KEPT:
             store.put(result)
         results[result["key"]] = result
         bar.update(1)
@@ -95,14 +97,10 @@ def _run_dask(todo: list[Cell], address: str, finished, bar) -> None:
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
-        from hysbench.models.errors import HysbenchError
-
         raise HysbenchError("--dask needs the optional extra: pip install 'hysbench[dask]'") from None
     try:
         client = Client(address, timeout="10s")
     except (OSError, TimeoutError, ValueError) as exc:
-        from hysbench.models.errors import HysbenchError
-
         raise HysbenchError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
     try:
         futures = [client.submit(run_cell, c, pure=False, key=f"hysbench-{c.key}") for c in todo]

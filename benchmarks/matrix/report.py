@@ -12,7 +12,7 @@ import numpy as np
 from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import write_atomic
 from hysbench.data.dataset import Dataset
-from hysbench.models import get_model
+from hysbench.identification import Fit
 
 CSV_COLUMNS = ("dataset", "model", "method", "record", "frequency_hz", "role", "e_m", "e_rms", "fitness",
                "fit_seconds", "simulate_seconds", "n_params", "n_evaluations", "seed")
@@ -148,7 +148,8 @@ def dataset_section(ds_name: str, results: list[dict], failed: list[dict], figur
         lines += [f"![{title}]({fname})", ""]
     fails = [f for f in failed if f["dataset"] == ds_name]
     if fails:
-        lines += ["### Cells that failed", ""] + [f"- {f['model']} / {f['method']}: {f['error']}" for f in fails] + [""]
+        lines += ["### Cells that failed or predicted non-finite values (not ranked)", ""]
+        lines += [f"- {f['model']} / {f['method']}: {f['status']}: {f['error']}" for f in fails] + [""]
     return lines
 
 
@@ -169,8 +170,7 @@ def loops_figure(ds: Dataset, best, out: Path, n_models: int = 3) -> str:
         s = rec.scored
         ax.plot(rec.u[s], rec.y[s], color="black", lw=1.4, label="measured")
         for res, _ in best[:n_models]:
-            model = get_model(res["model"])
-            y = model.simulate(rec.u, rec.dt, res["params"], input_range=res["input_range"] or None)
+            y = Fit.from_dict(res["fit"]).predict(rec)  # the model rebuilt from the stored Fit
             ax.plot(rec.u[s], y[s], lw=0.9, label=f"{res['model']} ({res['method']})")
         ax.set_title(f"{rec.label} ({rec.role[:3]}.)", fontsize=9)
         ax.tick_params(labelsize=7)

@@ -1,8 +1,9 @@
 """Finished cells on disk: one JSON file per cell, written atomically.
 
-A cell file is named by the cell's key (a hash of dataset content, model,
-method, options, seed and package version), so a rerun finds what is still
-valid and computes only the rest. Temporary files left by a killed run are
+A cell file is named by the cell's key (a hash of dataset content, model and
+its hyperparameters, method, options, seed and a fingerprint of the code that
+computes a cell), so a rerun finds what is still valid and computes only the
+rest. A file of another cell format is recomputed. Temporary files left by a killed run are
 removed when a store is opened.
 """
 
@@ -12,6 +13,10 @@ import json
 from pathlib import Path
 
 from hysbench.data.files import ensure_dir, write_json
+
+from .cells import CELL_FORMAT
+
+KEPT = ("ok", "nonfinite")  # deterministic outcomes worth keeping; a failed cell is retried
 
 
 class CellStore:
@@ -31,7 +36,8 @@ class CellStore:
             d = json.loads(p.read_text(encoding="utf-8"))
         except (OSError, json.JSONDecodeError):
             return None  # unreadable: recompute
-        return d if d.get("key") == key and d.get("status") == "ok" else None
+        ok = d.get("key") == key and d.get("format") == CELL_FORMAT and d.get("status") in KEPT
+        return d if ok else None
 
     def put(self, result: dict) -> Path:
         return write_json(self.path(result["key"]), result)
