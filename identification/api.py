@@ -43,6 +43,7 @@ from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
 from . import lsq, mpso, varpro
+from .criteria import aic, bic
 from .errors import IdentificationError
 from .fit import Fit
 from .problem import Problem
@@ -238,9 +239,21 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         notes.append("parameters at their bounds: " + ", ".join(f"{n} ({side} {v:.4g})" for n, side, v in at_bounds)
                      + "; the optimum may lie beyond (option bounds widens them)")
     diagnostics["at_bounds"] = [n for n, _, _ in at_bounds]
+    n_nonfinite = problem.n_nonfinite
+    if n_nonfinite:
+        notes.append(f"{n_nonfinite} of {problem.n_evaluations} evaluated parameter sets gave non-finite model "
+                     "output (treated as an infinite fitness during the search)")
     residual = problem.residuals_batch(problem.vector(params)[None])[0]
     problem.n_evaluations -= 1  # the final scoring is not part of the search
-    fitness = float(residual @ residual)
+    finite = bool(np.all(np.isfinite(residual)))
+    fitness = float(residual @ residual) if finite else math.nan
+    if finite:
+        success, message = True, f"identified with {name} in {problem.n_evaluations} evaluations"
+    else:
+        success, message = False, "the model's output is not finite at the identified parameters"
+        notes.append(message + ": the fit is not scored")
+    n_rows = problem.n_rows
+    k = sum(1 for lo, hi in zip(problem.lower, problem.upper) if hi > lo)
     fitted = {r.file for r in records}
     scores = score_records(model, params, dataset.records, problem.input_range)
     scores = [type(s)(s.file, s.frequency_hz, "identification" if s.file in fitted else "validation", s.e_m, s.e_rms)
@@ -267,5 +280,11 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         diagnostics=diagnostics,
         notes=notes,
         version=_version(),
+        success=success,
+        message=message,
+        n_nonfinite=n_nonfinite,
+        n_rows=n_rows,
+        aic=aic(fitness, n_rows, k) if finite else math.nan,
+        bic=bic(fitness, n_rows, k) if finite else math.nan,
         _instance=model,
     )

@@ -4,8 +4,15 @@ A Fit names the model (registry name and hyperparameters) and the method,
 holds the parameters, eq. 9's fitness on the fit records, e_m and e_rms of
 every record of the dataset (identification and validation), the number of
 model evaluations, the wall time, the convergence history, the input range
-that fixes the model's structure, the bounds, options and seed. It simulates
-new inputs and round-trips through JSON (``to_dict`` / ``from_dict``).
+that fixes the model's structure, the bounds, options and seed; whether it
+succeeded (``success`` is False when the model's output is not finite at the
+identified parameters: such a fit is never scored), how many evaluated
+parameter sets gave non-finite output, and AIC / BIC computed once from eq. 9's
+fitness as a Gaussian likelihood with n = the scored rows of the fit records
+and k = the free parameters (identification/criteria.py; residuals are
+correlated, so these favour bigger models: the ablation and the diagnosis use
+the effective-sample-size forms). It simulates new inputs and round-trips
+through JSON (``to_dict`` / ``from_dict``).
 """
 
 from __future__ import annotations
@@ -74,6 +81,12 @@ class Fit:
     diagnostics: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     version: str = ""
+    success: bool = True
+    message: str = ""
+    n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
+    n_rows: int = 0  # scored rows of the fit records
+    aic: float = math.nan
+    bic: float = math.nan
     _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
 
     # --- the fitted model ----------------------------------------------------
@@ -115,6 +128,12 @@ class Fit:
         lines = [
             f"model {self.model} ({self.n_params} parameters), method {self.method}, seed {self.seed}",
             f"fitness (eq. 9) {self.fitness:.6g}   evaluations {self.n_evaluations}   time {self.fit_seconds:.2f} s",
+        ]
+        if not self.success:
+            lines.append(f"FAILED: {self.message}")
+        elif self.n_nonfinite:
+            lines.append(f"{self.n_nonfinite} evaluated parameter sets gave non-finite model output")
+        lines += [
             "",
             f"{'record':<24} {'f (Hz)':>8} {'role':<15} {'e_m %':>8} {'e_rms %':>8}",
         ]
@@ -154,6 +173,12 @@ class Fit:
             "diagnostics": self.diagnostics,
             "notes": self.notes,
             "version": self.version,
+            "success": self.success,
+            "message": self.message,
+            "n_nonfinite": self.n_nonfinite,
+            "n_rows": self.n_rows,
+            "aic": self.aic,
+            "bic": self.bic,
         })
 
     @classmethod
@@ -184,6 +209,12 @@ class Fit:
                 diagnostics=d.get("diagnostics", {}),
                 notes=list(d.get("notes", [])),
                 version=d.get("version", ""),
+                success=bool(d.get("success", True)),
+                message=d.get("message", ""),
+                n_nonfinite=int(d.get("n_nonfinite", 0)),
+                n_rows=int(d.get("n_rows", 0)),
+                aic=_float(d.get("aic")),
+                bic=_float(d.get("bic")),
             )
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise IdentificationError(f"malformed fit record: {exc!r}") from None

@@ -59,6 +59,7 @@ class Problem:
     n_evaluations: int = 0
     history: list[tuple[int, float]] = field(default_factory=list)
     best_fitness: float = math.inf
+    n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
@@ -112,7 +113,9 @@ class Problem:
         Each record is simulated for the whole batch in one
         ``simulate_window_batch`` call (split only when the output would exceed
         MAX_BATCH_ELEMENTS).
-        Non-finite outputs give +inf residuals.
+        A parameter set whose model output is not finite gets +inf residuals, so that a
+        search moves away from it; such sets are counted in ``n_nonfinite`` and the Fit
+        reports them (never scored silently).
         """
         P = np.atleast_2d(np.asarray(P, dtype=float))
         n_set = P.shape[0]
@@ -131,7 +134,10 @@ class Problem:
 
         for m in range(len(self.records)):
             one(m)
-        out[~np.isfinite(out)] = np.inf
+        bad = ~np.isfinite(out)
+        if bad.any():
+            self.n_nonfinite += int(np.count_nonzero(bad.any(axis=1)))
+            out[bad] = np.inf
         self.n_evaluations += n_set
         return out
 

@@ -143,7 +143,7 @@ class SeparableProblem:
         fitness only at second order. ``accurate`` (the reported optimum): a
         Householder QR of [A_s, b] and the SVD of its small triangle
         (condition numbers exact up to ~1e16). A model output that is not
-        finite gives an infinite fitness.
+        finite gives an infinite fitness and is counted in the problem's ``n_nonfinite``.
         """
         w = self.problem.row_weights
         ys = self._ys
@@ -159,6 +159,7 @@ class SeparableProblem:
             with np.errstate(over="ignore"):
                 D = np.sqrt(np.einsum("ij,ij->j", A, A))
             if not np.all(np.isfinite(D)):
+                self.problem.n_nonfinite += 1
                 return blown_up
             D[~(D > 0)] = 1.0
             Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
@@ -171,6 +172,7 @@ class SeparableProblem:
                 G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
                 Atb = self._Atb(blocks)
             if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
+                self.problem.n_nonfinite += 1
                 return blown_up
             D = np.sqrt(np.diag(G)).copy()
             D[~(D > 0)] = 1.0

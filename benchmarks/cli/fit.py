@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from hysbench.data.files import ensure_dir, write_json
@@ -67,4 +68,7 @@ def main(args) -> int:
     if args.json:
         write_json(args.json, fit.to_dict())
         print(f"\nwrote {args.json}")
+    if not fit.success:
+        print(f"hysbench fit: {fit.message}", file=sys.stderr)
+        return 1
     return 0
