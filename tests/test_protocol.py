@@ -44,13 +44,20 @@ def test_protocol_constants_match_table1():
     np.testing.assert_allclose(v, [0.5, 1.5, 2.5], atol=1e-12)
 
 
-def test_simulated_dataset_scores_zero_against_itself():
+def test_scores_of_a_known_error_on_the_scored_window():
+    """A prediction off by a constant c on a record's scored window scores e_m = e_rms = 100 c / ptp
+    of the measured window (eq. 10), and records keep the roles of Table 1."""
     model = get_model("mrpim")
-    ds = protocol.simulated_dataset(model, model.preset("paper"), n_periods=1.2, frequencies=(0.4, 0.8, 1.0))
-    scores = protocol.score_records(model, model.preset("paper"), ds.records)
+    truth = model.preset("paper")
+    ds = protocol.simulated_dataset(model, truth, n_periods=1.2, frequencies=(0.4, 0.8, 1.0))
+    shifted = {**truth, "offset": truth["offset"] + 0.05}
+    scores = protocol.score_records(model, shifted, ds.records)
     assert [s.role for s in scores] == ["identification", "validation", "identification"]
-    assert all(s.e_m == 0 and s.e_rms == 0 for s in scores)
-    assert ds.records[0].n_scored == 2500
+    for s, r in zip(scores, ds.records):
+        window = r.y[r.scored]
+        assert s.e_m == pytest.approx(100 * 0.05 / (window.max() - window.min()), rel=1e-9)
+        assert s.e_rms == pytest.approx(s.e_m, rel=1e-9)
+    assert ds.records[0].n_scored == 2500  # the last whole period of 0.4 Hz at 1 kHz
 
 
 def test_reproduce_writes_report(tmp_path):
@@ -59,8 +66,17 @@ def test_reproduce_writes_report(tmp_path):
     assert proc.returncode == 0, proc.stderr
     r = json.loads((tmp_path / "paper_reproduction.json").read_text())
     assert set(r["frequencies"]) == {"0.02", "0.05", "0.1", "0.2", "0.4", "0.8", "1"}
-    p2p = [r["frequencies"][f]["p2p"] for f in ("0.02", "1")]
-    assert r["p2p_change_pct"] == pytest.approx(100 * (p2p[1] - p2p[0]) / p2p[0])
+    # the stable (second) period's peak-to-peak, computed here from a plain simulation
+    model = get_model("mrpim", offset=False)
+    p2p = {}
+    for f in (0.02, 1.0):
+        n = int(round(1 / (f * 1e-3)))
+        u = 1.5 + np.sin(2 * np.pi * f * np.arange(2 * n) * 1e-3 - np.pi / 2)
+        y = model.simulate(u, 1e-3, model.preset("paper"))[n:]
+        p2p[f] = y.max() - y.min()
+        assert r["frequencies"][f"{f:g}"]["p2p"] == pytest.approx(p2p[f], rel=1e-9)
+    assert r["p2p_change_pct"] == pytest.approx(100 * (p2p[1.0] - p2p[0.02]) / p2p[0.02], rel=1e-9)
+    assert r["p2p_change_pct"] == pytest.approx(-40.3, abs=0.05)  # README's finding: the paper says -27.26
     assert "width_change_pct" in r and (tmp_path / "paper_reproduction.md").is_file()
 
 
