@@ -510,6 +510,7 @@ def run_ablation(dataset: Dataset, *, reference: Variant = PAPER, orders: Sequen
                    "n_variants": len(rows), "n_fits": sum(1 + len(r.get("cv_folds", [])) for r in rows),
                    "fit_seconds_sum": sum(r["fit_seconds"] + r.get("cv_seconds", 0.0) for r in rows)},
     }
+    result["verdicts"] = verdicts(result)
     result["conclusions"] = conclusions(result)
     return result
 
@@ -599,6 +600,28 @@ def _smallest_adequate(rows: list[dict], key: str) -> tuple[dict, dict]:
         if r is best or compare(best, r)["verdict"] != "worse":
             return best, r
     return best, best
+
+
+def verdicts(result: dict) -> dict:
+    """The verdicts behind the conclusions, as data: for q_term and envelopes, what removing the part
+    does to the cross-validated error ("worse", "better" or "tie"); for order and n_operators, the
+    smallest value not worse than the best."""
+    rows = result["variants"]
+    ref = next(r for r in rows if r["reference"])
+    out = {}
+    if not ref.get("cv_folds"):
+        return out
+    for factor in ("q_term", "envelopes"):
+        other = next((r for r in _family(rows, factor) if r[factor] != ref[factor]), None)
+        if other is not None:
+            with_it, without = (ref, other) if ref[factor] else (other, ref)
+            out[factor] = {"without": compare(with_it, without)["verdict"]}
+    for factor in ("order", "n_operators"):
+        fam = _family(rows, factor)
+        if len(fam) >= 2:
+            best, enough = _smallest_adequate(fam, factor)
+            out[factor] = {"enough": enough[factor], "best": best[factor]}
+    return out
 
 
 def conclusions(result: dict) -> list[str]:

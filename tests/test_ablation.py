@@ -71,7 +71,7 @@ def test_without_q_no_worse_when_truth_has_no_q(q_zero):
     with_q, without_q = row(res, PAPER), row(res, PAPER.with_(q_term=False))
     assert without_q["validation_e_rms"] <= with_q["validation_e_rms"] + tol
     assert without_q["cv_e_rms"] <= with_q["cv_e_rms"] + tol
-    assert not any("q V'' term earns" in c for c in res["conclusions"])
+    assert res["verdicts"]["q_term"]["without"] != "worse"
 
 
 def test_q_earns_its_keep_when_truth_has_q(table2):
@@ -79,7 +79,7 @@ def test_q_earns_its_keep_when_truth_has_q(table2):
     ds, res = table2
     with_q, without_q = row(res, PAPER), row(res, PAPER.with_(q_term=False))
     assert without_q["cv_e_rms"] > with_q["cv_e_rms"] + 10 * noise_floor(ds)
-    assert any("q V'' term earns its keep" in c for c in res["conclusions"])
+    assert res["verdicts"]["q_term"]["without"] == "worse"
 
 
 @pytest.mark.parametrize("which", ["q_zero", "table2"])
@@ -89,7 +89,7 @@ def test_removing_envelopes_costs_validation_accuracy(which, request):
     with_env, without_env = row(res, PAPER), row(res, PAPER.with_(envelopes=False))
     assert without_env["validation_e_rms"] > with_env["validation_e_rms"] + 2 * floor
     assert without_env["cv_e_rms"] > with_env["cv_e_rms"] + 2 * floor
-    assert any("envelopes (gamma, lambda) earn their keep" in c for c in res["conclusions"])
+    assert res["verdicts"]["envelopes"]["without"] == "worse"
     assert with_env["validation_e_rms"] < 1.5 * floor  # the true structure fits to the noise
 
 
@@ -105,7 +105,7 @@ def test_orders_above_the_truth_do_not_improve_cv():
     for k in range(3, 7):
         assert cv[k] >= cv[2] - tol, (k, cv)
     assert cv[1] > cv[2] + 10 * noise_floor(ds)  # control: too low an order is visibly worse
-    assert any("order = 2 is enough" in c for c in res["conclusions"]), res["conclusions"]
+    assert res["verdicts"]["order"]["enough"] == 2, res["verdicts"]
 
 
 # --- the protocol's pieces -----------------------------------------------------------------

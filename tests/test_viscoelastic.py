@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.optimize import least_squares
 
+from hysbench.data import Dataset, Record
 from hysbench.data import virtual_dea as vd
+from hysbench.identification import identify
 from hysbench.models import DataScale, ModelError, get_model, list_models
 
 DT = 1e-3
@@ -108,42 +109,24 @@ def test_bad_input_and_hyperparameters(model, truth):
 
 
 def test_identifies_its_own_simulated_data(model, truth):
-    """Varpro on three short records with sensor-like noise: from 15-20 % off, every parameter back within 2 %."""
+    """``identify`` (varpro) on three short records with sensor-like noise: from 15-20 % off, every
+    parameter back within 2 % and the residual at the noise."""
     records = [vd.command_voltage(f, int(T / DT)) for f, T in ((1.0, 6.0), (0.2, 15.0), (0.05, 60.0))]
     rng = np.random.default_rng(0)
     noise = 0.01
-    data = np.concatenate([model.simulate(u, DT, {**truth, "offset": 0.2}) + rng.normal(0, noise, u.size)
-                           for u in records])
+    ds = Dataset("own", [Record(f"r{i}.csv", np.arange(u.size) * DT, u,
+                                model.simulate(u, DT, {**truth, "offset": 0.2}) + rng.normal(0, noise, u.size))
+                         for i, u in enumerate(records)])
     names = model.nonlinear_names
-    n_lin = len(model.linear_names)
-
-    def residuals(thetas):
-        P = np.column_stack([np.exp(thetas), np.ones((len(thetas), n_lin))])
-        stretch = [model.stretch_batch(u, DT, P) for u in records]
-        out = []
-        for i in range(len(thetas)):
-            A = np.column_stack([np.concatenate([s[i] for s in stretch]), np.ones(data.size)])
-            coef, *_ = np.linalg.lstsq(A, data, rcond=None)
-            out.append(A @ coef - data)
-        return np.array(out), coef
-
-    def fun(theta):
-        return residuals(theta[None])[0][0]
-
-    def jac(theta, h=1e-4):
-        F = residuals(np.vstack([theta[None], theta[None] + h * np.eye(theta.size)]))[0]
-        return ((F[1:] - F[0]) / h).T
-
-    true_theta = np.log([truth[n] for n in names])
-    start = true_theta + np.log([1.2, 0.85, 1.15, 0.85, 1.2, 1.15, 0.85, 1.2])
-    sol = least_squares(fun, start, jac=jac, method="lm", xtol=1e-10, ftol=1e-12)
-    fitted = dict(zip(names, np.exp(sol.x)))
+    off = dict(zip(names, [1.2, 0.85, 1.15, 0.85, 1.2, 1.15, 0.85, 1.2]))
+    fit = identify(model, ds, "varpro", seed=0, start={n: truth[n] * off[n] for n in names},
+                   n_candidates=0, n_starts=1, max_nfev=100, tol=1e-10)
+    assert fit.success
     for n in names:
-        assert fitted[n] == pytest.approx(truth[n], rel=0.02), n
-    assert np.sqrt(np.mean(sol.fun**2)) == pytest.approx(noise, rel=0.05)
-    _, coef = residuals(sol.x[None])
-    assert coef[0] == pytest.approx(truth["length"], rel=0.02)
-    assert coef[1] == pytest.approx(0.2, abs=0.02)
+        assert fit.params[n] == pytest.approx(truth[n], rel=0.02), n
+    assert np.sqrt(fit.fitness / len(ds.records)) == pytest.approx(noise, rel=0.05)  # eq. 9: mean square per record
+    assert fit.params["length"] == pytest.approx(truth["length"], rel=0.02)
+    assert fit.params["offset"] == pytest.approx(0.2, abs=0.02)
 
 
 def test_windowed_forms_equal_the_full_simulation(truth):
