@@ -1,4 +1,4 @@
-"""Calibrate the virtual DEA against the paper's figures: ``python -m hysbench.data.calibrate_virtual_dea``.
+"""Calibrate the virtual DEA against the paper's figures: ``hysbench report calibrate-virtual-dea``.
 
 Targets (issue 3, from the paper's section 2.3), in the periodic steady state:
 peak-to-peak change from 0.02 to 1 Hz -27.3 % +- 2, loop width change +21.8 % +- 3,
@@ -25,9 +25,7 @@ seven frequencies; the rounded set is what ``virtual_dea.TRUTH`` holds.
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 import time
 
 import numpy as np
@@ -210,34 +208,3 @@ def describe(p: DEAParameters) -> str:
     return (f"mu = {p.mu / 1e3:g} kPa, J = {p.J:g}, eta_v = {p.eta_v / 1e3:g} kPa s, branches (mu_k, tau_k) = {br}, "
             f"lam0 x lam_t = {p.lam0:g} x {p.lam_t:g}, L_active = L_passive = {p.L_active * 1e3:g} mm, "
             f"H = {p.H * 1e3:g} mm, eps_r = {p.eps_r:g}")
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hysbench.data.calibrate_virtual_dea", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--start", choices=("issue", "perturbed"), default="issue",
-                        help="start from the issue's known-good set, or from it perturbed (default: issue)")
-    parser.add_argument("--max-nfev", type=int, default=30)
-    args = parser.parse_args(argv)
-    start = ISSUE_START if args.start == "issue" else perturbed(ISSUE_START)
-    print(f"start:  {describe(start)}")
-    r = calibrate(start, args.max_nfev)
-    figs = r["figures"]
-    print(f"found:  {describe(r['found'])}")
-    print(f"final (3 significant digits): {describe(r['final'])}")
-    print(f"  p2p change 0.02->1 Hz {figs['p2p_change_pct']:+.2f} %, width change {figs['width_change_pct']:+.2f} %, "
-          f"creep transition at 0.1 Hz {figs['creep_transition_s'][0.1]:.0f} s, "
-          f"max displacement {figs['max_displacement_mm']:.2f} mm")
-    print("  p2p (mm):   " + ", ".join(f"{f:g} Hz {v:.3f}" for f, v in figs["p2p_mm"].items()))
-    print("  width (mm): " + ", ".join(f"{f:g} Hz {v:.3f}" for f, v in figs["width_mm"].items()))
-    ok = meets_targets(figs)
-    print("  targets met: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in ok.items()))
-    print(f"  {r['evaluations']} parameter sets simulated in {r['seconds']:.0f} s ({r['status']})")
-    p = r["final"]
-    print("\nDEAParameters(mu={!r}, J={!r}, eta_v={!r}, mu_k={!r}, tau_k={!r})".format(
-        p.mu, p.J, p.eta_v, p.mu_k, p.tau_k))
-    return 0 if all(ok.values()) else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

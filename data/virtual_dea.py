@@ -82,6 +82,7 @@ from hysbench.models.errors import HysbenchError
 from hysbench.models import dea_physics
 from hysbench.models.dea_physics import ISSUE_START, TRUTH, DEAParameters  # noqa: F401 (re-exported)
 from .dataset import Dataset, Record, replace_folder, save_dataset
+from .files import write_json
 from .dea_sensor import LaserSensor
 
 DATASET_NAME = "virtual-dea"
@@ -370,8 +371,6 @@ def truth(seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH, sensor: Laser
 def write_dataset(folder: str | os.PathLike, seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH,
                   sensor: LaserSensor = LaserSensor()) -> Path:
     """Generate and write the dataset (records as compressed .npz, dataset.toml, truth.json), atomically."""
-    from hysbench.data.files import write_json
-
     folder = Path(folder)
     ds, runs = generate(seed, params, sensor)
     folder.parent.mkdir(parents=True, exist_ok=True)

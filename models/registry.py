@@ -28,6 +28,10 @@ def register(name: str, factory: Callable[..., HysteresisModel] | None = None, *
     return add(factory) if factory is not None else add
 
 
+def is_registered(name: str) -> bool:
+    return name in _REGISTRY
+
+
 def list_models(matrix_only: bool = False) -> list[str]:
     """Registered names; ``matrix_only``: those the default benchmark matrix runs."""
     return sorted(n for n in _REGISTRY if not (matrix_only and n in _NOT_IN_MATRIX))

@@ -54,7 +54,7 @@ def read_matrix(path: Path, drop_timing=True):
 
 
 def test_matrix_columns_and_report(small_dataset, tmp_path):
-    proc = run(["--dataset", str(small_dataset), "--out", str(tmp_path), "--jobs", "2", *FAST])
+    proc = run([str(small_dataset), "--out", str(tmp_path), "--jobs", "2", *FAST])
     assert proc.returncode == 0, proc.stderr
     rows = read_matrix(tmp_path, drop_timing=False)
     needed = {"dataset", "model", "method", "record", "frequency_hz", "role", "e_m", "e_rms", "fitness",
@@ -75,13 +75,13 @@ def test_matrix_columns_and_report(small_dataset, tmp_path):
 def test_same_seed_gives_identical_matrix(small_dataset, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     for out in (a, b):
-        proc = run(["--dataset", str(small_dataset), "--out", str(out), "--jobs", "1", "--seed", "3", *FAST])
+        proc = run([str(small_dataset), "--out", str(out), "--jobs", "1", "--seed", "3", *FAST])
         assert proc.returncode == 0, proc.stderr
     assert read_matrix(a) == read_matrix(b)  # all but the wall-clock columns
 
 
 def test_resume_after_kill(small_dataset, tmp_path):
-    args = CLI + ["run", "--quiet", "--dataset", str(small_dataset), "--out", str(tmp_path), "--jobs", "1",
+    args = CLI + ["run", "--quiet", str(small_dataset), "--out", str(tmp_path), "--jobs", "1",
                   "--models", "mrpim,classical-pi", "--methods", "mpso,lsq",
                   "--option", "mpso.iterations=15", "--option", "lsq.max_nfev=80"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
@@ -111,12 +111,12 @@ def test_resume_after_kill(small_dataset, tmp_path):
 def test_dask_cluster_gives_the_same_matrix(small_dataset, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     local = tmp_path / "local"
-    proc = run(["--dataset", str(small_dataset), "--out", str(local), "--jobs", "1", *FAST])
+    proc = run([str(small_dataset), "--out", str(local), "--jobs", "1", *FAST])
     assert proc.returncode == 0, proc.stderr
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
         on_dask = tmp_path / "dask"
-        proc = run(["--dataset", str(small_dataset), "--out", str(on_dask), "--dask", cluster.scheduler_address,
+        proc = run([str(small_dataset), "--out", str(on_dask), "--dask", cluster.scheduler_address,
                     *FAST])
         assert proc.returncode == 0, proc.stderr
     assert read_matrix(local) == read_matrix(on_dask)
@@ -125,9 +125,9 @@ def test_dask_cluster_gives_the_same_matrix(small_dataset, tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["--models", "mrpim,nosuch"], "unknown model 'nosuch'"),
     (["--methods", "gradient-descent"], "unknown method 'gradient-descent'"),
-    (["--jobs", "0"], "--jobs must be at least 1"),
-    (["--seed", "-4"], "--seed must not be negative"),
-    (["--jobs", "many"], "invalid int value"),
+    (["--jobs", "0"], "argument --jobs: expected an integer >= 1"),
+    (["--seed", "-4"], "argument --seed: expected an integer >= 0"),
+    (["--jobs", "many"], "argument --jobs: expected an integer >= 1, got 'many'"),
     (["--models", ","], "--models needs at least one name"),
     (["--option", "mpso-max=3"], "expected METHOD.KEY=VALUE"),
     (["--methods", "varpro", "--option", "mpso.iterations=3"], "not being run"),
@@ -136,7 +136,7 @@ def test_dask_cluster_gives_the_same_matrix(small_dataset, tmp_path):
 ])
 def test_bad_options(small_dataset, tmp_path, args, message):
     out = tmp_path / "out"
-    proc = run(["--dataset", str(small_dataset), "--out", str(out), *args])
+    proc = run([str(small_dataset), "--out", str(out), *args])
     assert proc.returncode == 2
     assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
     assert not out.exists()  # nothing written
@@ -146,14 +146,14 @@ def test_refused_dataset(tmp_path):
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "dataset.toml").write_text('name = "x"\n')
-    proc = run(["--dataset", str(bad), "--out", str(tmp_path / "out")])
+    proc = run([str(bad), "--out", str(tmp_path / "out")])
     assert proc.returncode == 2 and "missing key(s)" in proc.stderr and proc.stderr.count("\n") == 1
 
 
 def test_unwritable_output(small_dataset, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    proc = run(["--dataset", str(small_dataset), "--out", str(blocker / "out"), *FAST])
+    proc = run([str(small_dataset), "--out", str(blocker / "out"), *FAST])
     assert proc.returncode == 2 and "cannot create output folder" in proc.stderr
     assert proc.stderr.count("\n") == 1
 
@@ -165,7 +165,7 @@ def test_measured_data_matrix(shared_datasets, tmp_path):
     piezo = piezo_dataset(shared_datasets, tmp_path / "piezo")
     pzt = pzt_dataset(shared_datasets, tmp_path / "pzt")
     out = tmp_path / "out"
-    proc = run(["--dataset", str(piezo), "--dataset", str(pzt), "--out", str(out), "--jobs", "2",
+    proc = run([str(piezo), str(pzt), "--out", str(out), "--jobs", "2",
                 "--models", "mrpim,classical-pi,preisach", "--methods", "varpro"])
     assert proc.returncode == 0, proc.stderr
     rows = read_matrix(out)

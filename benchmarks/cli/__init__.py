@@ -1,7 +1,8 @@
 """The ``hysbench`` command line.
 
-Each subcommand lives in its own module with ``add_arguments(parser)`` and
-``main(args) -> int``. Bad input (an unknown model, a refused dataset, bad
+Each subcommand lives in its own module with ``EXAMPLE`` (shown by ``--help``),
+``add_arguments(parser)`` and ``main(args) -> int``; shared argument types are in
+``common``. Bad input (an unknown model, a refused dataset, bad
 options, an unwritable output folder) is printed as one line on stderr with
 exit status 2, never as a traceback.
 """
@@ -26,6 +27,8 @@ COMMANDS = {
     "reproduce": ("hysbench.benchmarks.cli.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
     "ablate": ("hysbench.benchmarks.cli.ablate", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
+    "report": ("hysbench.benchmarks.cli.report", "regenerate a report: identification, baselines, virtual-dea, "
+                                                 "calibrate-virtual-dea"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
 }
@@ -36,14 +39,19 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     sub.required = True
     for name, (module, help_text) in COMMANDS.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
+        mod = importlib.import_module(module)
+        p = sub.add_parser(name, help=help_text, description=help_text, epilog=f"example:\n  {mod.EXAMPLE}",
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_module=module)
-        importlib.import_module(module).add_arguments(p)
+        mod.add_arguments(p)
     return parser
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error already printed in one line (2)
+        return int(exc.code or 0)
     try:
         return int(importlib.import_module(args._module).main(args) or 0)
     except HysbenchError as exc:

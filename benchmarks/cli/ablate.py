@@ -13,15 +13,18 @@ from hysbench.benchmarks.ablation import N_OPERATORS, ORDERS, AblationError, run
 from hysbench.benchmarks.reports.ablation import write_outputs
 from hysbench.data.files import ensure_dir
 
+from .common import add_dataset_argument, add_jobs_argument, add_seed_argument, dataset_paths
+
+EXAMPLE = "hysbench ablate data/virtual_dea --orders 1,2,4 --operators 7,13 --no-grid"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", metavar="DATASET", nargs="?", default=None,
-                        help="dataset folder holding dataset.toml (default: the virtual DEA, data/virtual_dea)")
+    add_dataset_argument(parser)
     parser.add_argument("--out", default="results", help="folder for ablation.md, ablation.json, ablation.png "
                                                           "(default: results/)")
     parser.add_argument("--json", metavar="FILE", help="also write the JSON here")
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the varpro candidates (default 0)")
+    add_jobs_argument(parser)
+    add_seed_argument(parser, what="the varpro candidates")
     parser.add_argument("--orders", default=",".join(map(str, ORDERS)),
                         help=f"polynomial orders (default {','.join(map(str, ORDERS))})")
     parser.add_argument("--operators", default=",".join(map(str, N_OPERATORS)),
@@ -30,12 +33,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--full-records", action="store_true",
                         help="fit the records whole (no trimming of periodic history before the windows)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
-
-
-def default_dataset() -> Path:
-    import hysbench.data
-
-    return Path(hysbench.data.__file__).resolve().parent / "virtual_dea"
 
 
 def _integers(text: str, what: str, minimum: int) -> list[int]:
@@ -50,15 +47,11 @@ def _integers(text: str, what: str, minimum: int) -> list[int]:
 
 def main(args: argparse.Namespace) -> int:
     jobs = (os.cpu_count() or 1) if args.jobs is None else args.jobs
-    if jobs < 1:
-        raise AblationError(f"--jobs must be at least 1, got {args.jobs}")
-    if args.seed < 0:
-        raise AblationError(f"--seed must not be negative, got {args.seed}")
     orders = _integers(args.orders, "orders", 0)
     if max(orders) > 12:
         raise AblationError(f"--orders: the model allows orders up to 12, got {max(orders)}")
     n_ops = _integers(args.operators, "operators", 1)
-    dataset = load_dataset(args.dataset or default_dataset())
+    dataset = load_dataset(dataset_paths(args.dataset)[0])
     out = ensure_dir(args.out)
     if args.json:
         ensure_dir(Path(args.json).resolve().parent)

@@ -6,13 +6,17 @@ import argparse
 
 from hysbench.data.dataset import load_dataset
 
+from .common import add_dataset_argument, dataset_paths
+
+EXAMPLE = "hysbench check ../shared/datasets/piezo_sindy_1hz"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="dataset folder (holding dataset.toml)")
+    add_dataset_argument(parser)
 
 
 def main(args) -> int:
-    ds = load_dataset(args.dataset)
+    ds = load_dataset(dataset_paths(args.dataset)[0])
     print(f"{ds.name}: {len(ds.records)} records ({len(ds.identification)} identification, "
           f"{len(ds.validation)} validation); input {ds.input_unit or '?'}, output {ds.output_unit or '?'}")
     print(f"{'file':<28} {'role':<15} {'f (Hz)':>8} {'weight':>6} {'samples':>9} {'dt (s)':>10} {'scored':>16}")

@@ -21,6 +21,10 @@ from hysbench.models.errors import HysbenchError
 
 from hysbench.data.virtual_dea import DEFAULT_SEED, write_dataset
 
+from .common import nonnegative_int
+
+EXAMPLE = "hysbench data virtual-dea --out /tmp/virtual_dea --seed 7"
+
 SEED_MAX = 2**63 - 1
 
 
@@ -34,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p = sub.add_parser("virtual-dea", help="the virtual DEA's seven records (the default dataset)",
                        description=__doc__.split("\n\n")[1])
     p.add_argument("--out", required=True, help="output folder (replaced if it is a dataset folder)")
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED,
+    p.add_argument("--seed", type=nonnegative_int, default=DEFAULT_SEED,
                    help=f"seed of the sensor noise (default {DEFAULT_SEED}, the shipped dataset's)")
 
 

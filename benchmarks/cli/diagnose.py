@@ -13,15 +13,21 @@ import argparse
 import sys
 import time
 
-from hysbench.benchmarks.cli.common import nonnegative_int, positive_int
+from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, dataset_paths, positive_int
+from hysbench.benchmarks.diagnosis.causes import MAX_ROWS
+from hysbench.benchmarks.diagnosis.diagnose import diagnose
+from hysbench.benchmarks.diagnosis.report import write_report
+from hysbench.models import get_model
+
+EXAMPLE = "hysbench diagnose data/virtual_dea --model mrpim --out results"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="dataset folder (holding dataset.toml)")
+    add_dataset_argument(parser)
     parser.add_argument("--model", default="mrpim", help="base model (registry name, default mrpim)")
     parser.add_argument("--out", default="results", help="folder for diagnosis.md, figures and JSON (default results/)")
     parser.add_argument("--json", default=None, metavar="FILE", help="write the JSON here (default OUT/diagnosis.json)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the identifiers and the row subset")
+    add_seed_argument(parser, what="the identifiers and the row subset")
     parser.add_argument("--max-rows", type=positive_int, default=None,
                         help="samples per record in the candidate screen (default 10000)")
     parser.add_argument("--note", default="", help="a line put at the top of diagnosis.md")
@@ -29,12 +35,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    from hysbench.models import get_model
-
-    from hysbench.benchmarks.diagnosis.causes import MAX_ROWS
-    from hysbench.benchmarks.diagnosis.diagnose import diagnose
-    from hysbench.benchmarks.diagnosis.report import write_report
-
     model = get_model(args.model)  # an unknown name fails here, before any work
     t0 = time.perf_counter()
 
@@ -42,7 +42,7 @@ def main(args) -> int:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    diag = diagnose(args.dataset, model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS, progress=say)
+    diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS, progress=say)
     say("writing the report")
     data = write_report(diag, args.out, args.json, note=args.note)
     print(verdict(diag, data))

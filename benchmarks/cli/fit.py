@@ -20,16 +20,19 @@ from hysbench.data.files import ensure_dir, write_json
 from hysbench.models import get_model
 
 from hysbench.identification.api import identify, list_methods
-from hysbench.identification.errors import IdentificationError
+
+from .common import add_dataset_argument, add_seed_argument, dataset_paths, parse_key_values
+
+EXAMPLE = "hysbench fit data/virtual_dea --model mrpim --method varpro --json fit.json"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", metavar="DATASET", help="dataset folder (holding dataset.toml) or its dataset.toml")
+    add_dataset_argument(parser)
     parser.add_argument("--model", required=True, help="registered model name, e.g. mrpim")
     parser.add_argument("--method", default="auto",
                         help=f"identifier: {', '.join(list_methods())} (default: auto = varpro when the model has a "
                              "linear part, else lsq)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_seed_argument(parser, what="the identifier")
     parser.add_argument("--json", metavar="FILE", help="write the fit as JSON to FILE")
     parser.add_argument("--hyper", metavar="KEY=VALUE", action="append", default=[],
                         help="model hyperparameter, e.g. --hyper offset=false (repeatable)")
@@ -37,33 +40,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="identifier option, e.g. --option n_starts=4 or --option lsq.max_nfev=50 (repeatable)")
 
 
-def parse_assignments(items: list[str], what: str) -> dict:
-    """['a=1', 'b=[1, 2]'] -> {'a': 1, 'b': [1, 2]} (JSON values, else strings)."""
-    out = {}
-    for item in items:
-        key, sep, raw = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise IdentificationError(f"{what} {item!r} is not KEY=VALUE")
-        raw = raw.strip()
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            lowered = raw.lower()
-            value = {"true": True, "false": False, "none": None}.get(lowered, raw)
-        out[key] = value
-    return out
-
-
 def main(args) -> int:
-    if args.seed < 0:
-        raise IdentificationError(f"--seed must be a non-negative integer, got {args.seed}")
-    hyper = parse_assignments(args.hyper, "--hyper")
-    options = parse_assignments(args.option, "--option")
+    hyper = parse_key_values(args.hyper, "--hyper")
+    options = parse_key_values(args.option, "--option")
+    dataset = dataset_paths(args.dataset)[0]
     model = get_model(args.model, **hyper)
     if args.json:  # refuse an unwritable destination before spending time on the fit
         ensure_dir(Path(args.json).parent)
-    fit = identify(model, args.dataset, method=args.method, seed=args.seed, **options)
+    fit = identify(model, dataset, method=args.method, seed=args.seed, **options)
     print(fit.summary())
     if args.json:
         write_json(args.json, fit.to_dict())

@@ -20,7 +20,10 @@ import shlex
 import sys
 from pathlib import Path
 
-from hysbench.benchmarks.cli.common import nonnegative_int, positive_int
+from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, dataset_paths, nonnegative_int,
+                                           positive_int)
+
+EXAMPLE = "hysbench posterior data/virtual_dea --walkers 16 --steps 4000 --out results"
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.data.dataset import load_dataset
 from hysbench.models import get_model
@@ -46,7 +49,7 @@ def _non_negative_float(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", help="dataset folder (holding dataset.toml)")
+    add_dataset_argument(parser)
     parser.add_argument("--model", default="mrpim", help="registry name of a partly linear model (default mrpim)")
     parser.add_argument("--noise", default="ar1", choices=NOISE_MODELS,
                         help="residual noise model: ar1 (default) or iid (independent, for contrast)")
@@ -61,7 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="burn-in steps, or auto (default: 5 autocorrelation times)")
     parser.add_argument("--moves", default="de", choices=sorted(MOVES),
                         help="emcee moves: de (differential evolution 0.8 + snooker 0.2, default) or stretch")
-    parser.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
+    add_seed_argument(parser, what="the sampler and the predictive draws")
     parser.add_argument("--draws", type=positive_int, default=200,
                         help="posterior draws for the predictive bands (default 200)")
     parser.add_argument("--out", default="results", help="output folder (default results/)")
@@ -75,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def canonical_command(args) -> str:
     """The command line that reproduces this run (every sampling setting spelled out)."""
-    parts = ["hysbench", "posterior", args.dataset, "--model", args.model, "--noise", args.noise, "--walkers",
+    parts = ["hysbench", "posterior", str(dataset_paths(args.dataset)[0]), "--model", args.model, "--noise", args.noise, "--walkers",
              str(args.walkers), "--steps", str(args.steps), "--min-ess", f"{args.min_ess:g}", "--burn", str(args.burn),
              "--moves", args.moves, "--seed", str(args.seed), "--draws", str(args.draws), "--out", args.out]
     if args.fixed_steps:
@@ -87,7 +90,7 @@ def canonical_command(args) -> str:
 
 def main(args) -> int:
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    dataset = load_dataset(args.dataset)
+    dataset = load_dataset(dataset_paths(args.dataset)[0])
     model = get_model(args.model)
     out = ensure_dir(args.out)
     json_path = Path(args.json) if args.json else out / "posterior.json"

@@ -21,6 +21,8 @@ from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, period_samples, protocol_time
 
+EXAMPLE = "hysbench reproduce --out results"
+
 PAPER_P2P_CHANGE_PCT = -27.26
 PAPER_WIDTH_CHANGE_PCT = 21.8
 

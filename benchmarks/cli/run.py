@@ -19,21 +19,19 @@ from hysbench.benchmarks.matrix.execute import run_matrix
 from hysbench.benchmarks.matrix.report import write_matrix_csv, write_report
 from hysbench.benchmarks.matrix.store import CellStore
 
+from .common import (add_dataset_argument, add_jobs_argument, add_seed_argument, comma_list, dataset_paths,
+                     parse_method_options)
 
-def default_dataset() -> Path:
-    import hysbench.data
-
-    return Path(hysbench.data.__file__).resolve().parent / "virtual_dea"
+EXAMPLE = "hysbench run data/virtual_dea --models mrpim,classical-pi --methods varpro,lsq --option lsq.max_nfev=60"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--dataset", action="append", metavar="DIR",
-                        help="dataset folder; repeat for several (default: the virtual DEA in data/virtual_dea)")
-    parser.add_argument("--models", help="comma-separated model names (default: every registered model)")
+    add_dataset_argument(parser, many=True)
+    parser.add_argument("--models", help="comma-separated model names (default: the registry's matrix models)")
     parser.add_argument("--methods", help="comma-separated identifiers (default: every one that applies)")
     parser.add_argument("--out", default="results", help="output folder (default: results/)")
-    parser.add_argument("--jobs", type=int, default=None, help="local worker processes (default: all cores)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of every identifier (default 0)")
+    add_jobs_argument(parser)
+    add_seed_argument(parser)
     parser.add_argument("--dask", metavar="ADDRESS", help="run the cells on this Dask scheduler instead")
     parser.add_argument("--option", action="append", default=[], metavar="METHOD.KEY=VALUE",
                         help="an identifier option, e.g. mpso.iterations=50 (repeatable)")
@@ -41,31 +39,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the identifiers' own default budgets instead of the matrix's (much slower)")
     parser.add_argument("--force", action="store_true", help="recompute cells that are already finished")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
-
-
-def _names(text: str | None, what: str) -> list[str] | None:
-    if text is None:
-        return None
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    if not names:
-        raise HysbenchError(f"--{what} needs at least one name")
-    return names
-
-
-def parse_options(items: list[str]) -> dict[str, dict]:
-    """['mpso.iterations=50'] -> {'mpso': {'iterations': 50}}."""
-    out: dict[str, dict] = {}
-    for item in items:
-        head, sep, raw = item.partition("=")
-        method, dot, key = head.partition(".")
-        if not (sep and dot and method and key):
-            raise HysbenchError(f"--option {item!r}: expected METHOD.KEY=VALUE")
-        try:
-            value = json.loads(raw)
-        except json.JSONDecodeError:
-            value = raw
-        out.setdefault(method, {})[key] = value
-    return out
 
 
 def _shown(path: Path) -> str:
@@ -78,14 +51,10 @@ def _shown(path: Path) -> str:
 
 def main(args) -> int:
     started = time.perf_counter()
-    if args.jobs is not None and args.jobs < 1:
-        raise HysbenchError(f"--jobs must be at least 1, got {args.jobs}")
-    if args.seed < 0:
-        raise HysbenchError(f"--seed must not be negative, got {args.seed}")
-    models = _names(args.models, "models")
-    methods = _names(args.methods, "methods")
-    user_options = parse_options(args.option)
-    paths = [Path(p) for p in (args.dataset or [default_dataset()])]
+    models = comma_list(args.models, "--models")
+    methods = comma_list(args.methods, "--methods")
+    user_options = parse_method_options(args.option)
+    paths = dataset_paths(args.dataset)
     datasets = [(p, load_dataset(p)) for p in paths]
     names = [ds.name for _, ds in datasets]
     if len(set(names)) != len(names):

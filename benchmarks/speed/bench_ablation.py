@@ -14,7 +14,7 @@ import resource
 import time
 
 from hysbench.benchmarks.ablation import run_ablation
-from hysbench.benchmarks.cli.ablate import default_dataset
+from hysbench.data.virtual_dea import default_dataset_path as default_dataset
 from hysbench.benchmarks.cli import main as cli_main
 from hysbench.data.dataset import load_dataset
 

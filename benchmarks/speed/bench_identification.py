@@ -25,7 +25,8 @@ import pytest
 from hysbench.data.protocol import FREQUENCIES_HZ, paper_voltage, period_samples, role_of, weight_of
 from hysbench.data.dataset import Dataset, Record, load_dataset
 from hysbench.identification import identify
-from hysbench.benchmarks.reports.identification import default_dataset_path, table2_dataset
+from hysbench.benchmarks.reports.identification import table2_dataset
+from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.models import get_model
 
 TARGET_SECONDS = {"varpro": 1.0, "mpso": 60.0}

@@ -1,0 +1,56 @@
+"""The command line as one package: every command shows an example, shares its argument types,
+and refuses bad input in one line with exit status 2."""
+
+import pytest
+
+from hysbench.benchmarks.cli import COMMANDS, main
+from hysbench.benchmarks.cli.common import CommandError, parse_key_values, parse_method_options
+from hysbench.data.virtual_dea import default_dataset_path
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_every_command_shows_an_example(command, capsys):
+    assert main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "example:\n  hysbench " + command in out
+
+
+BAD = {
+    "check": (["check", "/no/such/folder"], "no/such/folder"),
+    "data": (["data", "virtual-dea", "--out", "x", "--seed", "-3"], "--seed"),
+    "run": (["run", "--models", "no-such-model", "--out", "{tmp}"], "no-such-model"),
+    "posterior": (["posterior", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
+    "reproduce": (["reproduce", "--out", "{tmp}/file/sub"], "{tmp}/file"),
+    "ablate": (["ablate", "--orders", "1,x", "--out", "{tmp}"], "--orders"),
+    "fit": (["fit", "--model", "mrpim", "--method", "no-such-method"], "no-such-method"),
+    "diagnose": (["diagnose", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
+    "report": (["report", "baselines", "--models", "no-such-model", "--out", "{tmp}/b.md"], "no-such-model"),
+}
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+def test_bad_input_is_one_line_and_status_2(command, tmp_path, capsys):
+    assert command in BAD, f"add a bad-input case for the new command {command!r}"
+    (tmp_path / "file").write_text("not a folder")
+    argv, named = BAD[command]
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert named.replace("{tmp}", str(tmp_path)) in err
+
+
+def test_key_values_are_json_or_text():
+    assert parse_key_values(["a=1", "b=[1, 2]", "c=TRUE", "d=none", "e=word", "f={\"x\": 1}"], "--option") == {
+        "a": 1, "b": [1, 2], "c": True, "d": None, "e": "word", "f": {"x": 1}}
+    assert parse_method_options(["mpso.iterations=5", "lsq.max_nfev=3"]) == {
+        "mpso": {"iterations": 5}, "lsq": {"max_nfev": 3}}
+    with pytest.raises(CommandError, match="KEY=VALUE"):
+        parse_key_values(["novalue"], "--hyper")
+    with pytest.raises(CommandError, match="METHOD.KEY=VALUE"):
+        parse_method_options(["iterations=5"])
+
+
+def test_the_default_dataset_is_the_shipped_virtual_dea():
+    assert (default_dataset_path() / "dataset.toml").is_file()
