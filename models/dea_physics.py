@@ -233,6 +233,26 @@ def _rk4_step(x, ua, um, ub, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
 
 
 @njit(cache=True)
+def _advance(x, ua, ub, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
+    """One sample interval: m RK4 substeps of length h, the input linear from ua to ub."""
+    du = (ub - ua) / m
+    for s in range(m):
+        u0 = ua + du * s
+        if not _rk4_step(x, u0, u0 + 0.5 * du, u0 + du, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
+            return False
+    return True
+
+
+@njit(cache=True)
+def advance_sample(x, ua, ub, dt, m, p, n_br):
+    """Advance the state x in place over one sample of length dt (m RK4 substeps, the input linear
+    from ua to ub): the plant stepped with a controller in the loop. Returns False on failure."""
+    n = x.shape[0]
+    return _advance(x, ua, ub, dt / m, m, p, n_br, _inv_6tau(p, n_br), np.empty(n), np.empty(n), np.empty(n),
+                    np.empty(n), np.empty(n))
+
+
+@njit(cache=True)
 def _input_at(u_kv, q):
     """The input at fractional sample position q (linear between samples)."""
     k = min(int(q), u_kv.shape[0] - 2)
@@ -283,13 +303,7 @@ def _simulate_one(u_kv, dt, p, n_br, out, x, start, warmup_stride):
             out[i - start] = x[0] - lam0
         if i == last:
             break
-        ua = u_kv[i]
-        du = (u_kv[i + 1] - ua) / m
-        for s in range(m):
-            u0 = ua + du * s
-            ok = _rk4_step(x, u0, u0 + 0.5 * du, u0 + du, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
-            if not ok:
-                break
+        ok = _advance(x, u_kv[i], u_kv[i + 1], h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
         if not ok:
             for r in range(max(i + 1, start), last + 1):
                 out[r - start] = np.nan
