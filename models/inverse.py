@@ -19,8 +19,9 @@ state; ``step_advance`` commits a chosen u. ``step_simulate`` runs the model for
 through them (the tests check it against each model's own forward kernel).
 
 The numerical inverse (``invert_steps``): at each sample, g(u) = y(k; u) - y_d(k) is
-searched on [u_lo, u_hi] (the input limits) by walking outward from the previous input
-u(k-1) (the midpoint at k = 0) in steps of (u_hi - u_lo) / n_grid, both ways
+searched on [u_lo, u_hi] (the input limits, narrowed to u(k-1) +- max_rate dt when a
+rate limit is given; u(-1) = ``u_start``, the input the actuator rests at) by walking
+outward from the previous input u(k-1) in steps of (u_hi - u_lo) / n_grid, both ways
 alternately, up to the first sign change: the root nearest the previous input, which
 keeps the input continuous where the model is not monotone in u. The bracket is refined
 by Newton steps with the analytic dy/du, falling back to bisection when a step leaves
@@ -29,6 +30,13 @@ limits, or a flat or non-monotone branch that does not reach it) the inverse tak
 visited point with the smallest |g| (the nearest reachable output on that grid, the
 limits and the previous input included) and counts the sample as clipped. A touching
 root (g >= 0 on both sides) is counted as clipped too.
+
+Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
+fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
+100 kV, a play memory no loop ever visits again, and the model never recovers. A jump
+is what an unlimited inverse asks for wherever the root nearest the previous input
+disappears. A rate-dependent model is identified only over the input rates of its
+records; ``max_rate`` keeps its inverse there (callers state the limit they use).
 
 The analytic inverse of classical P-I (``classical_pi_inverse``) follows Krejci &
 Kuhnen, "Inverse control of systems with hysteresis and creep", IEE Proc. Control
@@ -194,21 +202,24 @@ def _refine(xa, ga, xb, gb, target, tol, first, u1, u2, dt, base, w, xf, r_lo, r
 
 
 @njit(cache=True)
-def invert_steps(yd, dt, base, u_lo, u_hi, n_grid, tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                 fa, fb0, fb1, fpow, fw):
-    """The causal numerical inverse (module docstring): (u, clipped) for desired outputs yd."""
+def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi, g_lo, g_hi,
+                 weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """The causal numerical inverse (module docstring): (u, clipped) for desired outputs yd.
+    ``max_step``: the largest input change per sample (inf: none)."""
     n = yd.shape[0]
     u_out = np.empty(n)
     clipped = np.zeros(n, dtype=np.bool_)
     w = np.zeros(r_lo.shape[0])
     xf = np.zeros(fa.shape[0])
-    h = (u_hi - u_lo) / n_grid
-    u1 = u2 = 0.5 * (u_lo + u_hi)
+    h = (u_limit_hi - u_limit_lo) / n_grid
+    u1 = u2 = min(max(u_start, u_limit_lo), u_limit_hi)
     for k in range(n):
         first = k == 0
         target = yd[k]
         b = base[k]
-        start = min(max(u1, u_lo), u_hi)
+        u_lo = max(u_limit_lo, u1 - max_step)
+        u_hi = min(u_limit_hi, u1 + max_step)
+        start = u1
         g0 = step_output(start, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                          fa, fb0, fb1, fpow, fw)[0] - target
         best_u, best_g = start, abs(g0)
@@ -284,9 +295,11 @@ class StepInvertible:
                              fa, fb0, fb1, fpow, fw)
 
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
-               n_grid: int = DEFAULT_GRID) -> Inversion:
+               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
         """The causal numerical inverse: the input within ``input_limits`` (default: ``input_range``)
-        that makes the model output ``y_desired``, sample by sample (module docstring)."""
+        that makes the model output ``y_desired``, sample by sample (module docstring).
+        ``max_rate``: largest |du/dt| (input units per second; None: none); ``u_start``: the
+        input before the first sample (default: the lower limit, an actuator at rest)."""
         yd = np.ascontiguousarray(y_desired, dtype=float)
         if yd.ndim != 1 or yd.size == 0 or not np.all(np.isfinite(yd)):
             raise ModelError(f"{self.name}: the desired output must be a non-empty, finite 1-D array")
@@ -299,10 +312,14 @@ class StepInvertible:
             raise ModelError(f"{self.name}: input limits must have low < high, got {input_limits!r}")
         if not (isinstance(n_grid, (int, np.integer)) and n_grid >= 2):
             raise ModelError(f"{self.name}: n_grid must be an integer >= 2, got {n_grid!r}")
+        if max_rate is not None and not max_rate > 0:
+            raise ModelError(f"{self.name}: max_rate must be positive, got {max_rate!r}")
+        max_step = np.inf if max_rate is None else float(max_rate) * float(dt)
         s = self._structure(dt, params, input_range, yd.size)
         tol = 1e-12 * (1.0 + float(np.max(np.abs(yd))))
         r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
-        u, clipped = invert_steps(yd, float(dt), np.ascontiguousarray(s.base), lo, hi, int(n_grid), tol, r_lo, r_hi,
+        u, clipped = invert_steps(yd, float(dt), np.ascontiguousarray(s.base), lo, hi,
+                                  lo if u_start is None else float(u_start), max_step, int(n_grid), tol, r_lo, r_hi,
                                   g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
         return Inversion(u, clipped)
 

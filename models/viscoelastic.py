@@ -60,6 +60,9 @@ class Viscoelastic(HysteresisModel):
     """Physics-based DEA model; hyperparameters default to the virtual DEA's constants."""
 
     name = "viscoelastic"
+    inverse_unavailable = (
+        "a dynamic physics model: the input at a sample moves the output only through one integration step of the dashpot;"
+        " no step inverse is implemented (issue 15 did MRPIM and the P-I family)")
     presets_available = ("virtual-dea",)
 
     def __init__(

@@ -28,6 +28,8 @@ COMMANDS = {
     "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
+    "compensate": ("hysbench.benchmarks.cli.compensate",
+                   "invert models and score how well the virtual DEA tracks references (writes compensation.md)"),
 }
 
 

@@ -6,6 +6,9 @@
   inverted (``HysteresisModel.invert``: causal, numerical, searched within the plant's
   input limits; classical P-I with poly_order 1 uses its analytic inverse when the
   loading curve increases, else the numerical one).
+  The numerical inverse's input rate is limited to ``RATE_FACTOR`` x the fastest input
+  rate of the identification records (2 x 6.3 kV/s on the default dataset): a
+  rate-dependent model is identified only over the rates it saw (see models/inverse.py).
 * ``PI``: kp e + ki int e at a stated bandwidth: ki = 2 pi f_bw / K (integral crossover
   of the loop K/s), kp = ki tau_z with the zero at the plant's fastest response mode
   (tau_z = 16 ms, the virtual DEA's fast mode at 1.5 kV in truth.json): nominal at the
@@ -28,6 +31,7 @@ from hysbench.models.inverse import Inversion
 
 PI_BANDWIDTH_HZ = 5.0
 PI_ZERO_S = 0.016
+RATE_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,7 @@ class ModelInverse:
     fit: Fit
     inverse: str  # "analytic" or "numerical"
     identify_seconds: float
+    max_rate: float  # the numerical inverse's |du/dt| limit (input units per second)
 
     @classmethod
     def identify(cls, name: str, dataset: Dataset, method: str = "auto", seed: int = 0,
@@ -90,10 +95,12 @@ class ModelInverse:
                 inverse = "analytic"
             except ModelError:
                 pass  # loading curve not increasing: the numerical inverse (it counts where it clips)
-        return cls(name, fit, inverse, seconds)
+        rates = [np.max(np.abs(np.diff(r.u))) / r.dt for r in dataset.records if r.role == "identification"]
+        return cls(name, fit, inverse, seconds, RATE_FACTOR * float(max(rates)))
 
     def invert(self, reference: np.ndarray, dt: float, u_limits) -> Inversion:
         model = self.fit.model_instance()
         if self.inverse == "analytic":
             return model.invert_analytic(reference, dt, self.fit.params, self.fit.input_range)
-        return model.invert(reference, dt, self.fit.params, input_range=self.fit.input_range, input_limits=u_limits)
+        return model.invert(reference, dt, self.fit.params, input_range=self.fit.input_range, input_limits=u_limits,
+                            max_rate=self.max_rate, u_start=u_limits[0])

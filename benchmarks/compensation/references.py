@@ -8,6 +8,12 @@
   2 Hz): the drive shapes of ``hysbench.data.excitations`` mapped onto the output range
   every stable loop spans (the intersection of the seven), ``LONG_S`` seconds long,
   scored after ``SETTLE_S`` s (past the creep transition, about 420 s on this plant).
+
+Every reference starts at the plant's rest reading (0) and blends into its shape over
+the first ``FADE_S`` seconds (``excitations.fade_in``, half-cosine): the actuator is at
+rest when a run starts, and a reference that jumped to the loop's minimum would ask
+the inverse for a jump of the input that the rate-dependent envelopes of MRPIM turn
+into a play memory far outside the loops (the warm-up is not scored).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from hysbench.models.errors import HysbenchError
 
 LONG_S = 600.0
 SETTLE_S = 450.0
+FADE_S = 30.0
 WAVEFORM_SEED = 0
 
 
@@ -48,6 +55,7 @@ def references(dataset: Dataset, dt: float) -> list[Reference]:
                             "references need the protocol's sine records")
     out = []
     ranges = []
+    n_fade = int(round(FADE_S / dt))
     for rec in sorted(sines, key=lambda r: r.frequency_hz):
         f = rec.frequency_hz
         lo, hi = loop_range(rec)
@@ -55,7 +63,8 @@ def references(dataset: Dataset, dt: float) -> list[Reference]:
         t = np.arange(rec.u.size) * dt
         y = 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(2.0 * np.pi * f * t)
         n_period = period_samples(f, dt)
-        out.append(Reference(f"sine-{f:g}Hz", y, slice(y.size - STABLE_PERIODS * n_period, y.size)))
+        out.append(Reference(f"sine-{f:g}Hz", excitations.fade_in(y, n_fade, 0.0),
+                             slice(y.size - STABLE_PERIODS * n_period, y.size)))
     lo = max(r[0] for r in ranges)
     hi = min(r[1] for r in ranges)
     if not hi > lo:
@@ -66,5 +75,5 @@ def references(dataset: Dataset, dt: float) -> list[Reference]:
         "multisine": excitations.multisine(LONG_S, dt, f_min=0.02, f_max=2.0, low=lo, high=hi, seed=WAVEFORM_SEED),
         "random": excitations.band_limited_random(LONG_S, dt, f_max=2.0, low=lo, high=hi, seed=WAVEFORM_SEED),
     }
-    out += [Reference(name, y, scored) for name, y in shapes.items()]
+    out += [Reference(name, excitations.fade_in(y, n_fade, 0.0), scored) for name, y in shapes.items()]
     return out

@@ -121,7 +121,8 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
         "linear": {"gain": linear.gain, "offset": linear.offset},
         "pi": {"kp": pi.kp, "ki": pi.ki, "bandwidth_hz": pi.bandwidth_hz, "zero_s": pi.zero_s},
         "models": {name: {"method": inv.fit.method, "inverse": inv.inverse, "identify_s": inv.identify_seconds,
-                          "validation_e_rms_mean": inv.fit.mean("validation"), "params": inv.fit.params,
+                          "validation_e_rms_mean": inv.fit.mean("validation"), "max_rate": inv.max_rate,
+                          "params": inv.fit.params,
                           "input_range": list(inv.fit.input_range), "notes": list(inv.fit.notes)}
                    for name, inv in inverses.items()},
         "not_invertible": not_invertible,
