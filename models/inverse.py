@@ -223,7 +223,7 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
         g0 = step_output(start, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                          fa, fb0, fb1, fpow, fw)[0] - target
         best_u, best_g = start, abs(g0)
-        found = g0 == 0.0
+        found = abs(g0) <= tol
         u = start
         xa = ga = xb = gb = 0.0
         if not found:
@@ -240,7 +240,7 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
                     if abs(g) < best_g:
                         best_u, best_g = x, abs(g)
                     px, pg = (up_x, up_g) if side == 0 else (dn_x, dn_g)
-                    if g == 0.0:
+                    if abs(g) <= tol:
                         u, found = x, True
                         break
                     if (g > 0) != (pg > 0):
