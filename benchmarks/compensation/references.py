@@ -1,13 +1,16 @@
 """Reference trajectories of the tracking benchmark (desired platform displacement, mm).
 
 * ``sine-<f>Hz`` for the protocol's seven frequencies: y_r(t) = mid - half cos(2 pi f t)
-  (eq. 1's shape, starting at its minimum), spanning the output range of the default
-  dataset's stable loop at that frequency (its scored window), as long as that record
-  (through the creep transition), scored over the last ``STABLE_PERIODS`` periods.
+  (eq. 1's shape, starting at its minimum), spanning ``SPAN`` (90 %) of the output range
+  of the default dataset's stable loop at that frequency (its scored window), about its
+  centre, as long as that record (through the creep transition), scored over the last
+  ``STABLE_PERIODS`` periods. Why not 100 %: the plant reaches the loop's extremes only
+  at the input limits, and a sine-shaped output near them needs inputs beyond (the loop
+  is not a sine): the full range would score the limits, not the compensation.
 * ``triangle`` (0.2 Hz), ``multisine`` (0.02-2 Hz) and ``random`` (band-limited to
-  2 Hz): the drive shapes of ``hysbench.data.excitations`` mapped onto the output range
-  every stable loop spans (the intersection of the seven), ``LONG_S`` seconds long,
-  scored after ``SETTLE_S`` s (past the creep transition, about 420 s on this plant).
+  2 Hz): the drive shapes of ``hysbench.data.excitations`` mapped onto ``SPAN`` of the
+  output range every stable loop spans (the intersection of the seven), ``LONG_S``
+  seconds long, scored after ``SETTLE_S`` s (past the creep transition, about 420 s here).
 
 Every reference starts at the plant's rest reading (0) and blends into its shape over
 the first ``FADE_S`` seconds (``excitations.fade_in``, half-cosine): the actuator is at
@@ -31,6 +34,7 @@ from hysbench.models.errors import HysbenchError
 LONG_S = 600.0
 SETTLE_S = 450.0
 FADE_S = 30.0
+SPAN = 0.9
 WAVEFORM_SEED = 0
 
 
@@ -47,6 +51,12 @@ def loop_range(record) -> tuple[float, float]:
     return float(np.min(y)), float(np.max(y))
 
 
+def central(lo: float, hi: float, span: float = SPAN) -> tuple[float, float]:
+    """The central ``span`` of [lo, hi]."""
+    mid, half = 0.5 * (lo + hi), 0.5 * span * (hi - lo)
+    return mid - half, mid + half
+
+
 def references(dataset: Dataset, dt: float) -> list[Reference]:
     """The benchmark's references for a dataset recorded on the protocol (sines at its frequencies)."""
     sines = [r for r in dataset.records if r.frequency_hz]
@@ -58,8 +68,8 @@ def references(dataset: Dataset, dt: float) -> list[Reference]:
     n_fade = int(round(FADE_S / dt))
     for rec in sorted(sines, key=lambda r: r.frequency_hz):
         f = rec.frequency_hz
-        lo, hi = loop_range(rec)
-        ranges.append((lo, hi))
+        ranges.append(loop_range(rec))
+        lo, hi = central(*ranges[-1])
         t = np.arange(rec.u.size) * dt
         y = 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(2.0 * np.pi * f * t)
         n_period = period_samples(f, dt)
@@ -69,6 +79,7 @@ def references(dataset: Dataset, dt: float) -> list[Reference]:
     hi = min(r[1] for r in ranges)
     if not hi > lo:
         raise HysbenchError(f"dataset {dataset.name!r}: its stable loops share no output range")
+    lo, hi = central(lo, hi)
     scored = slice(int(round(SETTLE_S / dt)), int(round(LONG_S / dt)))
     shapes = {
         "triangle": excitations.triangle(0.2, LONG_S, dt, low=lo, high=hi),
