@@ -274,6 +274,10 @@ class StepInvertible:
 
     @property
     def inverse_unavailable(self) -> str | None:
+        derivative = getattr(self, "derivative", "backward")
+        if derivative != "backward":
+            return (f"its {derivative!r} derivative uses later samples, so the output at a sample is not a "
+                    "function of the inputs up to it (use derivative='backward')")
         return None
 
     def _structure(self, dt, params, input_range, n_samples) -> StepStructure:

@@ -188,13 +188,6 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
         return np.stack([cols[n] for n in self.linear_names], axis=1)
 
     # --- the step structure (the causal inverse, models/inverse.py) -----
-    @property
-    def inverse_unavailable(self) -> str | None:
-        if self.derivative != "backward":
-            return (f"its {self.derivative!r} derivative uses later samples, so the output at a sample is not a "
-                    "function of the inputs up to it (use derivative='backward')")
-        return None
-
     def step_structure(self, dt: float, params: Mapping[str, float], input_range, n_samples: int) -> StepStructure:
         r = self.thresholds(np.zeros(1), input_range)
         return StepStructure(

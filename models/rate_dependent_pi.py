@@ -175,13 +175,6 @@ class RateDependentPI(StepInvertible, HysteresisModel):
             params.append(self.offset_parameter(scale))
         return params
 
-    @property
-    def inverse_unavailable(self) -> str | None:
-        if self.derivative != "backward":
-            return (f"its {self.derivative!r} derivative uses later samples, so the output at a sample is not a "
-                    "function of the inputs up to it (use derivative='backward')")
-        return None
-
     def step_structure(self, dt: float, params, input_range, n_samples: int) -> StepStructure:
         """The step kernel's arrays (models/inverse.py): symmetric plays r0_i + beta |u'|."""
         r0 = self.base_thresholds(np.zeros(1), input_range)

@@ -110,10 +110,15 @@ def test_model_driven_by_its_inverse_reproduces_the_desired_output(seed, name, g
         assert inv.n_clipped == 0
 
 
-def test_analytic_classical_pi_inverse_agrees_with_the_numerical_one():
-    rng = np.random.default_rng(7)
+def positive_classical_pi(seed):
+    """classical-pi with random positive weights: a monotone model."""
+    rng = np.random.default_rng(seed)
     m = get_model("classical-pi")
-    p = {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+    return m, {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+
+
+def test_analytic_classical_pi_inverse_agrees_with_the_numerical_one():
+    m, p = positive_classical_pi(7)
     u = smooth_input(2, 5000)
     y = m.simulate(u, DT, p, input_range=LIMITS)
     analytic = m.invert_analytic(y, DT, p, LIMITS)
@@ -132,9 +137,7 @@ def test_analytic_inverse_refuses_a_decreasing_loading_curve():
 
 
 def test_clipping_count_on_an_unreachable_reference():
-    rng = np.random.default_rng(11)
-    m = get_model("classical-pi")
-    p = {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+    m, p = positive_classical_pi(11)
     u = smooth_input(4, 1000)
     y = m.simulate(u, DT, p, input_range=LIMITS)
     y_max = m.simulate(np.array([LIMITS[1]]), DT, p, input_range=LIMITS)[0]

@@ -43,7 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="comma-separated reference names to run (default all: sine-<f>Hz, triangle, multisine, "
                              "random)")
     parser.add_argument("--out", default="results", help="folder for compensation.md, figures, JSON (default results/)")
-    parser.add_argument("--json", default=None, metavar="FILE", help="write the JSON here (default OUT/compensation.json)")
+    parser.add_argument("--json", default=None, metavar="FILE",
+                        help="write the JSON here (default OUT/compensation.json)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
 

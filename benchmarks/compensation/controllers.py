@@ -5,7 +5,9 @@
 * ``ModelInverse``: a model identified with ``hysbench.identification.identify`` and
   inverted (``HysteresisModel.invert``: causal, numerical, searched within the plant's
   input limits; classical P-I with poly_order 1 uses its analytic inverse when the
-  loading curve increases, else the numerical one).
+  loading curve increases, else the numerical one; ``viscoelastic``, the plant's own
+  equations with identified parameters, is inverted through its physics kernel,
+  ``dea_physics.invert_stretch``).
   The numerical inverse's input rate is limited to ``RATE_FACTOR`` x the fastest input
   rate of the identification records (2 x 6.3 kV/s on the default dataset): a
   rate-dependent model is identified only over the rates it saw (see models/inverse.py).
@@ -27,7 +29,7 @@ from hysbench.identification.api import identify
 from hysbench.identification.fit import Fit
 from hysbench.models import ClassicalPI, get_model
 from hysbench.models.errors import HysbenchError, ModelError
-from hysbench.models.inverse import Inversion
+from hysbench.models.inverse import Inversion, StepInvertible
 
 PI_BANDWIDTH_HZ = 5.0
 PI_ZERO_S = 0.016
@@ -88,7 +90,7 @@ class ModelInverse:
         t0 = time.perf_counter()
         fit = identify(model, dataset, method=method, seed=seed)
         seconds = time.perf_counter() - t0
-        inverse = "numerical"
+        inverse = "numerical" if isinstance(model, StepInvertible) else "numerical (physics kernel)"
         if isinstance(model, ClassicalPI) and model.poly_order == 1:
             try:
                 model.invert_analytic(np.zeros(2), 1e-3, fit.params, fit.input_range)

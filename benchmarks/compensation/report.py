@@ -26,11 +26,20 @@ def sine_mean(result: dict, controller: str, metric: str = "e_rms") -> float | N
     return None if not vals or any(v is None for v in vals) else float(np.mean(vals))
 
 
+def ranked_models(result: dict) -> list[str]:
+    """Models by the mean e_rms of their open-loop inverse over the sines (finite ones only)."""
+    scored = [(sine_mean(result, m), m) for m in result["models"]]
+    return [m for v, m in sorted((v, m) for v, m in scored if v is not None)]
+
+
 def best_model(result: dict) -> str | None:
     """The model whose open-loop inverse has the lowest mean e_rms over the sines."""
-    scored = [(sine_mean(result, m), m) for m in result["models"]]
-    scored = [(v, m) for v, m in scored if v is not None]
-    return min(scored)[1] if scored else None
+    ranked = ranked_models(result)
+    return ranked[0] if ranked else None
+
+
+def pi_alone(result: dict) -> float | None:
+    return sine_mean(result, "pi")
 
 
 def summary(result: dict) -> str:
@@ -45,9 +54,19 @@ def summary(result: dict) -> str:
     out.append(f"On the seven sines the best open-loop inverse is {best}'s: mean e_rms {b:.3g} % against "
                f"{lin:.3g} % for the static linear gain, {ratio:.2g}x lower; the goal (>= 5x) is "
                f"{'reached' if ratio >= 5 else 'not reached'}.")
-    others = [f"{m} {_fmt(sine_mean(result, m))} %" for m in result["models"] if m != best]
+    others = [f"{m} {_fmt(sine_mean(result, m))} % ({lin / sine_mean(result, m):.2g}x)" for m in ranked_models(result)
+              if m != best]
     if others:
-        out.append("The other inverses: " + ", ".join(others) + ".")
+        out.append("The other inverses, in order (mean e_rms on the sines, ratio to the linear gain): "
+                   + ", ".join(others) + ".")
+    bad = [m for m in result["models"] if (sine_mean(result, m) or np.inf) > lin]
+    if bad:
+        out.append(f"Worse than no model at all: {', '.join(bad)}.")
+    alone = pi_alone(result)
+    feedback = [(m, sine_mean(result, f"pi+{m}")) for m in result["models"]]
+    lower = [m for m, v in feedback if v is not None and alone is not None and v < 0.99 * alone]
+    out.append(f"As feedforward, the inverse lowers the PI loop's mean e_rms on the sines (by more than 1 %) for: "
+               f"{', '.join(lower) if lower else 'no model'}.")
     pi = sine_mean(result, "pi")
     pib = sine_mean(result, f"pi+{best}")
     if pi is not None and pib is not None:
@@ -96,7 +115,8 @@ def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Pat
     out = ensure_dir(Path(out))
     plt = pyplot()
     best = best_model(result)
-    shown = ["linear"] + ([best] if best else []) + ["pi"] + ([f"pi+{best}"] if best else [])
+    top = ranked_models(result)[:2]
+    shown = ["linear"] + top + ["pi"] + ([f"pi+{best}"] if best else [])
     figures = []
     for ref in ("sine-0.1Hz", "sine-1Hz", "random"):
         if ref in runs:
