@@ -31,6 +31,22 @@ visited point with the smallest |g| (the nearest reachable output on that grid, 
 limits and the previous input included) and counts the sample as clipped. A touching
 root (g >= 0 on both sides) is counted as clipped too.
 
+Where each model is not invertible (the sample is then clipped as above):
+
+* classical-pi: y is piecewise linear and non-decreasing in u when p1 and the partial sums
+  of the weights are positive (an increasing loading curve); flat or decreasing pieces
+  otherwise, and the output range at a sample is [y(u_lo), y(u_hi)] for a monotone model.
+* mrpim: the envelopes make y's slope in u differ on the two sides of u(k-1) by
+  -/+ gamma/dt and lambda/dt per active play (x 100 for gamma = 0.1 s at 1 ms), so y is
+  generally non-monotone near the previous input; q u'' adds q/dt^2 to the slope (exact
+  inverse, but lightly damped internal dynamics: the input rings at about
+  sqrt(slope / q) when q > 0, and diverges for q < 0).
+* rate-dependent-pi: thresholds grow with |u - u(k-1)|: the same kink at u(k-1).
+* mrpim+relaxation / +creep / +interference: as mrpim; the filters add c b1 u^p, the
+  creep and the interference only shift the target.
+* mrpim+delay, +resonance, +saturation and the non-P-I models: not inverted here (each
+  says why in ``inverse_unavailable``).
+
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
 100 kV, a play memory no loop ever visits again, and the model never recovers. A jump

@@ -116,6 +116,7 @@ def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Pat
     plt = pyplot()
     best = best_model(result)
     top = ranked_models(result)[:2]
+    top += [m for m in ("mrpim",) if m in result["models"] and m not in top]  # the seed paper's model, always
     shown = ["linear"] + top + ["pi"] + ([f"pi+{best}"] if best else [])
     figures = []
     for ref in ("sine-0.1Hz", "sine-1Hz", "random"):
