@@ -88,6 +88,7 @@ def test_cli_bad_input_is_one_line_and_exit_2(capsys, tmp_path):
     assert len(err) == 1 and "unknown model 'nope'" in err[0]
     assert cli_main(["compensate", str(default_dataset_path()), "--bandwidth", "-1"]) == 2
     assert cli_main(["compensate", str(tmp_path / "missing"), "--model", "mrpim"]) == 2
+    assert cli_main(["compensate", str(default_dataset_path()), "--references", "nope", "--model", "mrpim"]) == 2
     assert not (tmp_path / "compensation.md").exists()
 
 

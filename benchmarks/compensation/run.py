@@ -79,6 +79,15 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
     dt = ds.records[0].dt
     if abs(dt - plant.dt) > 1e-12:
         raise HysbenchError(f"dataset {ds.name!r} is sampled every {dt:g} s; the plant runs at {plant.dt:g} s")
+    if (ds.input_unit, ds.output_unit) != ("kV", "mm"):
+        raise HysbenchError(f"dataset {ds.name!r} is in {ds.input_unit or '?'} -> {ds.output_unit or '?'}; the plant "
+                            "(the virtual DEA) takes kV and gives mm: compensate needs a dataset recorded on it")
+    refs = references(ds, dt)  # refuses a dataset without the protocol's sines, before any identification
+    if reference_names is not None:
+        unknown = sorted(set(reference_names) - {r.name for r in refs})
+        if unknown:
+            raise HysbenchError(f"unknown reference(s) {', '.join(unknown)}; known: {', '.join(r.name for r in refs)}")
+        refs = [r for r in refs if r.name in reference_names]
     invertible, not_invertible = check_models(models)
     for name, why in not_invertible.items():
         log(f"{name}: cannot be inverted: {why}")
@@ -89,9 +98,6 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
         inverses[name] = ModelInverse.identify(name, ds, method=method, seed=seed, u_limits=plant.u_limits)
         log(f"{name}: identified ({inverses[name].fit.method}, {inverses[name].identify_seconds:.1f} s), "
             f"{inverses[name].inverse} inverse")
-    refs = references(ds, dt)
-    if reference_names is not None:
-        refs = [r for r in refs if r.name in reference_names]
     runs: dict[str, dict[str, Tracking]] = {}
     invert_seconds = 0.0
     for ref in refs:
