@@ -183,3 +183,21 @@ def test_viscoelastic_driven_by_its_inverse_reproduces_the_desired_output(seed, 
     achieved = m.simulate(inv.u, DT, p)
     assert np.max(np.abs(achieved - y)[1:]) <= 1e-6 * np.ptp(y)
     np.testing.assert_allclose(inv.u, u, atol=1e-6)  # the stretch increases with the voltage: unique
+
+
+@pytest.mark.parametrize("name", ["mrpim+creep", "mrpim+interference"])
+def test_known_in_time_components_step_and_invert(name):
+    """Creep and interference only shift the target: the step kernel equals the forward model
+    and the inverse reproduces a reachable output."""
+    rng = np.random.default_rng(5)
+    m = get_model(name)
+    p = mrpim_params(rng, m)
+    p.update({k: v for k, v in {"creep_time": 20.0, "creep_size": 0.7, "interference_frequency": 3.0,
+                                "interference_sin": 0.05, "interference_cos": -0.02}.items() if k in p})
+    u = smooth_input(6, 3000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    np.testing.assert_allclose(m.simulate_steps(u, DT, p, input_range=LIMITS), y, rtol=1e-11, atol=1e-11)
+    inv = m.invert(y, DT, p, input_range=LIMITS)
+    ok = ~inv.clipped
+    assert ok.mean() > 0.99
+    assert np.max(np.abs(m.simulate(inv.u, DT, p, input_range=LIMITS) - y)[ok]) <= 1e-6 * np.ptp(y)
