@@ -21,8 +21,25 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from numba import njit
 
 from hysbench.models.errors import HysbenchError
+
+
+@njit(cache=True)
+def read_sample(x_mm, noise_volts, rest_mm, mm_per_volt, full_scale_v, lsb_v, rest_code, lsb_mm):
+    """One reading (mm from rest) of the true displacement x_mm with the noise noise_volts (V)."""
+    volts = (rest_mm + x_mm) / mm_per_volt + noise_volts
+    volts = min(max(volts, 0.0), full_scale_v)
+    return (np.rint(volts / lsb_v) - rest_code) * lsb_mm
+
+
+@njit(cache=True)
+def read_samples(x_mm, noise_volts, rest_mm, mm_per_volt, full_scale_v, lsb_v, rest_code, lsb_mm):
+    out = np.empty(x_mm.shape[0])
+    for k in range(x_mm.shape[0]):
+        out[k] = read_sample(x_mm[k], noise_volts[k], rest_mm, mm_per_volt, full_scale_v, lsb_v, rest_code, lsb_mm)
+    return out
 
 
 @dataclass(frozen=True)
@@ -60,13 +77,19 @@ class LaserSensor:
 
     def measure(self, displacement_mm: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Sensor output (mm from rest) for a true displacement history."""
-        x = np.asarray(displacement_mm, dtype=float)
-        volts = (self.rest_distance_mm + x) / self.mm_per_volt
+        x = np.ascontiguousarray(displacement_mm, dtype=float)
+        return read_samples(x, self.noise_volts(x.size, rng), *self.constants())
+
+    def noise_volts(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """The white noise of n readings, in volts at the ADC input (zeros without noise)."""
         if self.noise_sd_mm > 0:
-            volts = volts + rng.normal(0.0, self.noise_sd_mm / self.mm_per_volt, x.size)
-        volts = np.clip(volts, 0.0, self.volts_full_scale)
-        codes = np.round(volts / self.lsb_volts)
-        return (codes - self.rest_code) * self.lsb_mm
+            return rng.normal(0.0, self.noise_sd_mm / self.mm_per_volt, n)
+        return np.zeros(n)
+
+    def constants(self) -> tuple:
+        """The arguments after (x_mm, noise_volts) of ``read_sample``."""
+        return (float(self.rest_distance_mm), float(self.mm_per_volt), float(self.volts_full_scale),
+                float(self.lsb_volts), float(self.rest_code), float(self.lsb_mm))
 
     def as_dict(self) -> dict:
         return {**asdict(self), "lsb_mm": self.lsb_mm}

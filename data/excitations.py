@@ -54,7 +54,7 @@ def _onto(x: np.ndarray, low: float, high: float) -> np.ndarray:
     return low + (x - x.min()) * (high - low) / span
 
 
-def _fade_in(u: np.ndarray, n_fade: int, start: float) -> np.ndarray:
+def fade_in(u: np.ndarray, n_fade: int, start: float) -> np.ndarray:
     """Blend from the constant ``start`` into u over the first n_fade samples (half-cosine)."""
     n_fade = min(max(n_fade, 1), u.size)
     w = 0.5 - 0.5 * np.cos(np.pi * np.arange(n_fade) / n_fade)
@@ -86,7 +86,7 @@ def multisine(duration_s: float, dt: float = 1e-3, f_min: float = 0.02, f_max: f
     t = np.arange(n) * dt
     x = np.sin(2.0 * np.pi * freqs[:, None] * t[None, :] + phases[:, None]).sum(axis=0)
     u = _onto(x, low, high)
-    return _fade_in(u, int(round(1.0 / (f_min * dt))), 0.5 * (low + high))
+    return fade_in(u, int(round(1.0 / (f_min * dt))), 0.5 * (low + high))
 
 
 def band_limited_random(duration_s: float, dt: float = 1e-3, f_max: float = 2.0, low: float = LOW_KV,
@@ -99,7 +99,7 @@ def band_limited_random(duration_s: float, dt: float = 1e-3, f_max: float = 2.0,
     spectrum = np.fft.rfft(rng.standard_normal(n))
     spectrum[np.fft.rfftfreq(n, dt) > f_max] = 0.0
     u = _onto(np.fft.irfft(spectrum, n), low, high)
-    return _fade_in(u, int(round(1.0 / (f_max * dt))), 0.5 * (low + high))
+    return fade_in(u, int(round(1.0 / (f_max * dt))), 0.5 * (low + high))
 
 
 def decaying_sine(frequency_hz: float, duration_s: float, dt: float = 1e-3, final_fraction: float = 0.1,

@@ -205,6 +205,14 @@ class HysteresisModel:
         return np.stack([self.windowed_regressors(u, dt, dict(zip(names, (float(v) for v in row))), window,
                                                   input_range=input_range) for row in sets])
 
+    # --- inverse (issue 15; see models/inverse.py) -----------------------
+    inverse_unavailable: ClassVar[str | None] = "no causal inverse is implemented for this model"
+
+    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None):
+        """The input that makes the model output ``y_desired`` (an ``inverse.Inversion``); models
+        that cannot be inverted raise ModelError naming ``inverse_unavailable``."""
+        raise ModelError(f"model {self.name!r} cannot be inverted: {self.inverse_unavailable}")
+
     # --- helpers for subclasses -----------------------------------------
     def _check_input(self, u, dt: float) -> np.ndarray:
         u = np.ascontiguousarray(u, dtype=float)

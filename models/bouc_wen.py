@@ -220,6 +220,7 @@ class BoucWen(HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
+    inverse_unavailable = "an ODE driven by the input's rate; no step inverse is implemented"
 
     def __init__(self, offset: bool = True):
         self.offset = offset

@@ -10,6 +10,10 @@ rate-independent: the output path depends only on the input path.
 
 from __future__ import annotations
 
+import numpy as np
+
+from .errors import ModelError
+from .inverse import Inversion, classical_pi_inverse
 from .play_model import PlayOperatorModel
 
 
@@ -23,3 +27,22 @@ class ClassicalPI(PlayOperatorModel):
 
     def get_hyperparameters(self) -> dict:
         return {"n_operators": self.n_operators, "poly_order": self.poly_order, "offset": self.offset}
+
+    def invert_analytic(self, y_desired, dt: float, params, input_range) -> Inversion:
+        """The analytic inverse (a P-I operator of the output; see models/inverse.py). Needs
+        poly_order 1 and an increasing loading curve; the input it returns is not limited."""
+        if self.poly_order != 1:
+            raise ModelError(f"{self.name}: the analytic inverse needs poly_order=1 (got {self.poly_order}); "
+                             "use invert (numerical)")
+        if input_range is None:
+            raise ModelError(f"{self.name}: the analytic inverse needs the fit's input_range")
+        p = self.unpack(self.pack(params) if isinstance(params, dict) else params)
+        y = np.ascontiguousarray(y_desired, dtype=float)
+        r = self.thresholds(np.zeros(1), input_range)
+        a = np.array([p[f"a{i}"] for i in range(1, self.n_operators + 1)])
+        moving = r > 0  # F_0[u] = u: a zero threshold adds to the linear gain
+        a0 = p["p1"] + float(np.sum(a[~moving]))
+        h = 0.5 * r[moving]  # F_r[u] = P_{r/2}[u] - r/2, from the state r/2
+        offset = (p["offset"] if self.offset else 0.0) - float(np.sum(a[moving] * h))
+        u = classical_pi_inverse(y - offset, a0, a[moving], h, h)
+        return Inversion(u, np.zeros(u.size, dtype=bool), method="analytic")

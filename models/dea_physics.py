@@ -233,6 +233,88 @@ def _rk4_step(x, ua, um, ub, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
 
 
 @njit(cache=True)
+def _advance(x, ua, ub, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
+    """One sample interval: m RK4 substeps of length h, the input linear from ua to ub."""
+    du = (ub - ua) / m
+    for s in range(m):
+        u0 = ua + du * s
+        if not _rk4_step(x, u0, u0 + 0.5 * du, u0 + du, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp):
+            return False
+    return True
+
+
+@njit(cache=True)
+def advance_sample(x, ua, ub, dt, m, p, n_br):
+    """Advance the state x in place over one sample of length dt (m RK4 substeps, the input linear
+    from ua to ub): the plant stepped with a controller in the loop. Returns False on failure."""
+    n = x.shape[0]
+    return _advance(x, ua, ub, dt / m, m, p, n_br, _inv_6tau(p, n_br), np.empty(n), np.empty(n), np.empty(n),
+                    np.empty(n), np.empty(n))
+
+
+@njit(cache=True)
+def invert_stretch(dlam, dt, p, n_br, u_lo, u_hi, u_start, max_step, tol):
+    """The causal inverse of the physics: (u_kv, clipped) with lam_a(t_k) - lam0 = dlam[k].
+
+    The stretch at t_k depends on u_k only through the interval [t_{k-1}, t_k] (input linear
+    from u_{k-1}): at each sample the scalar equation is solved on [u_lo, u_hi] narrowed to
+    u_{k-1} +- max_step (bisection with regula falsi steps; the Maxwell stress makes the
+    stretch increase with a positive input), then the state advances. Sample 0 is the rest
+    state whatever the input (u_0 = u_start): clipped unless dlam[0] is 0. A desired
+    stretch beyond both ends of the interval takes the nearer end, counted as clipped.
+    """
+    n = dlam.shape[0]
+    u = np.empty(n)
+    clipped = np.zeros(n, dtype=np.bool_)
+    x = initial_state(p, n_br)
+    trial = np.empty_like(x)
+    k1, k2, k3, k4, tmp = np.empty_like(x), np.empty_like(x), np.empty_like(x), np.empty_like(x), np.empty_like(x)
+    inv_6tau = _inv_6tau(p, n_br)
+    lam0 = p[3]
+    u[0] = u_start
+    clipped[0] = abs(dlam[0]) > tol
+    m = _substeps(u_start, dt, p, n_br)
+    h = dt / m
+    for k in range(1, n):
+        u1 = u[k - 1]
+        lo = max(u_lo, u1 - max_step)
+        hi = min(u_hi, u1 + max_step)
+        trial[:] = x
+        _advance(trial, u1, lo, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+        g_lo = trial[0] - lam0 - dlam[k]
+        trial[:] = x
+        _advance(trial, u1, hi, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+        g_hi = trial[0] - lam0 - dlam[k]
+        if not (np.isfinite(g_lo) and np.isfinite(g_hi)):
+            u[k:] = np.nan
+            clipped[k:] = True
+            break
+        if (g_lo > 0) == (g_hi > 0) and abs(g_lo) > tol and abs(g_hi) > tol:
+            uk = lo if abs(g_lo) < abs(g_hi) else hi
+            clipped[k] = True
+        else:
+            a, ga, b, gb = lo, g_lo, hi, g_hi
+            uk = a if abs(ga) < abs(gb) else b
+            for it in range(100):
+                if abs(ga) <= tol or abs(gb) <= tol or b - a <= 1e-14 * (abs(a) + abs(b)):
+                    break
+                c = b - gb * (b - a) / (gb - ga) if it % 2 == 0 else 0.5 * (a + b)  # secant, then bisection
+                if not a < c < b:
+                    c = 0.5 * (a + b)
+                trial[:] = x
+                _advance(trial, u1, c, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+                gc = trial[0] - lam0 - dlam[k]
+                if (gc > 0) == (ga > 0):
+                    a, ga = c, gc
+                else:
+                    b, gb = c, gc
+            uk = a if abs(ga) < abs(gb) else b
+        _advance(x, u1, uk, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+        u[k] = uk
+    return u, clipped
+
+
+@njit(cache=True)
 def _input_at(u_kv, q):
     """The input at fractional sample position q (linear between samples)."""
     k = min(int(q), u_kv.shape[0] - 2)
@@ -283,13 +365,7 @@ def _simulate_one(u_kv, dt, p, n_br, out, x, start, warmup_stride):
             out[i - start] = x[0] - lam0
         if i == last:
             break
-        ua = u_kv[i]
-        du = (u_kv[i + 1] - ua) / m
-        for s in range(m):
-            u0 = ua + du * s
-            ok = _rk4_step(x, u0, u0 + 0.5 * du, u0 + du, h, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
-            if not ok:
-                break
+        ok = _advance(x, u_kv[i], u_kv[i + 1], h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
         if not ok:
             for r in range(max(i + 1, start), last + 1):
                 out[r - start] = np.nan

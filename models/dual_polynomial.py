@@ -39,6 +39,7 @@ from .errors import ModelError
 
 class DualPolynomial(BranchModel):
     name = "dual-polynomial"
+    inverse_unavailable = "two branch polynomials switched by the input's direction; no step inverse is implemented"
 
     def __init__(self, order: int = 4, offset: bool = True):
         super().__init__(offset=offset)

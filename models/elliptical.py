@@ -48,6 +48,8 @@ LINEARISATIONS = ("square", "none")
 
 class Elliptical(BranchModel):
     name = "elliptical"
+    inverse_unavailable = ("the output switches branch with the input's direction and follows sqrt(1 - xi^2); "
+                           "no step inverse is implemented")
 
     def __init__(self, linearise: str = "square", poly_order: int = 1, offset: bool = True):
         super().__init__(offset=offset)

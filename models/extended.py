@@ -49,6 +49,7 @@ import numpy as np
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .inverse import StepInvertible, StepStructure
 from .filter_kernels import (
     first_order_foh,
     lowpass1_bank,
@@ -78,7 +79,7 @@ def extended_name(base: str, components: Sequence[str]) -> str:
     return "+".join([base, *components])
 
 
-class ExtendedModel(HysteresisModel):
+class ExtendedModel(StepInvertible, HysteresisModel):
     """A registered base model plus named components; see the module docstring."""
 
     name = "extended"
@@ -211,6 +212,44 @@ class ExtendedModel(HysteresisModel):
             raise ModelError(f"{self.name}: delay must not be negative, got {params['delay']!r}")
         if self.has("resonance") and not params["damping_ratio"] > 0:
             raise ModelError(f"{self.name}: damping_ratio must be positive, got {params['damping_ratio']!r}")
+
+    # --- the step structure (the causal inverse, models/inverse.py) -----
+    @property
+    def inverse_unavailable(self) -> str | None:
+        if not isinstance(self.base_model, StepInvertible):
+            return f"its base {self.base!r} has no step structure"
+        reason = self.base_model.inverse_unavailable
+        if reason:
+            return reason
+        why = {"delay": "the delay makes the output at a sample independent of the input at it (the inverse "
+                        "would need the reference ahead of time)",
+               "resonance": "the mode's low-pass makes the output at a sample almost independent of the input "
+                            "at it (relative degree 2): no sample-by-sample inverse",
+               "saturation": "no step structure for the clipped output is implemented"}
+        for component in self.components:
+            if component in why:
+                return why[component]
+        return None
+
+    def step_structure(self, dt: float, params, input_range, n_samples: int) -> StepStructure:
+        """The base's step arrays plus relaxation filters and the known-in-time creep and interference."""
+        s = self.base_model.step_structure(dt, {k: params[k] for k in self.base_names}, input_range, n_samples)
+        base = np.array(s.base, dtype=float)
+        if self.has("relaxation"):
+            coef = [first_order_foh(float(params[f"tau{k}"]), dt) for k in range(1, self.n_relaxation + 1)]
+            n_p = len(self.relaxation_powers)
+            s.filter_a = np.array([c[0] for c in coef for _ in range(n_p)])
+            s.filter_b0 = np.array([c[1] for c in coef for _ in range(n_p)])
+            s.filter_b1 = np.array([c[2] for c in coef for _ in range(n_p)])
+            s.filter_power = np.array(list(self.relaxation_powers) * len(coef), dtype=np.int64)
+            s.filter_weight = np.array([params[w] for w in self._relaxation_weight_names()])
+        if self.has("creep"):
+            base += params["creep_size"] * self._creep_column(n_samples, dt, params["creep_time"])
+        if self.has("interference"):
+            cols = self.interference_columns(n_samples, dt, params["interference_frequency"])
+            base += params["interference_sin"] * cols[0] + params["interference_cos"] * cols[1]
+        s.base = base
+        return s
 
     # --- evaluation ------------------------------------------------------
     @staticmethod

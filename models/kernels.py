@@ -25,6 +25,16 @@ import numpy as np  # noqa: E402
 from numba import njit, prange  # noqa: E402
 
 
+@njit(inline="always", fastmath=True)
+def play_update(w, lower, upper):
+    """One sample of a play operator: its previous output w clamped into the band
+    [lower, upper], the lower edge winning when the band is empty (eq. 6:
+    max(h_l - r, min(h_r, w))). The one home of the play update: every forward,
+    step and inverse kernel of the P-I family calls it."""
+    v = min(upper, w)
+    return v if v > lower else lower
+
+
 @njit(cache=True, fastmath=True)
 def play_operators(h_left, h_right, thresholds, w0):
     """Outputs of N play operators, shape (T, N)."""
@@ -38,9 +48,7 @@ def play_operators(h_left, h_right, thresholds, w0):
         hl = h_left[k]
         hr = h_right[k]
         for i in range(n_op):
-            v = min(hr, w[i])
-            lo = hl - thresholds[i]
-            v = v if v > lo else lo
+            v = play_update(w[i], hl - thresholds[i], hr)
             w[i] = v
             out[k, i] = v
     return out
@@ -105,10 +113,7 @@ def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, row
         hl = uk - gamma * a_du
         hr = uk + lam * a_du
         for i in range(n_op):
-            v = min(hr, w[i])
-            lo = hl - thresholds[i]
-            v = v if v > lo else lo
-            w[i] = v
+            w[i] = play_update(w[i], hl - thresholds[i], hr)
         if picked:
             if k == rows[j]:
                 for i in range(n_op):
@@ -181,9 +186,7 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
         hr = uk + lam * a_du
         acc = 0.0
         for i in range(n_op):
-            v = min(hr, w[i])
-            lo = hl - thresholds[i]
-            v = v if v > lo else lo
+            v = play_update(w[i], hl - thresholds[i], hr)
             w[i] = v
             acc += weights[i] * v
         if k >= start:

@@ -21,6 +21,7 @@ import numpy as np
 from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
+from .inverse import StepInvertible, StepStructure
 from .kernels import (
     pi_output,
     pi_output_batch,
@@ -39,7 +40,7 @@ ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
 _NO_ROWS = np.empty(0, dtype=np.int64)  # the play kernels' "a contiguous window"
 
 
-class PlayOperatorModel(HysteresisModel):
+class PlayOperatorModel(StepInvertible, HysteresisModel):
     """Shared implementation; use ``ClassicalPI`` or ``MRPIM``."""
 
     def __init__(
@@ -185,6 +186,17 @@ class PlayOperatorModel(HysteresisModel):
         if self.offset:
             cols["offset"] = np.ones_like(u)
         return np.stack([cols[n] for n in self.linear_names], axis=1)
+
+    # --- the step structure (the causal inverse, models/inverse.py) -----
+    def step_structure(self, dt: float, params: Mapping[str, float], input_range, n_samples: int) -> StepStructure:
+        r = self.thresholds(np.zeros(1), input_range)
+        return StepStructure(
+            r_lo=r, r_hi=np.zeros_like(r),
+            g_lo=params["gamma"] if self.envelopes else 0.0, g_hi=params["lambda"] if self.envelopes else 0.0,
+            weights=np.array([params[f"a{i}"] for i in range(1, self.n_operators + 1)]),
+            poly=np.array([params[f"p{j}"] for j in range(1, self.poly_order + 1)]),
+            q=params["q"] if self.q_term else 0.0,
+            base=np.full(n_samples, params["offset"] if self.offset else 0.0))
 
     # --- windowed regressors (what identifiers fit) -----------------------
     def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int,

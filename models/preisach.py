@@ -118,6 +118,8 @@ class Preisach(HysteresisModel):
     """Discrete Preisach model on a triangular relay grid; see the module docstring."""
 
     name = "preisach"
+    inverse_unavailable = ("relay hysterons make the output a staircase in the input (flat between switching levels); "
+                           "no step inverse is implemented")
 
     def __init__(self, grid_size: int = 10, offset: bool = True):
         self.grid_size = grid_size

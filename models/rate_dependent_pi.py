@@ -41,6 +41,8 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
+from .inverse import StepInvertible, StepStructure
+from .kernels import play_update
 
 POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
@@ -67,9 +69,7 @@ def _rd_play_window(u, abs_du, r0, beta, w0, start, stop, out):
         extra = beta * abs_du[k]
         for i in range(n_op):
             r = r0[i] + extra
-            v = min(uk + r, w[i])
-            lo = uk - r
-            w[i] = v if v > lo else lo
+            w[i] = play_update(w[i], uk - r, uk + r)
         if k >= start:
             for i in range(n_op):
                 out[k - start, i] = w[i]
@@ -106,9 +106,7 @@ def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
         acc = 0.0
         for i in range(n_op):
             r = r0[i] + extra
-            v = min(uk + r, w[i])
-            lo = uk - r
-            v = v if v > lo else lo
+            v = play_update(w[i], uk - r, uk + r)
             w[i] = v
             acc += weights[i] * v
         p = 0.0
@@ -134,7 +132,7 @@ def rd_pi_batch(u, abs_du, r0, betas, weights, polys, offsets, w0):
     return out
 
 
-class RateDependentPI(HysteresisModel):
+class RateDependentPI(StepInvertible, HysteresisModel):
     """P-I with thresholds growing with |du/dt|; see the module docstring."""
 
     name = "rate-dependent-pi"
@@ -176,6 +174,15 @@ class RateDependentPI(HysteresisModel):
         if self.offset:
             params.append(self.offset_parameter(scale))
         return params
+
+    def step_structure(self, dt: float, params, input_range, n_samples: int) -> StepStructure:
+        """The step kernel's arrays (models/inverse.py): symmetric plays r0_i + beta |u'|."""
+        r0 = self.base_thresholds(np.zeros(1), input_range)
+        return StepStructure(
+            r_lo=r0, r_hi=r0, g_lo=params["beta"], g_hi=params["beta"],
+            weights=np.array([params[f"a{i}"] for i in range(1, self.n_operators + 1)]),
+            poly=np.array([params[f"p{j}"] for j in range(1, self.poly_order + 1)]), q=0.0,
+            base=np.full(n_samples, params["offset"] if self.offset else 0.0))
 
     def base_thresholds(self, u, input_range=None) -> np.ndarray:
         """r0_i = (i - 1)/N * (u_max - u_min)/2."""

@@ -47,6 +47,7 @@ from .dea_physics import TRUTH
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .inverse import Inversion
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -60,6 +61,7 @@ class Viscoelastic(HysteresisModel):
     """Physics-based DEA model; hyperparameters default to the virtual DEA's constants."""
 
     name = "viscoelastic"
+    inverse_unavailable = None  # invert: dea_physics.invert_stretch
     presets_available = ("virtual-dea",)
 
     def __init__(
@@ -186,6 +188,33 @@ class Viscoelastic(HysteresisModel):
         stride = self.warmup_stride if window is not None else 1
         out = dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
         return out if rows is None else np.ascontiguousarray(out[:, rows - start])
+
+    # --- inverse (issue 15) ------------------------------------------------
+    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
+               max_rate: float | None = None, u_start: float | None = None) -> Inversion:
+        """The causal inverse (``dea_physics.invert_stretch``): the input within ``input_limits``
+        (input units; default ``input_range``) whose output is ``y_desired``, sample by sample;
+        ``max_rate`` limits |du/dt| (input units per s), ``u_start`` is the input at sample 0
+        (default the lower limit). The output at sample 0 is the rest output whatever the input."""
+        yd = np.ascontiguousarray(y_desired, dtype=float)
+        limits = input_limits if input_limits is not None else input_range
+        if limits is None or yd.ndim != 1 or yd.size == 0 or not np.all(np.isfinite(yd)):
+            raise ModelError(f"{self.name}: invert needs input_limits and a finite, non-empty 1-D desired output")
+        P = self._check_param_sets(self.pack(params) if isinstance(params, Mapping) else params)
+        K = self.n_branches
+        length = P[0, 2 + 2 * K]
+        offset = P[0, 3 + 2 * K] if self.offset else 0.0
+        if not length > 0:
+            raise ModelError(f"{self.name}: invert needs a positive length, got {length!r}")
+        kv = self.volts_per_input_unit / 1000.0
+        lo, hi = float(limits[0]) * kv, float(limits[1]) * kv
+        step = np.inf if max_rate is None else float(max_rate) * kv * float(dt)
+        start = lo if u_start is None else float(u_start) * kv
+        dlam = (yd - offset) / length
+        tol = 1e-12 * (1.0 + float(np.max(np.abs(dlam))))
+        u_kv, clipped = dea_physics.invert_stretch(dlam, float(dt), self.physical_vectors(P)[0], K, lo, hi, start, step,
+                                                   tol)
+        return Inversion(u_kv / kv, clipped)
 
     # --- evaluation ------------------------------------------------------
     def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:

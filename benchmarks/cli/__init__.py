@@ -31,6 +31,8 @@ COMMANDS = {
                                                  "calibrate-virtual-dea"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
+    "compensate": ("hysbench.benchmarks.cli.compensate",
+                   "invert models and score how well the virtual DEA tracks references (writes compensation.md)"),
 }
 
 

@@ -1,0 +1,140 @@
+"""The tracking benchmark: every compensator on every reference, on the plant.
+
+Controllers per reference (names are the JSON keys):
+
+* ``linear``          the static linear gain's inverse, open loop (no model)
+* ``<model>``         the model's inverse, open loop
+* ``pi``              the PI loop alone (reference tracking by feedback only)
+* ``pi+linear``       the PI loop with the linear inverse as feedforward
+* ``pi+<model>``      the PI loop with the model's inverse as feedforward
+
+Scores on the reference's scored samples, against the sensor's reading (what the
+experimenter sees: the noise, sd 0.01 mm, is in every score): e_rms and e_m in percent
+of the reference's peak-to-peak there (``hysbench.data.metrics``); ``clipped`` counts the
+scored samples at which the command was clipped at the input limits or the inverse did
+not reach the reference (``input_clipped`` and ``inverse_clipped`` give the two apart).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.data.metrics import e_m, e_rms
+from hysbench.models import get_model
+from hysbench.models.errors import HysbenchError
+
+from .controllers import PI, PI_BANDWIDTH_HZ, LinearGain, ModelInverse
+from .plant import DEAPlant
+from .references import Reference, references
+
+DEFAULT_MODELS = ("classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxation", "viscoelastic")
+
+
+@dataclass
+class Tracking:
+    """One controller on one reference: the run and its scores."""
+
+    reference: Reference
+    u: np.ndarray
+    y: np.ndarray
+    clipped_input: np.ndarray
+    clipped_inverse: np.ndarray
+    scores: dict = field(default_factory=dict)
+
+    def score(self) -> dict:
+        s = self.reference.scored
+        r, y = self.reference.y[s], self.y[s]
+        finite = bool(np.all(np.isfinite(y)))
+        ci, cv = self.clipped_input[s], self.clipped_inverse[s]
+        self.scores = {"e_rms": e_rms(y, r) if finite else None, "e_m": e_m(y, r) if finite else None,
+                       "clipped": int(np.count_nonzero(ci | cv)), "input_clipped": int(np.count_nonzero(ci)),
+                       "inverse_clipped": int(np.count_nonzero(cv)), "scored_samples": int(r.size),
+                       "finite": finite}
+        return self.scores
+
+
+def check_models(names) -> tuple[list[str], dict[str, str]]:
+    """(invertible names, {name: why not} for the others); unknown names raise ModelError."""
+    ok, not_invertible = [], {}
+    for name in names:
+        reason = get_model(name).inverse_unavailable
+        if reason:
+            not_invertible[name] = reason
+        else:
+            ok.append(name)
+    return ok, not_invertible
+
+
+def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "auto", seed: int = 0,
+               bandwidth_hz: float = PI_BANDWIDTH_HZ, plant: DEAPlant | None = None,
+               reference_names=None, log=print) -> tuple[dict, dict]:
+    """(result JSON, runs {reference: {controller: Tracking}}) for the dataset's plant."""
+    t_start = time.perf_counter()
+    ds = load_dataset(dataset) if not isinstance(dataset, Dataset) else dataset
+    plant = plant or DEAPlant()
+    dt = ds.records[0].dt
+    if abs(dt - plant.dt) > 1e-12:
+        raise HysbenchError(f"dataset {ds.name!r} is sampled every {dt:g} s; the plant runs at {plant.dt:g} s")
+    if (ds.input_unit, ds.output_unit) != ("kV", "mm"):
+        raise HysbenchError(f"dataset {ds.name!r} is in {ds.input_unit or '?'} -> {ds.output_unit or '?'}; the plant "
+                            "(the virtual DEA) takes kV and gives mm: compensate needs a dataset recorded on it")
+    refs = references(ds, dt)  # refuses a dataset without the protocol's sines, before any identification
+    if reference_names is not None:
+        unknown = sorted(set(reference_names) - {r.name for r in refs})
+        if unknown:
+            raise HysbenchError(f"unknown reference(s) {', '.join(unknown)}; known: {', '.join(r.name for r in refs)}")
+        refs = [r for r in refs if r.name in reference_names]
+    invertible, not_invertible = check_models(models)
+    for name, why in not_invertible.items():
+        log(f"{name}: cannot be inverted: {why}")
+    linear = LinearGain.fit(ds)
+    pi = PI.design(linear.gain, bandwidth_hz)
+    inverses = {}
+    for name in invertible:
+        inverses[name] = ModelInverse.identify(name, ds, method=method, seed=seed, u_limits=plant.u_limits)
+        log(f"{name}: identified ({inverses[name].fit.method}, {inverses[name].identify_seconds:.1f} s), "
+            f"{inverses[name].inverse} inverse")
+    runs: dict[str, dict[str, Tracking]] = {}
+    invert_seconds = 0.0
+    for ref in refs:
+        feedforwards = {"linear": linear.invert(ref.y)}
+        for name, inv in inverses.items():
+            t0 = time.perf_counter()
+            feedforwards[name] = inv.invert(ref.y, dt, plant.u_limits)
+            invert_seconds += time.perf_counter() - t0
+        zero = np.zeros(ref.y.size)
+        plans = [(name, ff, 0.0, 0.0) for name, ff in feedforwards.items()]
+        plans.append(("pi", None, pi.kp, pi.ki))
+        plans += [(f"pi+{name}", ff, pi.kp, pi.ki) for name, ff in feedforwards.items()]
+        runs[ref.name] = {}
+        for controller, ff, kp, ki in plans:
+            run = plant.run(ref.y, zero if ff is None else ff.u, kp, ki)  # PI alone: no feedforward
+            tracking = Tracking(ref, run.u, run.y, run.clipped, zero.astype(bool) if ff is None else ff.clipped)
+            tracking.score()
+            runs[ref.name][controller] = tracking
+        log(f"{ref.name}: " + ", ".join(f"{c} {t.scores['e_rms']:.3g}" if t.scores["e_rms"] is not None else
+                                       f"{c} non-finite" for c, t in runs[ref.name].items()))
+    result = {
+        "format": "hysbench-compensation/1",
+        "dataset": ds.name,
+        "dataset_hash": ds.content_hash(),
+        "plant": {"physics": "hysbench.models.dea_physics TRUTH", "sensor": plant.sensor.as_dict(),
+                  "u_limits_kV": list(plant.u_limits), "noise_seed": plant.seed, "dt_s": plant.dt},
+        "linear": {"gain": linear.gain, "offset": linear.offset},
+        "pi": {"kp": pi.kp, "ki": pi.ki, "bandwidth_hz": pi.bandwidth_hz, "zero_s": pi.zero_s},
+        "models": {name: {"method": inv.fit.method, "inverse": inv.inverse, "identify_s": inv.identify_seconds,
+                          "validation_e_rms_mean": inv.fit.mean("validation"), "max_rate": inv.max_rate,
+                          "params": inv.fit.params,
+                          "input_range": list(inv.fit.input_range), "notes": list(inv.fit.notes)}
+                   for name, inv in inverses.items()},
+        "not_invertible": not_invertible,
+        "seed": seed,
+        "references": {ref: {c: t.scores for c, t in by.items()} for ref, by in runs.items()},
+        "invert_seconds": invert_seconds,
+        "seconds": time.perf_counter() - t_start,
+    }
+    return result, runs

@@ -1,0 +1,106 @@
+"""The tracking benchmark: plant, references, a plant that is the model, PI loop, CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks.cli import main as cli_main
+from hysbench.benchmarks.compensation.plant import DEAPlant, ModelPlant
+from hysbench.benchmarks.compensation.references import references
+from hysbench.data.dataset import load_dataset
+from hysbench.data.dea_sensor import LaserSensor
+from hysbench.data.metrics import e_rms
+from hysbench.data.protocol import simulated_dataset
+from hysbench.data.virtual_dea import command_voltage, default_dataset_path, displacement_mm
+from hysbench.identification.api import identify
+from hysbench.models import get_model
+
+DT = 1e-3
+
+
+def test_open_loop_plant_is_the_data_generator():
+    u = command_voltage(1.0, 3000)
+    plant = DEAPlant(seed=5)
+    run = plant.run(np.zeros(u.size), u)
+    x = displacement_mm(u)
+    np.testing.assert_array_equal(run.x, x)
+    np.testing.assert_array_equal(run.y, LaserSensor().measure(x, np.random.default_rng(5)))
+    assert not run.clipped.any()
+
+
+def test_plant_clips_and_counts_commands_outside_the_limits():
+    ff = np.concatenate([np.full(10, 1.0), np.full(5, 3.0), np.full(5, 0.1)])
+    run = DEAPlant().run(np.zeros(ff.size), ff)
+    assert run.clipped.sum() == 10
+    assert run.u.max() == 2.5 and run.u.min() == 0.5
+
+
+def test_pi_loop_holds_a_constant_reference():
+    n = 20000
+    run = DEAPlant().run(np.full(n, 5.0), np.zeros(n), kp=0.1, ki=7.0)
+    tail = run.y[-5000:]
+    assert abs(tail.mean() - 5.0) < 0.01
+    assert tail.std() < 0.03  # the sensor noise (0.01 mm) fed back, no oscillation
+
+
+def test_compensating_a_plant_that_is_the_identified_model_leaves_only_the_noise():
+    truth = get_model("classical-pi")
+    rng = np.random.default_rng(2)
+    params = {n: float(rng.uniform(0.2, 1.0)) for n in truth.param_names}
+    ds = simulated_dataset(truth, params, n_periods=2, frequencies=(0.2, 1.0))
+    for r in ds.records:
+        r.role = "identification"
+    fit = identify(truth, ds, method="varpro")
+    model = fit.model_instance()
+    noise = 0.01
+    plant = ModelPlant(model, fit.params, fit.input_range, noise_sd=noise, seed=1)  # the plant IS the fitted model
+    t = np.arange(8000) * DT
+    ref = model.simulate(1.5 - 0.9 * np.cos(2 * np.pi * 0.5 * t), DT, fit.params, input_range=fit.input_range)
+    inv = model.invert(ref, DT, fit.params, input_range=fit.input_range, input_limits=(0.5, 2.5))
+    run = plant.run(ref, inv.u)
+    assert inv.n_clipped == 0 and not run.clipped.any()
+    err = run.y - ref
+    assert np.sqrt(np.mean(err ** 2)) == pytest.approx(noise, rel=0.1)
+    np.testing.assert_allclose(run.x, ref, atol=1e-8)  # the true output: exact up to the fit's rounding
+    assert e_rms(run.y, ref) < 100 * 1.1 * noise / np.ptp(ref)
+
+
+def test_references_span_the_stable_loops_and_start_at_rest():
+    ds = load_dataset(default_dataset_path())
+    refs = {r.name: r for r in references(ds, DT)}
+    assert set(refs) == {f"sine-{f:g}Hz" for f in (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1)} | {"triangle", "multisine",
+                                                                                           "random"}
+    rec = next(r for r in ds.records if r.frequency_hz == 0.4)
+    sine = refs["sine-0.4Hz"]
+    assert sine.y.size == rec.u.size and sine.y[0] == 0.0
+    scored = sine.y[sine.scored]
+    loop = rec.y[rec.scored]
+    margin = 0.05 * np.ptp(loop)  # the central 90 % of the stable loop's range
+    assert scored.min() == pytest.approx(loop.min() + margin, abs=1e-3)
+    assert scored.max() == pytest.approx(loop.max() - margin, abs=1e-3)
+    assert refs["random"].scored.start * DT >= 430.0
+
+
+def test_cli_bad_input_is_one_line_and_exit_2(capsys, tmp_path):
+    assert cli_main(["compensate", str(default_dataset_path()), "--models", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown model 'nope'" in err[0]
+    assert cli_main(["compensate", str(default_dataset_path()), "--bandwidth", "-1"]) == 2
+    assert cli_main(["compensate", str(tmp_path / "missing"), "--model", "mrpim"]) == 2
+    assert cli_main(["compensate", str(default_dataset_path()), "--references", "nope", "--model", "mrpim"]) == 2
+    assert not (tmp_path / "compensation.md").exists()
+
+
+def test_cli_writes_report_and_json(tmp_path, capsys):
+    out = tmp_path / "res"
+    code = cli_main(["compensate", str(default_dataset_path()), "--models", "classical-pi,preisach",
+                     "--references", "sine-1Hz", "--out", str(out), "--quiet"])
+    assert code == 0
+    data = json.loads((out / "compensation.json").read_text())
+    cell = data["references"]["sine-1Hz"]
+    assert set(cell) == {"linear", "classical-pi", "pi", "pi+linear", "pi+classical-pi"}
+    assert set(cell["classical-pi"]) >= {"e_rms", "e_m", "clipped"}
+    assert "preisach" in data["not_invertible"]
+    assert "preisach: cannot be inverted" in capsys.readouterr().out
+    assert (out / "compensation.md").read_text().count("| sine-1Hz |") == 2

@@ -1,0 +1,203 @@
+"""Inverses of the P-I family (models/inverse.py): step kernels against a slow reference, the
+model driven by its own inverse, the analytic classical P-I inverse, clipping."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from hysbench.models import get_model
+from hysbench.models.errors import ModelError
+
+DT = 1e-3
+LIMITS = (0.5, 2.5)
+
+
+def slow_step_model(u, dt, r_lo, r_hi, g_lo, g_hi, weights, poly, q, offset, filters=()):
+    """The step structure of models/inverse.py written out plainly, one sample at a time.
+    filters: (a, b0, b1, power, weight) first-order-hold low-passes from rest."""
+    w = [0.0] * len(r_lo)
+    x = [0.0] * len(filters)
+    out = []
+    for k, uk in enumerate(u):
+        u1 = u[k - 1] if k >= 1 else uk
+        u2 = u[k - 2] if k >= 2 else u1
+        rate = abs(uk - u1) / dt
+        for i in range(len(r_lo)):
+            lower = uk - g_lo * rate - r_lo[i]
+            upper = uk + g_hi * rate + r_hi[i]
+            w[i] = max(lower, min(upper, w[i]))
+        for j, (a, b0, b1, p, _) in enumerate(filters):
+            x[j] = 0.0 if k == 0 else a * x[j] + b0 * u1 ** p + b1 * uk ** p
+        y = offset + sum(c * uk ** (j + 1) for j, c in enumerate(poly)) + q * (uk - 2 * u1 + u2) / dt ** 2
+        y += sum(a * wi for a, wi in zip(weights, w)) + sum(f[4] * xj for f, xj in zip(filters, x))
+        out.append(y)
+    return np.array(out)
+
+
+def smooth_input(seed, n, max_rate=5.0):
+    """A random, rate-limited input inside LIMITS starting at the lower limit."""
+    rng = np.random.default_rng(seed)
+    steps = np.cumsum(rng.normal(0.0, 1.0, n))
+    steps = np.convolve(steps, np.ones(50) / 50, mode="same")
+    target = np.interp(steps, (steps.min(), steps.max()), (0.6, 2.4))
+    u = np.empty(n)
+    previous = LIMITS[0]
+    for k in range(n):
+        previous += min(max(target[k] - previous, -max_rate * DT), max_rate * DT)
+        u[k] = previous
+    return u
+
+
+def mrpim_params(rng, model, gamma=0.004, lam=0.003, q=2e-6):
+    p = model.default_params()
+    for name in p:
+        if name.startswith("a") or name.startswith("p"):
+            p[name] = float(rng.uniform(0.05, 1.0))
+    p.update(gamma=gamma, **{"lambda": lam}, q=q, offset=0.3)
+    return p
+
+
+def test_step_kernels_match_a_slow_reference_and_the_forward_kernels():
+    rng = np.random.default_rng(3)
+    u = smooth_input(1, 1500)
+    m = get_model("mrpim")
+    p = mrpim_params(rng, m, gamma=0.02, lam=-0.01, q=1e-4)
+    s = m.step_structure(DT, p, LIMITS, u.size)
+    ref = slow_step_model(u, DT, s.r_lo, s.r_hi, s.g_lo, s.g_hi, s.weights, s.poly, s.q, p["offset"])
+    np.testing.assert_allclose(m.simulate_steps(u, DT, p, input_range=LIMITS), ref, rtol=1e-11, atol=1e-11)
+    np.testing.assert_allclose(m.simulate(u, DT, p, input_range=LIMITS), ref, rtol=1e-11, atol=1e-11)
+
+    rd = get_model("rate-dependent-pi")
+    prd = {n: float(rng.uniform(0.1, 1.0)) for n in rd.param_names}
+    prd["beta"] = 0.01
+    s = rd.step_structure(DT, prd, LIMITS, u.size)
+    ref = slow_step_model(u, DT, s.r_lo, s.r_hi, s.g_lo, s.g_hi, s.weights, s.poly, 0.0, prd["offset"])
+    np.testing.assert_allclose(rd.simulate(u, DT, prd, input_range=LIMITS), ref, rtol=1e-11, atol=1e-11)
+    np.testing.assert_allclose(rd.simulate_steps(u, DT, prd, input_range=LIMITS), ref, rtol=1e-11, atol=1e-11)
+
+    ext = get_model("mrpim+relaxation", relaxation_powers=(1, 2))
+    pe = mrpim_params(rng, ext)
+    pe.update(tau1=0.7, c1=0.4, c1_u2=-0.2)
+    s = ext.step_structure(DT, pe, LIMITS, u.size)
+    filters = list(zip(s.filter_a, s.filter_b0, s.filter_b1, s.filter_power, s.filter_weight))
+    ref = slow_step_model(u, DT, s.r_lo, s.r_hi, s.g_lo, s.g_hi, s.weights, s.poly, s.q, pe["offset"], filters)
+    np.testing.assert_allclose(ext.simulate(u, DT, pe, input_range=LIMITS), ref, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(ext.simulate_steps(u, DT, pe, input_range=LIMITS), ref, rtol=1e-10, atol=1e-10)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), name=st.sampled_from(["mrpim", "rate-dependent-pi", "mrpim+relaxation",
+                                                          "classical-pi"]),
+       gamma=st.floats(0.0, 0.01), lam=st.floats(-0.01, 0.01), q=st.floats(0.0, 1e-5))
+def test_model_driven_by_its_inverse_reproduces_the_desired_output(seed, name, gamma, lam, q):
+    """Reachable trajectories (outputs of the model for random inputs): wherever the inverse
+    did not clip, the model driven by it gives the desired output to 1e-6 of its range."""
+    rng = np.random.default_rng(seed)
+    m = get_model(name)
+    p = {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+    p.update({k: v for k, v in {"gamma": gamma, "lambda": lam, "q": q, "beta": abs(gamma), "tau1": 0.5}.items()
+              if k in p})
+    u = smooth_input(seed, 2000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    inv = m.invert(y, DT, p, input_range=LIMITS)
+    achieved = m.simulate(inv.u, DT, p, input_range=LIMITS)
+    ok = ~inv.clipped
+    span = np.ptp(y)
+    assert np.all((inv.u >= LIMITS[0]) & (inv.u <= LIMITS[1]))
+    assert np.max(np.abs(achieved - y)[ok]) <= 1e-6 * span
+    if name == "classical-pi":  # positive weights: monotone, every sample is reachable
+        assert inv.n_clipped == 0
+
+
+def positive_classical_pi(seed):
+    """classical-pi with random positive weights: a monotone model."""
+    rng = np.random.default_rng(seed)
+    m = get_model("classical-pi")
+    return m, {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+
+
+def test_analytic_classical_pi_inverse_agrees_with_the_numerical_one():
+    m, p = positive_classical_pi(7)
+    u = smooth_input(2, 5000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    analytic = m.invert_analytic(y, DT, p, LIMITS)
+    numerical = m.invert(y, DT, p, input_range=LIMITS)
+    assert numerical.n_clipped == 0
+    np.testing.assert_allclose(analytic.u, numerical.u, atol=1e-9)
+    np.testing.assert_allclose(analytic.u, u, atol=1e-9)  # monotone: the input is unique
+
+
+def test_analytic_inverse_refuses_a_decreasing_loading_curve():
+    m = get_model("classical-pi")
+    p = {n: 0.5 for n in m.param_names}
+    p["a5"] = -20.0
+    with pytest.raises(ModelError, match="loading curve"):
+        m.invert_analytic(np.ones(10), DT, p, LIMITS)
+
+
+def test_clipping_count_on_an_unreachable_reference():
+    m, p = positive_classical_pi(11)
+    u = smooth_input(4, 1000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    y_max = m.simulate(np.array([LIMITS[1]]), DT, p, input_range=LIMITS)[0]
+    desired = np.concatenate([y, np.full(30, y_max + 5.0), np.full(20, -1e3), y[:5] * 0 + y.min() - 50.0])
+    inv = m.invert(desired, DT, p, input_range=LIMITS)
+    assert inv.n_clipped == 55
+    np.testing.assert_array_equal(np.flatnonzero(inv.clipped), np.arange(1000, 1055))
+    assert np.all(inv.u[1000:1030] == LIMITS[1]) and np.all(inv.u[1030:1055] == LIMITS[0])
+
+
+def test_rate_limit_is_kept_and_counted():
+    m = get_model("classical-pi")
+    p = {n: 0.3 for n in m.param_names}
+    y = m.simulate(np.array([0.5, 0.5, 2.5, 2.5]), DT, p, input_range=LIMITS)
+    inv = m.invert(y, DT, p, input_range=LIMITS, max_rate=100.0)  # 0.1 kV per sample at most
+    assert np.max(np.abs(np.diff(inv.u))) <= 0.1 + 1e-12
+    assert inv.clipped[2] and inv.clipped[3]
+
+
+def test_models_without_an_inverse_say_why():
+    for name in ("bouc-wen", "preisach", "mrpim+delay"):
+        m = get_model(name)
+        assert m.inverse_unavailable
+        with pytest.raises(ModelError, match="cannot be inverted"):
+            m.invert(np.ones(5), DT, m.default_params(), input_range=LIMITS)
+    with pytest.raises(ModelError, match="derivative"):
+        get_model("mrpim", derivative="smoothed").invert(np.ones(5), DT, get_model("mrpim").default_params(),
+                                                          input_range=LIMITS)
+
+
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), scale=st.floats(0.7, 1.4))
+def test_viscoelastic_driven_by_its_inverse_reproduces_the_desired_output(seed, scale):
+    """The physics model's inverse (dea_physics.invert_stretch) on reachable trajectories: from
+    sample 1 on (sample 0 is the rest state whatever the input) the output is reproduced."""
+    m = get_model("viscoelastic")
+    p = m.preset("virtual-dea")
+    p.update(mu1=p["mu1"] * scale, tau2=p["tau2"] / scale, offset=0.2)
+    u = smooth_input(seed, 1500)
+    y = m.simulate(u, DT, p)
+    inv = m.invert(y, DT, p, input_limits=LIMITS, u_start=u[0])
+    assert inv.n_clipped == 0
+    achieved = m.simulate(inv.u, DT, p)
+    assert np.max(np.abs(achieved - y)[1:]) <= 1e-6 * np.ptp(y)
+    np.testing.assert_allclose(inv.u, u, atol=1e-6)  # the stretch increases with the voltage: unique
+
+
+@pytest.mark.parametrize("name", ["mrpim+creep", "mrpim+interference"])
+def test_known_in_time_components_step_and_invert(name):
+    """Creep and interference only shift the target: the step kernel equals the forward model
+    and the inverse reproduces a reachable output."""
+    rng = np.random.default_rng(5)
+    m = get_model(name)
+    p = mrpim_params(rng, m)
+    p.update({k: v for k, v in {"creep_time": 20.0, "creep_size": 0.7, "interference_frequency": 3.0,
+                                "interference_sin": 0.05, "interference_cos": -0.02}.items() if k in p})
+    u = smooth_input(6, 3000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    np.testing.assert_allclose(m.simulate_steps(u, DT, p, input_range=LIMITS), y, rtol=1e-11, atol=1e-11)
+    inv = m.invert(y, DT, p, input_range=LIMITS)
+    ok = ~inv.clipped
+    assert ok.mean() > 0.99
+    assert np.max(np.abs(m.simulate(inv.u, DT, p, input_range=LIMITS) - y)[ok]) <= 1e-6 * np.ptp(y)
