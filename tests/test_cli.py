@@ -24,6 +24,7 @@ BAD = {
     "ablate": (["ablate", "--orders", "1,x", "--out", "{tmp}"], "--orders"),
     "fit": (["fit", "--model", "mrpim", "--method", "no-such-method"], "no-such-method"),
     "diagnose": (["diagnose", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
+    "compensate": (["compensate", "--models", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "report": (["report", "baselines", "--models", "no-such-model", "--out", "{tmp}/b.md"], "no-such-model"),
 }
 

@@ -20,7 +20,7 @@ import shlex
 import sys
 import time
 
-from hysbench.benchmarks.cli.common import nonnegative_int
+from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, comma_list, dataset_paths
 from hysbench.benchmarks.compensation.controllers import PI_BANDWIDTH_HZ
 from hysbench.benchmarks.compensation.report import write_report
 from hysbench.benchmarks.compensation.run import DEFAULT_MODELS, check_models, compensate
@@ -28,15 +28,16 @@ from hysbench.data.files import ensure_dir
 from hysbench.identification.api import list_methods
 from hysbench.identification.errors import IdentificationError
 
+EXAMPLE = "hysbench compensate data/virtual_dea --models classical-pi,mrpim,viscoelastic --out results"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.epilog = "example: hysbench compensate data/virtual_dea --models classical-pi,mrpim --out results"
-    parser.add_argument("dataset", metavar="DATASET", help="dataset folder (holding dataset.toml)")
+    add_dataset_argument(parser)
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--model", help="one registered model to invert, e.g. mrpim")
     group.add_argument("--models", help=f"comma-separated models (default: {','.join(DEFAULT_MODELS)})")
     parser.add_argument("--method", default="auto", help=f"identifier: {', '.join(list_methods())} (default auto)")
-    parser.add_argument("--seed", type=nonnegative_int, default=0, help="identifier seed (default 0)")
+    add_seed_argument(parser, what="the identifier")
     parser.add_argument("--bandwidth", type=float, default=PI_BANDWIDTH_HZ,
                         help=f"PI loop bandwidth in Hz (default {PI_BANDWIDTH_HZ:g})")
     parser.add_argument("--references", default=None,
@@ -49,10 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    names = [args.model] if args.model else (args.models.split(",") if args.models else list(DEFAULT_MODELS))
-    names = [n.strip() for n in names if n.strip()]
-    if not names:
-        raise IdentificationError("--models names no model")
+    names = [args.model] if args.model else (comma_list(args.models, "--models") or list(DEFAULT_MODELS))
+    dataset = dataset_paths(args.dataset)[0]
     if not (args.bandwidth > 0 and args.bandwidth < 100):
         raise IdentificationError(f"--bandwidth must lie in (0, 100) Hz, got {args.bandwidth!r}")
     check_models(names)  # an unknown model fails here, before any work
@@ -64,9 +63,9 @@ def main(args) -> int:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     refs = [r.strip() for r in args.references.split(",")] if args.references else None
-    result, runs = compensate(args.dataset, names, method=args.method, seed=args.seed, bandwidth_hz=args.bandwidth,
+    result, runs = compensate(dataset, names, method=args.method, seed=args.seed, bandwidth_hz=args.bandwidth,
                               reference_names=refs, log=say)
-    parts = ["hysbench compensate", shlex.quote(str(args.dataset)), "--models", ",".join(names)]
+    parts = ["hysbench compensate", shlex.quote(str(dataset)), "--models", ",".join(names)]
     if args.method != "auto":
         parts += ["--method", args.method]
     if args.bandwidth != PI_BANDWIDTH_HZ:
