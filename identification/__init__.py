@@ -1,18 +1,31 @@
 """Identifiers behind one call: ``identify(model, dataset, method, seed, **options) -> Fit``.
 
-Methods: ``varpro`` (separable least squares), ``mpso`` (the paper's modified
-particle swarm), ``lsq`` (nonlinear least squares), their chains
-``varpro+lsq`` and ``mpso+lsq``, and ``auto``. See ``api`` and each method's
-module for what they do and their defaults.
+Methods: ``varpro`` (separable least squares), ``mpso`` (hysbench's modified
+particle swarm, in the paper's spirit), ``lsq`` (nonlinear least squares), their
+chains ``varpro+lsq`` and ``mpso+lsq``, and ``auto``. Each is a strategy object
+(``Varpro``, ``ParticleSwarm``, ``LeastSquares``, ``Chain``; base class
+``Identifier`` in base.py) with its options as constructor arguments:
+``Varpro(n_starts=4).fit(model, dataset, seed)`` is ``identify(model, dataset,
+"varpro", seed, n_starts=4)``.
 """
 
-from .api import METHODS, applicable_methods, identify, list_methods
+from .api import IDENTIFIERS, METHODS, applicable_methods, build_identifier, identify, list_methods
+from .base import Chain, Identifier
 from .errors import IdentificationError
 from .fit import Fit
 from .problem import Problem, data_scale
-from .varpro import LinearSolution, SeparableProblem
+from .lsq import LeastSquares
+from .mpso import ParticleSwarm
+from .varpro import LinearSolution, SeparableProblem, Varpro
 
 __all__ = [
+    "Chain",
+    "IDENTIFIERS",
+    "Identifier",
+    "LeastSquares",
+    "ParticleSwarm",
+    "Varpro",
+    "build_identifier",
     "METHODS",
     "Fit",
     "IdentificationError",

@@ -29,26 +29,24 @@ from __future__ import annotations
 
 import math
 import os
-import time
-import weakref
-from importlib import metadata
 from typing import Mapping
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
-from hysbench.data.protocol import score_records
 from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
 from . import lsq, mpso, varpro
-from .criteria import aic, bic
+from .base import Chain, Identifier
 from .errors import IdentificationError
 from .fit import Fit
-from .problem import Problem
+from .lsq import LeastSquares
+from .mpso import ParticleSwarm
+from .varpro import Varpro
 
 STAGES = {"varpro": varpro, "mpso": mpso, "lsq": lsq}
+IDENTIFIERS = {"varpro": Varpro, "mpso": ParticleSwarm, "lsq": LeastSquares}
 METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq")
 COMMON_OPTIONS = ("fit_on", "bounds", "start")
 # smallest allowed value of each numeric option (integers where the default is one)
@@ -126,70 +124,9 @@ def split_options(stages: list[str], method: str, options: Mapping) -> tuple[dic
         for i in targets:
             per_stage[i][name] = _check_value(key, value, STAGES[stages[i]].OPTIONS[name])
     for s, opts in zip(stages, per_stage):
-        if s == "mpso" and opts["inertia_end"] > opts["inertia_start"]:
-            raise IdentificationError("option inertia_end must not exceed inertia_start")
+        if s == "mpso":
+            IDENTIFIERS[s](**opts).check(None)  # the swarm's own consistency (inertia)
     return common, per_stage
-
-
-def _fit_records(dataset: Dataset, fit_on, model_name: str, method: str):
-    if fit_on is None:
-        chosen = dataset.identification
-        if not chosen:
-            raise IdentificationError(
-                f"dataset {dataset.name!r} has no identification records: method {method!r} cannot fit model "
-                f"{model_name!r} (mark records role = \"identification\", or pass fit_on)"
-            )
-        return chosen
-    if isinstance(fit_on, str) or not all(isinstance(f, str) for f in fit_on):
-        raise IdentificationError(f"option fit_on must be a list of record file names, got {fit_on!r}")
-    files = [r.file for r in dataset.records]
-    unknown = [f for f in fit_on if f not in files]
-    if unknown:
-        raise IdentificationError(
-            f"fit_on: dataset {dataset.name!r} has no record(s) {', '.join(unknown)} (records: {', '.join(files)})")
-    if not fit_on:
-        raise IdentificationError(f"fit_on is empty: nothing to fit model {model_name!r} on")
-    return [r for r in dataset.records if r.file in set(fit_on)]
-
-
-def _at_bounds(problem: Problem, x: np.ndarray, rel: float = 1e-6) -> list[tuple[str, str, float]]:
-    """(name, "lower"/"upper", bound) of the parameters within 1e-6 of the width from a finite bound
-    (trust-region methods stop just inside)."""
-    out = []
-    width = np.where(np.isfinite(problem.upper - problem.lower), problem.upper - problem.lower, 1.0)
-    for i, name in enumerate(problem.names):
-        lo, hi = problem.lower[i], problem.upper[i]
-        if not hi > lo:
-            continue  # fixed by the user
-        if np.isfinite(lo) and x[i] - lo <= rel * width[i]:
-            out.append((name, "lower", float(lo)))
-        elif np.isfinite(hi) and hi - x[i] <= rel * width[i]:
-            out.append((name, "upper", float(hi)))
-    return out
-
-
-_HASHES: dict[int, tuple] = {}
-
-
-def dataset_hash(dataset: Dataset) -> str:
-    """``dataset.content_hash()``, remembered per Dataset object while its records
-    stay the same objects (the ablation and the matrix fit one dataset many times)."""
-    key = tuple((id(r), id(r.u), id(r.y), r.file, r.role, r.weight, r.start, r.stop) for r in dataset.records)
-    held = _HASHES.get(id(dataset))
-    if held is not None and held[0]() is dataset and held[1] == key:
-        return held[2]
-    value = dataset.content_hash()
-    if len(_HASHES) > 64:
-        _HASHES.clear()
-    _HASHES[id(dataset)] = (weakref.ref(dataset), key, value)
-    return value
-
-
-def _version() -> str:
-    try:
-        return metadata.version("hysbench")
-    except metadata.PackageNotFoundError:
-        return ""
 
 
 def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike, method: str = "auto",
@@ -205,86 +142,14 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         raise IdentificationError(f"dataset must be a Dataset or a folder, got {type(dataset).__name__}")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
         raise IdentificationError(f"seed must be a non-negative integer, got {seed!r}")
+    identifier = build_identifier(method, model, options)
+    common = {k: options[k] for k in COMMON_OPTIONS if k in options}
+    return identifier.fit(model, dataset, seed, **common)
+
+
+def build_identifier(method: str, model: HysteresisModel, options: Mapping | None = None) -> Identifier:
+    """The identifier a method name and KEY=VALUE options describe (options checked, defaults filled)."""
     stages = resolve_method(method, model)
-    name = "+".join(stages)
-    common, per_stage = split_options(stages, name, options)
-    records = _fit_records(dataset, common.get("fit_on"), model.name, name)
-    bounds = common.get("bounds")
-    if bounds is not None and not isinstance(bounds, Mapping):
-        raise IdentificationError(f"option bounds must map parameter names to [low, high], got {bounds!r}")
-    start = common.get("start")
-    if start is not None and not (isinstance(start, Mapping) and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in start.values())):
-        raise IdentificationError(f"option start must map parameter names to finite numbers, got {start!r}")
-    problem = Problem.build(model, records, bounds)
-    if "mpso" in stages and not (np.all(np.isfinite(problem.lower)) and np.all(np.isfinite(problem.upper))):
-        raise IdentificationError(f"method 'mpso' needs finite bounds for every parameter of model {model.name!r}")
-    problem.start_vector(start)  # checks names early
-
-    t0 = time.perf_counter()
-    diagnostics, notes, x = {}, [], None
-    for stage, opts in zip(stages, per_stage):
-        with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
-            kwargs = {"x0": x} if (stage == "lsq" and x is not None) else {}
-            stage_start = start if x is None else model.unpack(x)
-            out = STAGES[stage].run(problem, seed, stage_start, **kwargs, **opts)
-        x = out["x"]
-        diagnostics[stage] = {**out["diagnostics"], "n_evaluations_total": problem.n_evaluations}
-        notes += out["notes"]
-    fit_seconds = time.perf_counter() - t0
-
-    params = model.unpack(problem.clip(x))
-    at_bounds = _at_bounds(problem, model.pack(params))
-    if at_bounds:
-        notes.append("parameters at their bounds: " + ", ".join(f"{n} ({side} {v:.4g})" for n, side, v in at_bounds)
-                     + "; the optimum may lie beyond (option bounds widens them)")
-    diagnostics["at_bounds"] = [n for n, _, _ in at_bounds]
-    n_nonfinite = problem.n_nonfinite
-    if n_nonfinite:
-        notes.append(f"{n_nonfinite} of {problem.n_evaluations} evaluated parameter sets gave non-finite model "
-                     "output (treated as an infinite fitness during the search)")
-    residual = problem.residuals_batch(problem.vector(params)[None])[0]
-    problem.n_evaluations -= 1  # the final scoring is not part of the search
-    finite = bool(np.all(np.isfinite(residual)))
-    fitness = float(residual @ residual) if finite else math.nan
-    if finite:
-        success, message = True, f"identified with {name} in {problem.n_evaluations} evaluations"
-    else:
-        success, message = False, "the model's output is not finite at the identified parameters"
-        notes.append(message + ": the fit is not scored")
-    n_rows = problem.n_rows
-    k = sum(1 for lo, hi in zip(problem.lower, problem.upper) if hi > lo)
-    fitted = {r.file for r in records}
-    scores = score_records(model, params, dataset.records, problem.input_range)
-    scores = [type(s)(s.file, s.frequency_hz, "identification" if s.file in fitted else "validation", s.e_m, s.e_rms)
-              for s in scores]
-    names = model.param_names
-    return Fit(
-        model=model.name,
-        hyperparameters=model.get_hyperparameters(),
-        method=name,
-        params=params,
-        fitness=fitness,
-        records=scores,
-        n_evaluations=problem.n_evaluations,
-        fit_seconds=fit_seconds,
-        history=list(problem.history),
-        input_range=problem.input_range,
-        bounds={n: (float(problem.lower[i]), float(problem.upper[i])) for i, n in enumerate(names)},
-        scale={"u": problem.scale.u, "y": problem.scale.y, "time": problem.scale.time},
-        options={**{k: v for k, v in common.items()}, **{s: o for s, o in zip(stages, per_stage)}},
-        seed=None if seed is None else int(seed),
-        dataset=dataset.name,
-        dataset_hash=dataset_hash(dataset),
-        fitted_on=[r.file for r in records],
-        diagnostics=diagnostics,
-        notes=notes,
-        version=_version(),
-        success=success,
-        message=message,
-        n_nonfinite=n_nonfinite,
-        n_rows=n_rows,
-        aic=aic(fitness, n_rows, k) if finite else math.nan,
-        bic=bic(fitness, n_rows, k) if finite else math.nan,
-        _instance=model,
-    )
+    _, per_stage = split_options(stages, "+".join(stages), options or {})
+    built = [IDENTIFIERS[s](**opts) for s, opts in zip(stages, per_stage)]
+    return built[0] if len(built) == 1 else Chain(*built)

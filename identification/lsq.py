@@ -20,15 +20,27 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import least_squares
 
+from .base import Identifier
 from .errors import IdentificationError
+from .jacobian import CachedResidual, forward_difference
 from .problem import Problem
 
-OPTIONS = {
-    "n_starts": 1,
-    "max_nfev": 200,  # residual evaluations per start, as scipy counts them (Jacobians are extra)
-    "tol": 1e-10,  # ftol = xtol = gtol
-    "fd_step": 1e-7,  # forward-difference step, relative to each bound's width
-}
+class LeastSquares(Identifier):
+    """Nonlinear least squares over all parameters; see the module docstring."""
+
+    name = "lsq"
+
+    def __init__(self, n_starts: int = 1, max_nfev: int = 200, tol: float = 1e-10, fd_step: float = 1e-7):
+        self.n_starts = n_starts
+        self.max_nfev = max_nfev  # residual evaluations per start, as scipy counts them (Jacobians are extra)
+        self.tol = tol  # ftol = xtol = gtol
+        self.fd_step = fd_step  # forward-difference step, relative to each bound's width
+
+    def search(self, problem, seed, start, x0=None) -> dict:
+        return run(problem, seed, start, x0=x0, **self.get_params())
+
+
+OPTIONS = LeastSquares().get_params()
 
 
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x0: np.ndarray | None = None,
@@ -44,36 +56,29 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, x
                                   "need finite bounds for every parameter")
     base = problem.clip(np.asarray(x0, dtype=float)) if x0 is not None else problem.start_vector(start)
     starts = [base] + [lo + rng.random(lo.size) * (hi - lo) for _ in range(int(opts["n_starts"]) - 1)]
-    cache: dict = {}
 
-    def residual(zf):
-        x = base.copy()
-        x[free] = zf
-        key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            r = problem.residuals_batch(x[None])[0]
-            problem.note(float(r @ r))
-            cache[key] = r
-        return cache[key]
+    def embed(Zf):  # free coordinates -> full parameter sets
+        P = np.repeat(base[None], Zf.shape[0], axis=0)
+        P[:, free] = Zf
+        return P
+
+    def compute(zf):
+        r = problem.residuals_batch(embed(zf[None]))[0]
+        problem.note(float(r @ r))
+        return r
+
+    residual = CachedResidual(compute)
 
     def jacobian(zf):
-        x = base.copy()
-        x[free] = zf
-        r0 = residual(zf)
-        h = np.where(x + step <= hi, step, -step)[free]
-        P = np.repeat(x[None], h.size, axis=0)
-        P[np.arange(h.size), np.flatnonzero(free)] += h
-        R = problem.residuals_batch(P)
-        J = (R - r0[None]).T / h[None]
-        J[~np.isfinite(J)] = 0.0
+        J = forward_difference(lambda Z: problem.residuals_batch(embed(Z)), zf, residual(zf), step[free], hi[free])
+        J[~np.isfinite(J)] = 0.0  # a non-finite perturbed set (counted by the problem) gives no slope
         return J
 
     best_x, best_f, searches = None, np.inf, []
     for x_s in starts:
         n0 = problem.n_evaluations
         base = x_s.copy()
-        cache.clear()
+        residual.clear()
         if not np.all(np.isfinite(residual(x_s[free]))):
             searches.append({"fitness": float("inf"), "status": -1, "message": "start is not finite",
                              "n_evaluations": problem.n_evaluations - n0})

@@ -45,18 +45,38 @@ from typing import Mapping
 import numpy as np
 from scipy.stats import qmc
 
+from .base import Identifier
+from .errors import IdentificationError
 from .problem import Problem
 
-OPTIONS = {
-    "swarm_size": 40,
-    "iterations": 100,
-    "inertia_start": 0.7,
-    "inertia_end": 0.2,
-    "c1": 1.5,  # cognitive (personal best)
-    "c2": 1.5,  # social (global best)
-    "v_max": 0.05,  # velocity clamp, fraction of each normalised range
-    "stall_iterations": 12,
-}
+class ParticleSwarm(Identifier):
+    """hysbench's modified particle swarm (in the paper's spirit); see the module docstring."""
+
+    name = "mpso"
+
+    def __init__(self, swarm_size: int = 40, iterations: int = 100, inertia_start: float = 0.7,
+                 inertia_end: float = 0.2, c1: float = 1.5, c2: float = 1.5, v_max: float = 0.05,
+                 stall_iterations: int = 12):
+        self.swarm_size = swarm_size
+        self.iterations = iterations
+        self.inertia_start = inertia_start
+        self.inertia_end = inertia_end
+        self.c1 = c1  # cognitive (personal best)
+        self.c2 = c2  # social (global best)
+        self.v_max = v_max  # velocity clamp, fraction of each normalised range
+        self.stall_iterations = stall_iterations
+
+    def check(self, model, problem=None) -> None:
+        if self.inertia_end > self.inertia_start:
+            raise IdentificationError("option inertia_end must not exceed inertia_start")
+        if problem is not None and not (np.all(np.isfinite(problem.lower)) and np.all(np.isfinite(problem.upper))):
+            raise IdentificationError(f"method 'mpso' needs finite bounds for every parameter of model {model.name!r}")
+
+    def search(self, problem, seed, start, x0=None) -> dict:
+        return run(problem, seed, start, **self.get_params())
+
+
+OPTIONS = ParticleSwarm().get_params()
 
 
 def reflect(z: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

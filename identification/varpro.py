@@ -46,18 +46,37 @@ import scipy.linalg
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import qmc
 
+from .base import Identifier
 from .errors import IdentificationError
+from .jacobian import CachedResidual, forward_difference
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
-OPTIONS = {
-    "n_starts": 2,  # local searches, from the best candidates
-    "n_candidates": 12,  # Halton points evaluated before the local searches
-    "max_nfev": 40,  # residual evaluations per local search
-    "max_condition": 1e6,  # ridge above this condition number of the scaled design
-    "tol": 1e-6,  # ftol = xtol = gtol of least_squares
-    "fd_step": 1e-6,  # forward-difference step, relative to each bound's width
-    "merge_radius": 0.02,  # a search this close (fraction of each width) to an earlier optimum stops
-}
+class Varpro(Identifier):
+    """Separable least squares; see the module docstring."""
+
+    name = "varpro"
+
+    def __init__(self, n_starts: int = 2, n_candidates: int = 12, max_nfev: int = 40, max_condition: float = 1e6,
+                 tol: float = 1e-6, fd_step: float = 1e-6, merge_radius: float = 0.02):
+        self.n_starts = n_starts  # local searches, from the best candidates
+        self.n_candidates = n_candidates  # Halton points evaluated before the local searches
+        self.max_nfev = max_nfev  # residual evaluations per local search
+        self.max_condition = max_condition  # ridge above this condition number of the scaled design
+        self.tol = tol  # ftol = xtol = gtol of least_squares
+        self.fd_step = fd_step  # forward-difference step, relative to each bound's width
+        self.merge_radius = merge_radius  # a search this close (fraction of each width) to an earlier optimum stops
+
+    def check(self, model, problem=None) -> None:
+        if not model.has_linear_part:
+            raise IdentificationError(
+                f"method 'varpro' cannot identify model {model.name!r}: it has no linear parameters to solve "
+                "exactly (use 'lsq' or 'mpso')")
+
+    def search(self, problem, seed, start, x0=None) -> dict:
+        return run(problem, seed, start, **self.get_params())
+
+
+OPTIONS = Varpro().get_params()
 
 
 class _SameBasin(Exception):
@@ -299,33 +318,33 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
         best_nl, best_f = from_s(cands[order[0]]), sols[order[0]].fitness
         step = (opts["fd_step"] * width)[free]
         base = cands[order[0]].copy()
-        cache: dict = {}
 
         def full(zf):
             z = base.copy()
             z[free] = zf
             return z
 
+        def embed(Zf):  # free coordinates -> search coordinates of every nonlinear parameter
+            Z = np.repeat(base[None], Zf.shape[0], axis=0)
+            Z[:, free] = Zf
+            return Z
+
         ends: list[tuple[int, np.ndarray]] = []  # (search index, optimum) of finished searches
+        projected = CachedResidual(lambda zf: sep.projected_batch(from_s(full(zf))[None])[0].residuals)
 
         def residual(zf):
             z = full(zf)
             for j, e in ends:
                 if np.max(np.abs(z - e) / width) < opts["merge_radius"]:
                     raise _SameBasin(j)
-            key = zf.tobytes()
-            if key not in cache:
-                cache.clear()
-                cache[key] = sep.projected_batch(from_s(full(zf))[None])[0].residuals
-            return cache[key]
+            return projected(zf)
+
+        def residual_batch(Zf):
+            return np.array([s.residuals for s in sep.projected_batch(from_s(embed(Zf)))])
 
         def jacobian(zf):
-            r0 = residual(zf)
-            h = np.where(zf + step <= hi[free], step, -step)
-            Z = np.repeat(full(zf)[None], h.size, axis=0)
-            Z[np.arange(h.size), np.flatnonzero(free)] += h
-            sols_h = sep.projected_batch(from_s(Z))
-            return np.column_stack([(s.residuals - r0) / h[j] for j, s in enumerate(sols_h)])
+            # C order, as scipy's trust region has always been given it here (BLAS sums in layout order)
+            return np.ascontiguousarray(forward_difference(residual_batch, zf, residual(zf), step, hi[free]))
 
         if not free.any():
             order = order[:0]

@@ -549,3 +549,40 @@ def test_fit_information_criteria_follow_the_gaussian_likelihood():
     m2ll = n * math.log(2 * math.pi * fit.fitness / n) + n
     assert fit.aic == pytest.approx(m2ll + 2 * k, rel=1e-12)
     assert fit.bic == pytest.approx(m2ll + k * math.log(n), rel=1e-12)
+
+
+# --- identifiers as strategy objects, the Jacobian driver -----------------------------------------
+def test_identifier_objects_are_what_identify_builds(noisy):
+    from hysbench.identification import Chain, LeastSquares, Varpro, build_identifier
+
+    direct = Varpro(n_starts=1, n_candidates=4).fit(get_model("mrpim"), noisy, seed=3)
+    named = identify("mrpim", noisy, "varpro", seed=3, n_starts=1, n_candidates=4)
+    assert direct.params == named.params and direct.method == "varpro"
+    assert Varpro(n_starts=1).get_params()["n_starts"] == 1 and Varpro().get_params()["n_candidates"] == 12
+    chain = build_identifier("varpro+lsq", get_model("mrpim"), {"lsq.max_nfev": 3})
+    assert isinstance(chain, Chain) and chain.method == "varpro+lsq"
+    assert [type(s) for s in chain.stages()] == [Varpro, LeastSquares]
+    assert chain.get_params()["lsq"]["max_nfev"] == 3
+    with pytest.raises(IdentificationError, match="no linear parameters"):
+        Varpro().fit(_PartlyNaN(), _linear_dataset())
+
+
+def test_forward_difference_against_the_analytic_jacobian():
+    from hysbench.identification.jacobian import CachedResidual, forward_difference
+
+    def batch(Z):
+        return np.column_stack([np.sin(Z[:, 0]) * Z[:, 1], Z[:, 0] ** 2 + np.exp(Z[:, 1]), Z[:, 0] * Z[:, 1] ** 3])
+
+    def analytic(z):
+        return np.array([[np.cos(z[0]) * z[1], np.sin(z[0])], [2 * z[0], np.exp(z[1])],
+                         [z[1] ** 3, 3 * z[0] * z[1] ** 2]])
+
+    step = np.array([1e-7, 1e-7])
+    for z, upper in ((np.array([0.3, -1.2]), np.array([5.0, 5.0])), (np.array([1.0, 2.0]), np.array([1.0, 2.0]))):
+        J = forward_difference(batch, z, batch(z[None])[0], step, upper)  # the second: steps taken backwards
+        np.testing.assert_allclose(J, analytic(z), rtol=1e-5, atol=1e-6)
+    calls = []
+    cached = CachedResidual(lambda z: calls.append(1) or batch(z[None])[0])
+    z = np.array([0.1, 0.2])
+    cached(z), cached(z.copy()), cached(z + 1e-3)
+    assert len(calls) == 2
