@@ -50,10 +50,12 @@ def lag1_autocorrelation(residual: np.ndarray) -> float:
     return float(e[1:] @ e[:-1]) / den if den > 0 and e.size > 1 else 0.0
 
 
+def ar1_information_ratio(rho: float) -> float:
+    """(1 - rho) / (1 + rho), rho clipped to [0, 0.999999]: independent samples per sample of an AR(1) series."""
+    rho = min(max(rho, 0.0), 0.999999)
+    return (1.0 - rho) / (1.0 + rho)
+
+
 def effective_sample_size(blocks: Iterable[np.ndarray]) -> float:
     """AR(1) effective sample size of residual blocks: sum n_m (1 - rho_m) / (1 + rho_m)."""
-    total = 0.0
-    for block in blocks:
-        rho = min(max(lag1_autocorrelation(block), 0.0), 0.999999)
-        total += np.size(block) * (1.0 - rho) / (1.0 + rho)
-    return total
+    return float(sum(np.size(b) * ar1_information_ratio(lag1_autocorrelation(b)) for b in blocks))
