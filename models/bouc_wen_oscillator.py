@@ -31,6 +31,11 @@ is taken between samples is the hyperparameter ``input_interpolation``:
   exactly. A record that is not periodic (the sine sweep) rings near its ends.
 * ``"linear"``: linear between samples; ``"hold"``: u[k] over interval k.
 
+RK4 is second order here, not fourth: the right side kinks where y' or z changes sign.
+Against scipy's solve_ivp (DOP853, rtol 1e-11) on the benchmark's parameters the
+largest error is 1.2e-5 of max |y| at 20 sub-steps and 5e-7 at 100 (tests), far below
+the benchmark's noise (about 1 % of the output's RMS).
+
 Which predicts the official validation records best is measured in
 results/bouc_wen_benchmark.md. The benchmark integrates with a Newmark scheme;
 at 15 kHz (omega h ~ 0.015) both schemes are far more accurate than the data.
@@ -73,7 +78,8 @@ def _rates(y, v, z, u, m, c, k, alpha, bg, bd, nu):
 
 @njit(cache=True, nogil=True)
 def _simulate_one(u_fine, n_sub, dt, m, c, k, alpha, bg, bd, nu, start, stop, out):
-    """y(k) for k in [start, stop) into ``out``; u_fine holds the force every dt / (2 n_sub)."""
+    """y(k) for k in [start, stop) into ``out``; u_fine holds, per sample interval, the force at
+    2 n_sub + 1 equally spaced times from its start to its end (left limit)."""
     h = dt / n_sub
     y = 0.0
     v = 0.0
@@ -83,7 +89,7 @@ def _simulate_one(u_fine, n_sub, dt, m, c, k, alpha, bg, bd, nu, start, stop, ou
             out[n - start] = y
         if n == stop - 1:
             break
-        base = 2 * n_sub * n
+        base = (2 * n_sub + 1) * n
         for j in range(n_sub):
             i = base + 2 * j
             u0 = u_fine[i]
@@ -115,19 +121,22 @@ def oscillator_batch(u_fine, n_sub, dt, P, start, stop):
 
 
 def fine_input(u: np.ndarray, factor: int, how: str) -> np.ndarray:
-    """The force every dt / factor: n * factor values (value j of interval i at t_i + j dt / factor)."""
+    """The force within each sample interval: shape (n - 1, factor + 1), value j of interval i at
+    t_i + j dt / factor (j = factor: the interval's end, as a left limit for ``hold``)."""
     n = u.size
     if how == "hold":
-        return np.repeat(u, factor)
+        return np.repeat(u[:-1, None], factor + 1, axis=1)
     if how == "linear":
-        t = np.arange(n * factor) / factor
-        return np.interp(t, np.arange(n), u)
-    spec = np.fft.rfft(u)
-    if n % 2 == 0 and n > 1:
-        spec[-1] *= 0.5  # the Nyquist line splits into +/- frequencies of the finer grid
-    padded = np.zeros(n * factor // 2 + 1, dtype=complex)
-    padded[:spec.size] = spec
-    return np.fft.irfft(padded, n * factor) * factor
+        grid = np.interp(np.arange((n - 1) * factor + 1) / factor, np.arange(n), u)
+    else:
+        spec = np.fft.rfft(u)
+        if n % 2 == 0 and n > 1:
+            spec[-1] *= 0.5  # the Nyquist line splits into +/- frequencies of the finer grid
+        padded = np.zeros(n * factor // 2 + 1, dtype=complex)
+        padded[:spec.size] = spec
+        grid = np.fft.irfft(padded, n * factor)[:(n - 1) * factor + 1] * factor
+    idx = np.arange(n - 1)[:, None] * factor + np.arange(factor + 1)[None, :]
+    return grid[idx]
 
 
 class BoucWenOscillator(HysteresisModel):
@@ -177,7 +186,7 @@ class BoucWenOscillator(HysteresisModel):
         if fine is None:
             if len(cache) > 8:
                 cache.clear()
-            fine = cache[key] = np.ascontiguousarray(fine_input(u, 2 * self.n_substeps, self.input_interpolation))
+            fine = cache[key] = np.ascontiguousarray(fine_input(u, 2 * self.n_substeps, self.input_interpolation).ravel())
         return fine
 
     def _kernel_rows(self, P: np.ndarray) -> np.ndarray:
