@@ -123,6 +123,11 @@ def _e(x: float) -> str:
     return f"{x:.3g}" if np.isfinite(x) else "not finite"
 
 
+def _cells(e: dict) -> str:
+    return " | ".join(_e(e[k]) for k in ("val_multisine_from_rest", "val_multisine_steady_state",
+                                         "val_sinesweep_from_rest", "train_window"))
+
+
 def _label(row: dict) -> str:
     return row["model"] + (" (nu free)" if row["hyperparameters"].get("fixed_nu", 1) is None else "")
 
@@ -151,10 +156,8 @@ def render(r: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in r["rows"]:
-        e = row["rmse_m"]
-        lines.append(f"| {_label(row)} | {row['how']} | {row['n_params']} | {_e(e['val_multisine_from_rest'])} | "
-                     f"{_e(e['val_multisine_steady_state'])} | {_e(e['val_sinesweep_from_rest'])} | "
-                     f"{_e(e['train_window'])} | {row['seconds']:.1f} | {row['n_evaluations']} |")
+        lines.append(f"| {_label(row)} | {row['how']} | {row['n_params']} | {_cells(row['rmse_m'])} | "
+                     f"{row['seconds']:.1f} | {row['n_evaluations']} |")
     lines += ["", f"Identification time: wall clock of the start fit plus `identify`, after JIT warm-up, on a shared "
               f"2-core machine (load average {r['load_average']:.1f} at the end of the run): indicative only.", ""]
     lines += ["Identified parameters:", ""]
@@ -174,11 +177,7 @@ def render(r: dict) -> str:
         "val sine sweep, from rest | training window |",
         "|---|---|---|---|---|",
     ]
-    for row in r["true_parameters"]:
-        e = row["rmse_m"]
-        lines.append(f"| {row['input_interpolation']} | {_e(e['val_multisine_from_rest'])} | "
-                     f"{_e(e['val_multisine_steady_state'])} | {_e(e['val_sinesweep_from_rest'])} | "
-                     f"{_e(e['train_window'])} |")
+    lines += [f"| {row['input_interpolation']} | {_cells(row['rmse_m'])} |" for row in r["true_parameters"]]
     osc, p = r["rows"][0]["rmse_m"], r["rows"][0]["params"]
     floor = r["true_parameters"][0]["rmse_m"]
     f0 = np.sqrt((p["k"] + p["alpha"]) / p["m"]) / (2 * np.pi)
