@@ -184,7 +184,7 @@ class BoucWenOscillator(HysteresisModel):
         cache = self.__dict__.setdefault("_fine_cache", {})
         fine = cache.get(key)
         if fine is None:
-            if len(cache) > 8:
+            if len(cache) >= 3:  # a long record's grid is large (40 values per sample)
                 cache.clear()
             fine = cache[key] = np.ascontiguousarray(fine_input(u, 2 * self.n_substeps, self.input_interpolation).ravel())
         return fine

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
+from hysbench.benchmarks.reports.bouc_wen import main as report_main
 from hysbench.data.dataset import Dataset, Record, load_dataset
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
@@ -139,9 +140,11 @@ def test_identification_recovers_reference_parameters():
 
 
 def test_benchmark_small_budget(shared_datasets):
-    """30 lsq evaluations from linear_start on the benchmark's training record: the validation
-    multisine in steady state (run from rest over a preceding period) within 1.21e-5 m (the best
-    published) and the sine sweep from rest within 1e-5 m."""
+    """10 lsq iterations from linear_start on the benchmark's training record (measured: 1.46e-7 m in
+    steady state, 4.62e-5 m from rest, 2.4e-6 m on the sweep). Thresholds: the validation multisine in
+    steady state (run from rest over a preceding period) within 1e-6 m, 12 times below the best published
+    1.21e-5 m; from rest within 5e-5 m (the true system's own from-rest error is 4.62e-5 m: the start-up
+    transient); the sine sweep from rest within 5e-6 m."""
     folder = shared_datasets / "bouc_wen_benchmark"
     if not (folder / "dataset.toml").is_file():
         pytest.skip(f"Bouc-Wen benchmark data absent at {folder}")
@@ -150,9 +153,26 @@ def test_benchmark_small_budget(shared_datasets):
     train = ds.records[0]
     start = model.linear_start(train.u, train.y, train.dt, train.scored)
     fit = identify(model, ds, "lsq", seed=0, start=start, bounds=model.bounds_around(start, data_scale([train])),
-                   max_nfev=30)
+                   max_nfev=10)
     ms = ds.record("val_multisine.csv")
-    y = model.simulate(np.tile(ms.u, 2), ms.dt, fit.params)[ms.u.size:]
-    assert np.sqrt(np.mean((y - ms.y) ** 2)) < 1.21e-5
+    steady = model.simulate(np.tile(ms.u, 2), ms.dt, fit.params)[ms.u.size:]
+    assert np.sqrt(np.mean((steady - ms.y) ** 2)) < 1e-6
+    assert np.sqrt(np.mean((model.simulate(ms.u, ms.dt, fit.params) - ms.y) ** 2)) < 5e-5
     sweep = ds.record("val_sinesweep.csv")
-    assert np.sqrt(np.mean((model.simulate(sweep.u, sweep.dt, fit.params) - sweep.y) ** 2)) < 1e-5
+    assert np.sqrt(np.mean((model.simulate(sweep.u, sweep.dt, fit.params) - sweep.y) ** 2)) < 5e-6
+
+
+def test_linear_start_refuses_nonphysical_fits():
+    model = get_model("bouc-wen-oscillator")
+    u = multisine(300, seed=8)
+    with pytest.raises(ModelError, match="non-physical"):
+        model.linear_start(u, -model.simulate(u, DT, TRUE), DT)
+    with pytest.raises(ModelError):
+        model.linear_start(u, np.zeros(10), DT)
+
+
+def test_report_refuses_a_missing_dataset(tmp_path, capsys):
+    assert report_main(["--dataset", str(tmp_path / "absent"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no Bouc-Wen benchmark dataset" in err
+    assert not (tmp_path / "out").exists()
