@@ -167,8 +167,8 @@ class BoucWenOscillator(HysteresisModel):
         t = scale.time
         shape = SHAPE_BOUND / (self.beta * scale.y)
         params = [
-            Parameter("m", stiff * t * t / 100.0, 0.0, 100.0 * stiff * t * t, False, "mass", log_scale=True),
-            Parameter("c", stiff * t / 100.0, 0.0, 100.0 * stiff * t, False, "viscous damping", log_scale=True),
+            Parameter("m", stiff * t * t / 100.0, 1e-6 * stiff * t * t, 100.0 * stiff * t * t, False, "mass"),
+            Parameter("c", stiff * t / 100.0, 0.0, 100.0 * stiff * t, False, "viscous damping"),
             Parameter("k", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "linear stiffness"),
             Parameter("alpha", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "Bouc-Wen initial stiffness"),
             Parameter("gamma", 0.0, -shape, shape, False, "Bouc-Wen gamma (at the fixed beta)"),
@@ -236,7 +236,8 @@ class BoucWenOscillator(HysteresisModel):
         return start_point
 
     def bounds_around(self, start: Mapping[str, float], scale: DataScale, factor: float = 10.0) -> dict:
-        """Bounds for ``identify``: m, c, k, alpha within [0, factor x start] (k and alpha: of k + alpha; c at least
+        """Bounds for ``identify``: m within [start / factor, factor x start]; c, k, alpha within
+        [0, factor x start] (k and alpha: of k + alpha; c at least
         of a damping ratio 0.005),
         gamma, delta and nu at their default bounds for ``scale``. Bound widths set lsq's scaling and
         finite-difference steps, so they should match the parameters' magnitudes."""
@@ -244,7 +245,7 @@ class BoucWenOscillator(HysteresisModel):
             raise ModelError(f"{self.name}: bounds_around needs factor > 1, got {factor!r}")
         defaults = {p.name: (p.min, p.max) for p in self.parameters(scale)}
         k_total = start["k"] + start["alpha"]
-        out = {"m": (0.0, factor * start["m"]), "c": (0.0, factor * max(start["c"], 0.01 * math.sqrt(start["m"] * k_total))),
+        out = {"m": (start["m"] / factor, factor * start["m"]), "c": (0.0, factor * max(start["c"], 0.01 * math.sqrt(start["m"] * k_total))),
                "k": (0.0, factor * k_total), "alpha": (0.0, factor * k_total)}
         for name in ("gamma", "delta", "nu"):
             if name in defaults:
