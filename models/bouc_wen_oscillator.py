@@ -11,7 +11,7 @@ Identifiability. The force equation fixes z's scale (its coefficient is 1), so
 alpha is identifiable; but beta multiplies both gamma and delta:
 (beta, gamma, delta) -> (s beta, gamma / s, delta / s) leaves y unchanged. Only
 beta gamma and beta delta are identifiable, so beta is a hyperparameter (default
-the published 1e3, in 1 / (output unit)^nu for nu = 1: m^-1 on the benchmark) and
+the published 1e3; for nu = 1 its unit is 1 / output unit: m^-1 on the benchmark) and
 gamma, delta are identified at that beta. m, c, k, alpha, gamma, delta (and nu) are
 then identifiable from a record that drives the hysteresis (k and alpha separately
 only through the hysteretic part: with gamma = delta = 0, z = alpha y and only
@@ -31,14 +31,15 @@ is taken between samples is the hyperparameter ``input_interpolation``:
   exactly. A record that is not periodic (the sine sweep) rings near its ends.
 * ``"linear"``: linear between samples; ``"hold"``: u[k] over interval k.
 
+With the published parameters, fourier predicts the official validation multisine
+(in steady state) within 2.4e-7 m, linear 7.3e-6 m, hold 1.1e-4 m
+(results/bouc_wen_benchmark.md). The benchmark integrates with a Newmark scheme;
+at 15 kHz (omega h ~ 0.015) both schemes are far more accurate than the data.
+
 RK4 is second order here, not fourth: the right side kinks where y' or z changes sign.
 Against scipy's solve_ivp (DOP853, rtol 1e-11) on the benchmark's parameters the
 largest error is 1.2e-5 of max |y| at 20 sub-steps and 5e-7 at 100 (tests), far below
 the benchmark's noise (about 1 % of the output's RMS).
-
-Which predicts the official validation records best is measured in
-results/bouc_wen_benchmark.md. The benchmark integrates with a Newmark scheme;
-at 15 kHz (omega h ~ 0.015) both schemes are far more accurate than the data.
 
 A set whose state leaves |y|, |z| < STATE_CAP or turns non-finite gives NaN from
 there on (identifiers count and reject such sets).
