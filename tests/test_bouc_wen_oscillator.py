@@ -13,6 +13,7 @@ from hysbench.data.dataset import Dataset, Record, load_dataset
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
 from hysbench.models import ModelError, get_model
+from hysbench.models.bouc_wen_oscillator import fine_input
 
 DT = 1.0 / 750.0
 TRUE = {"m": 2.0, "c": 10.0, "k": 5e4, "alpha": 5e4, "gamma": 0.8, "delta": -1.1}  # the benchmark's, beta = 1e3
@@ -30,16 +31,16 @@ def multisine(n, seed, rms=50.0, f_lo=5.0, f_hi=150.0):
 
 
 def force_function(u, how):
-    """u(t) between samples, written out directly: trigonometric series, np.interp, or held."""
+    """u(t) in sample interval i, written out directly: trigonometric series, np.interp, or u[i] held."""
     n = u.size
     if how == "linear":
-        return lambda t: np.interp(t / DT, np.arange(n), u)
+        return lambda t, i: np.interp(t / DT, np.arange(n), u)
     if how == "hold":
-        return lambda t: u[min(int(np.floor(t / DT + 1e-9)), n - 1)]
+        return lambda t, i: u[i]
     spec = np.fft.rfft(u)
     lines = np.arange(spec.size)
 
-    def trig(t):
+    def trig(t, i=None):
         weights = np.where((lines == 0) | ((n % 2 == 0) & (lines == n // 2)), 1.0, 2.0)
         return float(np.sum(weights * np.real(spec * np.exp(2j * np.pi * lines * t / (n * DT))))) / n
 
@@ -52,16 +53,15 @@ def reference(u, params, how="fourier", beta=1e3, nu=1.0):
     bg, bd = beta * params["gamma"], beta * params["delta"]
     force = force_function(u, how)
 
-    def rhs(t, s, lo):
+    def rhs(t, s, i):
         y, v, z = s
         p = abs(z) ** nu
-        return [v, (force(max(t, lo)) - c * v - k * y - z) / m,
+        return [v, (force(t, i) - c * v - k * y - z) / m,
                 alpha * v - bg * abs(v) * p * np.sign(z) - bd * v * p]
 
     state, out = np.zeros(3), [0.0]
     for i in range(u.size - 1):
-        lo = i * DT + (1e-12 if how == "hold" else 0.0)
-        sol = solve_ivp(rhs, (i * DT, (i + 1) * DT), state, method="DOP853", rtol=1e-11, atol=1e-16, args=(lo,))
+        sol = solve_ivp(rhs, (i * DT, (i + 1) * DT), state, method="DOP853", rtol=1e-11, atol=1e-16, args=(i,))
         state = sol.y[:, -1]
         out.append(state[0])
     return np.array(out)
@@ -84,6 +84,16 @@ def test_free_nu_matches_solve_ivp():
     y_ref = reference(u, params, "linear", nu=1.6)
     y = get_model("bouc-wen-oscillator", fixed_nu=None, input_interpolation="linear").simulate(u, DT, params)
     assert np.max(np.abs(y - y_ref)) < 5e-5 * np.max(np.abs(y_ref))
+
+
+@pytest.mark.parametrize("n", [64, 65])
+def test_fourier_grid_is_the_trigonometric_interpolant(n):
+    u = multisine(n, seed=n, f_hi=400.0)  # up to the Nyquist line (even n)
+    grid = fine_input(u, 8, "fourier")
+    trig = force_function(u, "fourier")
+    expected = np.array([[trig((i + j / 8) * DT) for j in range(9)] for i in range(n - 1)])
+    assert np.allclose(grid, expected, rtol=0, atol=1e-9 * np.max(np.abs(u)))
+    assert np.allclose(grid[:, 0], u[:-1], rtol=0, atol=1e-9 * np.max(np.abs(u)))
 
 
 @settings(max_examples=10, deadline=None)
