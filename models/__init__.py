@@ -2,6 +2,7 @@
 
 from .base import DataScale, HysteresisModel, Parameter
 from .bouc_wen import BoucWen
+from .bouc_wen_oscillator import BoucWenOscillator
 from .classical_pi import ClassicalPI
 from .dual_polynomial import DualPolynomial
 from .elliptical import Elliptical
@@ -22,12 +23,15 @@ register(DualPolynomial.name, DualPolynomial)
 register(BoucWen.name, BoucWen)
 register(Preisach.name, Preisach)
 register(RateDependentPI.name, RateDependentPI)
+# the Bouc-Wen benchmark's structure (issue 16): force -> displacement, not a DEA model
+register(BoucWenOscillator.name, BoucWenOscillator, in_matrix=False)
 # mrpim+relaxation, mrpim+delay, ... (see extended.py); the diagnosis names relaxation on the
 # default dataset (results/diagnosis.md), so that extension joins the default matrix.
 register_extensions(MRPIM.name, in_matrix=("relaxation",))
 
 __all__ = [
     "BoucWen",
+    "BoucWenOscillator",
     "CAUSES",
     "ClassicalPI",
     "ExtendedModel",
