@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from hysbench.benchmarks.reports.bouc_wen import main as report_main
+from hysbench.benchmarks.cli import main as cli_main
 from hysbench.data.dataset import Dataset, Record, load_dataset
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
@@ -182,7 +182,7 @@ def test_linear_start_refuses_nonphysical_fits():
 
 
 def test_report_refuses_a_missing_dataset(tmp_path, capsys):
-    assert report_main(["--dataset", str(tmp_path / "absent"), "--out", str(tmp_path / "out")]) == 2
+    assert cli_main(["report", "bouc-wen", str(tmp_path / "absent"), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no Bouc-Wen benchmark dataset" in err
     assert not (tmp_path / "out").exists()

@@ -28,7 +28,7 @@ COMMANDS = {
     "ablate": ("hysbench.benchmarks.cli.ablate", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
     "report": ("hysbench.benchmarks.cli.report", "regenerate a report: identification, baselines, virtual-dea, "
-                                                 "calibrate-virtual-dea"),
+                                                 "bouc-wen, calibrate-virtual-dea"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
     "compensate": ("hysbench.benchmarks.cli.compensate",

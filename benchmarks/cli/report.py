@@ -2,7 +2,8 @@
 
 Reports: ``identification`` (every identifier on MRPIM and classical P-I),
 ``baselines`` (the baselines in the layout of the paper's Tables 3 and 4),
-``virtual-dea`` (the virtual DEA against the paper's figures) and
+``virtual-dea`` (the virtual DEA against the paper's figures), ``bouc-wen``
+(the Bouc-Wen benchmark's league table with hysbench's models) and
 ``calibrate-virtual-dea`` (re-run the calibration of the virtual DEA's
 parameters; prints the parameter set). Adding a report is one entry in
 ``REPORTS``: a help line, an ``add_arguments`` and a ``run`` function.
@@ -13,7 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hysbench.benchmarks.reports import baselines, identification, virtual_dea
+from hysbench.benchmarks.reports import baselines, bouc_wen, identification, virtual_dea
 from hysbench.data import calibrate_virtual_dea as calibration
 from hysbench.data.virtual_dea import DEFAULT_SEED
 
@@ -43,6 +44,13 @@ def _baselines_arguments(parser):
 def _virtual_dea_arguments(parser):
     _out_folder(parser)
     add_seed_argument(parser, default=DEFAULT_SEED, what="the sensor noise")
+
+
+def _bouc_wen_arguments(parser):
+    parser.add_argument("dataset", metavar="DATASET", nargs="?", default=str(bouc_wen.DEFAULT_DATASET),
+                        help="the Bouc-Wen benchmark's folder (default ../shared/datasets/bouc_wen_benchmark)")
+    _out_folder(parser)
+    add_seed_argument(parser)
 
 
 def _calibration_arguments(parser):
@@ -84,6 +92,8 @@ REPORTS = {
                                                    comma_list(a.methods, "--methods"))),
     "virtual-dea": ("the virtual DEA against the paper's figures (results/virtual_dea.md)",
                     _virtual_dea_arguments, lambda a: virtual_dea.write_report(Path(a.out), a.seed)),
+    "bouc-wen": ("the Bouc-Wen benchmark's league table with hysbench's models (results/bouc_wen_benchmark.md)",
+                 _bouc_wen_arguments, lambda a: bouc_wen.write_report(Path(a.out), a.seed, Path(a.dataset))),
     "calibrate-virtual-dea": ("re-run the calibration of the virtual DEA's parameters (prints them)",
                               _calibration_arguments, _calibrate),
 }

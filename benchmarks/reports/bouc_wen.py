@@ -1,7 +1,7 @@
 """results/bouc_wen_benchmark.md: hysbench on the Bouc-Wen identification benchmark
 (Noel & Schoukens 2016), beside its published league table.
 
-    python -m hysbench.benchmarks.reports.bouc_wen [--dataset DIR] [--out DIR] [--seed N]
+    hysbench report bouc-wen [DATASET] [--out DIR] [--seed N]
 
 Every model is identified with ``lsq`` on the training record's scored window
 (periods 2-5) and simulated on the two official validation records. RMSE in metres:
@@ -19,15 +19,13 @@ models start from their defaults, at a small budget, as the honest comparison.
 
 from __future__ import annotations
 
-import argparse
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from hysbench.data.dataset import Dataset, Record, load_dataset
+from hysbench.data.dataset import Dataset, DatasetError, Record, load_dataset
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
@@ -218,25 +216,11 @@ def render(r: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m hysbench.benchmarks.reports.bouc_wen", description=__doc__)
-    parser.add_argument("--dataset", default=str(DEFAULT_DATASET))
-    parser.add_argument("--out", default="results")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    dataset = Path(args.dataset)
-    if not (dataset / "dataset.toml").is_file():
-        print(f"error: no Bouc-Wen benchmark dataset at {dataset} (give --dataset DIR)", file=sys.stderr)
-        return 2
-    write_report(ensure_dir(args.out), args.seed, dataset)
-    print(f"wrote {args.out}/bouc_wen_benchmark.md")
-    return 0
-
-
-def write_report(out_dir, seed: int = 0, dataset: Path = DEFAULT_DATASET) -> dict:
+def write_report(out_dir, seed: int = 0, dataset: Path = DEFAULT_DATASET) -> int:
     """Identify, score and write bouc_wen_benchmark.md and .json into ``out_dir``."""
-    return build(Path(dataset), ensure_dir(out_dir), seed)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    dataset = Path(dataset)
+    if not (dataset / "dataset.toml").is_file():
+        raise DatasetError(f"no Bouc-Wen benchmark dataset at {dataset} (give DATASET)")
+    build(dataset, ensure_dir(out_dir), seed)
+    print(f"wrote {out_dir}/bouc_wen_benchmark.md")
+    return 0
