@@ -60,6 +60,7 @@ class Problem:
     history: list[tuple[int, float]] = field(default_factory=list)
     best_fitness: float = math.inf
     n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
+    data_start: dict | None = None  # the model's start from the data (``start_from_data``), if it has one
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
@@ -68,7 +69,9 @@ class Problem:
         scale = data_scale(records)
         lower, upper = (np.array(b, dtype=float) for b in model.bounds(scale))
         names = model.param_names
-        for name, pair in (bounds or {}).items():
+        informed = model.start_from_data([(r.u, r.y, r.dt, r.scored) for r in records], scale)
+        data_start, data_bounds = informed if informed is not None else (None, {})
+        for name, pair in {**data_bounds, **(bounds or {})}.items():
             if name not in names:
                 raise IdentificationError(
                     f"bounds: model {model.name!r} has no parameter {name!r} (parameters: {', '.join(names)})")
@@ -80,7 +83,7 @@ class Problem:
                 raise IdentificationError(f"bounds for {name!r}: low {lo!r} is not <= high {hi!r}")
             i = names.index(name)
             lower[i], upper[i] = lo, hi
-        return cls(model, records, scale, lower, upper, records_input_range(records))
+        return cls(model, records, scale, lower, upper, records_input_range(records), data_start=data_start)
 
     @classmethod
     def for_fit(cls, fit, dataset) -> "Problem":
@@ -160,8 +163,10 @@ class Problem:
         return self.model.pack(params)
 
     def start_vector(self, start: Mapping[str, float] | None) -> np.ndarray:
-        """Default parameters (clipped into bounds) overridden by ``start``."""
-        x = self.clip(np.array(self.model.pack(self.model.default_params(self.scale)), dtype=float))
+        """Default parameters (the model's start from the data, if it has one; clipped into bounds)
+        overridden by ``start``."""
+        defaults = {**self.model.default_params(self.scale), **(self.data_start or {})}
+        x = self.clip(np.array(self.model.pack(defaults), dtype=float))
         for name, value in (start or {}).items():
             if name not in self.names:
                 raise IdentificationError(

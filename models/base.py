@@ -137,6 +137,13 @@ class HysteresisModel:
     def default_params(self, scale: DataScale | None = None) -> dict[str, float]:
         return {p.name: p.value for p in self.parameters(scale)}
 
+    def start_from_data(self, records: Sequence[tuple], scale: DataScale) -> tuple[dict, dict] | None:
+        """(start, bounds) computed from the fit records, each given as (u, y, dt, window), for models
+        whose parameters' magnitudes the data scale alone cannot set (an oscillator's mass); None (the
+        default): the model's default parameters and bounds. Identifiers use it unless the user gives
+        a start or bounds."""
+        return None
+
     def preset(self, name: str) -> dict[str, float]:
         """A named parameter set (e.g. 'paper'); 'default' is always there."""
         if name == "default":

@@ -210,6 +210,12 @@ class BoucWenOscillator(HysteresisModel):
         return np.ascontiguousarray(Y[:, self._in_span(u, window, start)])
 
     # --- starts -----------------------------------------------------------
+    def start_from_data(self, records, scale):
+        """``linear_start`` on the longest fit record's window, and ``bounds_around`` it."""
+        u, y, dt, window = max(records, key=lambda r: np.size(r[0]))
+        start = self.linear_start(u, y, dt, window)
+        return start, self.bounds_around(start, scale)
+
     def linear_start(self, u, y, dt: float, window: slice = slice(None)) -> dict[str, float]:
         """A start point: m, c and k + alpha by linear least squares of u = m y'' + c y' + (k + alpha) y
         over ``window`` (central differences for y', y''), split k = alpha = (k + alpha) / 2, with

@@ -147,6 +147,9 @@ def test_identification_recovers_reference_parameters():
     fit = identify(model, ds, "lsq", seed=0, start=start, bounds=model.bounds_around(start, data_scale([rec])))
     for name, value in TRUE.items():
         assert fit.params[name] == pytest.approx(value, rel=0.03), name
+    # with no start or bounds, identify takes the model's start from the data: the same search
+    plain = identify(model, ds, "lsq", seed=0)
+    assert plain.params == fit.params
 
 
 def test_benchmark_small_budget(shared_datasets):
