@@ -13,6 +13,7 @@ from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
 from .registry import get_model, list_models, register
 from .viscoelastic import Viscoelastic
+from .window import Window
 
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
@@ -47,6 +48,7 @@ __all__ = [
     "Preisach",
     "RateDependentPI",
     "Viscoelastic",
+    "Window",
     "get_model",
     "list_models",
     "register",

@@ -25,6 +25,7 @@ from typing import ClassVar, Mapping, Sequence
 import numpy as np
 
 from .errors import ModelError
+from .window import Window
 
 
 @dataclass(frozen=True)
@@ -180,19 +181,20 @@ class HysteresisModel:
         """Outputs for many parameter sets, shape (n_sets, n_samples)."""
         raise NotImplementedError
 
-    def simulate_window_batch(self, u, dt: float, param_sets: np.ndarray, window: slice,
+    def simulate_window_batch(self, u, dt: float, param_sets: np.ndarray, window,
                               input_range=None) -> np.ndarray:
         """Samples ``window`` of ``simulate_batch`` (the model still runs from the first
         sample), shape (n_sets, n_window). A window is a slice with step 1 or increasing
         sample indices (see ``_window_bounds``). Identifiers score only a record's window;
         models with long records override this to store only those samples."""
-        return np.ascontiguousarray(self.simulate_batch(u, dt, param_sets, input_range=input_range)[:, window])
+        index = Window.of(window, np.size(u), self.name).index
+        return np.ascontiguousarray(self.simulate_batch(u, dt, param_sets, input_range=input_range)[:, index])
 
     def regressors(self, u, dt: float, nonlinear: Mapping[str, float], input_range=None) -> np.ndarray:
         """Phi with y = Phi @ [linear parameters in ``linear_names`` order]."""
         raise ModelError(f"model {self.name!r} has no linear part to solve exactly")
 
-    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window,
                             input_range=None) -> np.ndarray:
         """Rows ``window`` of ``regressors`` (the model still runs from the first sample); a
         window is a slice with step 1 or increasing sample indices.
@@ -200,9 +202,10 @@ class HysteresisModel:
         Identifiers fit only a record's scored window; models with long
         records override this to avoid building the full matrix.
         """
-        return np.ascontiguousarray(self.regressors(u, dt, nonlinear, input_range=input_range)[window])
+        index = Window.of(window, np.size(u), self.name).index
+        return np.ascontiguousarray(self.regressors(u, dt, nonlinear, input_range=input_range)[index])
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window: slice,
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window,
                                   input_range=None) -> np.ndarray:
         """``windowed_regressors`` for many nonlinear parameter sets (columns in
         ``nonlinear_names`` order); shape (n_sets, n_rows, n_linear)."""
@@ -240,33 +243,23 @@ class HysteresisModel:
             )
         return P
 
+    def _window(self, u: np.ndarray, window) -> Window:
+        """The checked ``Window`` of a record of u's length (from a Window, a slice or row indices)."""
+        return Window.of(window, u.size, self.name)
+
     def _window_bounds(self, u: np.ndarray, window) -> tuple[int, int]:
-        """(start, stop): the samples a window spans. A window is a non-empty slice with step 1
-        or a non-empty, increasing array of sample indices (a row subset)."""
-        rows = self._window_rows(u, window)
-        if rows is not None:
-            return int(rows[0]), int(rows[-1]) + 1
-        start, stop, step = window.indices(u.size)
-        if step != 1 or stop <= start:
-            raise ModelError(f"{self.name}: a window must be a non-empty slice with step 1, got {window!r}")
-        return start, stop
+        """(start, stop): the samples a window spans."""
+        w = self._window(u, window)
+        return w.start, w.stop
 
     def _window_rows(self, u: np.ndarray, window) -> np.ndarray | None:
-        """A row-subset window's sample indices (checked), or None for a slice."""
-        if isinstance(window, slice):
-            return None
-        rows = np.asarray(window)
-        if (rows.ndim != 1 or rows.size == 0 or not np.issubdtype(rows.dtype, np.integer)
-                or rows[0] < 0 or rows[-1] >= u.size or np.any(np.diff(rows) <= 0)):
-            raise ModelError(f"{self.name}: a window must be a slice or increasing sample indices within the "
-                             f"record's {u.size} samples")
-        return np.ascontiguousarray(rows, dtype=np.int64)
+        """A row-subset window's sample indices, or None for a contiguous window."""
+        return self._window(u, window).rows
 
     def _in_span(self, u: np.ndarray, window, start: int):
-        """What to take from an array computed over a window's span [start, stop): all of it for a
-        slice, the rows (relative to ``start``) for a row subset."""
-        rows = self._window_rows(u, window)
-        return slice(None) if rows is None else rows - start
+        """What to take from an array computed over a window's span [start, stop)."""
+        w = self._window(u, window)
+        return slice(None) if w.rows is None else w.rows - start
 
     @staticmethod
     def _input_range(u: np.ndarray, input_range) -> tuple[float, float]:

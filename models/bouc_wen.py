@@ -278,7 +278,7 @@ class BoucWen(HysteresisModel):
             cols.append(np.ones_like(xi))
         return np.stack(cols, axis=1)
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None) -> np.ndarray:
         """Rows ``window`` of ``regressors`` for many (beta, gamma, n): (n_sets, n_rows, n_linear)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 3)

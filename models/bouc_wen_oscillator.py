@@ -216,7 +216,7 @@ class BoucWenOscillator(HysteresisModel):
         start = self.linear_start(u, y, dt, window)
         return start, self.bounds_around(start, scale)
 
-    def linear_start(self, u, y, dt: float, window: slice = slice(None)) -> dict[str, float]:
+    def linear_start(self, u, y, dt: float, window=slice(None)) -> dict[str, float]:
         """A start point: m, c and k + alpha by linear least squares of u = m y'' + c y' + (k + alpha) y
         over ``window`` (central differences for y', y''), split k = alpha = (k + alpha) / 2, with
         gamma = delta = 0 (no hysteresis: then z = alpha y exactly) and nu = 1."""

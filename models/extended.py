@@ -384,13 +384,13 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         u = self._check_input(u, dt)
         return self.windowed_regressors(u, dt, nonlinear, slice(0, u.size), input_range=input_range)
 
-    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window: slice,
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window,
                             input_range=None) -> np.ndarray:
         nonlinear = self._nonlinear(nonlinear)
         sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
         return self.windowed_regressors_batch(u, dt, sets, window, input_range)[0]
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None) -> np.ndarray:
         """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float)

@@ -144,7 +144,7 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
             return y[None, :]
         return pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets, 0.0)
 
-    def simulate_window_batch(self, u, dt: float, param_sets, window: slice, input_range=None) -> np.ndarray:
+    def simulate_window_batch(self, u, dt: float, param_sets, window, input_range=None) -> np.ndarray:
         u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets = self._batch_arguments(
             u, dt, param_sets, input_range)
         start, stop = self._window_bounds(u, window)
@@ -216,7 +216,7 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
             cols["offset"] = np.ones(uw.size)
         return cols
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None) -> np.ndarray:
         """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float)
@@ -251,7 +251,7 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
             out[:, names.index(name), :] = col
         return out.transpose(0, 2, 1)
 
-    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window: slice,
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window,
                             input_range=None) -> np.ndarray:
         nonlinear = dict(nonlinear or {})
         if set(nonlinear) != set(self.nonlinear_names):

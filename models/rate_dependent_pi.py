@@ -223,7 +223,7 @@ class RateDependentPI(StepInvertible, HysteresisModel):
             cols.append(np.ones_like(u))
         return np.stack(cols, axis=1)
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window: slice, input_range=None) -> np.ndarray:
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None) -> np.ndarray:
         """Rows ``window`` of ``regressors`` for many betas (n_sets, 1): (n_sets, n_rows, n_linear)."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float).reshape(-1, 1)

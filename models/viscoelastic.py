@@ -170,20 +170,14 @@ class Viscoelastic(HysteresisModel):
         phys[:, 9 + K:9 + 2 * K] = N[:, 2 + K:2 + 2 * K]
         return phys
 
-    def stretch_batch(self, u, dt: float, nonlinear_sets, window: slice | None = None) -> np.ndarray:
+    def stretch_batch(self, u, dt: float, nonlinear_sets, window=None) -> np.ndarray:
         """lam_a - lam0 for each parameter set, shape (n_sets, samples of ``window``); the
         actuator is always simulated from the first sample, only the window is stored, and the
         samples before the window are crossed with RK4 steps of up to ``warmup_stride`` samples."""
         u = self._check_input(u, dt)
         phys = self.physical_vectors(nonlinear_sets)
-        rows = None if window is None else self._window_rows(u, window)
-        if rows is not None:  # a row subset: its span is simulated, the rows kept
-            start, stop = int(rows[0]), int(rows[-1]) + 1
-        else:
-            start, stop, step = (window or slice(None)).indices(u.size)
-            if step != 1:
-                raise ModelError(f"{self.name}: a window must be a contiguous slice, got step {step}")
-            stop = max(stop, start)
+        w = self._window(u, slice(None) if window is None else window)
+        start, stop, rows = w.start, w.stop, w.rows  # a row subset: its span is simulated, the rows kept
         u_kv = u * (self.volts_per_input_unit / 1000.0)
         stride = self.warmup_stride if window is not None else 1
         out = dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
@@ -228,7 +222,7 @@ class Viscoelastic(HysteresisModel):
         P = self._check_param_sets(param_sets)
         return self._linear_part(P, self.stretch_batch(u, dt, P))
 
-    def simulate_window_batch(self, u, dt: float, param_sets, window: slice, input_range=None) -> np.ndarray:
+    def simulate_window_batch(self, u, dt: float, param_sets, window, input_range=None) -> np.ndarray:
         P = self._check_param_sets(param_sets)
         return self._linear_part(P, self.stretch_batch(u, dt, P, window))
 
@@ -248,12 +242,12 @@ class Viscoelastic(HysteresisModel):
         row = self._check_nonlinear(dict(nonlinear))
         return self._regressor_columns(self.stretch_batch(u, dt, row[None, :]))[0]
 
-    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window: slice,
+    def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float], window,
                             input_range=None) -> np.ndarray:
         row = self._check_nonlinear(dict(nonlinear))
         return self._regressor_columns(self.stretch_batch(u, dt, row[None, :], window))[0]
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window: slice,
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets: np.ndarray, window,
                                   input_range=None) -> np.ndarray:
         N = np.asarray(nonlinear_sets, dtype=float)
         N = N.reshape(1, -1) if N.ndim < 2 else N

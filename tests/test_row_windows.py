@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from hysbench.models import DataScale, ExtendedModel, ModelError, get_model, list_models
+from hysbench.models import DataScale, ExtendedModel, ModelError, Window, get_model, list_models
 
 DT = 1e-3
 N = 1500
@@ -65,6 +65,12 @@ def test_row_subsets_are_rows_of_the_whole(model, seed, rows):
     whole = model.simulate_batch(u, DT, P, input_range=in_range)
     got = model.simulate_window_batch(u, DT, P, rows, input_range=in_range)
     np.testing.assert_allclose(got, whole[:, rows], rtol=1e-10, atol=1e-10)
+    # the same windows as Window values: a row subset and the contiguous span it covers
+    as_window = model.simulate_window_batch(u, DT, P, Window.of(rows, N), input_range=in_range)
+    np.testing.assert_array_equal(as_window, got)
+    span = Window.of(slice(int(rows[0]), int(rows[-1]) + 1), N)
+    np.testing.assert_allclose(model.simulate_window_batch(u, DT, P, span, input_range=in_range),
+                               whole[:, span.index], rtol=1e-10, atol=1e-10)
     if not model.has_linear_part:
         return
     nl_idx = [model.param_names.index(n) for n in model.nonlinear_names]
@@ -89,3 +95,16 @@ def test_a_bad_row_subset_is_refused(bad):
         model.windowed_regressors(u, DT, {"gamma": 0.0, "lambda": 0.0}, bad)
     with pytest.raises(ModelError, match="window"):
         model.simulate_window_batch(u, DT, np.zeros((1, model.n_params)), bad)
+
+
+def test_window_values():
+    w = Window.of(slice(10, 20), N)
+    assert (w.start, w.stop, w.rows, len(w), w.index, w.in_span) == (10, 20, None, 10, slice(10, 20), slice(None))
+    r = Window.of(np.array([3, 7, 9]), N)
+    assert (r.start, r.stop, len(r)) == (3, 10, 3)
+    np.testing.assert_array_equal(r.in_span, [0, 4, 6])
+    assert Window.of(r, N) is r
+    with pytest.raises(ModelError, match="step 1"):
+        Window.of(slice(0, 10, 2), N)
+    with pytest.raises(ModelError, match="reaching"):
+        Window.of(Window(0, N + 1), N)
