@@ -273,12 +273,16 @@ class LogPosterior:
             with _numba_threads(1 if small else None):
                 for a in range(0, n_set, chunk):
                     sl = slice(a, a + chunk)
-                    Phi = self.design(s, nl[sl])
-                    finite = np.isfinite(Phi).all(axis=(1, 2))
+                    Phi = self.model.windowed_regressors_batch(s.u, s.dt, nl[sl], s.window, self.input_range)
+                    X = np.empty((Phi.shape[0], p, s.n))  # time along the last axis, one copy
+                    X[:, : Phi.shape[2]] = np.transpose(Phi, (0, 2, 1))
+                    if s.n_basis:
+                        X[:, Phi.shape[2]:] = s.basis.T
+                    finite = np.isfinite(X).all(axis=(1, 2))
                     if not finite.all():
                         bad[sl] |= ~finite
-                        Phi = np.where(finite[:, None, None], Phi, 0.0)
-                    whitened_gram(np.transpose(Phi, (0, 2, 1)), s.y, phi[sl], G[sl])
+                        X[~finite] = 0.0
+                    whitened_gram(X, s.y, phi[sl], G[sl])
         self.n_evaluations += n_set
         self.n_nonfinite += int(bad.sum())
         return G, bad
