@@ -15,8 +15,9 @@ columns are computed once per record on its whole input (a relaxation is not per
 first period, so never on the periodic proxy).
 
 Predictive scale (``calibrate_scale``). The noise model's stationary sd sigma / sqrt(1 - phi^2)
-is what the fitted records' residuals say; on a record the fit has not seen the error is larger.
-The predictive noise is therefore multiplied by kappa >= 1, chosen so that held-out identification
+is what the fitted records' residuals say; on a record the fit has not seen the error is usually
+larger (and with phi near 1 the stationary sd is poorly determined by short windows, either way).
+The predictive noise is therefore multiplied by kappa (0.05-20), chosen so that held-out identification
 data are covered at the nominal level: each identification record is left out in turn, the linear
 parameters (model and discrepancy) are refitted on the others at the posterior median of
 (theta_N, sigma, phi), and the left-out record is predicted (linear-parameter variance plus
@@ -43,7 +44,7 @@ from ..likelihood import marginalise_linear, whitened_gram
 DISCREPANCY_KINDS = ("relaxation", "none")
 DISCREPANCY_PRIOR_GAIN = 2.0  # prior sd of c_k: this x max|y| / max|u|
 CALIBRATION_LEVEL = 0.9
-KAPPA_RANGE = (1.0, 1000.0)
+KAPPA_RANGE = (0.05, 20.0)
 
 
 def relaxation_times(records) -> np.ndarray:
