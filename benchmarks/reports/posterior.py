@@ -7,6 +7,7 @@ import logging
 import math
 from pathlib import Path
 
+import corner
 import numpy as np
 
 from hysbench.benchmarks.plots import pyplot, save_figure
@@ -82,8 +83,6 @@ def corner_names(names: list[str], corr: np.ndarray, k: int = N_CORNER) -> list[
 
 
 def corner_figure(run: PosteriorRun, path: Path) -> list[str]:
-    import corner
-
     names, corr = run.correlation()
     idx = corner_names(names, corr)
     S = run.samples()
