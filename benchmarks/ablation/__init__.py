@@ -50,7 +50,9 @@ and every full fit is re-scored on the untrimmed records).
 from .conclusions import conclusions, factor_name
 from .criteria import compare, verdicts
 from .fit import FullBounds, SharedColumns, evaluate_variant, fit_once
-from .history import check_trim, trim_history
+from hysbench.data.periodic import trim_history
+
+from .history import check_trim
 from .plan import (CV_FIT_OPTIONS, FACTORS, FULL_FIT_OPTIONS, N_OPERATORS, ORDERS, PAPER, TIE_RELATIVE,
                    AblationError, Variant, frequency_groups, plan_variants)
 from .run import DEFINITIONS, run_ablation

@@ -14,7 +14,9 @@ from hysbench.data.dataset import Dataset
 from .conclusions import conclusions
 from .criteria import _summarise, verdicts
 from .fit import _cpu_seconds, evaluate_task
-from .history import check_trim, trim_history
+from hysbench.data.periodic import trim_history
+
+from .history import check_trim
 from .plan import (AblationError, CV_FIT_OPTIONS, FACTORS, FULL_FIT_OPTIONS, N_OPERATORS, ORDERS, PAPER,
                    TIE_RELATIVE, TRIM_CHECK_RTOL, Variant, frequency_groups, plan_tasks, plan_variants)
 

@@ -23,15 +23,17 @@ from pathlib import Path
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, dataset_paths, nonnegative_int,
                                            positive_int)
 
-EXAMPLE = "hysbench posterior data/virtual_dea --walkers 16 --steps 4000 --out results"
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.data.dataset import load_dataset
 from hysbench.models import get_model
 
 from hysbench.identification.errors import IdentificationError
-from hysbench.identification.posterior import MOVES, NOISE_MODELS, predictive, sample_posterior
+from hysbench.identification.posterior import (DISCREPANCY_KINDS, MOVES, NOISE_MODELS, predictive,
+                                               predictive_coverage, sample_posterior)
 from hysbench.benchmarks.reports.posterior import (corner_figure, correlation_figure, identifiability, predictive_figure,
                                render_markdown, trace_figure)
+
+EXAMPLE = "hysbench posterior data/virtual_dea --walkers 16 --steps 4000 --out results"
 
 
 def _burn(text: str):
@@ -53,6 +55,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", default="mrpim", help="registry name of a partly linear model (default mrpim)")
     parser.add_argument("--noise", default="ar1", choices=NOISE_MODELS,
                         help="residual noise model: ar1 (default) or iid (independent, for contrast)")
+    parser.add_argument("--discrepancy", default="relaxation", choices=DISCREPANCY_KINDS,
+                        help="model discrepancy added to the model's output: relaxation (default; first-order "
+                             "relaxations of the input, integrated out) or none")
+    parser.add_argument("--no-calibration", action="store_true",
+                        help="predictive noise scale 1 instead of the one set by leave-one-record-out coverage")
     parser.add_argument("--walkers", type=positive_int, default=16, help="emcee walkers (even, default 16)")
     parser.add_argument("--steps", type=positive_int, default=4000,
                         help="most steps in total (default 4000); sampling stops earlier once converged "
@@ -78,11 +85,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def canonical_command(args) -> str:
     """The command line that reproduces this run (every sampling setting spelled out)."""
-    parts = ["hysbench", "posterior", str(dataset_paths(args.dataset)[0]), "--model", args.model, "--noise", args.noise, "--walkers",
+    parts = ["hysbench", "posterior", str(dataset_paths(args.dataset)[0]), "--model", args.model, "--noise", args.noise,
+             "--discrepancy", args.discrepancy, "--walkers",
              str(args.walkers), "--steps", str(args.steps), "--min-ess", f"{args.min_ess:g}", "--burn", str(args.burn),
              "--moves", args.moves, "--seed", str(args.seed), "--draws", str(args.draws), "--out", args.out]
     if args.fixed_steps:
         parts.append("--fixed-steps")
+    if args.no_calibration:
+        parts.append("--no-calibration")
     if args.no_figures:
         parts.append("--no-figures")
     return " ".join(shlex.quote(str(p)) for p in parts)
@@ -104,13 +114,16 @@ def main(args) -> int:
     run = sample_posterior(model, dataset, noise=args.noise, n_walkers=args.walkers, max_steps=args.steps,
                            min_ess=args.min_ess, fixed_steps=args.fixed_steps, burn=args.burn, seed=args.seed,
                            moves=args.moves, chain_file=chain, restart=args.restart,
-                           progress=None if not args.quiet else False, log=say)
+                           progress=None if not args.quiet else False, discrepancy=args.discrepancy,
+                           calibrate=not args.no_calibration, log=say)
     say("summarising, predictive bands, figures ...")
     summary = run.summary()
     pred = {"identification": predictive(run, dataset.identification, args.draws, seed=args.seed),
             "validation": predictive(run, dataset.validation, args.draws, seed=args.seed)}
     summary["predictive"] = {k: [{a: b for a, b in p.items() if not a.startswith("_")} for p in v]
                              for k, v in pred.items()}
+    summary["predictive_coverage"] = predictive_coverage(pred["validation"])
+    summary["predictive_coverage_identification"] = predictive_coverage(pred["identification"])
     ident = identifiability(run, summary["parameters"])
     summary["identifiability"] = ident
     files = {}
@@ -133,8 +146,17 @@ def main(args) -> int:
         tau = "-" if v["tau"] is None else f"{v['tau']:.1f}"
         print(f"{n:<10} {v['mean']:>11.5g} {v['sd']:>10.3g} {v['q05']:>11.5g} {v['q95']:>11.5g} {ess:>7} {tau:>6}")
     for p in summary["predictive"]["validation"]:
-        print(f"validation {p['file']}: {p['fraction_inside_observation_band']:.1%} of measured samples inside "
-              "the 90 % predictive band")
+        c = p["coverage"]
+        if c is None:
+            print(f"validation {p['file']}: no posterior draw gave a finite model output", file=sys.stderr)
+            continue
+        print(f"validation {p['file']}: {c['90']:.1%} of measured samples inside the 90 % predictive band "
+              f"(mean width {c['width_90']:.4g} {dataset.output_unit}), {c['50']:.1%} inside the 50 % band"
+              + (f"; {p['nonfinite_draws']} draws with non-finite output left out" if p["nonfinite_draws"] else ""))
+    bad = summary["nonfinite_model_outputs"]["log_posterior_evaluations"]
+    if bad:
+        print(f"hysbench posterior: WARNING: {bad} log-posterior evaluations had non-finite model outputs "
+              "(rejected, counted in the JSON under nonfinite_model_outputs)", file=sys.stderr)
     print(f"converged: {'yes' if summary['converged'] else 'NO'}; wall {summary['wall_seconds']:.1f} s; "
           f"wrote {out / 'posterior.md'} and {json_path}")
     if not summary["converged"]:

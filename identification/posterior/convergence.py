@@ -1,0 +1,111 @@
+"""Convergence, measured: autocorrelation times, burn-in, effective sample sizes, acceptance."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import emcee
+import numpy as np
+
+from ..errors import IdentificationError
+
+TAU_FACTOR = 50  # chains after burn-in must be this many autocorrelation times long
+BURN_TAUS = 5  # automatic burn-in: this many autocorrelation times
+MIN_ACCEPTANCE = 0.05  # a walker accepting less is called stuck
+
+
+# --- convergence -------------------------------------------------------------------
+def autocorr_times(x: np.ndarray) -> np.ndarray:
+    """emcee's integrated autocorrelation time per parameter of x (steps, walkers, params).
+
+    Parameters that never change (e.g. fixed) get NaN.
+    """
+    x = np.asarray(x, dtype=float)
+    taus = np.full(x.shape[2], np.nan)
+    for k in range(x.shape[2]):
+        col = x[:, :, k]
+        if x.shape[0] < 2 or not np.all(np.isfinite(col)) or np.all(col == col[0]):
+            continue
+        taus[k] = float(emcee.autocorr.integrated_time(col[:, :, None], c=5, tol=0, quiet=True)[0])
+    return taus
+
+
+@dataclass
+class Convergence:
+    n_steps: int
+    burn: int
+    tau: np.ndarray  # per reported parameter, on the kept chain
+    ess: np.ndarray
+    acceptance: np.ndarray  # per walker
+    tau_factor: float = TAU_FACTOR
+    min_ess: float = 0.0
+
+    @property
+    def kept(self) -> int:
+        return self.n_steps - self.burn
+
+    @property
+    def tau_max(self) -> float:
+        t = self.tau[np.isfinite(self.tau)]
+        return float(np.max(t)) if t.size else math.inf
+
+    @property
+    def length_in_tau(self) -> float:
+        return self.kept / self.tau_max if self.tau_max > 0 else 0.0
+
+    @property
+    def problems(self) -> list[str]:
+        p = []
+        if not np.all(np.isfinite(self.tau)):
+            p.append("the autocorrelation time of some parameter could not be estimated")
+        if self.length_in_tau < self.tau_factor:
+            p.append(f"the chain after burn-in is {self.length_in_tau:.1f} autocorrelation times long "
+                     f"(< {self.tau_factor:g}): run more steps")
+        stuck = int(np.sum(self.acceptance < MIN_ACCEPTANCE))
+        if stuck:
+            p.append(f"{stuck} walker(s) accepted fewer than {MIN_ACCEPTANCE:.0%} of their moves (stuck)")
+        return p
+
+    @property
+    def converged(self) -> bool:
+        return not self.problems
+
+    @property
+    def ess_met(self) -> bool:
+        return bool(np.all(np.isfinite(self.ess)) and np.min(self.ess) >= self.min_ess)
+
+
+def convergence(chain: np.ndarray, draws: np.ndarray, accepted: np.ndarray, burn: int | str = "auto",
+                min_ess: float = 0.0, log_prob: np.ndarray | None = None) -> Convergence:
+    """Burn-in, tau, ESS of the reported parameters (sampled coordinates and linear draws).
+
+    Automatic burn-in: the larger of ``BURN_TAUS`` tau (estimated on the
+    second half) and the first step at which the walkers' median log
+    posterior reaches the median of the second half, plus 2 tau (walkers
+    started far from the typical set need that long to get there).
+    """
+    n = chain.shape[0]
+    if draws.ndim == 2:  # one linear parameter
+        draws = draws[:, :, None]
+    both = np.concatenate([chain, draws], axis=2)
+    if burn == "auto":
+        half = both[n // 2:]
+        t = autocorr_times(half)
+        t_max = float(np.nanmax(t)) if np.any(np.isfinite(t)) else n / 2
+        burn = math.ceil(BURN_TAUS * t_max)
+        if log_prob is not None and n >= 4:
+            level = float(np.median(log_prob[n // 2:]))
+            reached = np.flatnonzero(np.median(log_prob, axis=1) >= level)
+            if reached.size:
+                burn = max(burn, int(reached[0]) + math.ceil(2 * t_max))
+        burn = int(min(burn, n - 2))
+    burn = int(burn)
+    if not 0 <= burn < n:
+        raise IdentificationError(f"posterior: burn-in {burn} must be below the chain length {n}")
+    kept = both[burn:]
+    tau = autocorr_times(kept)
+    ess = kept.shape[0] * kept.shape[1] / tau
+    return Convergence(n, burn, tau, ess, accepted / max(n, 1), min_ess=min_ess)
+
+

@@ -1,0 +1,320 @@
+"""The run: ``sample_posterior`` (start, emcee, stopping rule, chain file) and its result."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import emcee
+import h5py
+import numpy as np
+from tqdm import tqdm
+
+from hysbench.data.dataset import Dataset
+from hysbench.models.base import HysteresisModel
+
+from ..api import identify
+from ..errors import IdentificationError
+from .backend import open_backend, settings_fingerprint, store_start
+from .convergence import TAU_FACTOR, Convergence, convergence
+from .discrepancy import Calibration, calibrate_scale
+from .start import find_mode, initial_walkers, noise_estimate, screen_start
+from .target import LogPosterior
+
+
+MOVES = {
+    "stretch": lambda emcee: None,
+    "de": lambda emcee: [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)],
+}
+
+
+@dataclass
+class PosteriorRun:
+    """What ``sample_posterior`` returns; ``summary()`` gives the JSON body."""
+
+    post: LogPosterior
+    chain: np.ndarray  # (steps, walkers, d) sampler coordinates
+    draws: np.ndarray  # (steps, walkers, p) linear parameters
+    log_prob: np.ndarray  # (steps, walkers)
+    conv: Convergence
+    start: dict
+    wall_seconds: float  # over every run that built the chain (resumed runs add up)
+    sampling_seconds: float
+    this_run_seconds: float
+    resumed_from: int
+    n_walkers: int
+    moves: str
+    seed: int | None
+    dataset: str
+    chain_file: str | None
+    calibration: Calibration | None = None
+    notes: list[str] = field(default_factory=list)
+
+    # --- reported parameters: model order, then sigma and phi -------------------------
+    @property
+    def names(self) -> list[str]:
+        return list(self.post.param_names) + list(self.post.discrepancy_names) + ["sigma", "phi"]
+
+    def samples(self, thin: int = 1) -> np.ndarray:
+        """Kept draws of every reported parameter, flattened: (n, len(names))."""
+        b = self.conv.burn
+        ch = self.chain[b::thin]
+        dr = self.draws[b::thin]
+        nl, sigma, phi = self.post.split(ch.reshape(-1, ch.shape[-1]))
+        dr = dr.reshape(-1, dr.shape[-1])
+        full = self.post.full_params(nl, dr)
+        return np.column_stack([full, dr[:, len(self.post.model_linear_names):], sigma, phi])
+
+    def reported_tau(self) -> tuple[np.ndarray, np.ndarray]:
+        """(tau, ess) in ``names`` order."""
+        d_nl = len(self.post.nonlinear_names)
+        p = len(self.post.model_linear_names)
+        k_d = len(self.post.discrepancy_names)
+        tau_c, tau_l = self.conv.tau[: self.post.ndim], self.conv.tau[self.post.ndim:]
+        ess_c, ess_l = self.conv.ess[: self.post.ndim], self.conv.ess[self.post.ndim:]
+        tau = np.full(len(self.names), np.nan)
+        ess = np.full(len(self.names), np.nan)
+        tau[self.post.nl_idx], ess[self.post.nl_idx] = tau_c[:d_nl], ess_c[:d_nl]
+        tau[self.post.lin_idx], ess[self.post.lin_idx] = tau_l[:p], ess_l[:p]
+        k = len(self.post.param_names)
+        tau[k:k + k_d], ess[k:k + k_d] = tau_l[p:p + k_d], ess_l[p:p + k_d]
+        k += k_d
+        tau[k], ess[k] = tau_c[d_nl], ess_c[d_nl]
+        if self.post.noise == "ar1":
+            tau[k + 1], ess[k + 1] = tau_c[d_nl + 1], ess_c[d_nl + 1]
+        return tau, ess
+
+    def median_state(self) -> tuple[np.ndarray, float, float]:
+        """(theta_N, sigma, phi) at the posterior medians of the kept chain."""
+        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
+        nl, sigma, phi = self.post.split(np.median(ch, axis=0)[None])
+        return nl[0], float(sigma[0]), float(phi[0])
+
+    @property
+    def noise_scale(self) -> float:
+        return 1.0 if self.calibration is None else self.calibration.scale
+
+    def parameter_table(self) -> dict:
+        S = self.samples()
+        tau, ess = self.reported_tau()
+        q = np.quantile(S, [0.05, 0.5, 0.95], axis=0)
+        out = {}
+        for i, n in enumerate(self.names):
+            out[n] = {"mean": float(np.mean(S[:, i])), "sd": float(np.std(S[:, i], ddof=1)),
+                      "q05": float(q[0, i]), "q50": float(q[1, i]), "q95": float(q[2, i]),
+                      "ess": _num(ess[i]), "tau": _num(tau[i])}
+        return out
+
+    def correlation(self) -> tuple[list[str], np.ndarray]:
+        """Correlation matrix of the model parameters and the noise parameters that vary."""
+        S = self.samples()
+        keep = [i for i in range(S.shape[1]) if np.std(S[:, i]) > 0]
+        return [self.names[i] for i in keep], np.corrcoef(S[:, keep], rowvar=False)
+
+    def summary(self) -> dict:
+        c = self.conv
+        tau, ess = self.reported_tau()
+        names, corr = self.correlation()
+        return {
+            "format": "hysbench-posterior/1",
+            "dataset": self.dataset,
+            "model": self.post.model.name,
+            "hyperparameters": self.post.model.get_hyperparameters(),
+            "noise_model": {"name": self.post.noise,
+                            "description": ("stationary AR(1) residuals per record window, exact likelihood "
+                                            "(Prais-Winsten)" if self.post.noise == "ar1"
+                                            else "independent Gaussian residuals (phi = 0)")},
+            "linear_parameters": "integrated out analytically (Gaussian conditional); drawn from it per state",
+            "discrepancy": {"kind": self.post.discrepancy, "relaxation_times_s": [float(t) for t in self.post.taus],
+                            "coefficients": list(self.post.discrepancy_names),
+                            "description": ("sum_k c_k (L_k u - u): first-order relaxations of the input, "
+                                            "integrated out with the linear parameters"
+                                            if self.post.discrepancy == "relaxation" else "none")},
+            "predictive_calibration": None if self.calibration is None else self.calibration.describe(),
+            "nonfinite_model_outputs": {"log_posterior_evaluations": self.post.n_nonfinite,
+                                        "singular_linear_precision": self.post.n_singular,
+                                        "of_evaluations": self.post.n_evaluations},
+            "converged": c.converged,
+            "convergence_problems": c.problems,
+            "ess_target": c.min_ess,
+            "ess_target_met": c.ess_met,
+            "min_ess": _num(np.nanmin(ess)) if np.any(np.isfinite(ess)) else None,
+            "parameters": self.parameter_table(),
+            "priors": self.post.priors.describe(),
+            "sampler": {
+                "package": "emcee", "walkers": self.n_walkers, "steps": c.n_steps, "burn_in": c.burn,
+                "kept_steps": c.kept, "moves": self.moves, "sampled_coordinates": list(self.post.coord_names),
+                "tau_max": _num(c.tau_max), "chain_length_in_tau": _num(c.length_in_tau),
+                "tau_factor_required": TAU_FACTOR,
+                "acceptance_fraction": {"mean": float(np.mean(c.acceptance)), "min": float(np.min(c.acceptance)),
+                                        "max": float(np.max(c.acceptance))},
+                "log_posterior_evaluations": self.post.n_evaluations,
+                "resumed_from_step": self.resumed_from, "seed": self.seed, "chain_file": self.chain_file,
+            },
+            "data": {
+                "rows": self.post.n_rows,
+                "records": [{"file": s.file, "frequency_hz": s.frequency_hz, "rows": s.n,
+                             "samples": s.full_samples, "simulated_samples": int(s.u.size), "shortened": s.proxy}
+                            for s in self.post.segments],
+                "input_range": list(self.post.input_range),
+            },
+            "start": self.start,
+            "correlation": {"names": names, "matrix": [[round(float(v), 4) for v in row] for row in corr]},
+            "wall_seconds": self.wall_seconds,
+            "sampling_seconds": self.sampling_seconds,
+            "this_run_seconds": self.this_run_seconds,
+            "notes": self.notes,
+        }
+
+
+def _num(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "ar1", n_walkers: int = 16,
+                     max_steps: int = 4000, min_ess: float = 1000.0, fixed_steps: bool = False,
+                     burn: int | str = "auto", seed: int | None = 0, moves: str = "de",
+                     chain_file: str | os.PathLike | None = None, restart: bool = False,
+                     progress: bool | None = None, check_every: int = 50, start_params: Mapping | None = None,
+                     discrepancy: str = "relaxation", calibrate: bool = True, log=None) -> PosteriorRun:
+    """Sample the posterior of ``model``'s parameters given ``dataset``'s identification records.
+
+    ``max_steps`` bounds the chain; unless ``fixed_steps``, sampling stops at
+    the first check (every ``check_every`` steps) where the chain after
+    burn-in is >= 50 tau long and every parameter has >= ``min_ess``
+    effective samples. With ``chain_file`` the chain is kept in emcee's HDF5
+    backend and a later call with the same settings resumes it. The start is
+    ``start_params`` if given, else the ``varpro`` optimum. ``discrepancy``:
+    "relaxation" (default) or "none", see ``discrepancy``. With ``calibrate``
+    the predictive noise scale is set by held-out coverage
+    (``discrepancy.calibrate_scale``), else it is 1.
+    """
+    t0 = time.perf_counter()
+    say = log or (lambda msg: None)
+    if moves not in MOVES:
+        raise IdentificationError(f"unknown moves {moves!r}; choose one of {', '.join(MOVES)}")
+    records = dataset.identification
+    if not records:
+        raise IdentificationError(f"dataset {dataset.name!r} has no identification records to fit")
+    for name, value, lo in (("walkers", n_walkers, 2), ("steps", max_steps, 2), ("check_every", check_every, 1)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+            raise IdentificationError(f"{name} must be an integer >= {lo}, got {value!r}")
+    if not (isinstance(min_ess, (int, float)) and min_ess >= 0):
+        raise IdentificationError(f"min_ess must be a number >= 0, got {min_ess!r}")
+
+    post = LogPosterior(model, records, noise=noise, seed=seed, discrepancy=discrepancy)
+    if n_walkers < 2 * post.ndim or n_walkers % 2:
+        raise IdentificationError(
+            f"walkers must be an even number >= {2 * post.ndim} (twice the {post.ndim} sampled coordinates "
+            f"{', '.join(post.coord_names)}), got {n_walkers}")
+    backend, done, start = None, 0, None
+    fingerprint = settings_fingerprint(post, dataset, n_walkers, seed, moves)
+    path = Path(chain_file) if chain_file is not None else None
+    if path is not None:
+        backend, done, start = open_backend(path, fingerprint, restart)
+    if done and start is None:
+        start = {}
+    p0 = None
+    if not done:
+        ts = time.perf_counter()
+        if start_params is None:
+            say("start: identify (varpro) ...")
+            fit = identify(model, dataset, method="varpro", seed=seed)
+            start_params, start_method = fit.params, "varpro"
+        else:
+            start_method = "given"
+        nl0 = np.array([float(start_params[n]) for n in post.nonlinear_names])
+        nl0 = np.clip(nl0, post.priors.nonlinear_lower, post.priors.nonlinear_upper)
+        sigma0, phi0 = noise_estimate(post, nl0)
+        nl1 = screen_start(post, nl0, sigma0, phi0, seed)
+        if not np.array_equal(nl1, nl0):
+            nl0 = nl1
+            sigma0, phi0 = noise_estimate(post, nl0)
+        x0 = post.coords(nl0, sigma0, phi0)
+        say("start: posterior mode and Laplace covariance ...")
+        mode, cov, info = find_mode(post, x0)
+        start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
+                 "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
+                 "mode": dict(zip(post.coord_names, map(float, mode))),
+                 "screened_start": dict(zip(post.nonlinear_names, map(float, nl0))),
+                 "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(cov))))),
+                 "mode_search": info, "seconds": time.perf_counter() - ts}
+        rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
+        p0 = initial_walkers(post, mode, cov, n_walkers, rng)
+        store_start(path, start)
+    else:
+        post.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7, done]))
+
+    sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
+                                    moves=MOVES[moves](emcee))
+    if p0 is not None:
+        sampler.random_state = np.random.RandomState(0 if seed is None else int(seed)).get_state()
+    else:  # resuming: the last stored state (coordinates, log posterior, draws, random state)
+        p0 = sampler.get_last_sample()
+    if progress is None:
+        progress = sys.stderr.isatty()
+    remaining = max(0, max_steps - done)
+    ts = time.perf_counter()
+    conv = None
+    if done >= 2 and not fixed_steps:  # a resumed chain that already meets the stopping rule is only re-reported
+        c = convergence(sampler.get_chain(), sampler.get_blobs(), sampler.backend.accepted, burn, min_ess,
+                        sampler.get_log_prob())
+        if c.converged and c.ess_met:
+            conv, remaining = c, 0
+    if remaining:
+        bar = None
+        if progress:
+            bar = tqdm(total=max_steps, initial=done, desc="sampling", unit="step", file=sys.stderr,
+                       dynamic_ncols=True)
+        try:
+            for k, _ in enumerate(sampler.sample(p0, iterations=remaining, progress=False), start=done + 1):
+                if bar is not None:
+                    bar.update(1)
+                if not fixed_steps and k % check_every == 0 and k >= 2 * check_every:
+                    c = convergence(sampler.get_chain(), sampler.get_blobs(), sampler.backend.accepted, burn,
+                                    min_ess, sampler.get_log_prob())
+                    if bar is not None:
+                        bar.set_postfix_str(f"tau {c.tau_max:.1f}, {c.length_in_tau:.0f} tau, "
+                                            f"ESS min {np.nanmin(c.ess):.0f}")
+                    if c.converged and c.ess_met:
+                        conv = c
+                        break
+        finally:
+            if bar is not None:
+                bar.close()
+            if hasattr(sampler.backend, "flush"):
+                sampler.backend.flush()
+    sampling_seconds = time.perf_counter() - ts
+    chain = sampler.get_chain()
+    draws = sampler.get_blobs()
+    if draws.ndim == 2:  # a single linear parameter
+        draws = draws[:, :, None]
+    if conv is None or conv.n_steps != chain.shape[0]:
+        conv = convergence(chain, draws, sampler.backend.accepted, burn, min_ess, sampler.get_log_prob())
+    wall = time.perf_counter() - t0
+    earlier = {"wall": 0.0, "sampling": 0.0}
+    if path is not None:  # seconds spent on this chain file, over every run that built it
+        with h5py.File(path, "a") as f:
+            earlier = json.loads(f.attrs.get("hysbench_seconds", json.dumps(earlier)))
+            f.attrs["hysbench_seconds"] = json.dumps({"wall": earlier["wall"] + wall,
+                                                      "sampling": earlier["sampling"] + sampling_seconds})
+    run = PosteriorRun(post=post, chain=chain, draws=draws, log_prob=sampler.get_log_prob(), conv=conv,
+                       start=start, wall_seconds=earlier["wall"] + wall,
+                       sampling_seconds=earlier["sampling"] + sampling_seconds, this_run_seconds=wall,
+                       resumed_from=done, n_walkers=n_walkers, moves=moves, seed=seed, dataset=dataset.name,
+                       chain_file=None if path is None else str(path))
+    if calibrate:
+        say("predictive scale: leave-one-record-out coverage ...")
+        run.calibration = calibrate_scale(post, *run.median_state())
+    else:
+        run.calibration = Calibration(1.0, 0.9, note="not calibrated (calibrate=False): noise scale 1")
+    return run
+
+
