@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args) -> int:
     from hysbench.models import get_model
 
-    from hysbench.benchmarks.diagnosis.causes import MAX_ROWS
+    from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
     from hysbench.benchmarks.diagnosis.diagnose import diagnose
     from hysbench.benchmarks.diagnosis.report import write_report
 

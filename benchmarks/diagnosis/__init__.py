@@ -5,7 +5,8 @@
 (``report``, ``cli``). ``planted`` makes test data with one known effect.
 """
 
-from .causes import Candidate, Screen
+from .candidates import Candidate
+from .screen import Screen
 from .diagnose import Diagnosis, DiagnosisError, diagnose
 
 __all__ = ["Candidate", "Diagnosis", "DiagnosisError", "Screen", "diagnose"]
