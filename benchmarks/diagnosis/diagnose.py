@@ -24,6 +24,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 import time
 from dataclasses import dataclass, field
@@ -41,11 +42,11 @@ from hysbench.models.errors import HysbenchError
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
 from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .interference import amplitude_at, phase_fitted
+from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .selection import EXPLAIN_SHARE, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, score
+from .selection import EXPLAIN_SHARE, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -215,14 +216,18 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     screen, chosen = diag.screen, diag.chosen
     folds, errors = result["folds"], result["errors"]
     ambiguous = {c.cause for c in diag.verdict.ambiguous_with}
-    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and c.heldout
-              and c.heldout["z"] >= Z_PASS and c.heldout["gain"] > 0 and not c.limit]
+    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and promising(c)]
     for c in sorted(others, key=lambda c: -c.heldout_gain)[:2]:
         say(f"trying {chosen.cause} + {c.cause}")
-        comp = screen.composite(chosen, c)
-        if comp is None:
-            continue
-        e, _ = heldout_errors(screen, folds, comp)
+        if "interference" in (chosen.cause, c.cause):  # a per-record sinusoid on top of the other's residual
+            inter, other = (chosen, c) if chosen.cause == "interference" else (c, chosen)
+            comp = copy.copy(c)
+            e = on_top(screen, folds, errors[id(other)], inter.estimates["frequency_hz"])
+        else:
+            comp = screen.composite(chosen, c)
+            if comp is None:
+                continue
+            e, _ = heldout_errors(screen, folds, comp)
         comp.heldout = score(folds, errors[id(chosen)], e)
         diag.secondary_tried.append(comp)
         h = comp.heldout

@@ -136,3 +136,18 @@ def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarra
     p = screen.parts[test]
     sine = phase_fitted(screen.y[test_rows] - base_pred, p.rows * p.record.dt, frequency_hz, amplitude)
     return base_pred + sine, amplitude
+
+
+def on_top(screen, folds, e_primary: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Out-of-fold residuals of a primary cause with a per-record sinusoid added: on each left-out record,
+    the amplitude from the other records' residuals at ``frequency_hz``, the phase fitted there."""
+    amp = []
+    for m, p in enumerate(screen.parts):
+        rows = folds.test(m)
+        amp.append(amplitude_at(e_primary[rows], p.rows * p.record.dt, frequency_hz))
+    e = e_primary.copy()
+    for m, p in enumerate(screen.parts):
+        rows = folds.test(m)
+        a = float(np.sqrt(np.mean(np.square([x for k, x in enumerate(amp) if k != m]))))
+        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], p.rows * p.record.dt, frequency_hz, a)
+    return e

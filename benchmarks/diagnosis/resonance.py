@@ -24,14 +24,15 @@ def _resonant_null(screen, z):
 
 def fit_resonance(screen) -> Candidate:
     """Searched to first order (the null's prediction through the mode) on a grid and refined; if
-    that passes the BIC threshold, it and a fast, well-damped mode are evaluated exactly and the
-    better refined exactly; otherwise the first-order optimum is evaluated exactly, once."""
+    that explains some of the null's residual, it and a fast, well-damped mode (and on short records
+    the two best points of the grid evaluated exactly) are evaluated exactly and the best refined
+    exactly; otherwise the first-order optimum is evaluated exactly, once."""
     model = screen.extension(("resonance",))
     T = screen.scale.time
     dt = min(p.record.dt for p in screen.parts)
     f_lo = RESONANCE_HZ_BOUNDS[0] / T
     f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
-    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 9))
+    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 13))
     pts = [{**screen.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
            for zeta in (0.07, 0.25, 0.8)]
     vals = np.array([_resonant_null(screen, z)[0] for z in pts])
@@ -39,11 +40,14 @@ def fit_resonance(screen) -> Candidate:
     z = screen.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
                     max_nfev=12, residual=lambda q: _resonant_null(screen, q)[2])
     z = {**z, "damping_ratio": min(z["damping_ratio"], MAX_DAMPING)}
-    if not screen.promising(_resonant_null(screen, z)[0], 3):  # not even to first order: one exact evaluation
+    if not (screen.promising(_resonant_null(screen, z)[0]) or screen.small):  # one exact evaluation
         return screen.candidate("resonance", "second-order mode", model, z)
     starts.append(z)
     starts.append({**screen.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
+    if screen.small:  # cheap: the best points of an exact coarse grid too
+        exact = [screen.evaluate(model, q)[0] for q in pts]
+        starts += [pts[i] for i in np.argsort(exact)[:2]]
     starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
     z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
-    z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=6)
+    z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
     return screen.candidate("resonance", "second-order mode", model, z)

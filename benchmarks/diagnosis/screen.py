@@ -34,12 +34,14 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
-from hysbench.identification.criteria import bic, effective_sample_size
+from hysbench.identification.criteria import effective_sample_size
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
-from .candidates import BIC_THRESHOLD, CREEP_PERIODS, MAX_DAMPING, MAX_ROWS, Candidate, estimates_of, is_log
+from .candidates import CREEP_PERIODS, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log
+
+EXACT_GRID_SAMPLES = 300_000
 from .residuals import RecordResidual
 
 
@@ -231,8 +233,8 @@ class Screen:
         self.null_residual = res
         full = self.base_columns(z, full=True).full
         self._null_prediction = [sum(theta[j] * f[name] for j, name in enumerate(self.base_lin)) for f in full]
-        self._null_rest = float(self.base.simulate(np.zeros(1), self.parts[0].record.dt, params,
-                                                   input_range=self.input_range)[0])
+        self._null_rest = [float(self.base.simulate(p.record.u[:1], p.record.dt, params, input_range=self.input_range)[0])
+                           for p in self.parts]  # a late actuator's output before it starts, per record
         self._null_offset = float(params.get("offset", 0.0))
         self.base_nl = dict(z)
         return c
@@ -329,9 +331,15 @@ class Screen:
                 best, best_rss = z, rss
         return best, best_rss
 
-    def promising(self, rss: float, k_extra: int) -> bool:
-        """Whether a first-order fit with k_extra more parameters than the null passes the BIC threshold."""
-        return bic(rss, self.n, self.null.k + k_extra, self.n_effective) - self.null.bic < -BIC_THRESHOLD
+    def promising(self, rss: float) -> bool:
+        """Whether a first-order fit explains at least ``MIN_EXPLAINED`` of the null's sum of squares (in sample;
+        only a gate for the costlier exact search)."""
+        return rss < (1.0 - MIN_EXPLAINED) * self.null.rss
+
+    @property
+    def small(self) -> bool:
+        """Records short enough for exact coarse grids of the transforming causes (delay, resonance)."""
+        return sum(p.record.t.size for p in self.parts) <= EXACT_GRID_SAMPLES
 
     def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
         """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's

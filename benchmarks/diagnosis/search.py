@@ -3,7 +3,7 @@
 Order: the library screen (evidence, relaxation seeds); each cause's
 extension with the base's nonlinear parameters held (stage 1); a quick
 held-out score for each (``selection``); the passing ones refined with the
-base's nonlinear parameters free (stage 2, at most ``max_joint``) and scored
+base's nonlinear parameters free (stage 2: the best of each cause, at most ``max_joint``) and scored
 again; finally every passing candidate scored with its own nonlinear
 parameters refitted per fold (the honest score, and the uncertainty).
 """
@@ -33,7 +33,7 @@ def _score(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool
 
 
 def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
-               joint_nfev: int = 10, max_joint: int = 3, progress: Callable[[str], None] | None = None) -> dict:
+               joint_nfev: int = 10, max_joint: int = 4, progress: Callable[[str], None] | None = None) -> dict:
     """Every candidate fitted and scored; returns {"library", "candidates" (best per cause),
     "relaxation_variants", "folds", "errors" (out-of-fold residuals by id), "null_sse"}."""
     say = progress or (lambda s: None)
@@ -55,8 +55,11 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
     for c in variants + cands:
         _score(screen, folds, e_null, errors, c)
     # stage 2: the base's nonlinear parameters free as well, for what predicts some of the held-out misfit
-    ok = sorted([c for c in variants + cands if promising(c)], key=lambda c: -c.heldout_gain)[:max_joint]
-    for c in ok:
+    best_of = {}
+    for c in variants + cands:  # the best promising candidate of each cause
+        if promising(c) and (c.cause not in best_of or c.heldout_gain > best_of[c.cause].heldout_gain):
+            best_of[c.cause] = c
+    for c in sorted(best_of.values(), key=lambda c: -c.heldout_gain)[:max_joint]:
         say(f"{c.label} (joint)")
         j = joint_saturation(screen, c, joint_nfev) if c.cause == "saturation" else screen.joint(c, joint_nfev)
         if j is not c:

@@ -14,17 +14,20 @@ Held-out score per candidate, from the out-of-fold residuals e (every row
 predicted by a fit that did not see its record):
 
 * gain G = 1 - sum e_c^2 / sum e_null^2;
-* z: the mean over blocks (each left-out record cut into ``N_BLOCKS``
-  contiguous blocks) of ln(SSE_null / SSE_c) over its standard error -- blocks,
-  not samples, so correlated residuals are not counted as independent; the
-  log ratio makes blocks of large and small misfit comparable;
+* z: each left-out record is cut into ``N_BLOCKS`` contiguous blocks and
+  ln(SSE_null / SSE_c) taken per block; z is the normal quantile of the
+  one-sided Wilcoxon signed-rank test of those log ratios -- blocks, not
+  samples, so correlated residuals are not counted as independent, and
+  ranks, so a record with a large misfit does not swamp the others;
 * the folds (records) it improves.
 
 Decision rule (``decide``):
 
-1. A candidate *passes* if G >= ``MIN_EXPLAINED``, z >= ``Z_PASS``, it improves
-   more than half of the folds, its parameters are within the cause's meaning
-   and none is at its search bound (else: "not identified (at bound)").
+1. A candidate *passes* if G >= ``MIN_EXPLAINED``, it improves more than half
+   of the folds, z >= ``Z_PASS`` (or G >= ``STRONG_GAIN`` with every fold
+   improved: a transient misfit concentrates in few blocks), its parameters
+   are within the cause's meaning and none is at its search bound (else:
+   "not identified (at bound)").
 2. Parsimony: among the passing candidates that the best (highest G) does not
    beat by ``Z_SAME`` standard errors, the one with fewest parameters is
    named. Another cause in that set is reported as ambiguous with it, with
@@ -44,6 +47,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+from scipy import stats
 
 from .candidates import MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
@@ -53,6 +57,7 @@ N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
 Z_SAME = 2.0
 EXPLAIN_SHARE = 0.5
+STRONG_GAIN = 0.10
 AT_BOUND = 0.01  # relative (log scale) distance to a search bound that counts as "at the bound"
 STRUCTURE_F = 4.0  # periodic-structure ratio above which a residual is "structured"
 FOLD_NFEV = 8
@@ -158,14 +163,22 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate) -> np.ndarray:
     return e
 
 
+def signed_rank_z(d: np.ndarray) -> float:
+    """One-sided Wilcoxon signed-rank test that the log ratios exceed 0, as a normal quantile."""
+    d = d[np.isfinite(d) & (d != 0)]
+    if d.size < 2:
+        return 0.0
+    p = stats.wilcoxon(d, alternative="greater").pvalue
+    return float(min(stats.norm.isf(max(p, 1e-300)), 40.0))
+
+
 def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
     """Held-out gain of ``e_c`` over ``e_ref``, its block z-score (log ratios) and the folds it improves."""
     blocks = folds.blocks()
     tiny = 1e-300
     d = np.array([math.log(max(float(e_ref[b] @ e_ref[b]), tiny) / max(float(e_c[b] @ e_c[b]), tiny)) for b in blocks])
     ss_ref = float(e_ref @ e_ref)
-    sd = float(np.std(d, ddof=1)) if d.size > 1 else 0.0
-    z = float(d.sum() / (sd * math.sqrt(d.size))) if sd > 0 else (math.inf if d.sum() > 0 else 0.0)
+    z = signed_rank_z(d)
     improved = sum(float(e_ref[folds.test(m)] @ e_ref[folds.test(m)]) > float(e_c[folds.test(m)] @ e_c[folds.test(m)])
                    for m in range(folds.n))
     return {"gain": 1.0 - float(e_c @ e_c) / ss_ref if ss_ref > 0 else 0.0, "z": z, "folds_improved": int(improved),
@@ -209,7 +222,8 @@ def at_bound(screen, c: Candidate) -> list[str]:
 
 def passes(c: Candidate) -> bool:
     h = c.heldout
-    return (bool(h) and h["gain"] >= MIN_EXPLAINED and h["z"] >= Z_PASS and h["folds_improved"] * 2 > h["n_folds"]
+    significant = h and (h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
+    return (bool(significant) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"]
             and not c.limit and not h.get("at_bound"))
 
 
@@ -253,11 +267,13 @@ def pairwise_z(folds: Folds, errors: dict, a: Candidate, b: Candidate) -> float:
 
 def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequence[Candidate], errors: dict,
            null_sse: float, structured: bool) -> Verdict:
-    """See the module docstring."""
+    """See the module docstring (every relaxation variant competes, not only the best)."""
+    candidates = list({id(c): c for c in [*candidates, *variants]}.values())
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
                       if c.heldout.get("at_bound")]
-    significant = [c for c in candidates if c.heldout and c.heldout["z"] >= Z_PASS and c.heldout["gain"] > 0]
+    significant = [c for c in candidates if c.heldout and c.heldout["gain"] > MIN_EXPLAINED and (
+        c.heldout["z"] >= Z_PASS or c.heldout["folds_improved"] == c.heldout["n_folds"])]
     if not ok:
         if structured or significant:
             partial = max(significant, key=lambda c: c.heldout_gain) if significant else None
