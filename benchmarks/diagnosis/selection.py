@@ -222,9 +222,15 @@ def at_bound(screen, c: Candidate) -> list[str]:
 
 def passes(c: Candidate) -> bool:
     h = c.heldout
-    significant = h and (h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
-    return (bool(significant) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"]
-            and not c.limit and not h.get("at_bound"))
+    return significant(c) and not c.limit and not h.get("at_bound")
+
+
+def significant(c: Candidate) -> bool:
+    """Held-out evidence for a candidate, whatever its meaning: gain >= MIN_EXPLAINED in a majority of folds,
+    and z >= Z_PASS or a gain >= STRONG_GAIN in every fold."""
+    h = c.heldout
+    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
+        h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
 
 
 def promising(c: Candidate) -> bool:
@@ -272,11 +278,10 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
                       if c.heldout.get("at_bound")]
-    significant = [c for c in candidates if c.heldout and c.heldout["gain"] > MIN_EXPLAINED and (
-        c.heldout["z"] >= Z_PASS or c.heldout["folds_improved"] == c.heldout["n_folds"])]
+    evidence = [c for c in candidates if significant(c)]
     if not ok:
-        if structured or significant:
-            partial = max(significant, key=lambda c: c.heldout_gain) if significant else None
+        if structured or evidence:
+            partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
             why = ("the residual is structured (it repeats from period to period)" if structured else
                    "a candidate predicts part of it but is not admissible")
             return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
