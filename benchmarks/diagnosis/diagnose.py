@@ -50,6 +50,7 @@ from .selection import EXPLAIN_SHARE, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, deci
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
+MAX_SECONDARY = 4  # other causes tried on top of the named one
 
 
 class DiagnosisError(HysbenchError):
@@ -216,8 +217,9 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     screen, chosen = diag.screen, diag.chosen
     folds, errors = result["folds"], result["errors"]
     ambiguous = {c.cause for c in diag.verdict.ambiguous_with}
-    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and promising(c)]
-    for c in sorted(others, key=lambda c: -c.heldout_gain)[:2]:
+    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and not c.limit
+              and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))]
+    for c in sorted(others, key=lambda c: -c.heldout_gain)[:MAX_SECONDARY]:
         say(f"trying {chosen.cause} + {c.cause}")
         if "interference" in (chosen.cause, c.cause):  # a per-record sinusoid on top of the other's residual
             inter, other = (chosen, c) if chosen.cause == "interference" else (c, chosen)
