@@ -46,7 +46,7 @@ from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .selection import EXPLAIN_SHARE, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
+from .selection import EXPLAIN_SHARE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -131,9 +131,10 @@ class Diagnosis:
     @property
     def decision_rule(self) -> str:
         return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
-                f"a cause passes with held-out gain >= {self.settings['min_explained']:.0%}, z >= {Z_PASS:g} "
-                f"(blocks), a majority of folds improved, parameters within the cause's meaning and not at a "
-                f"search bound; the simplest passing cause within {Z_SAME:g} standard errors of the best is "
+                f"a cause passes with held-out gain >= {self.settings['min_explained']:.0%} in a majority of folds "
+                f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
+                f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
+                f"within z = {Z_SAME:g} of the best is "
                 f"named if it removes >= {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise, else "
                 f"unexplained; nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
