@@ -34,8 +34,10 @@ Decision rule (``decide``):
    the drive that would separate them (``experiment``).
 3. The named cause must remove at least ``EXPLAIN_SHARE`` of the base's
    held-out misfit beyond white noise (n sd^2); if it does not, or if nothing
-   passes while the residual is structured (a candidate passes z but fails
-   the rest, or the residual repeats from period to period:
+   passes while the residual is structured (a candidate has held-out
+   evidence but fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
+   squared error in all though not in most records, or the residual repeats
+   from period to period:
    ``residuals.periodic_structure``), the verdict is ``unexplained``.
    Otherwise nothing passes: ``none``.
 """
@@ -278,12 +280,13 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
                       if c.heldout.get("at_bound")]
-    evidence = [c for c in candidates if significant(c)]
+    evidence = [c for c in candidates if significant(c) or c.heldout_gain >= STRONG_GAIN]  # structure, partly predicted
     if not ok:
         if structured or evidence:
             partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
             why = ("the residual is structured (it repeats from period to period)" if structured else
-                   "a candidate predicts part of it but is not admissible")
+                   f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
+                   "or not within its meaning")
             return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
                            not_identified=not_identified, partial=partial)
         return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
