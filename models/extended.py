@@ -57,6 +57,7 @@ from .filter_kernels import (
     lowpass2_sets,
     second_order_foh,
 )
+from .registry import get_model, list_models, register
 
 CAUSES = ("relaxation", "delay", "resonance", "creep", "interference", "saturation")
 ORDER = {c: i for i, c in enumerate(CAUSES)}
@@ -86,8 +87,6 @@ class ExtendedModel(HysteresisModel):
     def __init__(self, base: str = "mrpim", components: Sequence[str] = ("relaxation",),
                  base_hyperparameters: Mapping | None = None, n_relaxation: int = 1,
                  relaxation_powers: Sequence[int] = (1,), saturation_side: str = "upper"):
-        from .registry import get_model
-
         self.base = base
         self.components = tuple(sorted(set(components), key=lambda c: ORDER.get(c, len(ORDER))))
         self.base_hyperparameters = dict(base_hyperparameters or {})
@@ -427,12 +426,10 @@ def register_extensions(base: str, in_matrix: tuple[str, ...] = ()) -> list[str]
 
     Only the causes in ``in_matrix`` join the default benchmark matrix.
     """
-    from .registry import _REGISTRY, register
-
-    names = []
+    names, known = [], set(list_models())
     for cause in CAUSES:
         name = extended_name(base, (cause,))
-        if name not in _REGISTRY:
+        if name not in known:
             register(name, factory(base, (cause,)), in_matrix=cause in in_matrix)
         names.append(name)
     return names

@@ -2,9 +2,11 @@
 
 Writes diagnosis.md, its PNG figures and diagnosis.json into ``--out``
 (default results/), or the JSON where ``--json`` says. The verdict is
-printed: the cause (one of none, relaxation, delay, resonance, creep,
-interference, saturation), its parameters, each candidate's score and the
-validation gain of the extended model.
+printed: the cause (none, unexplained, or one of relaxation, delay,
+resonance, creep, interference, saturation), its parameters with their
+uncertainty, causes it cannot be told apart from and the drive that would
+separate them, each candidate's held-out score and the validation gain of
+the extended model.
 """
 
 from __future__ import annotations
