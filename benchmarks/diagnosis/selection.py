@@ -279,7 +279,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     candidates = list({id(c): c for c in [*candidates, *variants]}.values())
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
-                      if c.heldout.get("at_bound")]
+                      if c.heldout.get("at_bound") and c.heldout_gain > 0]  # would predict something, unidentified
     evidence = [c for c in candidates if significant(c) or c.heldout_gain >= STRONG_GAIN]  # structure, partly predicted
     if not ok:
         if structured or evidence:
@@ -310,5 +310,5 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     reason = (f"predicts the held-out identification records better than the base model refitted the same way "
               f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
     if chosen is not best:
-        reason += f"; simpler than {best.label} (within {Z_SAME:g} standard errors of it)"
+        reason += f"; simpler than {best.label}, which does not predict better by z >= {Z_SAME:g}"
     return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified)
