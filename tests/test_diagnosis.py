@@ -285,8 +285,13 @@ def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
 
 
 # --- planted effects (drawn within the detection limits) --------------------------------------------
-# Detection limits (strength: rms of the effect, % of the output's peak-to-peak), from the accuracy benchmark.
-LIMITS = {"relaxation": 1.0, "delay": 1.0, "resonance": 1.0, "creep": 1.0, "interference": 0.3, "saturation": 1.0}
+# Detection limits (strength: rms of the effect, % of the output's peak-to-peak) measured by the accuracy
+# benchmark (results/diagnosis_accuracy.md, 200 cases); None: not reached there (another cause mimics it).
+LIMITS = {"relaxation": 6.94, "delay": 6.65, "resonance": None, "creep": None, "interference": 0.315,
+          "saturation": 1.38}
+# Causes without a limit there, or with one above what these drives reach on the Table 2 MRPIM (a delay of at
+# most 30 ms under 0.1-1 Hz sines: strength <= ~1.6 %): a strong draw must be named or reported as ambiguous.
+STRONG = {"delay": 1.2, "resonance": 3.0, "creep": 3.0}
 
 
 def _draw_above(kinds, limit, base="mrpim", drive="sines", start=0):
@@ -298,7 +303,7 @@ def _draw_above(kinds, limit, base="mrpim", drive="sines", start=0):
     raise AssertionError(f"no draw of {kinds} above {limit} %")
 
 
-@pytest.mark.parametrize("cause", [c for c in CAUSES if LIMITS[c] is not None])
+@pytest.mark.parametrize("cause", [c for c in CAUSES if c not in STRONG])
 def test_planted_effect_is_named_measured_and_confirmed(cause):
     ds, truth = _draw_above((cause,), LIMITS[cause], start=11)
     d = diagnose(ds, seed=0, experiments=False)
@@ -392,10 +397,10 @@ def test_measured_pzt_data_with_different_sample_times(shared_datasets, tmp_path
     assert (data["confirmed_on_validation"] is False) == ("warning:" in res.stdout)
 
 
-@pytest.mark.parametrize("cause", [c for c in CAUSES if LIMITS[c] is None])
-def test_planted_effect_without_a_detection_limit_is_named_or_ambiguous(cause):
-    """A cause whose detection limit the benchmark did not reach (another cause mimics it on these drives):
-    strongly planted, it is named or listed as ambiguous with the named one, with a suggested experiment."""
+@pytest.mark.parametrize("cause", list(STRONG))
+def test_planted_effect_without_a_reachable_limit_is_named_or_ambiguous(cause):
+    """A cause whose detection limit is not reached on these drives (another cause mimics it): strongly planted,
+    it is named or listed as ambiguous with the named one, with a suggested experiment."""
     ds, truth = _draw_above((cause,), STRONG[cause], start=11)
     d = diagnose(ds, seed=0)
     ambiguous = [c.cause for c in d.verdict.ambiguous_with]
