@@ -2,7 +2,8 @@
 
 ``diagnose(dataset, model="mrpim")`` -> ``Diagnosis`` (see ``diagnose``);
 ``hysbench diagnose DATASET`` writes diagnosis.md, its figures and JSON
-(``report``, ``cli``). ``planted`` makes test data with one known effect.
+(``report``; the command is ``hysbench.benchmarks.cli.diagnose``). ``planted`` plants effects with
+functional forms independent of the extensions; ``accuracy`` measures the diagnosis on them.
 """
 
 from .candidates import Candidate
