@@ -29,8 +29,8 @@ Decision rule (``decide``):
    are within the cause's meaning and none is at its search bound (else:
    "not identified (at bound)").
 2. Parsimony: among the passing candidates that the best (highest G) does not
-   beat by ``Z_SAME`` standard errors, the one with fewest parameters is
-   named. Another cause in that set is reported as ambiguous with it, with
+   beat by z >= ``Z_SAME`` and that would be a verdict themselves (rule 3),
+   the one with fewest parameters is named. Another cause in that set is reported as ambiguous with it, with
    the drive that would separate them (``experiment``).
 3. The named cause must remove at least ``EXPLAIN_SHARE`` of the base's
    held-out misfit beyond white noise (n sd^2); if it does not, or if nothing
@@ -291,17 +291,20 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                            not_identified=not_identified, partial=partial)
         return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
                        not_identified=not_identified)
+    excess = null_sse - screen.n * screen.noise_sd**2
+    for c in ok:
+        c.heldout["share_of_misfit"] = float((null_sse - c.heldout["sse"]) / excess) if excess > 0 else 1.0
     best = max(ok, key=lambda c: c.heldout_gain)
-    same = [c for c in ok if c is best or pairwise_z(folds, errors, best, c) < Z_SAME]
+    # as good as the best: not worse by z >= Z_SAME, and explaining enough of the misfit to be a verdict itself
+    same = [c for c in ok if c is best or (pairwise_z(folds, errors, best, c) < Z_SAME
+                                           and c.heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
     chosen = merge_duplicates(chosen, variants)
     others = {}
     for c in same:
         if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
             others[c.cause] = c
-    excess = null_sse - screen.n * screen.noise_sd**2
-    share = (null_sse - chosen.heldout["sse"]) / excess if excess > 0 else 1.0
-    chosen.heldout["share_of_misfit"] = float(share)
+    share = chosen.heldout.get("share_of_misfit", 1.0)
     if share < EXPLAIN_SHARE:
         return Verdict("unexplained", None, reason=(
             f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
