@@ -22,7 +22,8 @@ output is built in the order of a physical measurement chain:
 * ``delay``: a pure delay d (s, nonlinear): the whole actuator (base and the
   components above) runs on the input sampled at t - d (linear between
   samples), from rest at t = d; before that the output is the base's rest
-  output (its output for a zero input).
+  output for the record's first input held (the input before the record
+  starts is taken to be its first value).
 * ``interference``: a sinusoid at f_i (Hz, nonlinear) with linear sine and
   cosine weights, in the record's own time (t = 0 at its first sample); a
   disturbance with the same phase relative to every record's start.
@@ -32,8 +33,8 @@ output is built in the order of a physical measurement chain:
   with ``lsq`` or ``mpso``).
 
 Every dynamic block starts from rest (the signal it receives is zero before
-t = 0; see ``filter_kernels``); the rest output of the base is its output
-for a zero input. Without saturation the model stays linear in the base's
+t = 0; see ``filter_kernels``); the rest output of a late actuator is the
+base's output for the record's first input sample. Without saturation the model stays linear in the base's
 linear parameters and in the components' weights, so ``regressors`` applies
 the same blocks to each column of the base's regressor matrix and varpro
 identifies it directly.
@@ -307,7 +308,7 @@ class ExtendedModel(StepInvertible, HysteresisModel):
             Y = self._actuator_batch(u, dt, 0.0, P, in_range)
         else:
             nb = len(self.base_names)
-            rest = self.base_model.simulate_batch(np.zeros(1), dt, np.ascontiguousarray(P[:, :nb]),
+            rest = self.base_model.simulate_batch(u[:1], dt, np.ascontiguousarray(P[:, :nb]),
                                                   input_range=in_range)[:, 0]
             Y = np.empty((n_set, n))
             for i, s in enumerate(sets):
@@ -350,7 +351,7 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         else:
             n_rest = int(np.searchsorted(rows, k0))
         if n_rest:
-            rest = self.base_rest(dt, base_nl, in_range)
+            rest = self.base_rest(dt, base_nl, in_range, u[:1])
             for j, name in enumerate(names):
                 out[j, :n_rest] = rest.get(name, 0.0)
         a1 = stop - k0  # the actuator's samples needed: [0, a1)
@@ -413,9 +414,10 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         B = self.base_model.windowed_regressors(u, dt, dict(base_nonlinear), slice(0, u.size), input_range=input_range)
         return {name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_model.linear_names)}
 
-    def base_rest(self, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict[str, float]:
-        """The base's regressor row for a zero input (the actuator at rest), by linear parameter name."""
-        row = np.asarray(self.base_model.regressors(np.zeros(1), dt, dict(base_nonlinear), input_range=input_range))[0]
+    def base_rest(self, dt: float, base_nonlinear: Mapping[str, float], input_range, u0: np.ndarray) -> dict[str, float]:
+        """The base's regressor row for the first input sample ``u0`` held (a late actuator before it starts),
+        by linear parameter name."""
+        row = np.asarray(self.base_model.regressors(u0[:1], dt, dict(base_nonlinear), input_range=input_range))[0]
         return {name: float(row[j]) for j, name in enumerate(self.base_model.linear_names)}
 
     def assemble_columns(self, u: np.ndarray, dt: float, base_columns: Mapping[str, np.ndarray],

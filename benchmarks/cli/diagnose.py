@@ -2,9 +2,11 @@
 
 Writes diagnosis.md, its PNG figures and diagnosis.json into ``--out``
 (default results/), or the JSON where ``--json`` says. The verdict is
-printed: the cause (one of none, relaxation, delay, resonance, creep,
-interference, saturation), its parameters, each candidate's score and the
-validation gain of the extended model.
+printed: the cause (none, unexplained, or one of relaxation, delay,
+resonance, creep, interference, saturation), its parameters with their
+uncertainty, causes it cannot be told apart from and the drive that would
+separate them, each candidate's held-out score and the validation gain of
+the extended model.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import sys
 import time
 
 from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, dataset_paths, positive_int
-from hysbench.benchmarks.diagnosis.causes import MAX_ROWS
+from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
 from hysbench.benchmarks.diagnosis.report import write_report
 from hysbench.models import get_model
@@ -50,25 +52,36 @@ def main(args) -> int:
 
 
 def verdict(diag, data: dict) -> str:
-    lines = [f"cause: {diag.cause}"]
+    v = diag.verdict
+    lines = [f"cause: {diag.cause} ({v.reason})"]
     if diag.parameters:
-        lines.append("parameters: " + ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
-                                                for k, v in diag.parameters.items()))
+        lines.append("parameters: " + ", ".join(f"{k} = {x:.4g}" if isinstance(x, float) else f"{k} = {x}"
+                                                for k, x in diag.parameters.items() if not isinstance(x, list)
+                                                or all(isinstance(y, float) for y in x)))
+    for k, u in diag.uncertainty.items():
+        lines.append(f"  uncertainty {k}: " + (f"±{100 * u['relative_se']:.2g} % (jackknife over folds)"
+                                               if "relative_se" in u else f"±{u['se']:.3g} (jackknife over folds)"))
+    for n in v.not_identified:
+        lines.append(f"not identified: {n}")
+    for c in v.ambiguous_with:
+        lines.append(f"ambiguous with: {c.cause} ({c.label}, held-out gain {100 * c.heldout_gain:.2f} %)")
+    for e in diag.experiments:
+        where = f" at {e['frequency_hz']:.3g} Hz" if e.get("frequency_hz") else ""
+        lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}{where}")
     lines.append(f"also: {', '.join(data['also']) if data['also'] else 'none'}")
     lines.append(f"extended model: {diag.extended_model or '-'}")
-    lines.append("evidence (BIC - BIC(base alone) on the identification records; share of the validation residual "
-                 "explained, not used to choose):")
-    for c in sorted(diag.candidates, key=lambda c: c.bic):
-        est = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in c.estimates.items()
-                        if not isinstance(v, list)) or ", ".join(f"{k} {[round(x, 4) for x in v]}"
-                                                                 for k, v in c.estimates.items())
-        lines.append(f"  {c.cause:<13} {c.delta_bic:>14.1f}   validation {100 * c.validation_explained:8.3f} %   {est}")
+    lines.append("evidence (leave-one-identification-record-out prediction against the base model refitted the same "
+                 "way; validation records untouched):")
+    for c in sorted(diag.candidates, key=lambda c: -c.heldout_gain):
+        h = c.heldout
+        lines.append(f"  {c.cause:<13} held-out gain {100 * c.heldout_gain:9.3f} %   z {h.get('z', 0.0):6.2f}   "
+                     f"folds {h.get('folds_improved')}/{h.get('n_folds')}")
     g = diag.gain()
     if g:
-        v = g["validation"]
-        lines.append(f"validation gain: {100 * v['explained_whole']:.2f} % of the residual sum of squares removed "
-                     f"(whole records), {100 * v['explained_window']:.2f} % (windows); mean e_rms "
-                     f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} % (windows)")
+        x = g["validation"]
+        lines.append(f"validation gain (against the base model refitted on the same whole records): "
+                     f"{100 * x['explained_whole']:.2f} % of the residual sum of squares removed (whole records), "
+                     f"{100 * x['explained_window']:.2f} % (windows)")
     if diag.warning:
         lines.append(f"warning: {diag.warning}")
     return "\n".join(lines)

@@ -2,10 +2,12 @@
 
 ``diagnose(dataset, model="mrpim")`` -> ``Diagnosis`` (see ``diagnose``);
 ``hysbench diagnose DATASET`` writes diagnosis.md, its figures and JSON
-(``report``, ``cli``). ``planted`` makes test data with one known effect.
+(``report``; the command is ``hysbench.benchmarks.cli.diagnose``). ``planted`` plants effects with
+functional forms independent of the extensions; ``accuracy`` measures the diagnosis on them.
 """
 
-from .causes import Candidate, Screen
+from .candidates import Candidate
+from .screen import Screen
 from .diagnose import Diagnosis, DiagnosisError, diagnose
 
 __all__ = ["Candidate", "Diagnosis", "DiagnosisError", "Screen", "diagnose"]

@@ -4,27 +4,28 @@
    (their scored windows, as the benchmark does): the "before" model.
 2. It is simulated over every record, whole; residuals, noise level and
    whiteness per record (``residuals``).
-3. Candidate causes are screened on the identification records' whole
-   length (``causes``): a pysindy library screen, then each cause's extension
-   fitted explicitly, all compared with the base model alone by BIC.
-4. The cause is the candidate with the lowest BIC if it beats the base model
-   by ``bic_threshold`` and explains at least ``min_explained`` of its
-   residual sum of squares; otherwise ``none``. The validation records take
-   no part in this choice: each candidate's share of the validation residual
-   explained is printed as evidence only.
+3. Candidate causes are fitted on the identification records' whole length
+   (``screen``, one module per cause) and scored by leave-one-record-out
+   prediction against the base model refitted the same way (``search``,
+   ``selection``).
+4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
+   two causes that predict equally well are reported as ambiguous, with the
+   drive that separates them (``experiment``).
 5. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
-   identified with the identifiers on the identification records' whole
-   length, every parameter free, from the screen's estimate; the base model
-   is refitted the same way. e_m / e_rms per record before and after, and the
-   gain on the validation records, which took part in no fit and no choice.
-6. The strongest ``max_secondary`` other causes that pass the test of 4.
-   alone are tried on top of the named extension at its identified
-   parameters (composite extension, refined on the screen's rows); those
-   that pass it again against the named one alone are "also".
+   identified on the identification records' whole length, every parameter
+   free; the base model is refitted the same way; the validation records --
+   untouched so far -- measure the gain of the one over the other
+   (confirmed if it lowers their residual). An interference is confirmed by
+   the same frequency and amplitude on the validation records, its phase
+   fitted per record.
+6. Other passing causes are tried on top of the named one (composite
+   extension) and kept as "also" if they pass the held-out test against it.
 """
 
 from __future__ import annotations
 
+import copy
+import json
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -38,15 +39,27 @@ from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 from hysbench.models.errors import HysbenchError
 
-from .causes import BIC_THRESHOLD, MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate, Screen, decide, estimates_of, run_screen
+from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
+from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .residuals import RecordResidual, ResidualSummary, summarise
+from .interference import amplitude_at, on_top, phase_fitted
+from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
+from .screen import Screen
+from .search import run_screen
+from .selection import EXPLAIN_SHARE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
 
-FORMAT = "hysbench-diagnosis/1"
+FORMAT = "hysbench-diagnosis/2"
+INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
+MAX_SECONDARY = 4  # other causes tried on top of the named one
 
 
 class DiagnosisError(HysbenchError):
     """A dataset or model the diagnosis cannot work with."""
+
+
+def _plain(obj):
+    """JSON fallback for numpy values."""
+    return obj.tolist() if hasattr(obj, "tolist") else str(obj)
 
 
 @dataclass
@@ -62,78 +75,114 @@ class Diagnosis:
     library: dict
     candidates: list[Candidate]
     relaxation_variants: list[Candidate]
-    chosen: Candidate | None
-    also: list[Candidate]
+    verdict: Verdict
+    structure: dict
+    also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
+    experiments: list[dict] = field(default_factory=list)
     extended_fit: Fit | None = None
     after: list[RecordResidual] = field(default_factory=list)
     base_whole_fit: Fit | None = None
     base_whole: list[RecordResidual] = field(default_factory=list)
+    interference_check: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
 
     @property
+    def chosen(self) -> Candidate | None:
+        return self.verdict.chosen
+
+    @property
     def cause(self) -> str:
-        return self.chosen.cause if self.chosen else "none"
+        return self.verdict.cause
 
     @property
     def extended_model(self) -> str | None:
-        return self.extended_fit.model if self.extended_fit else None
+        if self.extended_fit:
+            return self.extended_fit.model
+        return self.chosen.model.name if self.chosen is not None else None
 
     @property
     def parameters(self) -> dict:
-        if not self.extended_fit:
+        """The named cause's parameters (identified on the identification records' whole length)."""
+        c = self.chosen
+        if c is None:
             return {}
-        return estimates_of(self.cause, self.extended_fit.params, self.extended_fit.model_instance())
+        if self.extended_fit is None:
+            return dict(c.estimates)
+        from_fit = dict(c.estimates)
+        p = self.extended_fit.params
+        if c.cause == "relaxation":
+            from_fit["tau_s"] = sorted(float(p[f"tau{i}"]) for i in range(1, len(c.estimates["tau_s"]) + 1))
+        elif c.cause == "delay":
+            from_fit["delay_s"] = float(p["delay"])
+        elif c.cause == "resonance":
+            from_fit.update(natural_frequency_hz=float(p["natural_frequency"]), damping_ratio=float(p["damping_ratio"]))
+        elif c.cause == "creep":
+            from_fit.update(size=float(p["creep_size"]), time_scale_s=float(p["creep_time"]))
+        elif c.cause == "saturation":
+            from_fit["level"] = float(p["saturation_level"])
+        return from_fit
+
+    @property
+    def uncertainty(self) -> dict:
+        return self.chosen.uncertainty if self.chosen is not None else {}
 
     @property
     def decision_rule(self) -> str:
-        return (f"the candidate with the lowest BIC, if BIC(base alone) - BIC > {self.settings['bic_threshold']:g}, "
-                f"it explains >= {self.settings['min_explained']:.1%} of the base-alone identification residual "
-                "sum of squares and its parameters are within the cause's meaning (a resonance underdamped, creep "
-                "slower than twice the longest drive period), else none; the validation records take no part")
+        return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
+                f"a cause passes with held-out gain >= {self.settings['min_explained']:.0%} in a majority of folds "
+                f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
+                f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
+                f"within z = {Z_SAME:g} of the best is "
+                f"named if it removes >= {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise, else "
+                f"unexplained; nothing passing: unexplained if the residual is structured (period-to-period "
+                f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
+                "records take no part")
 
     def gain(self) -> dict:
         if not self.after:
             return {}
-        out = {"validation": gain(self.before, self.after, "validation"),
-               "identification": gain(self.before, self.after, "identification")}
-        if self.base_whole:
-            out["validation_vs_base_refit_on_whole_records"] = gain(self.base_whole, self.after, "validation")
+        out = {"validation": gain(self.base_whole, self.after, "validation"),
+               "identification": gain(self.base_whole, self.after, "identification"),
+               "validation_vs_base_fitted_on_windows": gain(self.before, self.after, "validation")}
         return out
 
     @property
     def confirmed(self) -> bool | None:
-        """Whether the named extension lowers the validation residual, over whole records and on the
-        windows (None when nothing was named)."""
+        """Whether the named extension lowers the validation residual against the base model refitted
+        on the same whole records (and, for an interference, shows the same amplitude there)."""
         v = self.gain().get("validation")
         if not v:
             return None
-        return bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
+        ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
+        if self.cause == "interference":
+            ok = ok and bool(self.interference_check.get("same_amplitude"))
+        return ok
 
     @property
     def warning(self) -> str:
         if self.confirmed is not False:
             return ""
         v = self.gain()["validation"]
-        return (f"the extension does not improve the validation records (residual sum of squares removed: "
-                f"{100 * v['explained_whole']:.1f} % whole, {100 * v['explained_window']:.1f} % on the windows): "
-                f"'{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
+        return (f"the extension does not improve the validation records against the base model refitted the same "
+                f"way (residual sum of squares removed: {100 * v['explained_whole']:.1f} % whole, "
+                f"{100 * v['explained_window']:.1f} % on the windows"
+                + (f"; interference amplitude there {self.interference_check.get('validation_amplitude', 0):.3g}"
+                   if self.cause == "interference" else "")
+                + f"): '{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
 
     def to_json(self) -> dict:
-        from hysbench.identification.fit import _jsonable
-
-        def cand(c: Candidate) -> dict:
-            return c.summary()
-
+        v = self.verdict
         evidence = {
             "noise_sd": self.noise_sd,
             "records": [s.as_dict() for s in self.summaries],
             "library_screen": self.library,
-            "null": cand(self.screen.null),
-            "candidates": [cand(c) for c in sorted(self.candidates, key=lambda c: c.bic)],
-            "relaxation_variants": [cand(c) for c in self.relaxation_variants],
-            "secondary_tried": [{**cand(c), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
+            "null": self.screen.null.summary(),
+            "candidates": [c.summary() for c in sorted(self.candidates, key=lambda c: -c.heldout_gain)],
+            "relaxation_variants": [c.summary() for c in self.relaxation_variants],
+            "secondary_tried": [{**c.summary(), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
+            "periodic_structure": self.structure,
             "decision_rule": self.decision_rule,
             "screen_rows": self.screen.n,
         }
@@ -143,81 +192,100 @@ class Diagnosis:
                         "method": self.extended_fit.method, "params": self.extended_fit.params,
                         "n_params": self.extended_fit.n_params, "fitted_on": self.extended_fit.fitted_on,
                         "notes": self.extended_fit.notes}
-        return _jsonable({
-            "format": FORMAT,
-            "model": self.model,
-            "dataset": self.dataset.name,
-            "dataset_hash": self.dataset.content_hash(),
-            "seed": self.seed,
-            "cause": self.cause,
-            "parameters": self.parameters,
-            "evidence": evidence,
-            "extended_model": self.extended_model,
-            "extended_fit": extended,
+        data = {
+            "format": FORMAT, "model": self.model, "dataset": self.dataset.name,
+            "dataset_hash": self.dataset.content_hash(), "seed": self.seed,
+            "cause": self.cause, "reason": v.reason, "parameters": self.parameters,
+            "uncertainty": self.uncertainty, "not_identified": v.not_identified,
+            "ambiguous_with": [c.cause for c in v.ambiguous_with], "suggested_experiments": self.experiments,
+            "partial": v.partial.summary() if v.partial is not None else None,
+            "evidence": evidence, "extended_model": self.extended_model, "extended_fit": extended,
             "base_fit": {"method": self.base_fit.method, "params": self.base_fit.params,
                          "n_params": self.base_fit.n_params, "notes": self.base_fit.notes},
             "before": scores_by_file(self.before),
             "after": scores_by_file(self.after) if self.after else {},
             "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
-            "gain": self.gain(),
-            "confirmed_on_validation": self.confirmed,
-            "warning": self.warning,
-            "also": [c.cause for c in self.also],
-            "timings_s": self.timings,
-            "settings": self.settings,
-        })
+            "gain": self.gain(), "interference_check": self.interference_check,
+            "confirmed_on_validation": self.confirmed, "warning": self.warning,
+            "also": [c.cause for c in self.also], "timings_s": self.timings, "settings": self.settings,
+        }
+        return json.loads(json.dumps(data, default=_plain))
 
 
-def secondary_causes(diag: Diagnosis, max_secondary: int, bic_threshold: float, min_explained: float,
-                     say: Callable[[str], None]) -> None:
-    """The strongest other candidates, each added to the named extension (composite) and refined on the
-    screen from the identified parameters; "also" if it passes the test against the named one alone
-    (at its identified parameters, linear ones re-solved on the screen)."""
+def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
+    """Each other passing cause added to the named one (composite, refined on the screen); "also" if the
+    composite predicts the held-out records better than the named one alone (same test)."""
     screen, chosen = diag.screen, diag.chosen
-    primary = chosen
-    if chosen.cause != "saturation":
-        nl = {k: diag.extended_fit.params[k] for k in chosen.model.nonlinear_names}
-        identified = screen.candidate(chosen.cause, chosen.label, chosen.model, nl, chosen.hyperparameters,
-                                      stage="identified")
-        if identified.bic < primary.bic:
-            primary = identified
-    others = sorted([c for c in diag.candidates if c.cause not in (chosen.cause, "saturation")
-                     and c.delta_bic < -bic_threshold and c.explained >= min_explained and not c.limit],
-                    key=lambda c: c.bic)[:max_secondary]  # (no composite with clipping: not separable)
-    for c in others:
+    folds, errors = result["folds"], result["errors"]
+    ambiguous = {c.cause for c in diag.verdict.ambiguous_with}
+    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and not c.limit
+              and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))]
+    for c in sorted(others, key=lambda c: -c.heldout_gain)[:MAX_SECONDARY]:
         say(f"trying {chosen.cause} + {c.cause}")
-        comp = screen.composite(primary, c)
-        if comp is None:
-            continue
+        if "interference" in (chosen.cause, c.cause):  # a per-record sinusoid on top of the other's residual
+            inter, other = (chosen, c) if chosen.cause == "interference" else (c, chosen)
+            comp = copy.copy(c)
+            e = on_top(screen, folds, errors[id(other)], inter.estimates["frequency_hz"])
+        else:
+            comp = screen.composite(chosen, c)
+            if comp is None:
+                continue
+            e, _ = heldout_errors(screen, folds, comp)
+        comp.heldout = score(folds, errors[id(chosen)], e)
         diag.secondary_tried.append(comp)
-        if comp.delta_bic < -bic_threshold and comp.explained >= min_explained and not comp.limit:
+        h = comp.heldout
+        if h["gain"] >= diag.settings["min_explained"] and h["z"] >= Z_PASS and 2 * h["folds_improved"] > h["n_folds"]:
             diag.also.append(comp)
 
 
+def _confirm_interference(diag: Diagnosis) -> None:
+    """The validation records' residual (base refitted on whole records) at the named frequency: the
+    amplitude there (phase free per record) and the after-residual with the named amplitude."""
+    f = diag.chosen.estimates["frequency_hz"]
+    amplitude = diag.chosen.estimates["amplitude"]
+    after, amps = [], []
+    for rr in diag.base_whole:
+        t = rr.record.t - rr.record.t[0]
+        sine = phase_fitted(rr.residual, t, f, amplitude)
+        after.append(RecordResidual(rr.record, rr.prediction + sine))
+        if rr.record.role == "validation":
+            amps.append(amplitude_at(rr.residual, t, f))
+    diag.after = after
+    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
+    diag.interference_check = {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
+                               "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= INTERFERENCE_AMPLITUDE_TOLERANCE)}
+
+
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
-             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, bic_threshold: float = BIC_THRESHOLD,
-             min_explained: float = MIN_EXPLAINED, max_secondary: int = 3, extend: bool = True,
+             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, min_explained: float | None = None,
+             extend: bool = True, experiments: bool = True,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose ``model`` on ``dataset``; see the module docstring."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
-        return _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min_explained,
-                         max_secondary, extend, progress)
+        return _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
+                         progress)
 
 
-def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min_explained, max_secondary, extend,
-              progress) -> Diagnosis:
-    say = progress or (lambda s: None)
-    if isinstance(dataset, (str,)) or hasattr(dataset, "__fspath__"):
-        dataset = load_dataset(dataset)
-    base = get_model(model) if isinstance(model, str) else model
+def _check(dataset: Dataset, base: HysteresisModel) -> None:
     if base.name.count("+"):
         raise DiagnosisError(f"diagnose the base model, not an extended one ({base.name!r})")
     if not base.has_linear_part:
         raise DiagnosisError(f"model {base.name!r} has no linear part: the diagnosis needs a model varpro can identify")
-    if not dataset.identification:
-        raise DiagnosisError(f"dataset {dataset.name!r} has no identification records")
+    if len(dataset.identification) < 2:
+        raise DiagnosisError(f"dataset {dataset.name!r} needs at least two identification records "
+                             "(causes are chosen by leave-one-record-out prediction)")
     if not dataset.validation:
         raise DiagnosisError(f"dataset {dataset.name!r} has no validation records: the gain cannot be measured")
+
+
+def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
+              progress) -> Diagnosis:
+    say = progress or (lambda s: None)
+    if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
+        dataset = load_dataset(dataset)
+    base = get_model(model) if isinstance(model, str) else model
+    _check(dataset, base)
+    min_explained = MIN_EXPLAINED if min_explained is None else float(min_explained)
     timings = {}
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")
@@ -231,40 +299,51 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, bic_threshold, min
     timings["residuals"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
-    say("screening candidate causes on the identification records' whole length")
-    screen = Screen(base, base_fit.params, base_fit.input_range, dataset.identification, dataset.validation,
+    say("fitting candidate causes on the identification records' whole length")
+    screen = Screen(base, base_fit.params, base_fit.input_range, dataset.identification,
                     data_scale(dataset.identification), noise_sd=noise, max_rows=max_rows, seed=seed)
-    result = run_screen(screen, before, max_relaxation=max_relaxation, bic_threshold=bic_threshold, progress=say)
-    candidates = result["candidates"]
-    chosen = decide(screen.null, candidates, bic_threshold, min_explained)
+    result = run_screen(screen, before, max_relaxation=max_relaxation, progress=say)
+    structure = periodic_structure(screen.null_residuals())
+    structured = bool(structure["F"] > STRUCTURE_F) if structure["records"] else False
+    verdict = decide(screen, result["folds"], result["candidates"], result["relaxation_variants"],
+                     result["errors"], result["null_sse"], structured)
     timings["screen"] = time.perf_counter() - t1
 
     diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
-                     candidates=candidates, relaxation_variants=result["relaxation_variants"], chosen=chosen,
-                     also=[], secondary_tried=[], timings=timings,
-                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "bic_threshold": bic_threshold,
-                               "min_explained": min_explained})
-    if chosen is None or not extend:
+                     candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
+                     verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
+                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": min_explained,
+                               "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
+                               "structure_f": STRUCTURE_F})
+    if experiments and verdict.chosen is not None:
+        for other in verdict.ambiguous_with:
+            say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")
+            diag.experiments.append({"causes": [verdict.chosen.cause, other.cause],
+                                     **suggest(screen, verdict.chosen, other)})
+    if verdict.chosen is None or not extend:
         timings["total"] = time.perf_counter() - t0
         return diag
-
-    t1 = time.perf_counter()
+    chosen = verdict.chosen
     fit_on = [r.file for r in dataset.identification]
-    ext = registered_extension(base.name, chosen.cause, chosen.hyperparameters, base.get_hyperparameters())
-    say(f"identifying {ext.name} on the identification records' whole length")
-    bounds = {n: list(screen.bounds_of(ext, n)) for n in ("creep_time", "damping_ratio") if n in ext.param_names}
     rows = {p.record.file: p.rows for p in screen.parts}
-    diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds, rows)
-    diag.after = residuals_of_fit(diag.extended_fit, dataset)
-    timings["extended_fit"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    secondary_causes(diag, max_secondary, bic_threshold, min_explained, say)
-    timings["secondary"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    say(f"refitting {base.name} on the identification records' whole length (for comparison)")
+    say(f"refitting {base.name} on the identification records' whole length (the baseline)")
     diag.base_whole_fit = identify_whole(base, dataset, base_fit.params, seed, fit_on, rows=rows)
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, dataset)
     timings["base_refit"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    if chosen.cause == "interference":
+        _confirm_interference(diag)
+    else:
+        ext = registered_extension(base.name, chosen.cause, chosen.hyperparameters, base.get_hyperparameters())
+        say(f"identifying {ext.name} on the identification records' whole length")
+        bounds = {n: list(screen.bounds_of(ext, n)) for n in ("creep_time", "damping_ratio") if n in ext.param_names}
+        diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds, rows)
+        diag.after = residuals_of_fit(diag.extended_fit, dataset)
+    timings["extended_fit"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    secondary_causes(diag, result, say)
+    timings["secondary"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
     return diag

@@ -1,209 +1,266 @@
-"""Data with one planted effect of the diagnosis vocabulary, for tests and demonstrations.
+"""Planted effects for the diagnosis's accuracy benchmark and tests, made WITHOUT the extension code.
 
-``planted_dataset(cause, seed)`` simulates the paper's Table 2 MRPIM on the
-seven-frequency protocol (or fewer frequencies / periods) -- or, with
-``source="virtual-dea"``, the virtual DEA's physics (``hysbench.data.virtual_dea``,
-from rest, its own relaxation included) -- adds ONE effect
-with its size and parameters drawn at random from the ranges below, then
-white measurement noise. Each effect is computed here independently of the
-extension models that the diagnosis fits (scipy.signal.lsim for the dynamic
-blocks, the exact delayed input for the delay), so a test is not a model
-checking itself.
+``planted_case(kind, base, drive, seed)`` builds a dataset: a plant (the
+Table 2 MRPIM, the virtual DEA's physics, or a real piezo recording), a
+drive, an effect drawn at random, then noise. Every effect has its own
+functional form or numerical method, none shared with
+``hysbench.models.extended`` (whose blocks are exact first-/second-order-hold
+recursions from rest):
 
-Ranges (u in kV, y in mm; the Table 2 loops span about 1.6 to 6.4 mm, the
-first period starts near -1.9 mm):
+=================  ===========================================================================
+effect             form (drawn ranges; y in the plant's units, p2p = its peak-to-peak)
+=================  ===========================================================================
+relaxation         y += c (h_tau * u), h = exp(-t/tau)/tau, trapezoidal FFT convolution;
+                   tau log-uniform [0.2, 8] s, |c| p2p/(input span) x uniform [0.02, 0.12], random sign
+delay              y(t - d) by a phase ramp in the frequency domain (padded with the rest output);
+                   d uniform [3, 30] ms
+resonance          x'' + 2 zeta w x' + w^2 x = w^2 y, scipy solve_ivp (RK45) from x = y(0) at rest;
+                   f_n log-uniform [2, 15] Hz, zeta uniform [0.05, 0.5]
+creep              y += D ln(1 + t/t_c) / ln(1 + T/t_c) (logarithmic law, T the longest record);
+                   t_c log-uniform [5, 50] s (slow: the vocabulary's creep), |D| p2p x uniform
+                   [0.01, 0.08], random sign
+interference       y += A sin(2 pi f t + phi_m), phi_m uniform per record;
+                   f uniform [3, 40] Hz, A p2p x uniform [0.002, 0.015]
+saturation         y -> min(y, top - q p2p); q uniform [0.02, 0.10]
+gain modulation    y -> y (1 + e sin(2 pi t / T_m + phi)), t the session clock; e uniform [0.02, 0.08],
+  (out of vocab.)  T_m uniform [15, 60] s
+sensor nonlin.     y -> y + b (y - y_mid)^2 / p2p; b uniform [0.03, 0.12]
+dead zone          y -> y_mid + sign(y - y_mid) max(|y - y_mid| - w, 0) (a sensor dead band);
+                   w p2p x uniform [0.02, 0.08]
+=================  ===========================================================================
 
-=============  =====================================================================
-cause          drawn
-=============  =====================================================================
-none           nothing (noise only)
-relaxation     y += c L_tau[u], L_tau first-order low-pass of u from rest;
-               tau log-uniform in [0.3, 10] s, |c| uniform in [0.15, 0.5] mm/kV, random sign
-delay          y(t) -> y(t - d), the actuator at rest (y = 0) before d; d uniform in [5, 40] ms
-resonance      y -> H[y], H second-order low-pass of unit static gain from rest;
-               f_n log-uniform in [2, 8] Hz, damping ratio uniform in [0.05, 0.4]
-creep          y += s (1 - exp(-t / T_c)); T_c log-uniform in [2, 6] x the longest drive period
-               ([100, 300] s on the full protocol), |s| uniform in [0.1, 0.5] mm, random sign
-interference   y += A sin(2 pi f t + phi) in each record's own time; f uniform in [3, 40] Hz,
-               A uniform in [0.02, 0.08] mm, phi uniform (the same in every record)
-saturation     y -> min(y, level); level = (top of the scored loops) - q * (their range),
-               q uniform in [0.03, 0.10]
-=============  =====================================================================
-
-Noise: white, sd uniform in [0.005, 0.015] mm (the virtual DEA's sensor has 0.01 mm).
+p2p: the 0.5 - 99.5 % quantile range of the identification outputs (MRPIM's q V''
+term spikes at a triangle's corners). Noise: white, sd p2p x uniform [0.001, 0.003]; the nulls also with AR(1)
+noise, phi uniform [0.9, 0.99], the same marginal sd. ``strength``: the rms
+of (effect - plain plant) over the identification records, in % of p2p.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from scipy import signal
+from scipy.integrate import solve_ivp
 
-from hysbench.data.protocol import (
-    FREQUENCIES_HZ,
-    SAMPLE_TIME_S,
-    paper_voltage,
-    protocol_time,
-    role_of,
-    weight_of,
-)
-from hysbench.data.dataset import Dataset, Record
-from hysbench.models import CAUSES, get_model
+from hysbench.data.dataset import Dataset, Record, load_dataset
+from hysbench.data.excitations import multisine, triangle
+from hysbench.data.protocol import paper_voltage, period_samples
+from hysbench.data.virtual_dea import displacement_mm
+from hysbench.models import get_model
 from hysbench.models.errors import HysbenchError
 
-PLANTABLE = ("none",) + CAUSES
-NOISE_SD_RANGE = (0.005, 0.015)
-RANGES = {
-    "relaxation": {"tau_s": (0.3, 10.0), "weight_mm_per_kv": (0.15, 0.5)},
-    "delay": {"delay_s": (0.005, 0.040)},
-    "resonance": {"natural_frequency_hz": (2.0, 8.0), "damping_ratio": (0.05, 0.4)},
-    "creep": {"time_scale_of_longest_period": (2.0, 6.0), "size": (0.1, 0.5)},
-    "interference": {"frequency_hz": (3.0, 40.0), "amplitude": (0.02, 0.08)},
-    "saturation": {"clipped_fraction_of_range": (0.03, 0.10)},
-}
+VOCABULARY = ("relaxation", "delay", "resonance", "creep", "interference", "saturation")
+OUT_OF_VOCABULARY = ("gain-modulation", "sensor-nonlinearity", "dead-zone")
+NULLS = ("null-white", "null-ar1")
+BASES = ("mrpim", "virtual-dea", "piezo")
+DRIVES = ("sines", "triangles", "multisines")
+SHARED = Path("/work/shared/datasets")
+PIEZO = SHARED / "piezo_sindy_1hz"
+DT = 2e-3  # the synthetic bases' sample time (s)
+FREQUENCIES = {0.1: "identification", 0.2: "validation", 0.4: "identification", 0.8: "validation",
+               1.0: "identification"}
+NOISE = (0.001, 0.003)
 
 
 def _log_uniform(rng, lo, hi) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_effect(cause: str, rng: np.random.Generator, longest_period_s: float = 50.0) -> dict:
-    """The planted parameters, drawn from ``RANGES``."""
-    if cause not in PLANTABLE:
-        raise HysbenchError(f"unknown cause {cause!r}; choose one of {', '.join(PLANTABLE)}")
-    r = RANGES.get(cause, {})
-    if cause == "relaxation":
-        return {"tau_s": [_log_uniform(rng, *r["tau_s"])],
-                "weight": float(rng.choice([-1.0, 1.0]) * rng.uniform(*r["weight_mm_per_kv"]))}
-    if cause == "delay":
-        return {"delay_s": float(rng.uniform(*r["delay_s"]))}
-    if cause == "resonance":
-        return {"natural_frequency_hz": _log_uniform(rng, *r["natural_frequency_hz"]),
-                "damping_ratio": float(rng.uniform(*r["damping_ratio"]))}
-    if cause == "creep":
-        lo, hi = r["time_scale_of_longest_period"]
-        return {"time_scale_s": _log_uniform(rng, lo * longest_period_s, hi * longest_period_s),
-                "size": float(rng.choice([-1.0, 1.0]) * rng.uniform(*r["size"]))}
-    if cause == "interference":
-        return {"frequency_hz": float(rng.uniform(*r["frequency_hz"])), "amplitude": float(rng.uniform(*r["amplitude"])),
-                "phase_rad": float(rng.uniform(0.0, 2.0 * math.pi))}
-    if cause == "saturation":
-        return {"clipped_fraction_of_range": float(rng.uniform(*r["clipped_fraction_of_range"])), "side": "upper"}
-    return {}
+def draw(kind: str, rng: np.random.Generator, p2p: float, input_span: float = 2.0) -> dict:
+    """The effect's parameters (see the module docstring)."""
+    sign = float(rng.choice([-1.0, 1.0]))
+    if kind == "relaxation":
+        return {"tau_s": _log_uniform(rng, 0.2, 8.0), "weight": sign * p2p / input_span * rng.uniform(0.02, 0.12)}
+    if kind == "delay":
+        return {"delay_s": float(rng.uniform(0.003, 0.030))}
+    if kind == "resonance":
+        return {"natural_frequency_hz": _log_uniform(rng, 2.0, 15.0), "damping_ratio": float(rng.uniform(0.05, 0.5))}
+    if kind == "creep":
+        return {"t_c_s": _log_uniform(rng, 5.0, 50.0), "drift": sign * p2p * rng.uniform(0.01, 0.08)}
+    if kind == "interference":
+        return {"frequency_hz": float(rng.uniform(3.0, 40.0)), "amplitude": p2p * float(rng.uniform(0.002, 0.015))}
+    if kind == "saturation":
+        return {"clipped_fraction": float(rng.uniform(0.02, 0.10))}
+    if kind == "gain-modulation":
+        return {"depth": float(rng.uniform(0.02, 0.08)), "period_s": float(rng.uniform(15.0, 60.0)),
+                "phase_rad": float(rng.uniform(0, 2 * math.pi))}
+    if kind == "sensor-nonlinearity":
+        return {"curvature": float(rng.uniform(0.03, 0.12))}
+    if kind == "dead-zone":
+        return {"half_width": p2p * float(rng.uniform(0.02, 0.08))}
+    if kind in NULLS:
+        return {"ar1": float(rng.uniform(0.9, 0.99))} if kind == "null-ar1" else {}
+    raise HysbenchError(f"unknown effect {kind!r}")
 
 
-def _lsim(num, den, x: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Continuous-time transfer function from rest, input linear between samples."""
-    _, y, _ = signal.lsim((num, den), x, t, interp=True)
-    return np.asarray(y, dtype=float)
+# --- effects (independent functional forms) --------------------------------------------
+def low_pass_convolution(u: np.ndarray, dt: float, tau: float) -> np.ndarray:
+    """int_0^t exp(-(t-s)/tau)/tau u(s) ds by the trapezoidal rule (FFT convolution), from rest."""
+    h = np.exp(-np.arange(u.size) * dt / tau) / tau
+    full = signal.fftconvolve(u, h)[: u.size] * dt
+    return full - 0.5 * dt * (u[0] * h + u * h[0])  # trapezoid: half weight at both ends
 
 
-def apply_effect(cause: str, effect: dict, t: np.ndarray, u: np.ndarray, y: np.ndarray, frequency_hz: float,
-                 simulate, dt: float) -> np.ndarray:
-    """The noise-free output with the effect (``y`` is the plain model output on ``u``)."""
-    if cause == "none":
-        return y.copy()
-    if cause == "relaxation":
-        out = y.copy()
-        for tau in effect["tau_s"]:
-            out += effect["weight"] * _lsim([1.0], [tau, 1.0], u, t)
-        return out
-    if cause == "delay":
-        d = effect["delay_s"]
-        k0 = int(math.ceil(d / dt - 1e-12))
-        out = np.zeros_like(y)  # at rest (zero output) until the delayed start
-        if k0 < t.size:
-            u_late = paper_voltage(t[k0:] - d, frequency_hz)  # the exact delayed input
-            out[k0:] = simulate(u_late)
-        return out
-    if cause == "resonance":
-        w = 2.0 * math.pi * effect["natural_frequency_hz"]
-        return _lsim([w * w], [1.0, 2.0 * effect["damping_ratio"] * w, w * w], y, t)
-    if cause == "creep":
-        return y + effect["size"] * -np.expm1(-t / effect["time_scale_s"])
-    if cause == "interference":
-        return y + effect["amplitude"] * np.sin(2.0 * math.pi * effect["frequency_hz"] * t + effect["phase_rad"])
-    if cause == "saturation":
-        return np.minimum(y, effect["level"])
-    raise HysbenchError(f"unknown cause {cause!r}")
+def fractional_delay(y: np.ndarray, dt: float, d: float, rest: float) -> np.ndarray:
+    """y(t - d) by a linear phase in the frequency domain; before d the rest value."""
+    pad = int(math.ceil(d / dt)) + 64
+    ramp = np.linspace(y[-1], rest, 4 * pad)  # back to rest, so the circular shift wraps rest into the start
+    x = np.concatenate([np.full(pad, rest), y, ramp])
+    f = np.fft.rfftfreq(x.size, dt)
+    shifted = np.fft.irfft(np.fft.rfft(x) * np.exp(-2j * np.pi * f * d), x.size)
+    return shifted[pad:pad + y.size]
 
 
-SOURCES = ("mrpim", "virtual-dea")
+def mode_ode(y: np.ndarray, dt: float, fn: float, zeta: float) -> np.ndarray:
+    """x'' + 2 zeta w x' + w^2 x = w^2 y(t) (y linear between samples), RK45 from x = y(0), x' = 0."""
+    w = 2 * math.pi * fn
+    t = np.arange(y.size) * dt
+
+    def rhs(s, state):
+        return [state[1], w * w * (np.interp(s, t, y) - state[0]) - 2 * zeta * w * state[1]]
+
+    sol = solve_ivp(rhs, (0.0, t[-1]), [y[0], 0.0], t_eval=t, method="RK45", rtol=1e-7, atol=1e-9,
+                    max_step=min(dt * 4, 0.05 / fn))
+    return sol.y[0]
 
 
-def _source(source: str, dt: float):
-    """simulate(u) -> y of the plant the effect is added to."""
-    if source == "mrpim":
+def apply(kind: str, e: dict, t: np.ndarray, u: np.ndarray, y: np.ndarray, dt: float, stats: dict,
+          rng: np.random.Generator) -> np.ndarray:
+    """The output with the effect (``stats``: p2p, y_mid, top, longest record, session time offset)."""
+    if kind == "relaxation":
+        return y + e["weight"] * low_pass_convolution(u, dt, e["tau_s"])
+    if kind == "delay":
+        return fractional_delay(y, dt, e["delay_s"], rest=float(y[0]))
+    if kind == "resonance":
+        return mode_ode(y, dt, e["natural_frequency_hz"], e["damping_ratio"])
+    if kind == "creep":
+        return y + e["drift"] * np.log1p(t / e["t_c_s"]) / math.log1p(stats["longest_s"] / e["t_c_s"])
+    if kind == "interference":
+        return y + e["amplitude"] * np.sin(2 * math.pi * e["frequency_hz"] * t + rng.uniform(0, 2 * math.pi))
+    if kind == "saturation":
+        return np.minimum(y, stats["top"] - e["clipped_fraction"] * stats["p2p"])
+    if kind == "gain-modulation":
+        clock = t + stats["offset_s"]
+        return y * (1.0 + e["depth"] * np.sin(2 * math.pi * clock / e["period_s"] + e["phase_rad"]))
+    if kind == "sensor-nonlinearity":
+        return y + e["curvature"] * (y - stats["y_mid"]) ** 2 / stats["p2p"]
+    if kind == "dead-zone":
+        c = stats["y_mid"]
+        return c + np.sign(y - c) * np.maximum(np.abs(y - c) - e["half_width"], 0.0)
+    return y.copy()
+
+
+def noise(rng: np.random.Generator, n: int, sd: float, ar1: float = 0.0) -> np.ndarray:
+    """White (ar1 = 0) or AR(1) noise of marginal sd ``sd``."""
+    w = rng.normal(0.0, sd * math.sqrt(1.0 - ar1 * ar1), n)
+    return signal.lfilter([1.0], [1.0, -ar1], w, zi=[rng.normal(0.0, sd) * ar1])[0] if ar1 else w
+
+
+# --- bases and drives ---------------------------------------------------------------------
+def _drive(drive: str, frequency: float, index: int, seed: int) -> np.ndarray:
+    n_periods = 2
+    if drive == "sines":
+        t = np.arange(n_periods * period_samples(frequency, DT)) * DT
+        return paper_voltage(t, frequency)
+    if drive == "triangles":
+        return triangle(frequency, n_periods / frequency, DT)
+    if drive == "multisines":
+        return multisine(15.0, DT, f_min=0.1, f_max=2.0, n_tones=12, seed=seed * 10 + index)
+    raise HysbenchError(f"unknown drive {drive!r}; choose one of {', '.join(DRIVES)}")
+
+
+def _plant(base: str) -> Callable[[np.ndarray], np.ndarray]:
+    if base == "mrpim":
         model = get_model("mrpim")
         params = model.preset("paper")
-        return lambda u: model.simulate(u, dt, params)
-    if source == "virtual-dea":
-        from hysbench.data.virtual_dea import displacement_mm
-
-        return lambda u: displacement_mm(u, dt)
-    raise HysbenchError(f"unknown source {source!r}; choose one of {', '.join(SOURCES)}")
+        return lambda u: model.simulate(u, DT, params)
+    if base == "virtual-dea":
+        return lambda u: displacement_mm(u, DT)
+    raise HysbenchError(f"unknown base {base!r}")
 
 
-def planted_dataset(cause: str, seed: int = 0, frequencies: Sequence[float] = FREQUENCIES_HZ,
-                    n_periods: float = 2, dt: float | Mapping[float, float] = SAMPLE_TIME_S,
-                    effect: dict | None = None, noise_sd: float | None = None,
-                    source: str = "mrpim") -> tuple[Dataset, dict]:
-    """(dataset, truth): the source plant on the protocol + one effect drawn with ``seed`` + noise.
+def piezo_available() -> bool:
+    return (PIEZO / "dataset.toml").exists()
 
-    ``dt``: one sample time, or one per frequency ({frequency_hz: dt}; others get the protocol's).
-    ``source``: "mrpim" (Table 2) or "virtual-dea" (its physics from rest).
-    ``effect`` / ``noise_sd`` replace the drawn values (for demonstrations).
-    Roles and weights follow Table 1; frequencies not in Table 1 are validation.
-    """
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), PLANTABLE.index(cause) if cause in PLANTABLE else 99]))
-    drawn = draw_effect(cause, rng, 1.0 / min(frequencies))
-    effect = dict(effect) if effect is not None else drawn
-    sd = float(noise_sd) if noise_sd is not None else float(rng.uniform(*NOISE_SD_RANGE))
-    dt_of = (lambda f: float(dt.get(f, SAMPLE_TIME_S))) if isinstance(dt, Mapping) else (lambda f: float(dt))
-    clean = []
-    for f in frequencies:
-        h = dt_of(f)
-        simulate = _source(source, h)
-        t = protocol_time(f, n_periods, h)
-        u = paper_voltage(t, f)
-        clean.append((f, t, u, simulate(u), simulate, h))
-    if cause == "saturation" and "level" not in effect:
-        tops = [y[-int(round(1.0 / (f * h))):] for f, _, _, y, _, h in clean]
-        hi = max(float(np.max(s)) for s in tops)
-        lo = min(float(np.min(s)) for s in tops)
-        effect["level"] = hi - effect["clipped_fraction_of_range"] * (hi - lo)
-    records = []
-    for f, t, u, y, simulate, h in clean:
-        y_eff = apply_effect(cause, effect, t, u, y, f, simulate, h)
-        noise = rng.normal(0.0, sd, y.size)
-        records.append(Record(file=f"f{f:g}Hz.npz", t=t, u=u, y=y_eff + noise, role=role_of(f), frequency_hz=f,
-                              weight=weight_of(f)))
-    if not any(r.role == "validation" for r in records) or not any(r.role == "identification" for r in records):
-        raise HysbenchError("planted dataset: the frequencies must include identification and validation ones")
-    plant = "Table 2 MRPIM" if source == "mrpim" else "the virtual DEA's physics"
-    ds = Dataset(name=f"planted-{cause}-{seed}" + ("" if source == "mrpim" else "-dea"), records=records,
-                 input_unit="kV", output_unit="mm",
-                 description=f"{plant} on the paper's protocol with a planted {cause} effect (seed {seed}) "
-                             f"and white noise sd {sd:.4g} mm; hysbench.benchmarks.diagnosis.planted")
-    truth = {"cause": cause, "parameters": expected_parameters(cause, effect), "effect": effect, "noise_sd": sd,
-             "seed": int(seed), "source": source}
+
+def _piezo_records() -> list[tuple[np.ndarray, np.ndarray, np.ndarray, str]]:
+    """The real piezo recording (read in place) cut at input minima into two two-period identification
+    records and a validation record (the rest, at least one period), resampled to 1 kHz."""
+    ds = load_dataset(PIEZO)
+    r = ds.records[0]
+    step = max(1, int(round(1e-3 / r.dt)))
+    t, u, y = r.t[::step], r.u[::step], r.y[::step]
+    dt = float(t[1] - t[0])
+    n_p = period_samples(1.0, dt)
+    on = int(np.argmax(np.abs(u) > 1e-6 * np.max(np.abs(u)))) + n_p // 2  # skip the step at onset
+    first = on + int(np.argmin(u[on:on + n_p]))
+    out = []
+    for k, role in enumerate(("identification", "identification", "validation")):
+        a = first + 2 * k * n_p
+        b = min(a + 2 * n_p, u.size)
+        if b - a < n_p:
+            raise HysbenchError("the piezo recording is shorter than expected")
+        out.append((np.arange(b - a) * dt, u[a:b].copy(), y[a:b].copy(), role))
+    return out
+
+
+def _records(base: str, drive: str, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, str, float | None]]:
+    if base == "piezo":
+        return [(t, u, y, role, 1.0) for t, u, y, role in _piezo_records()]
+    plant = _plant(base)
+    out = []
+    if drive == "multisines":
+        for i, role in enumerate(("identification", "validation", "identification", "validation", "identification")):
+            u = _drive(drive, 0.0, i, seed)
+            out.append((np.arange(u.size) * DT, u, plant(u), role, None))
+        return out
+    for i, (f, role) in enumerate(FREQUENCIES.items()):
+        u = _drive(drive, f, i, seed)
+        out.append((np.arange(u.size) * DT, u, plant(u), role, f))
+    return out
+
+
+def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sines", seed: int = 0,
+                 effects: dict | None = None) -> tuple[Dataset, dict]:
+    """(dataset, truth) with the effects ``kinds`` (one or two of VOCABULARY, one of OUT_OF_VOCABULARY, or
+    a null) drawn with ``seed`` (``effects`` replaces the drawn parameters, by kind)."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), BASES.index(base), DRIVES.index(drive)]))
+    recs = _records(base, drive, seed)
+    ident = np.concatenate([y for _, _, y, role, _ in recs if role == "identification"])
+    bottom, top = (float(q) for q in np.quantile(ident, [0.005, 0.995]))  # robust to MRPIM's spikes on triangles
+    p2p = top - bottom
+    span = max(float(u.max()) for _, u, _, role, _ in recs if role == "identification") - min(
+        float(u.min()) for _, u, _, role, _ in recs if role == "identification")
+    stats = {"p2p": p2p, "top": top, "y_mid": 0.5 * (top + bottom), "offset_s": 0.0,
+             "longest_s": max(t[-1] for t, *_ in recs)}
+    drawn = {k: draw(k, rng, p2p, span) for k in kinds}
+    drawn.update(effects or {})
+    sd = p2p * float(rng.uniform(*NOISE)) if base != "piezo" else 0.0  # the recording has its own noise
+    ar1 = drawn.get("null-ar1", {}).get("ar1", 0.0)
+    if base == "piezo" and kinds[0] in NULLS:  # a null on the recording: its own noise, plus coloured noise
+        sd = p2p * float(rng.uniform(*NOISE))
+    records, eff_ss, n_id = [], 0.0, 0
+    for i, (t, u, y, role, f) in enumerate(recs):
+        dt = float(t[1] - t[0])
+        out = y
+        for k in kinds:
+            out = apply(k, drawn[k], t, u, out, dt, stats, rng)
+        if role == "identification":
+            eff_ss += float(np.sum((out - y) ** 2))
+            n_id += y.size
+        stats["offset_s"] += t[-1] + dt
+        out = out + (noise(rng, y.size, sd, ar1) if sd > 0 else 0.0)
+        name = f"r{i}_{f:g}Hz" if f else f"r{i}_{drive}"
+        records.append(Record(file=f"{name}.npz", t=t, u=u, y=out, role=role, frequency_hz=f))
+    ds = Dataset(name=f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}", records=records,
+                 input_unit="V" if base == "piezo" else "kV", output_unit="um" if base == "piezo" else "mm",
+                 description=f"{base} driven by {drive}, planted {', '.join(kinds)} (seed {seed}); "
+                             "hysbench.benchmarks.diagnosis.planted")
+    truth = {"kinds": list(kinds), "effects": drawn, "base": base, "drive": drive, "seed": int(seed), "noise_sd": sd,
+             "p2p": p2p, "strength_pct": 100 * math.sqrt(eff_ss / max(n_id, 1)) / p2p, "longest_s": stats["longest_s"]}
+    if "saturation" in kinds:
+        truth["saturation_level"] = top - drawn["saturation"]["clipped_fraction"] * p2p
     return ds, truth
-
-
-def expected_parameters(cause: str, effect: dict) -> dict:
-    """The planted effect in the diagnosis's report vocabulary."""
-    if cause == "relaxation":
-        return {"tau_s": list(effect["tau_s"])}
-    if cause == "delay":
-        return {"delay_s": effect["delay_s"]}
-    if cause == "resonance":
-        return {"natural_frequency_hz": effect["natural_frequency_hz"], "damping_ratio": effect["damping_ratio"]}
-    if cause == "creep":
-        return {"size": effect["size"], "time_scale_s": effect["time_scale_s"]}
-    if cause == "interference":
-        return {"frequency_hz": effect["frequency_hz"], "amplitude": effect["amplitude"]}
-    if cause == "saturation":
-        return {"level": effect["level"]}
-    return {}

@@ -185,17 +185,17 @@ def figure_whiteness(diag, path: Path) -> None:
 
 def figure_candidates(diag, path: Path) -> None:
     plt = pyplot()
-    cands = sorted(diag.candidates, key=lambda c: c.bic)
+    cands = sorted(diag.candidates, key=lambda c: -c.heldout_gain)
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.4))
     names = [c.cause for c in cands]
     colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
-    axes[0].barh(names, [-c.delta_bic for c in cands], color=colors)
-    axes[0].set_xscale("symlog", linthresh=10)
-    axes[0].axvline(diag.settings["bic_threshold"], color="k", ls=":", lw=0.8)
-    axes[0].set_xlabel("BIC(base alone) - BIC(candidate)  (identification)")
+    axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)
+    axes[0].axvline(100 * diag.settings["min_explained"], color="k", ls=":", lw=0.8)
+    axes[0].set_xlabel("held-out gain over the base model (%, leave one record out; floored at -100)")
     axes[0].invert_yaxis()
-    axes[1].barh(names, [100 * c.validation_explained for c in cands], color=colors)
-    axes[1].set_xlabel("% of validation residual explained (evidence only)")
+    axes[1].barh(names, [max(min(c.heldout.get("z", 0.0), 40.0), -10.0) for c in cands], color=colors)
+    axes[1].axvline(diag.settings["z_pass"], color="k", ls=":", lw=0.8)
+    axes[1].set_xlabel("z (signed-rank test over blocks)")
     axes[1].invert_yaxis()
     fig.suptitle("candidate causes (red: named)", fontsize=9)
     save_figure(fig, path)
@@ -221,71 +221,74 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         lines += [note, ""]
     lines += [
         f"`hysbench diagnose` (seed {d.seed}): the base model identified with varpro on the identification "
-        "records' scored windows, simulated over every record whole; candidate causes screened and fitted on the "
-        "identification records' whole length, compared by BIC; the named extension identified with the "
-        "identifiers and scored on validation records that took part in no fit and no choice.",
-        "",
-        "## Verdict",
-        "",
-        f"* cause: **{d.cause}**",
-    ]
+        "records' scored windows, simulated over every record whole; candidate causes fitted on the identification "
+        "records' whole length and chosen by leave-one-record-out prediction against the base model refitted the "
+        "same way; the named extension identified with the identifiers and scored on validation records that took "
+        "part in no fit and no choice.", "", "## Verdict", "", f"* cause: **{d.cause}** ({d.verdict.reason})"]
+    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
+             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit}
     if d.chosen is not None:
-        units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
-                 "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "phase_rad": "rad"}
         lines.append("* parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
-                                                  for k, v in d.parameters.items()))
-        lines.append(f"* extended model: `{d.extended_model}` ({d.extended_fit.n_params} parameters, identified "
-                     f"with {d.extended_fit.method} on the identification records' whole length, on the "
-                     f"screen's {d.screen.n} rows)")
+                                                  for k, v in d.parameters.items() if k in units))
+        if d.uncertainty:
+            lines.append("* uncertainty (jackknife over the held-out folds): " + ", ".join(
+                f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"
+                for k, v in d.uncertainty.items()))
+        how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
+               if d.extended_fit else "phase fitted per record")
+        lines.append(f"* extended model: `{d.extended_model}` ({how})")
+    if d.verdict.partial is not None:
+        p = d.verdict.partial
+        lines.append(f"* best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
+                     f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
+    for c in d.verdict.ambiguous_with:
+        lines.append(f"* **ambiguous with {c.cause}**: {c.label} predicts the held-out records as well "
+                     f"(gain {100 * c.heldout_gain:.2f} %; " + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
+                     + ")")
+    for e in d.experiments:
+        if e.get("frequency_hz"):
+            lines.append(f"* suggested experiment ({' vs '.join(e['causes'])}): drive with a {e['drive']} at "
+                         f"{_fmt(e['frequency_hz'], 3)} Hz, where the two fits differ most ({_fmt(e['separation'], 3)} "
+                         f"{unit} rms, noise sd {_fmt(e['noise_sd'], 3)})")
+        else:
+            lines.append(f"* suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}"
+                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
+    for n in d.verdict.not_identified:
+        lines.append(f"* not identified: {n}")
     lines.append(f"* also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
-    lines.append(f"* measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}")
+    lines.append(f"* measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
+                 f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
     g = d.gain()
     if g:
         v = g["validation"]
-        lines += [
-            f"* validation gain (records {', '.join(v['records'])}): the extension removes "
-            f"**{100 * v['explained_whole']:.2f} %** of the base model's residual sum of squares over whole records "
-            f"and {100 * v['explained_window']:.2f} % over the scored windows; mean e_rms on the windows "
-            f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %, on whole records "
-            f"{v['mean_e_rms_whole_before']:.3g} % -> {v['mean_e_rms_whole_after']:.3g} %.",
-        ]
+        lines.append(f"* validation gain (records {', '.join(v['records'])}, against the base model refitted on the "
+                     f"same whole records): **{100 * v['explained_whole']:.2f} %** of its residual sum of squares "
+                     f"removed over whole records, {100 * v['explained_window']:.2f} % on the scored windows; mean "
+                     f"e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
+        vw = g["validation_vs_base_fitted_on_windows"]
+        lines.append(f"* against the base model fitted on the windows (the benchmark's): {100 * vw['explained_whole']:.2f} % "
+                     f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
         if d.warning:
             lines.append(f"* **warning:** {d.warning}.")
-        vb = g.get("validation_vs_base_refit_on_whole_records")
-        if vb:
-            lines.append(f"* against the base model refitted on the same whole records: the extension removes "
-                         f"{100 * vb['explained_whole']:.2f} % of its validation residual sum of squares (whole "
-                         f"records), {100 * vb['explained_window']:.2f} % on the windows.")
-    lines += ["", "## Evidence: candidate causes", "",
+    lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
-              f"{d.settings['max_rows']} per record). Rule: {d.decision_rule}. "
-              "\"fixed base\": screened with the base's nonlinear parameters held at the base-alone fit; \"joint\": "
-              "refined with them free.", "",
-              "| cause | candidate | stage | k | BIC - BIC(base) | identification RSS explained | "
-              "validation RSS explained | estimates |", "|---|---|---|---|---|---|---|---|"]
-    null = d.screen.null
-    lines.append(f"| none | {null.label} | joint | {null.k} | 0 | 0 | 0 | - |")
-    for c in sorted(d.candidates, key=lambda c: c.bic):
+              f"{d.settings['max_rows']} per record). Rule: {d.decision_rule}.", "",
+              "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],
+                    key=lambda c: -c.heldout_gain):
         mark = " **(named)**" if c is d.chosen else (f" (not named: {c.limit})" if c.limit else "")
-        lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {c.delta_bic:.1f} | "
-                     f"{100 * c.explained:.3f} % | {100 * c.validation_explained:.3f} % | "
+        h = c.heldout
+        lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {100 * c.heldout_gain:.3f} % | "
+                     f"{_fmt(h.get('z'), 3)} | {h.get('folds_improved')}/{h.get('n_folds')} | "
+                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {', '.join(h.get('at_bound') or []) or '-'} | "
                      + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items()) + " |")
-    lines += ["", "Relaxation with 1, 2, ... time constants:", "",
-              "| candidate | stage | k | BIC - BIC(base) | time constants (s) |", "|---|---|---|---|---|"]
-    for c in d.relaxation_variants:
-        lines.append(f"| {c.label} | {c.stage} | {c.k} | {c.delta_bic:.1f} | {_fmt(c.estimates.get('tau_s'))} |")
-    if d.also or d.chosen is not None:
-        lines += ["", "Secondary causes tried on top of the named one (BIC against the named extension alone):", ""]
-        tried = d.secondary_tried
-        if tried:
-            lines += ["| cause | BIC - BIC(named alone) | share of its RSS explained | estimates | also? |",
-                      "|---|---|---|---|---|"]
-            for t in tried:
-                lines.append(f"| {t.cause} | {t.delta_bic:.1f} | {100 * t.explained:.3f} % | "
-                             + ", ".join(f"{k} = {_fmt(v)}" for k, v in t.estimates.items())
-                             + f" | {'yes' if any(t is a for a in d.also) else ('no: ' + t.limit if t.limit else 'no')} |")
-        else:
-            lines.append("(no other candidate passed the test alone)")
+    if d.secondary_tried:
+        lines += ["", "Secondary causes tried on top of the named one (held-out against the named one alone):", "",
+                  "| cause | held-out gain | z | also? |", "|---|---|---|---|"]
+        for t in d.secondary_tried:
+            lines.append(f"| {t.cause} | {100 * t.heldout_gain:.3f} % | {_fmt(t.heldout.get('z'), 3)} | "
+                         f"{'yes' if any(t is a for a in d.also) else 'no'} |")
     lib = d.library
     lines += ["", "## Evidence: library screen (pysindy)", "",
               f"{lib['method']}: the base-alone residual regressed on {lib['n_library']} candidate terms (each made "

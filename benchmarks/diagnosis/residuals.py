@@ -25,9 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+from scipy.signal import zoom_fft
 
 from hysbench.data.metrics import e_m, e_rms
 from hysbench.data.dataset import Dataset, Record
+from hysbench.data.protocol import period_samples
 
 LAGS = 20
 
@@ -98,34 +100,41 @@ def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
 MAX_SPECTRUM_POINTS = 1 << 21
 
 
-def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4):
+def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4,
+                      coherent: bool = True):
     """Pooled coherent amplitude spectrum: (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in
-    [f_min, f_max], each record's DFT R_m in its own time (t = 0 at its first sample).
+    [f_min, f_max], each record's DFT R_m in its own time (t = 0 at its first sample). With
+    ``coherent=False`` the records' powers add instead (a disturbance whose phase differs per record):
+    2 sqrt(sum_m |R_m(f)|^2 / sum_m n_m^2).
 
     Records with one sample time: zero-padded FFTs. Sample times that differ: each record's DFT on one
     common grid (chirp z-transform, ``scipy.signal.zoom_fft``), spaced 1 / (pad x the longest duration)
     and cut at the coarsest record's Nyquist frequency."""
     dts = np.array([rr.record.dt for rr in residuals])
     if dts.max() - dts.min() > 1e-9 * dts.max():
-        return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad)
+        return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad, coherent)
     dt = float(np.median(dts))
     n_max = max(rr.record.t.size for rr in residuals)
     n_fft = 1 << int(math.ceil(math.log2(pad * n_max)))
-    total = None
-    n_total = 0
+    total, n_total, n2 = None, 0, 0
     for rr in residuals:
         x = rr.residual - np.mean(rr.residual)
         spec = np.fft.rfft(x, n_fft)
+        spec = spec if coherent else np.abs(spec) ** 2
         total = spec if total is None else total + spec
         n_total += x.size
+        n2 += x.size**2
     f = np.fft.rfftfreq(n_fft, dt)
     keep = (f >= f_min) & (f <= f_max)
-    return f[keep], 2.0 * np.abs(total[keep]) / n_total
+    return f[keep], _pooled_amplitude(total[keep], n_total, n2, coherent)
 
 
-def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi: float, pad: int):
-    from scipy.signal import zoom_fft
+def _pooled_amplitude(total: np.ndarray, n_total: int, n2: int, coherent: bool) -> np.ndarray:
+    return 2.0 * np.abs(total) / n_total if coherent else 2.0 * np.sqrt(total / n2)
 
+
+def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi: float, pad: int,
+                             coherent: bool = True):
     f_lo = max(f_lo, 0.0)
     duration = max(rr.record.t.size * rr.record.dt for rr in residuals)
     df = 1.0 / (pad * duration)
@@ -135,13 +144,15 @@ def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi:
     if m > MAX_SPECTRUM_POINTS:
         m = MAX_SPECTRUM_POINTS
         df = (f_hi - f_lo) / (m - 1)
-    total = np.zeros(m, dtype=complex)
-    n_total = 0
+    total = np.zeros(m, dtype=complex if coherent else float)
+    n_total, n2 = 0, 0
     for rr in residuals:
         x = rr.residual - np.mean(rr.residual)
-        total += zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / rr.record.dt)
+        spec = zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / rr.record.dt)
+        total += spec if coherent else np.abs(spec) ** 2
         n_total += x.size
-    return f_lo + df * np.arange(m), 2.0 * np.abs(total) / n_total
+        n2 += x.size**2
+    return f_lo + df * np.arange(m), _pooled_amplitude(total, n_total, n2, coherent)
 
 
 def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz: float = 0.5) -> list[tuple[float, float]]:
@@ -197,3 +208,33 @@ def phase_of(record: Record) -> np.ndarray | None:
     if not record.frequency_hz:
         return None
     return np.mod((record.t - record.t[0]) * record.frequency_hz, 1.0)
+
+
+def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> dict:
+    """Whether a residual repeats from one drive period to the next.
+
+    Per periodic record with at least two full periods: the residual cut into
+    periods and averaged into ``n_bins`` phase bins, X (P periods x bins).
+    F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for
+    noise independent from period to period (white or coloured, if its
+    correlation time is short against the period), large for a misfit that
+    the drive repeats. Returns {"F", "records"} (F nan without such records)."""
+    num = den = 0.0
+    used = []
+    for rr in residuals:
+        r = rr.record
+        if not r.frequency_hz:
+            continue
+        n_p = period_samples(r.frequency_hz, r.dt)
+        P = r.t.size // n_p if n_p > 0 else 0
+        if P < 2:
+            continue
+        nb = min(n_bins, n_p)
+        X = rr.residual[:P * n_p].reshape(P, n_p)
+        X = X[:, : (n_p // nb) * nb].reshape(P, nb, -1).mean(axis=2)
+        X = X - X.mean()
+        mean = X.mean(axis=0)
+        num += P * float(mean @ mean)
+        den += float(np.sum((X - mean) ** 2)) / (P - 1)
+        used.append(r.file)
+    return {"F": num / den if den > 0 else (math.inf if num > 0 else math.nan), "records": used}

@@ -1,0 +1,58 @@
+"""Delay: the actuator receives the input late (searched to first order, then exactly)."""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from hysbench.models.extended import DELAY_BOUND
+
+from .candidates import Candidate, local_minima
+
+PROFILE_POINTS = 16
+PROFILE_NFEV = 4
+
+
+def _delayed_null(screen, z):
+    def column(m):
+        y0, rows = screen._null_prediction[m], screen.parts[m].rows
+        pos = rows - z["delay"] / screen.parts[m].record.dt
+        return np.interp(pos, np.arange(y0.size), y0, left=screen._null_rest[m]) - y0[rows]
+    return screen.first_order(column)
+
+
+def fit_delay(screen) -> Candidate:
+    """Searched to first order (the null's prediction delayed) on a grid of about two samples;
+    if that passes the BIC threshold, the best grid points and a one-sample delay are searched
+    exactly (Brent within two samples), since a first-order search can be led astray by a misfit
+    of another kind; otherwise the first-order optimum is evaluated exactly, once. On short records
+    (``Screen.small``) instead: the exact profile over a geometric grid of delays, the base's nonlinear
+    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then Brent."""
+    model = screen.extension(("delay",))
+    dt = min(p.record.dt for p in screen.parts)
+    hi = DELAY_BOUND * screen.scale.time
+    grid = np.linspace(0.0, hi, int(min(max(hi / (2 * dt), 10), 400)) + 1)
+    vals = np.array([_delayed_null(screen, {**screen.base_nl, "delay": float(d)})[0] for d in grid])
+    if not (screen.promising(float(vals.min())) or screen.small):  # not even to first order: one exact evaluation
+        return screen.candidate("delay", "pure delay", model, {**screen.base_nl, "delay": float(grid[np.argmin(vals)])})
+    starts = [float(grid[i]) for i in local_minima(vals, 2)] + [min(dt, hi)]
+    best, best_rss = None, math.inf
+    if screen.small:  # cheap: the profile over a geometric grid, the base's nonlinear parameters refitted
+        free = [(n, False) for n in screen.base_nl_names]
+        for d in np.geomspace(min(dt, hi), hi, PROFILE_POINTS):
+            z = {**screen.base_nl, "delay": float(d)}
+            z = screen.refine(model, z, free, max_nfev=PROFILE_NFEV) if free else z
+            rss = screen.evaluate(model, z)[0]
+            if rss < best_rss:
+                best, best_rss = z, rss
+        z = screen.line_search(model, "delay", [max(best["delay"] - 2 * dt, 0.0), best["delay"],
+                                                min(best["delay"] + 2 * dt, hi)], fixed=best)
+        return screen.candidate("delay", "pure delay", model, z, stage="joint")
+    for d0 in starts:
+        z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
+        rss = screen.evaluate(model, z)[0]
+        if rss < best_rss:
+            best, best_rss = z, rss
+    return screen.candidate("delay", "pure delay", model, best)

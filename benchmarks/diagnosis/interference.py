@@ -1,0 +1,153 @@
+"""Interference: a sinusoid unrelated to the drive, with its own phase in every record.
+
+A disturbance (mains pickup, a building's vibration) is not driven by the
+input, so its phase relative to a record's start is arbitrary: the fit has
+one frequency and one (sin, cos) pair per record. Candidate frequencies are
+the most prominent peaks of the pooled incoherent spectrum of the null's
+residual (records' powers added), harmonics common to every drive left out,
+each refined by a line search. On a held-out record the frequency and the
+amplitude come from the other records and only the phase is fitted there
+(``predict_heldout``); the validation records confirm it the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from .candidates import Candidate, prominence
+from .residuals import coherent_spectrum, spectral_peaks
+
+
+def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
+    phase = 2.0 * np.pi * frequency_hz * t
+    return np.column_stack([np.sin(phase), np.cos(phase)])
+
+
+def block_columns(screen, frequency_hz: float, parts: Sequence[int] | None = None) -> np.ndarray:
+    """(rows, 2 M) block-diagonal sin/cos columns on the screen's rows, one pair per record."""
+    parts = range(len(screen.parts)) if parts is None else parts
+    n = [screen.parts[m].rows.size for m in range(len(screen.parts))]
+    starts = np.cumsum([0] + n)
+    E = np.zeros((starts[-1], 2 * len(parts)))
+    for j, m in enumerate(parts):
+        p = screen.parts[m]
+        E[starts[m]:starts[m + 1], 2 * j:2 * j + 2] = sinusoid_columns(p.rows * p.record.dt, frequency_hz)
+    return E
+
+
+def interference_rss(screen, frequency_hz: float) -> float:
+    """The null's residual regressed on per-record sinusoids (projected off the base's columns)."""
+    E = block_columns(screen, frequency_hz)
+    E = E - screen._q0 @ (screen._q0.T @ E)
+    _, res = screen.solve(E, screen.null_residual)
+    screen.n_evaluations += 1
+    return float(res @ res)
+
+
+def _search(rss_of, f0: float, step: float, lo: float, hi: float) -> tuple[float, float]:
+    grid = [g for g in f0 + step * np.linspace(-1.0, 1.0, 11) if lo <= g <= hi]
+    if not grid:
+        return f0, math.inf
+    vals = [rss_of(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    best = (float(grid[i]), float(vals[i]))
+    if b > a:
+        res = minimize_scalar(rss_of, bounds=(a, b), method="bounded", options={"xatol": 1e-3 * step})
+        if res.fun < best[1]:
+            best = (float(res.x), float(res.fun))
+    return best
+
+
+def candidate_frequencies(screen, n_peaks: int = 5) -> list[float]:
+    model = screen.extension(("interference",))
+    lo, hi = screen.bounds_of(model, "interference_frequency")
+    hi = min(hi, 0.45 / max(p.record.dt for p in screen.parts))  # below every record's Nyquist frequency
+    f, amp = coherent_spectrum(screen.null_residuals(), lo, hi, coherent=False)
+    prom = prominence(amp)
+    prom[screen.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
+    return [f0 for f0, _ in spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))]
+
+
+def fit_interference(screen, n_peaks: int = 5) -> Candidate:
+    model = screen.extension(("interference",))
+    lo, hi = screen.bounds_of(model, "interference_frequency")
+    step = 1.0 / max(p.record.t.size * p.record.dt for p in screen.parts)  # the longest record's resolution
+    best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
+    for f0 in candidate_frequencies(screen, n_peaks):
+        f1, rss = _search(lambda g: interference_rss(screen, g), f0, step, lo, hi)
+        if rss < best_rss:
+            best_f, best_rss = f1, rss
+    return interference_candidate(screen, best_f)
+
+
+def interference_candidate(screen, frequency_hz: float) -> Candidate:
+    model = screen.extension(("interference",))
+    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(screen, frequency_hz)])
+    theta, res = screen.solve(A, screen.y)
+    nb = len(screen.base_lin)
+    pairs = theta[nb:].reshape(-1, 2)
+    amps = np.hypot(pairs[:, 0], pairs[:, 1])
+    amplitude = float(np.sqrt(np.mean(amps**2)))
+    params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
+              "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
+              "interference_sin": amplitude, "interference_cos": 0.0}
+    k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
+    c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k, float(res @ res),
+                  screen.n, n_effective=screen.n_effective)
+    c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
+                   "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
+    c.stage = "fixed base"
+    return screen._finish(c)
+
+
+def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:
+    """The sinusoid of the given frequency and amplitude with the phase that fits ``residual`` best."""
+    S = sinusoid_columns(t, frequency_hz)
+    ab = np.linalg.lstsq(S, residual, rcond=None)[0]
+    norm = math.hypot(*ab)
+    direction = ab / norm if norm > 0 else np.array([1.0, 0.0])
+    return S @ (amplitude * direction)
+
+
+def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:
+    """Least-squares amplitude of a sinusoid of this frequency in ``residual`` (phase free)."""
+    ab = np.linalg.lstsq(sinusoid_columns(t, frequency_hz), residual, rcond=None)[0]
+    return float(math.hypot(*ab))
+
+
+def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarray, train: np.ndarray) -> tuple:
+    """Fold ``test`` left out: base + per-record sinusoids solved on the other records; on the test record the
+    base's prediction plus a sinusoid of the training frequency and amplitude, phase fitted there.
+    Returns (prediction on the test rows, training amplitude)."""
+    others = [m for m in range(len(screen.parts)) if m != test]
+    E = block_columns(screen, frequency_hz, others)
+    A = np.column_stack([base_rows, E])
+    theta, _ = screen.solve(A[train], screen.y[train])
+    nb = base_rows.shape[1]
+    amps = np.hypot(*theta[nb:].reshape(-1, 2).T)
+    amplitude = float(np.sqrt(np.mean(amps**2)))
+    test_rows = ~train
+    base_pred = base_rows[test_rows] @ theta[:nb]
+    p = screen.parts[test]
+    sine = phase_fitted(screen.y[test_rows] - base_pred, p.rows * p.record.dt, frequency_hz, amplitude)
+    return base_pred + sine, amplitude
+
+
+def on_top(screen, folds, e_primary: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Out-of-fold residuals of a primary cause with a per-record sinusoid added: on each left-out record,
+    the amplitude from the other records' residuals at ``frequency_hz``, the phase fitted there."""
+    amp = []
+    for m, p in enumerate(screen.parts):
+        rows = folds.test(m)
+        amp.append(amplitude_at(e_primary[rows], p.rows * p.record.dt, frequency_hz))
+    e = e_primary.copy()
+    for m, p in enumerate(screen.parts):
+        rows = folds.test(m)
+        a = float(np.sqrt(np.mean(np.square([x for k, x in enumerate(amp) if k != m]))))
+        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], p.rows * p.record.dt, frequency_hz, a)
+    return e

@@ -1,0 +1,35 @@
+"""Relaxation: first-order low-pass histories of the input (1, 2, ... time constants, greedy)."""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from hysbench.models.extended import TAU_BOUNDS
+
+from .candidates import BIC_THRESHOLD, MAX_RELAXATION, Candidate
+
+
+def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
+               powers: Sequence[int] = (1,), stop_threshold: float = BIC_THRESHOLD) -> list[Candidate]:
+    T = screen.scale.time
+    lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
+    grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25))) + [float(s) for s in seeds if lo <= s <= hi]
+    out, taus = [], []
+    for k in range(1, max_relaxation + 1):
+        model = screen.extension(("relaxation",), n_relaxation=k, relaxation_powers=list(powers))
+        names = [f"tau{i}" for i in range(1, k + 1)]
+        z, _ = screen.grid(model, [dict(zip(names, taus + [g])) for g in grid])
+        if k > 1:
+            z = screen.refine(model, z, [(n, True) for n in names])
+        else:
+            z = screen.line_search(model, "tau1", grid, log=True)
+        taus = [z[n] for n in names]
+        label = f"relaxation, {k} time constant{'s' if k > 1 else ''}"
+        out.append(screen.candidate("relaxation", label, model, z,
+                                  {"n_relaxation": k, "relaxation_powers": list(powers)}))
+        if k > 1 and out[-1].bic > out[-2].bic - stop_threshold:  # one more did not help: stop
+            break
+    return out

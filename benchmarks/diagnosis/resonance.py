@@ -1,0 +1,53 @@
+"""Resonance: a second-order mode (searched to first order on a grid, then exactly)."""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from hysbench.models.extended import RESONANCE_HZ_BOUNDS
+from hysbench.models.filter_kernels import lowpass2_rows, second_order_foh
+
+from .candidates import MAX_DAMPING, Candidate
+
+
+def _resonant_null(screen, z):
+    def column(m):
+        y0 = screen._null_prediction[m] - screen._null_offset
+        rows = screen.parts[m].rows
+        phi, g0, g1 = second_order_foh(z["natural_frequency"], z["damping_ratio"], screen.parts[m].record.dt)
+        return lowpass2_rows(np.ascontiguousarray(y0[None, :]), phi, g0, g1)[0][rows] - y0[rows]
+    return screen.first_order(column)
+
+
+def fit_resonance(screen) -> Candidate:
+    """Searched to first order (the null's prediction through the mode) on a grid and refined; if
+    that explains some of the null's residual, it and a fast, well-damped mode (and on short records
+    the two best points of the grid evaluated exactly) are evaluated exactly and the best refined
+    exactly; otherwise the first-order optimum is evaluated exactly, once."""
+    model = screen.extension(("resonance",))
+    T = screen.scale.time
+    dt = min(p.record.dt for p in screen.parts)
+    f_lo = RESONANCE_HZ_BOUNDS[0] / T
+    f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
+    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 13))
+    pts = [{**screen.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
+           for zeta in (0.07, 0.25, 0.8)]
+    vals = np.array([_resonant_null(screen, z)[0] for z in pts])
+    starts = []
+    z = screen.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
+                    max_nfev=12, residual=lambda q: _resonant_null(screen, q)[2])
+    z = {**z, "damping_ratio": min(z["damping_ratio"], MAX_DAMPING)}
+    if not (screen.promising(_resonant_null(screen, z)[0]) or screen.small):  # one exact evaluation
+        return screen.candidate("resonance", "second-order mode", model, z)
+    starts.append(z)
+    starts.append({**screen.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
+    if screen.small:  # cheap: the best points of an exact coarse grid too
+        exact = [screen.evaluate(model, q)[0] for q in pts]
+        starts += [pts[i] for i in np.argsort(exact)[:2]]
+    starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
+    z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
+    z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
+    return screen.candidate("resonance", "second-order mode", model, z)

@@ -1,0 +1,401 @@
+"""The candidate screen: the base model alone (the null) and each cause's extension on a fixed row subset.
+
+Everything here works on the identification records over their WHOLE
+length (not only the scored windows), on a fixed random subset of at most
+``max_rows`` samples per record (the models still run over every sample;
+the subset only makes the least-squares solves small). Linear parameters
+are solved exactly at every step (separable least squares).
+
+* The null: the base model alone, its nonlinear parameters refined on these
+  rows (from the base fit on the windows), its linear ones solved.
+* Stage 1 (the cause modules ``relaxation``, ``delay``, ``resonance``,
+  ``creep``, ``interference``, ``saturation``): each cause's extension
+  (``hysbench.models.extended``) with the base's nonlinear parameters held
+  at the null's. Components that only add columns are regressed on the
+  null's residual after projecting off the base's columns.
+* Stage 2 (``Screen.joint``): a candidate refined with the base's nonlinear
+  parameters free as well (every column recomputed).
+* A candidate whose parameters leave the cause's meaning is scored but not
+  named (``Screen.limit_of``): a resonance must be underdamped (a mode),
+  creep slower than twice the longest drive period.
+
+The screen's internal comparisons use BIC with the AR(1) effective sample
+size of the null's residual (``candidates``); the cause is chosen on
+held-out records (``selection``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares, minimize_scalar
+
+from hysbench.data.dataset import Record
+from hysbench.identification.criteria import effective_sample_size
+from hysbench.models import ExtendedModel
+from hysbench.models.base import DataScale, HysteresisModel
+from hysbench.models.extended import CREEP_TIME_BOUNDS
+
+from .candidates import CREEP_PERIODS, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log
+
+EXACT_GRID_SAMPLES = 300_000
+from .residuals import RecordResidual
+
+
+@dataclass
+class _Part:
+    """One identification record in the screen: its row subset and the base's columns."""
+
+    record: Record
+    rows: np.ndarray
+    y_rows: np.ndarray
+
+
+@dataclass
+class _BaseColumns:
+    """The base's regressor columns for one nonlinear parameter set, per record."""
+
+    rows: list  # (n_rows_m, n_base_linear) per record
+    full: list | None  # {name: full-length column} per record, or None if not kept
+
+
+def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares with unit-norm columns (SVD, minimum norm): (theta, residual).
+
+    (The identification layer's solver needs a ``Problem``; see the report for the entry point wanted.)"""
+    d = np.sqrt(np.einsum("ij,ij->j", A, A))
+    d[~(d > 0)] = 1.0
+    theta = np.linalg.lstsq(A / d, y, rcond=1e-10)[0] / d
+    return theta, y - A @ theta
+
+
+class Screen:
+    """The candidate fits on a fixed row subset of the identification records.
+
+    Stage 1: each cause's extension with the base's nonlinear
+    parameters held at the null's; only the components' columns are new, so
+    they are projected off the base's columns and regressed on the null's
+    residual (cheap). Stage 2 (``joint``): a candidate refined with the
+    base's nonlinear parameters free as well (every column recomputed).
+    """
+
+    def __init__(self, base: HysteresisModel, base_params: Mapping[str, float], input_range,
+                 identification: Sequence[Record], scale: DataScale,
+                 noise_sd: float, max_rows: int = MAX_ROWS, seed: int = 0):
+        self.base = base
+        self.input_range = tuple(input_range)
+        self.scale = scale
+        self.base_nl_names = base.nonlinear_names
+        self.base_lin = base.linear_names
+        self.noise_sd = float(noise_sd)
+        rng = np.random.default_rng(seed)
+        self.parts: list[_Part] = []
+        for r in identification:
+            n = r.t.size
+            rows = np.arange(n) if n <= max_rows else np.sort(rng.choice(n, max_rows, replace=False))
+            self.parts.append(_Part(r, rows, r.y[rows].copy()))
+        self.y = np.concatenate([p.y_rows for p in self.parts])
+        self.n = self.y.size
+        self._extension_cache: dict = {}
+        self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
+        self.n_evaluations = 0
+        start = {k: float(base_params[k]) for k in self.base_nl_names}
+        self.null = self._fit_null(start)
+
+    # --- models ------------------------------------------------------------
+    def extension(self, components: Sequence[str], **hyper) -> ExtendedModel:
+        key = (tuple(components), tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in hyper.items())))
+        m = self._extension_cache.get(key)
+        if m is None:
+            m = ExtendedModel(base=self.base.name, components=tuple(components),
+                              base_hyperparameters=self.base.get_hyperparameters(), **hyper)
+            self._extension_cache[key] = m
+        return m
+
+    @property
+    def creep_min(self) -> float:
+        """Creep is a drift much slower than the drive: at least twice the longest drive period."""
+        periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
+        return max(CREEP_TIME_BOUNDS[0] * self.scale.time, CREEP_PERIODS * max(periods, default=0.0))
+
+    def bounds_of(self, model: HysteresisModel, name: str) -> tuple[float, float]:
+        for p in model.parameters(self.scale):
+            if p.name == name:
+                if name == "creep_time":
+                    return max(float(p.min), self.creep_min), float(p.max)
+                if name == "damping_ratio":  # a resonance is a mode: underdamped
+                    return float(p.min), min(float(p.max), MAX_DAMPING)
+                return float(p.min), float(p.max)
+        raise KeyError(name)
+
+    # --- the base's columns ---------------------------------------------------
+    def base_columns(self, base_nl: Mapping[str, float], full: bool = False) -> _BaseColumns:
+        """The base's regressors for these nonlinear parameters (cached for the last few sets)."""
+        key = tuple(float(base_nl[k]) for k in self.base_nl_names)
+        cols = self._columns.get(key)
+        if cols is not None and (cols.full is not None or not full):
+            self._columns[key] = self._columns.pop(key)  # most recent last
+            return cols
+        rows, fulls = [], []
+        for p in self.parts:
+            r = p.record
+            if full:
+                B = self.base.windowed_regressors(r.u, r.dt, dict(base_nl), slice(0, r.t.size), self.input_range)
+                rows.append(np.ascontiguousarray(B[p.rows]))
+                fulls.append({name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_lin)})
+            else:  # the model runs over every sample; only the rows are stored
+                rows.append(self.base.windowed_regressors(r.u, r.dt, dict(base_nl), p.rows, self.input_range))
+        cols = _BaseColumns(rows, fulls if full else None)
+        for k in list(self._columns):  # keep full columns for one set only (memory)
+            if self._columns[k].full is not None and full:
+                self._columns[k].full = None
+        self._columns[key] = cols
+        while len(self._columns) > 4:
+            self._columns.pop(next(iter(self._columns)))
+        return cols
+
+    # --- linear solves -----------------------------------------------------
+    @staticmethod
+    def transforms(model: HysteresisModel) -> bool:
+        """Whether the model's components change the base's columns (resonance, delay)."""
+        return isinstance(model, ExtendedModel) and (model.has("resonance") or model.has("delay"))
+
+    def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False) -> np.ndarray:
+        """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'):
+        every linear column in ``model.linear_names`` order, or with ``only_extra`` only the
+        columns the components add (for components that leave the base's columns unchanged)."""
+        base_nl = {k: nonlinear[k] for k in self.base_nl_names}
+        names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
+        if isinstance(model, ExtendedModel) and model.has("delay"):  # the base runs on a late input
+            cols = [model.linear_names.index(c) for c in names]
+            return np.concatenate([model.windowed_regressors(p.record.u, p.record.dt, dict(nonlinear), p.rows,
+                                                             self.input_range)[:, cols] for p in self.parts])
+        transforms = self.transforms(model)
+        bc = self.base_columns(base_nl, full=transforms)
+        if not isinstance(model, ExtendedModel):
+            return np.concatenate(bc.rows)
+        blocks = []
+        for m, p in enumerate(self.parts):
+            r = p.record
+            if transforms:
+                cols = model.assemble_columns(r.u, r.dt, bc.full[m], nonlinear)
+            else:
+                cols = model.assemble_columns(r.u, r.dt, {}, nonlinear)
+            out = np.empty((p.rows.size, len(names)))
+            for j, c in enumerate(names):
+                if c in ("interference_sin", "interference_cos"):  # on the rows only
+                    phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
+                    out[:, j] = np.sin(phase) if c == "interference_sin" else np.cos(phase)
+                else:
+                    out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c][p.rows]
+            blocks.append(out)
+        return np.concatenate(blocks)
+
+    @staticmethod
+    def solve(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return solve_scaled(A, y)
+
+    def evaluate(self, model: HysteresisModel, nonlinear: Mapping[str, float],
+                 full: bool = False) -> tuple[float, np.ndarray | None, np.ndarray]:
+        """(rss, theta, residual) with the linear parameters solved. Without ``full``, components that
+        only add columns are evaluated against the null (their columns projected off the base's at
+        the null's nonlinear parameters, regressed on its residual; theta is None)."""
+        self.n_evaluations += 1
+        null = getattr(self, "null", None)
+        fixed = null is not None and all(float(nonlinear[k]) == null.params[k] for k in self.base_nl_names)
+        if full or self.transforms(model) or not fixed or not isinstance(model, ExtendedModel):
+            theta, res = self.solve(self.design(model, nonlinear), self.y)
+            return float(res @ res), theta, res
+        E = self.design(model, nonlinear, only_extra=True)
+        E = E - self._q0 @ (self._q0.T @ E)
+        c, _ = self.solve(E, self.null_residual)
+        res = self.null_residual - E @ c
+        return float(res @ res), None, res
+
+    def _fit_null(self, start: Mapping[str, float]) -> Candidate:
+        """The base alone, its nonlinear parameters refined on the whole-record rows."""
+        z = self.refine(self.base, dict(start), [(n, False) for n in self.base_nl_names]) if self.base_nl_names else {}
+        rss, theta, res = self.evaluate(self.base, z, full=True)
+        params = {**z, **dict(zip(self.base_lin, map(float, theta)))}
+        starts = np.cumsum([0] + [p.rows.size for p in self.parts])
+        self.n_effective = effective_sample_size([res[a:b] for a, b in zip(starts[:-1], starts[1:])])
+        c = Candidate("none", "base model alone", self.base, params, len(self.base.param_names), rss, self.n,
+                      n_effective=self.n_effective)
+        c.delta_bic, c.explained = 0.0, 0.0
+        A = np.concatenate(self.base_columns(z).rows)
+        d = np.sqrt(np.einsum("ij,ij->j", A, A))
+        d[~(d > 0)] = 1.0
+        u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
+        self._q0 = np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])  # basis of the base's columns on these rows
+        self.null_residual = res
+        full = self.base_columns(z, full=True).full
+        self._null_prediction = [sum(theta[j] * f[name] for j, name in enumerate(self.base_lin)) for f in full]
+        self._null_rest = [float(self.base.simulate(p.record.u[:1], p.record.dt, params, input_range=self.input_range)[0])
+                           for p in self.parts]  # a late actuator's output before it starts, per record
+        self._null_offset = float(params.get("offset", 0.0))
+        self.base_nl = dict(z)
+        return c
+
+    def candidate(self, cause: str, label: str, model: HysteresisModel, nonlinear: Mapping[str, float],
+                  hyper: dict | None = None, stage: str = "fixed base") -> Candidate:
+        nonlinear = {**self.base_nl, **dict(nonlinear)}
+        rss, theta, _ = self.evaluate(model, nonlinear, full=True)
+        params = {**nonlinear, **dict(zip(model.linear_names, map(float, theta)))}
+        c = Candidate(cause, label, model, params, model.n_params, rss, self.n,
+                      estimates_of(cause, params, model), n_effective=self.n_effective,
+                      hyperparameters=dict(hyper or {}))
+        c.stage = stage
+        return self._finish(c)
+
+    def _finish(self, c: Candidate) -> Candidate:
+        c.delta_bic = c.bic - self.null.bic
+        c.explained = 1.0 - c.rss / self.null.rss
+        c.limit = self.limit_of(c.cause, c.estimates)
+        return c
+
+    def limit_of(self, cause: str, estimates: Mapping) -> str:
+        """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
+        creep slower than the drive; a fit pinned at those limits is not named."""
+        if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
+            return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
+        if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
+            return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
+        return ""
+
+    # --- nonlinear search --------------------------------------------------
+    def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
+               max_nfev: int = 40, residual: Callable | None = None) -> dict:
+        """Bounded local least squares over the named nonlinear parameters (log scale where flagged);
+        the others stay at ``start`` (the base's, when not named, at the null's)."""
+        start = {**getattr(self, "base_nl", {}), **dict(start)}
+        lo, hi, x0 = [], [], []
+        for name, log in free:
+            a, b = self.bounds_of(model, name)
+            v = min(max(float(start[name]), a), b)
+            if log:
+                a, b, v = math.log(max(a, 1e-12)), math.log(b), math.log(max(v, 1e-12))
+            lo.append(a)
+            hi.append(b)
+            x0.append(v)
+        lo, hi, x0 = np.array(lo), np.array(hi), np.array(x0)
+        width = np.where(hi > lo, hi - lo, 1.0)
+        x0 = np.clip(x0, lo + 1e-9 * width, hi - 1e-9 * width)
+
+        def unpack(x):
+            z = dict(start)
+            for (name, log), v in zip(free, x):
+                z[name] = math.exp(v) if log else float(v)
+            return z
+
+        def fun(x):
+            return residual(unpack(x)) if residual else self.evaluate(model, unpack(x))[2]
+
+        res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=width,
+                            max_nfev=max_nfev, ftol=1e-8, xtol=1e-8)
+        return unpack(res.x)
+
+    def line_search(self, model: ExtendedModel, name: str, grid: Sequence[float], log: bool = False,
+                    fixed: Mapping[str, float] | None = None, evaluate: Callable | None = None) -> dict:
+        """One nonlinear parameter: the best grid point, then Brent's bounded search between its neighbours."""
+        fixed = {**self.base_nl, **dict(fixed or {})}
+        grid = np.asarray(sorted(grid), dtype=float)
+        evaluate = evaluate or (lambda z: self.evaluate(model, z))
+
+        def rss(v):
+            return evaluate({**fixed, name: float(v)})[0]
+
+        vals = [rss(g) for g in grid]
+        i = int(np.argmin(vals))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        if b > a:
+            if log:
+                res = minimize_scalar(lambda x: rss(math.exp(x)), bounds=(math.log(a), math.log(b)), method="bounded",
+                                      options={"xatol": 1e-3})
+                v = math.exp(res.x)
+            else:
+                res = minimize_scalar(rss, bounds=(a, b), method="bounded", options={"xatol": 2e-3 * (b - a)})
+                v = float(res.x)
+            if res.fun < vals[i]:
+                return {**fixed, name: v}
+        return {**fixed, name: float(grid[i])}
+
+    def grid(self, model: ExtendedModel, points: Sequence[Mapping[str, float]]) -> tuple[dict, float]:
+        best, best_rss = None, math.inf
+        for z in points:
+            z = {**self.base_nl, **dict(z)}
+            rss = self.evaluate(model, z)[0]
+            if rss < best_rss:
+                best, best_rss = z, rss
+        return best, best_rss
+
+    def promising(self, rss: float) -> bool:
+        """Whether a first-order fit explains at least ``MIN_EXPLAINED`` of the null's sum of squares (in sample;
+        only a gate for the costlier exact search)."""
+        return rss < (1.0 - MIN_EXPLAINED) * self.null.rss
+
+    @property
+    def small(self) -> bool:
+        """Records short enough for exact coarse grids of the transforming causes (delay, resonance)."""
+        return sum(p.record.t.size for p in self.parts) <= EXACT_GRID_SAMPLES
+
+    def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
+        """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's
+        prediction; ``column_of(m)`` gives T[y0] - y0 on record m's screen rows. Evaluated against the null."""
+        E = np.concatenate([column_of(m) for m in range(len(self.parts))])[:, None]
+        E = E - self._q0 @ (self._q0.T @ E)
+        c, _ = self.solve(E, self.null_residual)
+        res = self.null_residual - E @ c
+        self.n_evaluations += 1
+        return float(res @ res), None, res
+
+    def null_residuals(self) -> list[RecordResidual]:
+        """The null's residual over every identification record, whole length."""
+        return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
+
+    def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
+        """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
+        there a disturbance cannot be told from the model's misfit."""
+        out = np.ones(f.shape, dtype=bool)
+        for p in self.parts:
+            fd = p.record.frequency_hz
+            if not fd:
+                return np.zeros(f.shape, dtype=bool)
+            k = np.maximum(np.round(f / fd), 1.0)
+            out &= np.abs(f - k * fd) <= tolerance_hz
+        return out
+
+    # --- stage 2: the base's nonlinear parameters free as well --------------------
+    def joint(self, c: Candidate, max_nfev: int = 15) -> Candidate:
+        """Refine a stage-1 candidate with the base's nonlinear parameters free too (not saturation:
+        ``saturation.joint_saturation``; not interference: its phase is per record)."""
+        if not self.base_nl_names or c.cause in ("saturation", "interference"):
+            return c
+        model = c.model
+        nl = list(model.nonlinear_names)
+        free = [(n, is_log(n)) for n in nl if n != "interference_frequency"]
+        start = {n: c.params[n] for n in nl}
+        z = self.refine(model, start, free, max_nfev=max_nfev)
+        out = self.candidate(c.cause, c.label, model, z, c.hyperparameters, stage="joint")
+        return out if out.rss <= c.rss else c
+
+    # --- composite (secondary causes) ---------------------------------------------
+    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10) -> Candidate | None:
+        """The primary's extension plus another cause, refined from both fits (separable causes only)."""
+        if {"saturation", "interference"} & {primary.cause, other.cause}:
+            return None
+        hyper = {**primary.hyperparameters, **other.hyperparameters}
+        model = self.extension((primary.cause, other.cause), **hyper)
+        start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
+        free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]
+        z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
+        c = self.candidate(other.cause, f"{primary.label} + {other.label}", model, z, hyper, stage="joint")
+        c.estimates = estimates_of(other.cause, c.params, model)
+        c.delta_bic = c.bic - primary.bic  # against the primary alone
+        c.explained = 1.0 - c.rss / primary.rss
+        c.limit = self.limit_of(other.cause, c.estimates)
+        return c
+
+

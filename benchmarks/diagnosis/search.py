@@ -1,0 +1,76 @@
+"""Fit every candidate cause on the screen and score each on held-out records.
+
+Order: the library screen (evidence, relaxation seeds); each cause's
+extension with the base's nonlinear parameters held (stage 1); a quick
+held-out score for each (``selection``); the passing ones refined with the
+base's nonlinear parameters free (stage 2: the best of each cause, at most ``max_joint``) and scored
+again; finally every passing candidate scored with its own nonlinear
+parameters refitted per fold (the honest score, and the uncertainty).
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+from .candidates import MAX_RELAXATION, Candidate
+from .creep import fit_creep
+from .delay import fit_delay
+from .interference import fit_interference
+from .library_screen import library_screen
+from .relaxation import fit_relaxation
+from .residuals import RecordResidual
+from .resonance import fit_resonance
+from .saturation import fit_saturation, joint_saturation
+from .selection import Folds, at_bound, heldout_errors, heldout_null, jackknife, passes, promising, score
+
+
+def _score(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool = False) -> None:
+    e, fold_est = heldout_errors(screen, folds, c, refit=refit)
+    c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "refit_per_fold": refit}
+    if fold_est:
+        c.uncertainty = jackknife(fold_est)
+    errors[id(c)] = e
+
+
+def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
+               joint_nfev: int = 10, max_joint: int = 4, progress: Callable[[str], None] | None = None) -> dict:
+    """Every candidate fitted and scored; returns {"library", "candidates" (best per cause),
+    "relaxation_variants", "folds", "errors" (out-of-fold residuals by id), "null_sse"}."""
+    say = progress or (lambda s: None)
+    say("library screen (pysindy FROLS)")
+    library = library_screen(screen, residuals)
+    say("relaxation")
+    variants = fit_relaxation(screen, max_relaxation, seeds=library["relaxation_taus"])
+    cands = []
+    for name, fit in (("delay", fit_delay), ("resonance", fit_resonance), ("creep", fit_creep),
+                      ("interference", fit_interference), ("saturation", fit_saturation)):
+        say(name)
+        c = fit(screen)
+        if c is not None:
+            cands.append(c)
+    say("held-out scores (leave one identification record out)")
+    folds = Folds.of(screen)
+    e_null = heldout_null(screen, folds)
+    errors = {id(screen.null): e_null}
+    for c in variants + cands:
+        _score(screen, folds, e_null, errors, c)
+    # stage 2: the base's nonlinear parameters free as well, for what predicts some of the held-out misfit
+    best_of = {}
+    for c in variants + cands:  # the best promising candidate of each cause
+        if promising(c) and (c.cause not in best_of or c.heldout_gain > best_of[c.cause].heldout_gain):
+            best_of[c.cause] = c
+    for c in sorted(best_of.values(), key=lambda c: -c.heldout_gain)[:max_joint]:
+        say(f"{c.label} (joint)")
+        j = joint_saturation(screen, c, joint_nfev) if c.cause == "saturation" else screen.joint(c, joint_nfev)
+        if j is not c:
+            _score(screen, folds, e_null, errors, j)
+            if j.heldout_gain > c.heldout_gain:
+                pool = variants if c in variants else cands
+                pool[pool.index(c)] = j
+    say("held-out scores with each finalist's own parameters refitted per fold")
+    for c in variants + cands:
+        if passes(c):
+            _score(screen, folds, e_null, errors, c, refit=True)
+    best_relax = max(variants, key=lambda c: c.heldout_gain)
+    return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,
+            "folds": folds, "errors": errors, "null_sse": float(e_null @ e_null)}

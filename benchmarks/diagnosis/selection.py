@@ -1,0 +1,317 @@
+"""Choosing the cause on records that took no part in fitting it.
+
+Leave-one-identification-record-out on the screen's rows: for every fold
+the linear parameters of a candidate (the many: the base model's weights and
+the extension's gains) are solved on the other identification records and
+the left-out record is predicted; the base model alone is refitted the
+SAME way on the SAME rows. The finalists (every candidate that passes the
+test below on this quick score) are scored again with their own nonlinear
+parameters (time constants, delay, mode, creep time) also refitted on each
+fold's training records; the spread of those fold estimates is the
+parameter's uncertainty (jackknife). The validation records are not touched.
+
+Held-out score per candidate, from the out-of-fold residuals e (every row
+predicted by a fit that did not see its record):
+
+* gain G = 1 - sum e_c^2 / sum e_null^2;
+* z: each left-out record is cut into ``N_BLOCKS`` contiguous blocks and
+  ln(SSE_null / SSE_c) taken per block; z is the normal quantile of the
+  one-sided Wilcoxon signed-rank test of those log ratios -- blocks, not
+  samples, so correlated residuals are not counted as independent, and
+  ranks, so a record with a large misfit does not swamp the others;
+* the folds (records) it improves.
+
+Decision rule (``decide``):
+
+1. A candidate *passes* if G >= ``MIN_EXPLAINED``, it improves more than half
+   of the folds, z >= ``Z_PASS`` (or G >= ``STRONG_GAIN`` with every fold
+   improved: a transient misfit concentrates in few blocks), its parameters
+   are within the cause's meaning and none is at its search bound (else:
+   "not identified (at bound)").
+2. Parsimony: among the passing candidates that the best (highest G) does not
+   beat by z >= ``Z_SAME`` and that would be a verdict themselves (rule 3),
+   the one with fewest parameters is named. Another cause in that set is reported as ambiguous with it, with
+   the drive that would separate them (``experiment``).
+3. The named cause must remove at least ``EXPLAIN_SHARE`` of the base's
+   held-out misfit beyond white noise (n sd^2); if it does not, or if nothing
+   passes while the residual is structured (a candidate has held-out
+   evidence but fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
+   squared error in all though not in most records, or the residual repeats
+   from period to period:
+   ``residuals.periodic_structure``), the verdict is ``unexplained``.
+   Otherwise nothing passes: ``none``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy import stats
+
+from .candidates import MIN_EXPLAINED, Candidate, is_log
+from .interference import predict_heldout
+from .saturation import saturation_rss
+
+N_BLOCKS = 8  # blocks per left-out record for the standard error
+Z_PASS = 3.0
+Z_SAME = 2.0
+EXPLAIN_SHARE = 0.5
+STRONG_GAIN = 0.10
+AT_BOUND = 0.01  # relative (log scale) distance to a search bound that counts as "at the bound"
+STRUCTURE_F = 4.0  # periodic-structure ratio above which a residual is "structured"
+FOLD_NFEV = 8
+
+
+@dataclass
+class Folds:
+    """Leave-one-record-out on the screen's stacked rows."""
+
+    starts: np.ndarray  # row offsets of the records, len M + 1
+
+    @classmethod
+    def of(cls, screen) -> "Folds":
+        return cls(np.cumsum([0] + [p.rows.size for p in screen.parts]))
+
+    @property
+    def n(self) -> int:
+        return self.starts.size - 1
+
+    def test(self, m: int) -> np.ndarray:
+        mask = np.zeros(self.starts[-1], dtype=bool)
+        mask[self.starts[m]:self.starts[m + 1]] = True
+        return mask
+
+    def blocks(self) -> list[np.ndarray]:
+        out = []
+        for m in range(self.n):
+            out += [b for b in np.array_split(np.arange(self.starts[m], self.starts[m + 1]), N_BLOCKS) if b.size]
+        return out
+
+
+def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray]) -> np.ndarray:
+    """Every row's residual from a linear solve on the other records; ``design(m)`` gives fold m's
+    stacked design (all rows)."""
+    e = np.empty(screen.n)
+    for m in range(folds.n):
+        test = folds.test(m)
+        A = design(m)
+        theta, _ = screen.solve(A[~test], screen.y[~test])
+        e[test] = screen.y[test] - A[test] @ theta
+    return e
+
+
+def heldout_null(screen, folds: Folds) -> np.ndarray:
+    A = screen.design(screen.base, screen.base_nl)
+    return out_of_fold(screen, folds, lambda m: A)
+
+
+def own_nonlinear(screen, c: Candidate) -> list[str]:
+    return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
+
+
+def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
+    """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters are refitted on
+    each fold's training rows (returns the fold estimates too)."""
+    nl = {n: c.params[n] for n in c.model.nonlinear_names}
+    if c.cause == "interference":
+        base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
+        e = np.empty(screen.n)
+        fold_est = []
+        for m in range(folds.n):
+            test = folds.test(m)
+            pred, amp = predict_heldout(screen, nl["interference_frequency"], m, base_rows, ~test)
+            e[test] = screen.y[test] - pred
+            fold_est.append({"amplitude": amp})
+        return e, fold_est
+    if c.cause == "saturation":
+        return _heldout_saturation(screen, folds, c), []
+    names = own_nonlinear(screen, c) if refit else []
+    fold_est, designs = [], []
+    for m in range(folds.n):
+        z = dict(nl)
+        if names:
+            train = ~folds.test(m)
+
+            def residual(q, train=train):
+                A = screen.design(c.model, q)
+                return screen.solve(A[train], screen.y[train])[1]
+
+            z = screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV, residual=residual)
+            fold_est.append({n: float(z[n]) for n in names})
+        designs.append(z)
+    if not names:
+        A = screen.design(c.model, nl)
+        return out_of_fold(screen, folds, lambda m: A), fold_est
+    return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m])), fold_est
+
+
+def _heldout_saturation(screen, folds: Folds, c: Candidate) -> np.ndarray:
+    side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
+    base_nl = {k: c.params[k] for k in screen.base_nl_names}
+    A = np.concatenate(screen.base_columns(base_nl).rows)
+    sign = 1.0 if side == "upper" else -1.0
+    free = sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
+    e = np.empty(screen.n)
+    for m in range(folds.n):
+        test = folds.test(m)
+        train = ~test & free
+        theta, _ = screen.solve(A[train], screen.y[train])
+        pred = A[test] @ theta
+        pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
+        e[test] = screen.y[test] - pred
+    return e
+
+
+def signed_rank_z(d: np.ndarray) -> float:
+    """One-sided Wilcoxon signed-rank test that the log ratios exceed 0, as a normal quantile."""
+    d = d[np.isfinite(d) & (d != 0)]
+    if d.size < 2:
+        return 0.0
+    p = stats.wilcoxon(d, alternative="greater").pvalue
+    return float(min(stats.norm.isf(max(p, 1e-300)), 40.0))
+
+
+def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
+    """Held-out gain of ``e_c`` over ``e_ref``, its block z-score (log ratios) and the folds it improves."""
+    blocks = folds.blocks()
+    tiny = 1e-300
+    d = np.array([math.log(max(float(e_ref[b] @ e_ref[b]), tiny) / max(float(e_c[b] @ e_c[b]), tiny)) for b in blocks])
+    ss_ref = float(e_ref @ e_ref)
+    z = signed_rank_z(d)
+    improved = sum(float(e_ref[folds.test(m)] @ e_ref[folds.test(m)]) > float(e_c[folds.test(m)] @ e_c[folds.test(m)])
+                   for m in range(folds.n))
+    return {"gain": 1.0 - float(e_c @ e_c) / ss_ref if ss_ref > 0 else 0.0, "z": z, "folds_improved": int(improved),
+            "n_folds": folds.n, "sse": float(e_c @ e_c)}
+
+
+def jackknife(fold_estimates: list[dict]) -> dict:
+    """Jackknife standard error of each fold-refitted parameter (log-scale ones as relative errors)."""
+    out = {}
+    if len(fold_estimates) < 2:
+        return out
+    m = len(fold_estimates)
+    for name in fold_estimates[0]:
+        v = np.array([f[name] for f in fold_estimates], dtype=float)
+        log = is_log(name) and np.all(v > 0)
+        x = np.log(v) if log else v
+        se = float(math.sqrt((m - 1) / m * np.sum((x - x.mean()) ** 2)))
+        out[name] = {"relative_se": se} if log else {"se": se}
+        out[name]["folds"] = [float(a) for a in v]
+    return out
+
+
+def at_bound(screen, c: Candidate) -> list[str]:
+    """The candidate's own nonlinear parameters at a search bound."""
+    out = []
+    if c.cause in ("saturation", "interference"):
+        return out
+    for n in own_nonlinear(screen, c):
+        lo, hi = screen.bounds_of(c.model, n)
+        v = float(c.params[n])
+        if n == "delay":  # a delay at zero is no delay: only the upper bound counts
+            if v >= hi * (1 - AT_BOUND):
+                out.append(n)
+        elif is_log(n) and lo > 0:
+            if math.log(v / lo) < AT_BOUND or math.log(hi / v) < AT_BOUND:
+                out.append(n)
+        elif v <= lo + AT_BOUND * (hi - lo) or v >= hi - AT_BOUND * (hi - lo):
+            out.append(n)
+    return out
+
+
+def passes(c: Candidate) -> bool:
+    h = c.heldout
+    return significant(c) and not c.limit and not h.get("at_bound")
+
+
+def significant(c: Candidate) -> bool:
+    """Held-out evidence for a candidate, whatever its meaning: gain >= MIN_EXPLAINED in a majority of folds,
+    and z >= Z_PASS or a gain >= STRONG_GAIN in every fold."""
+    h = c.heldout
+    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
+        h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
+
+
+def promising(c: Candidate) -> bool:
+    """Worth refining (stage 2): some held-out gain, in a majority of folds, whatever its z."""
+    h = c.heldout
+    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and not c.limit
+
+
+@dataclass
+class Verdict:
+    cause: str  # none, unexplained or a vocabulary cause
+    chosen: Candidate | None
+    ambiguous_with: list[Candidate] = field(default_factory=list)
+    reason: str = ""
+    not_identified: list[str] = field(default_factory=list)  # "cause: parameter (at bound)"
+    partial: Candidate | None = None  # the best candidate when the verdict is unexplained
+
+
+def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate]) -> Candidate:
+    """A relaxation variant with two time constants closer than their uncertainty (or a factor 1.25)
+    gives way to the variant with one fewer, if that passes."""
+    while chosen.cause == "relaxation" and chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
+        taus = chosen.estimates["tau_s"]
+        se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
+        ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
+        width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
+        close = any(math.log(taus[i + 1] / taus[i]) < max(math.log(1.25), 2 * max(width[i], width[i + 1]))
+                    for i in range(len(taus) - 1))
+        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v)]
+        if not (close and fewer):
+            break
+        chosen = fewer[0]
+    return chosen
+
+
+def pairwise_z(folds: Folds, errors: dict, a: Candidate, b: Candidate) -> float:
+    """How many standard errors b's held-out squared error exceeds a's (positive: a is better)."""
+    return score(folds, errors[id(b)], errors[id(a)])["z"]
+
+
+def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequence[Candidate], errors: dict,
+           null_sse: float, structured: bool) -> Verdict:
+    """See the module docstring (every relaxation variant competes, not only the best)."""
+    candidates = list({id(c): c for c in [*candidates, *variants]}.values())
+    ok = [c for c in candidates if passes(c)]
+    not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
+                      if c.heldout.get("at_bound") and c.heldout_gain > 0]  # would predict something, unidentified
+    evidence = [c for c in candidates if significant(c) or c.heldout_gain >= STRONG_GAIN]  # structure, partly predicted
+    if not ok:
+        if structured or evidence:
+            partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
+            why = ("the residual is structured (it repeats from period to period)" if structured else
+                   f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
+                   "or not within its meaning")
+            return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
+                           not_identified=not_identified, partial=partial)
+        return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
+                       not_identified=not_identified)
+    excess = null_sse - screen.n * screen.noise_sd**2
+    for c in ok:
+        c.heldout["share_of_misfit"] = float((null_sse - c.heldout["sse"]) / excess) if excess > 0 else 1.0
+    best = max(ok, key=lambda c: c.heldout_gain)
+    # as good as the best: not worse by z >= Z_SAME, and explaining enough of the misfit to be a verdict itself
+    same = [c for c in ok if c is best or (pairwise_z(folds, errors, best, c) < Z_SAME
+                                           and c.heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
+    chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
+    chosen = merge_duplicates(chosen, variants)
+    others = {}
+    for c in same:
+        if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
+            others[c.cause] = c
+    share = chosen.heldout.get("share_of_misfit", 1.0)
+    if share < EXPLAIN_SHARE:
+        return Verdict("unexplained", None, reason=(
+            f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
+            f"held-out misfit beyond white noise (needed: {100 * EXPLAIN_SHARE:.0f} %)"),
+            not_identified=not_identified, partial=chosen)
+    reason = (f"predicts the held-out identification records better than the base model refitted the same way "
+              f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
+    if chosen is not best:
+        reason += f"; simpler than {best.label}, which does not predict better by z >= {Z_SAME:g}"
+    return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified)
