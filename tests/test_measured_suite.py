@@ -35,7 +35,8 @@ def sines(tmp_path_factory):
 
 def test_unseen_records_are_scored_from_the_stored_fit_without_refitting(sines):
     fitted, other = load_dataset(sines[0]), load_dataset(sines[1])
-    cell = plan_cells([(sines[0], fitted)], ["classical-pi"], ["lsq"], seed=0, method_options={"lsq": {"max_nfev": 30}})[0]
+    cell = plan_cells([(sines[0], fitted)], ["classical-pi"], ["lsq"], seed=0,
+                      method_options={"lsq": {"max_nfev": 30}})[0]
     result = run_cell(cell)
     assert result["status"] == "ok"
     scored = unseen.score_cells([result], other)

@@ -22,7 +22,7 @@ from hysbench.data.files import write_atomic
 
 from .common import CommandError
 
-EXAMPLE = "hysbench dataset init measurements/run1.csv --time 0 --input 2 --output 1 --frequency 1 --role identification"
+EXAMPLE = "hysbench dataset init measurements/run1.csv --time 0 --input 2 --output 1 --frequency 1 --role validation"
 ROLE_NAMES = ("time", "input", "output")
 
 

@@ -114,7 +114,8 @@ def main(args) -> int:
     if not cells:
         raise HysbenchError("no model/method combination applies; check --models and --methods")
     is_measured = args.suite == "measured"
-    csv_name, report_name = (measured.MEASURED_CSV, measured.MEASURED_REPORT) if is_measured else ("matrix.csv", "report.md")
+    csv_name, report_name = ((measured.MEASURED_CSV, measured.MEASURED_REPORT) if is_measured
+                             else ("matrix.csv", "report.md"))
     out = ensure_dir(args.out)
     store = CellStore(out, measured.MEASURED_CELLS if is_measured else "cells")
     reused = sum(1 for c in cells if not args.force and store.get(c.key) is not None)
