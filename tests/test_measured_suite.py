@@ -72,6 +72,8 @@ def test_the_measured_suite_scores_every_manifest_and_hints_at_bare_csvs(sines, 
     rec = ds.records[0]
     np.savetxt(bare / "rec.csv", np.column_stack([rec.t, rec.u, rec.y]), delimiter=",", fmt="%.12g")
     out = tmp_path / "results"
+    assert main(["run", str(bare), "--out", str(out)]) == 2  # run on the bare folder itself: the same hint
+    assert "hysbench dataset init" in capsys.readouterr().err
     assert main(["run", "--suite", "measured", "--datasets-root", str(root), "--out", str(out), *FAST]) == 0
     err = capsys.readouterr().err
     assert "hysbench dataset init" in err and "bare_csv" in err and len(err.strip().splitlines()) == 1

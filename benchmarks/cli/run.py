@@ -72,7 +72,11 @@ def _suite_datasets(args) -> tuple[list, list[str]]:
     if args.suite == "default":
         if args.datasets_root:
             raise CommandError("--datasets-root applies to --suite measured only")
-        return [(p, load_dataset(p)) for p in dataset_paths(args.dataset)], []
+        paths = dataset_paths(args.dataset)
+        for p in paths:
+            if p.is_dir() and not (p / "dataset.toml").is_file():
+                raise CommandError(measured.init_hint(p))  # a bare folder of CSV files: name the next command
+        return [(p, load_dataset(p)) for p in paths], []
     if args.dataset:
         raise CommandError("--suite measured takes no DATASET; it scores every dataset under --datasets-root")
     root = Path(args.datasets_root) if args.datasets_root else measured.default_datasets_root()
