@@ -13,7 +13,7 @@ from hysbench.data import load_dataset, save_dataset
 from hysbench.data.metrics import e_rms
 from hysbench.data.protocol import simulated_dataset
 from hysbench.identification import Fit
-from hysbench.models import get_model
+from hysbench.models import get_model, list_models
 
 FAST = ["--models", "classical-pi", "--methods", "lsq", "--option", "lsq.max_nfev=30", "--jobs", "1", "--quiet"]
 
@@ -99,3 +99,9 @@ def test_the_shared_measured_datasets_are_found(shared_datasets):
     found, skipped = measured.discover(shared_datasets)
     names = {ds.name for _, ds in found}
     assert {"piezo-sindy-1hz", "pzt-ceramic", "bouc-wen-benchmark"} <= names
+
+
+def test_the_measured_suite_adds_the_bouc_wen_oscillator_to_the_matrix_models():
+    models = measured.suite_models()
+    assert models[:len(list_models(matrix_only=True))] == list_models(matrix_only=True)
+    assert "bouc-wen-oscillator" in models and "bouc-wen-oscillator" not in list_models(matrix_only=True)

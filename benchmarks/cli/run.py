@@ -104,6 +104,8 @@ def main(args) -> int:
     methods = comma_list(args.methods, "--methods")
     user_options = parse_method_options(args.option)
     datasets, skipped = _suite_datasets(args)
+    if args.suite == "measured" and models is None:
+        models = measured.suite_models()
     for line in skipped:  # never silent: each folder not scored is named
         print(f"hysbench run: {line}", file=sys.stderr)
     unseen_ds = _unseen_dataset(args, datasets)

@@ -8,6 +8,11 @@ from pathlib import Path
 
 from hysbench.data.dataset import Dataset, DatasetError, load_dataset
 from hysbench.data.virtual_dea import default_dataset_path
+from hysbench.models import list_models
+
+# Registered out of the DEA matrix because they are not DEA models, but scored on measured data:
+# the Bouc-Wen benchmark's own structure (force -> displacement oscillator).
+MEASURED_ONLY_MODELS = ("bouc-wen-oscillator",)
 
 MEASURED_CSV = "matrix_measured.csv"
 MEASURED_REPORT = "report_measured.md"
@@ -17,6 +22,11 @@ MEASURED_CELLS = "cells_measured"
 def default_datasets_root() -> Path:
     """../shared/datasets relative to the repository root (the folder holding data/)."""
     return default_dataset_path().parent.parent.parent / "shared" / "datasets"
+
+
+def suite_models() -> list[str]:
+    """The measured suite's models: the default matrix's and MEASURED_ONLY_MODELS (those registered)."""
+    return list_models(matrix_only=True) + [m for m in MEASURED_ONLY_MODELS if m in list_models()]
 
 
 def init_hint(folder: Path) -> str:
