@@ -8,7 +8,7 @@ drives start at the midpoint. Random waveforms take a seed and are reproducible.
 * ``triangle``: linear up-down ramps between low and high, starting at low.
 * ``multisine``: random-phase tones log-spaced over [f_min, f_max] (equal
   amplitudes), scaled affinely onto [low, high], faded in from the midpoint over
-  the slowest tone's period (half-cosine) so that it starts without a step.
+  the slowest tone's period or ``fade_s`` (half-cosine) so that it starts without a step.
 * ``band_limited_random``: white Gaussian noise low-passed by zeroing FFT bins
   above f_max, scaled onto [low, high], faded in like the multisine.
 * ``decaying_sine``: a sine about the midpoint whose amplitude shrinks
@@ -74,7 +74,8 @@ def triangle(frequency_hz: float, duration_s: float, dt: float = 1e-3, low: floa
 
 
 def multisine(duration_s: float, dt: float = 1e-3, f_min: float = 0.02, f_max: float = 2.0, n_tones: int = 20,
-              low: float = LOW_KV, high: float = HIGH_KV, seed: int = 0) -> np.ndarray:
+              low: float = LOW_KV, high: float = HIGH_KV, seed: int = 0, fade_s: float | None = None) -> np.ndarray:
+    """``fade_s``: length of the fade-in (default: the slowest tone's period)."""
     _check_range(low, high)
     n = _samples(duration_s, dt)
     if not (0 < f_min < f_max < 0.5 / dt) or n_tones < 1:
@@ -86,7 +87,7 @@ def multisine(duration_s: float, dt: float = 1e-3, f_min: float = 0.02, f_max: f
     t = np.arange(n) * dt
     x = np.sin(2.0 * np.pi * freqs[:, None] * t[None, :] + phases[:, None]).sum(axis=0)
     u = _onto(x, low, high)
-    return fade_in(u, int(round(1.0 / (f_min * dt))), 0.5 * (low + high))
+    return fade_in(u, int(round((1.0 / f_min if fade_s is None else fade_s) / dt)), 0.5 * (low + high))
 
 
 def band_limited_random(duration_s: float, dt: float = 1e-3, f_max: float = 2.0, low: float = LOW_KV,

@@ -62,6 +62,7 @@ import math
 import os
 import shutil
 import tempfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,6 +82,7 @@ from hysbench.models.errors import HysbenchError
 
 from hysbench.models import dea_physics
 from hysbench.models.dea_physics import ISSUE_START, TRUTH, DEAParameters  # noqa: F401 (re-exported)
+from .excitations import excitation
 from .dataset import Dataset, Record, replace_folder, save_dataset
 from .files import write_json
 from .dea_sensor import LaserSensor
@@ -371,14 +373,85 @@ def truth(seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH, sensor: Laser
 def write_dataset(folder: str | os.PathLike, seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH,
                   sensor: LaserSensor = LaserSensor()) -> Path:
     """Generate and write the dataset (records as compressed .npz, dataset.toml, truth.json), atomically."""
-    folder = Path(folder)
     ds, runs = generate(seed, params, sensor)
+    return _write_folder(Path(folder), ds, truth(seed, params, sensor, runs))
+
+
+def _write_folder(folder: Path, ds: Dataset, truth_dict: dict) -> Path:
+    """Records, dataset.toml and truth.json, built beside ``folder`` and moved into place."""
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.build.", dir=folder.parent))
     try:
         save_dataset(ds, tmp / "ds", compress=True)
-        write_json(tmp / "ds" / "truth.json", truth(seed, params, sensor, runs))
+        write_json(tmp / "ds" / "truth.json", truth_dict)
         replace_folder(tmp / "ds", folder)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return folder
+
+
+# --- unseen waveforms: the same actuator and sensor under other drives ------------------------
+# Every record starts at rest, is driven by eq. 1 at RUN_IN_HZ for RUN_IN_S (the seen sine, through most
+# of the creep transition) and then by the unseen drive; only the unseen drive is scored (its window).
+# The run-in ends at the phase where the sine meets the drive's first value (rising), so there is no step.
+WAVEFORMS_NAME = "virtual-dea-waveforms"
+RUN_IN_HZ = 0.2
+RUN_IN_S = 250.0
+COMMAND_STEP_KV = 2.0**-16  # the command is quantised (a 16-bit-DAC-like step) so that the records compress
+# excitation name -> overrides of its defaults in data/excitations.py (short, to keep the shipped data small)
+WAVEFORM_DRIVES = {
+    "triangle": {"frequency_hz": 0.2, "duration_s": 30.0},
+    "multisine": {"duration_s": 100.0, "fade_s": 2.0},
+    "random": {"duration_s": 100.0},
+    "decaying-sine": {"frequency_hz": 0.2, "duration_s": 50.0},
+    "reversal-curves": {},
+}
+
+
+def default_waveforms_path() -> Path:
+    """data/virtual_dea_waveforms/ of the source tree: the shipped unseen-waveform dataset."""
+    return Path(__file__).resolve().parent / "virtual_dea_waveforms"
+
+
+def waveform_command(name: str, dt: float = SAMPLE_TIME_S) -> tuple[np.ndarray, int]:
+    """(command voltage in kV, samples of the sine run-in before the unseen drive ``name`` starts)."""
+    drive = excitation(name, dt=dt, **WAVEFORM_DRIVES.get(name, {}))
+    n_period = period_samples(RUN_IN_HZ, dt)
+    level = min(max((drive[0] - OFFSET_KV) / AMPLITUDE_KV, -1.0), 1.0)
+    phase = (math.asin(level) + 0.5 * math.pi) / (2.0 * math.pi)  # eq. 1 rises through drive[0] here
+    n_run_in = int(round(RUN_IN_S * RUN_IN_HZ)) * n_period + int(round(phase * n_period))
+    u = np.concatenate([command_voltage(RUN_IN_HZ, n_run_in, dt), drive])
+    return np.round(u / COMMAND_STEP_KV) * COMMAND_STEP_KV, n_run_in
+
+
+def waveform_seed(seed: int, name: str) -> np.random.SeedSequence:
+    return np.random.SeedSequence([int(seed), zlib.crc32(name.encode())])
+
+
+def generate_waveform_record(name: str, seed: int = DEFAULT_SEED, params: DEAParameters = TRUTH,
+                             sensor: LaserSensor = LaserSensor(), dt: float = SAMPLE_TIME_S) -> Record:
+    """One unseen-waveform record: the physics and the sensor under the run-in and the drive ``name``;
+    a validation record (nothing is fitted on it) scored on the drive only."""
+    u, n_run_in = waveform_command(name, dt)
+    y = sensor.measure(displacement_mm(u, dt, params), np.random.default_rng(waveform_seed(seed, name)))
+    t = np.arange(u.size) * dt
+    return Record(file=f"{name}.npz", t=t, u=u, y=y, role="validation", weight=1.0,
+                  window=(float(n_run_in * dt), float(u.size * dt)))
+
+
+def write_waveform_dataset(folder: str | os.PathLike, names=None, seed: int = DEFAULT_SEED,
+                           params: DEAParameters = TRUTH, sensor: LaserSensor = LaserSensor()) -> Path:
+    """The unseen-waveform dataset (default: every drive of WAVEFORM_DRIVES), written atomically."""
+    names = list(names or WAVEFORM_DRIVES)
+    records = [generate_waveform_record(n, seed, params, sensor) for n in names]
+    description = (
+        f"Virtual DEA under drives it is not identified on ({', '.join(names)}), 0.5-2.5 kV, 1 ms. Each record: "
+        f"eq. 1 at {RUN_IN_HZ:g} Hz from rest for about {RUN_IN_S:g} s (through most of the creep transition), "
+        "then the drive; window = the drive. Same physics and sensor as virtual-dea; command quantised to "
+        f"2^-16 kV. Seed {seed}. Truth: truth.json.")
+    ds = Dataset(name=WAVEFORMS_NAME, records=records, description=description, input_unit="kV", output_unit="mm")
+    truth_dict = {**truth(seed, params, sensor), "generator": "hysbench.data.virtual_dea.write_waveform_dataset",
+                  "run_in": {"frequency_hz": RUN_IN_HZ, "seconds": RUN_IN_S},
+                  "drives": {n: WAVEFORM_DRIVES.get(n, {}) for n in names},
+                  "records": {r.file: {"run_in_samples": r.start, "samples": r.t.size} for r in records}}
+    return _write_folder(Path(folder), ds, truth_dict)

@@ -19,6 +19,7 @@ BAD = {
     "check": (["check", "/no/such/folder"], "no/such/folder"),
     "data": (["data", "virtual-dea", "--out", "x", "--seed", "-3"], "--seed"),
     "run": (["run", "--models", "no-such-model", "--out", "{tmp}"], "no-such-model"),
+    "dataset": (["dataset", "init", "{tmp}/file", "--time", "5", "--input", "1", "--output", "2"], "--time 5"),
     "posterior": (["posterior", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "reproduce": (["reproduce", "--out", "{tmp}/file/sub"], "{tmp}/file"),
     "ablate": (["ablate", "--orders", "1,x", "--out", "{tmp}"], "--orders"),

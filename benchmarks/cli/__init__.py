@@ -21,6 +21,7 @@ from .common import OneLineParser
 COMMANDS = {
     "check": ("hysbench.benchmarks.cli.check", "check a dataset folder and summarise its records"),
     "data": ("hysbench.benchmarks.cli.data", "generate a dataset: virtual-dea (the default dataset)"),
+    "dataset": ("hysbench.benchmarks.cli.dataset", "describe a bare CSV file: dataset init writes its dataset.toml"),
     "run": ("hysbench.benchmarks.cli.run", "score every model x identifier on every dataset (writes results/)"),
     "posterior": ("hysbench.benchmarks.cli.posterior",
                   "posterior of a model's parameters with emcee (AR(1) noise; writes results/posterior.md)"),

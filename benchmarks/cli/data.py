@@ -1,10 +1,16 @@
-"""``hysbench data virtual-dea --out DIR [--seed N]``: write the virtual DEA dataset.
+"""``hysbench data virtual-dea --out DIR [--seed N] [--excitation NAME[,NAME...]|all]``: write the virtual DEA dataset.
 
 The dataset is the paper's seven-frequency protocol applied to the virtual DEA
 (``hysbench.data.virtual_dea``): one record per frequency from t = 0 through the
 creep transition to two stable periods, measured by the virtual laser sensor with
 the given seed. The default dataset shipped in data/virtual_dea/ is this command's
 output with the default seed.
+
+With ``--excitation`` the records are the same actuator and sensor under other
+drives (data/excitations.py: triangle, multisine, random, decaying-sine,
+reversal-curves, or ``all``), each after a sine run-in through most of the creep
+transition and scored on the drive only: the unseen-waveform dataset shipped in
+data/virtual_dea_waveforms/ is ``--excitation all`` with the default seed.
 
 DIR is replaced as a whole (written beside it, then moved into place). To protect
 other files, DIR must be absent, empty, or a dataset folder (holding dataset.toml).
@@ -19,11 +25,13 @@ from pathlib import Path
 from hysbench.data.files import OutputError
 from hysbench.models.errors import HysbenchError
 
-from hysbench.data.virtual_dea import DEFAULT_SEED, write_dataset
+from hysbench.data.excitations import EXCITATIONS, ExcitationError
+from hysbench.data.virtual_dea import DEFAULT_SEED, WAVEFORM_DRIVES, write_dataset, write_waveform_dataset
 
-from .common import nonnegative_int
+from .common import comma_list, nonnegative_int
 
-EXAMPLE = "hysbench data virtual-dea --out /tmp/virtual_dea --seed 7"
+EXAMPLE = ("hysbench data virtual-dea --out /tmp/virtual_dea --seed 7\n"
+           "  hysbench data virtual-dea --excitation all --out /tmp/virtual_dea_waveforms")
 
 SEED_MAX = 2**63 - 1
 
@@ -40,6 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output folder (replaced if it is a dataset folder)")
     p.add_argument("--seed", type=nonnegative_int, default=DEFAULT_SEED,
                    help=f"seed of the sensor noise (default {DEFAULT_SEED}, the shipped dataset's)")
+    p.add_argument("--excitation", metavar="NAME[,NAME...]",
+                   help=f"unseen drives instead of the seven sines: {', '.join(EXCITATIONS)}, or all")
 
 
 def check_output_folder(out: Path) -> None:
@@ -58,11 +68,28 @@ def main(args) -> int:
     if not 0 <= args.seed <= SEED_MAX:
         raise DataCommandError(f"--seed must be an integer in 0..{SEED_MAX}, got {args.seed}")
     out = Path(args.out)
+    names = excitation_names(args.excitation)
     check_output_folder(out)
     t0 = time.perf_counter()
     try:
-        write_dataset(out, seed=args.seed)
+        if names:
+            write_waveform_dataset(out, names, seed=args.seed)
+        else:
+            write_dataset(out, seed=args.seed)
     except OSError as exc:
         raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
-    print(f"wrote the virtual DEA dataset (seed {args.seed}) to {out} in {time.perf_counter() - t0:.1f} s")
+    what = f"the virtual DEA under {', '.join(names)}" if names else "the virtual DEA dataset"
+    print(f"wrote {what} (seed {args.seed}) to {out} in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def excitation_names(text: str | None) -> list[str]:
+    names = comma_list(text, "--excitation")
+    if names is None:
+        return []
+    if names == ["all"]:
+        return list(WAVEFORM_DRIVES)
+    unknown = [n for n in names if n not in EXCITATIONS]
+    if unknown:
+        raise ExcitationError(f"--excitation: unknown drive {unknown[0]!r}; known: {', '.join(EXCITATIONS)}, all")
+    return names

@@ -1,4 +1,13 @@
-"""``hysbench run``: every model x identifier on every dataset, resumable and parallel."""
+"""``hysbench run``: every model x identifier on every dataset, resumable and parallel.
+
+Two suites. ``default``: the given datasets (the virtual DEA by default), written to
+matrix.csv and report.md; cells identified on the virtual DEA's seven sines are also
+scored, from their stored Fits, on the unseen waveforms (``--unseen``), a second table
+in report.md and matrix_unseen.csv. ``measured``: every dataset folder holding a
+dataset.toml under ``--datasets-root`` (default ../shared/datasets beside the
+repository), written to matrix_measured.csv and report_measured.md with its own cells
+cache; a folder without a manifest gets a one-line hint naming ``hysbench dataset init``.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +20,7 @@ from pathlib import Path
 
 from hysbench.data.files import ensure_dir
 from hysbench.data.dataset import load_dataset
+from hysbench.data.virtual_dea import default_waveforms_path
 from hysbench.models.errors import HysbenchError
 
 from hysbench.benchmarks.matrix.cells import (DEFAULT_METHODS, code_fingerprint, method_options, package_version,
@@ -18,11 +28,13 @@ from hysbench.benchmarks.matrix.cells import (DEFAULT_METHODS, code_fingerprint,
 from hysbench.benchmarks.matrix.execute import run_matrix
 from hysbench.benchmarks.matrix.report import write_matrix_csv, write_report
 from hysbench.benchmarks.matrix.store import CellStore
+from hysbench.benchmarks.matrix import measured, unseen
 
-from .common import (add_dataset_argument, add_jobs_argument, add_seed_argument, comma_list, dataset_paths,
-                     parse_method_options)
+from .common import (CommandError, add_dataset_argument, add_jobs_argument, add_seed_argument, comma_list,
+                     dataset_paths, parse_method_options)
 
-EXAMPLE = "hysbench run data/virtual_dea --models mrpim,classical-pi --methods varpro,lsq --option lsq.max_nfev=60"
+EXAMPLE = ("hysbench run data/virtual_dea --models mrpim,classical-pi --methods varpro,lsq --option lsq.max_nfev=60\n"
+           "  hysbench run --suite measured --datasets-root ../shared/datasets")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,6 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the identifiers' own default budgets instead of the matrix's (much slower)")
     parser.add_argument("--force", action="store_true", help="recompute cells that are already finished")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    parser.add_argument("--suite", choices=("default", "measured"), default="default",
+                        help="default: the DATASET folders; measured: every dataset under --datasets-root")
+    parser.add_argument("--datasets-root", metavar="DIR", help="folder of dataset folders for --suite measured "
+                        "(default: ../shared/datasets beside the repository)")
+    parser.add_argument("--unseen", metavar="DIR", help="unseen-waveform dataset scored with the Fits of the cells "
+                        f"identified on {unseen.IDENTIFIED_ON} (default: data/virtual_dea_waveforms; 'none': skip)")
 
 
 def _shown(path: Path) -> str:
@@ -49,13 +67,48 @@ def _shown(path: Path) -> str:
         return str(path)
 
 
+def _suite_datasets(args) -> tuple[list, list[str]]:
+    """(path, dataset) pairs of the chosen suite and the lines naming folders it skipped."""
+    if args.suite == "default":
+        if args.datasets_root:
+            raise CommandError("--datasets-root applies to --suite measured only")
+        paths = dataset_paths(args.dataset)
+        for p in paths:
+            if p.is_dir() and not (p / "dataset.toml").is_file():
+                raise CommandError(measured.init_hint(p))  # a bare folder of CSV files: name the next command
+        return [(p, load_dataset(p)) for p in paths], []
+    if args.dataset:
+        raise CommandError("--suite measured takes no DATASET; it scores every dataset under --datasets-root")
+    root = Path(args.datasets_root) if args.datasets_root else measured.default_datasets_root()
+    if not root.is_dir():
+        raise CommandError(f"--datasets-root {root} is not a folder")
+    found, skipped = measured.discover(root)
+    if not found:
+        raise CommandError(f"no folder under {root} holds a dataset.toml" + (f" ({skipped[0]})" if skipped else ""))
+    return found, skipped
+
+
+def _unseen_dataset(args, datasets):
+    if args.suite != "default" or (args.unseen or "").lower() == "none":
+        return None
+    if not any(ds.name == unseen.IDENTIFIED_ON for _, ds in datasets):
+        if args.unseen:
+            raise CommandError(f"--unseen needs cells identified on {unseen.IDENTIFIED_ON!r}; no such dataset is run")
+        return None
+    return load_dataset(args.unseen or default_waveforms_path())
+
+
 def main(args) -> int:
     started = time.perf_counter()
     models = comma_list(args.models, "--models")
     methods = comma_list(args.methods, "--methods")
     user_options = parse_method_options(args.option)
-    paths = dataset_paths(args.dataset)
-    datasets = [(p, load_dataset(p)) for p in paths]
+    datasets, skipped = _suite_datasets(args)
+    if args.suite == "measured" and models is None:
+        models = measured.suite_models()
+    for line in skipped:  # never silent: each folder not scored is named
+        print(f"hysbench run: {line}", file=sys.stderr)
+    unseen_ds = _unseen_dataset(args, datasets)
     names = [ds.name for _, ds in datasets]
     if len(set(names)) != len(names):
         raise HysbenchError(f"two datasets share a name ({', '.join(names)}); names label the results")
@@ -66,38 +119,51 @@ def main(args) -> int:
     cells = plan_cells(datasets, models, methods, args.seed, options)
     if not cells:
         raise HysbenchError("no model/method combination applies; check --models and --methods")
+    is_measured = args.suite == "measured"
+    csv_name, report_name = ((measured.MEASURED_CSV, measured.MEASURED_REPORT) if is_measured
+                             else ("matrix.csv", "report.md"))
     out = ensure_dir(args.out)
-    store = CellStore(out)
+    store = CellStore(out, measured.MEASURED_CELLS if is_measured else "cells")
     reused = sum(1 for c in cells if not args.force and store.get(c.key) is not None)
 
     results: dict[str, dict] = {}
 
     def on_result(res):
         results[res["key"]] = res
-        write_matrix_csv(out, list(results.values()))
+        write_matrix_csv(out, list(results.values()), csv_name)
 
     all_results = run_matrix(cells, store, jobs=args.jobs, dask_address=args.dask, force=args.force,
                              on_result=on_result, quiet=args.quiet)
     ordered = [all_results[c.key] for c in cells]
-    write_matrix_csv(out, ordered)
+    write_matrix_csv(out, ordered, csv_name)
+    extra = []
+    if unseen_ds is not None:
+        scored = unseen.score_cells(ordered, unseen_ds)
+        unseen.write_unseen_csv(out, scored)
+        extra = unseen.unseen_section([r for r in ordered if r["status"] == "ok"], scored, unseen_ds)
     elapsed = time.perf_counter() - started
     header = [
-        f"Generated by `hysbench run` (hysbench {package_version()}, code {code_fingerprint()}), seed {args.seed}. "
-        f"{len(cells)} cells: {len(cells) - reused} computed, {reused} reused from an earlier run.",
+        f"Generated by `hysbench run{' --suite measured' if is_measured else ''}` (hysbench {package_version()}, "
+        f"code {code_fingerprint()}), seed {args.seed}. "
+        f"{len(cells)} cells: {len(cells) - reused} computed, {reused} reused from an earlier run; "
+        f"wall time {elapsed:.0f} s with {args.jobs or os.cpu_count()} worker processes.",
         "",
         "| dataset | folder | records (identification / validation) | content hash |",
         "|---|---|---|---|",
     ] + [f"| {ds.name} | `{_shown(p)}` | {len(ds.identification)} / {len(ds.validation)} | "
          f"`{ds.content_hash()[:12]}` |" for p, ds in datasets]
+    if skipped:
+        header += ["", "Folders not scored:", ""] + [f"- {line}" for line in skipped]
     budget = "the identifiers' own defaults" if args.full_budget else "the matrix's default budget"
     header += ["", f"Identifier options ({budget} and any `--option`): "
                + (", ".join(f"{m}.{k}={v}" for m, o in options.items() for k, v in o.items()) or "none")
                + ". Budgets are part of each cell's key: a rerun with other options recomputes."]
-    write_report(out, ordered, [ds for _, ds in datasets], header)
+    write_report(out, ordered, [ds for _, ds in datasets], header, extra, report_name)
     failed = [r for r in ordered if r["status"] != "ok"]
     if not args.quiet:
         print(f"{len(cells)} cells ({len(cells) - reused} computed, {reused} reused, {len(failed)} failed or "
-              f"non-finite) in {elapsed:.1f} s; wrote {out}/matrix.csv and {out}/report.md")
+              f"non-finite) in {elapsed:.1f} s; wrote {out}/{csv_name} and {out}/{report_name}"
+              + (f" (with the unseen-waveform table, {out}/{unseen.UNSEEN_CSV})" if unseen_ds is not None else ""))
     for r in failed:  # printed even with --quiet: never silent
         print(f"{r['status']}: {r['model']}/{r['method']} on {r['dataset']}: {r['error']}", file=sys.stderr)
     return 1 if failed and len(failed) == len(ordered) else 0

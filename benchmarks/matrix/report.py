@@ -49,8 +49,8 @@ def matrix_csv(results: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_matrix_csv(out: Path, results: list[dict]) -> None:
-    write_atomic(out / "matrix.csv", matrix_csv(results))
+def write_matrix_csv(out: Path, results: list[dict], name: str = "matrix.csv") -> None:
+    write_atomic(out / name, matrix_csv(results))
 
 
 # --- summaries ------------------------------------------------------------
@@ -206,7 +206,9 @@ def error_figure(ds: Dataset, best, out: Path) -> str:
     return name
 
 
-def write_report(out: Path, results: list[dict], datasets: list[Dataset], header: list[str]) -> None:
+def write_report(out: Path, results: list[dict], datasets: list[Dataset], header: list[str],
+                 extra: list[str] = (), name: str = "report.md") -> None:
+    """report.md: a section per dataset, then ``extra`` lines (e.g. the unseen-waveform protocol)."""
     ok = [r for r in results if r["status"] == "ok"]
     failed = [r for r in results if r["status"] != "ok"]
     lines = ["# hysbench benchmark matrix", ""] + header + [""]
@@ -217,4 +219,4 @@ def write_report(out: Path, results: list[dict], datasets: list[Dataset], header
             figures["measured vs predicted loops"] = loops_figure(ds, best, out)
             figures["e_rms per frequency"] = error_figure(ds, best, out)
         lines += dataset_section(ds.name, ok, failed, figures)
-    write_atomic(out / "report.md", "\n".join(lines) + "\n")
+    write_atomic(out / name, "\n".join(lines + list(extra)) + "\n")

@@ -20,8 +20,8 @@ KEPT = ("ok", "nonfinite")  # deterministic outcomes worth keeping; a failed cel
 
 
 class CellStore:
-    def __init__(self, out_dir: str | Path):
-        self.folder = ensure_dir(Path(out_dir) / "cells")
+    def __init__(self, out_dir: str | Path, folder: str = "cells"):
+        self.folder = ensure_dir(Path(out_dir) / folder)
         for stray in self.folder.glob(".*.tmp"):
             stray.unlink(missing_ok=True)
 

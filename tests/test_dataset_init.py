@@ -1,0 +1,67 @@
+"""`hysbench dataset init`: a bare CSV to a loadable dataset in one command; bad columns refused."""
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks.cli import main
+from hysbench.data.dataset import load_dataset
+
+
+def _series(n=400, dt=0.01):
+    t = np.arange(n) * dt
+    u = np.sin(2 * np.pi * 1.0 * t)
+    y = 0.8 * u + 0.1 * np.sign(np.cos(2 * np.pi * t))
+    return t, u, y
+
+
+def test_a_headerless_csv_by_index(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "run1.csv"
+    np.savetxt(csv, np.column_stack([np.arange(t.size), y, t, u]), delimiter=",", fmt="%.10g")  # index, y, t, u
+    assert main(["dataset", "init", str(csv), "--time", "2", "--input", "3", "--output", "1", "--frequency", "1"]) == 0
+    assert "hysbench run" in capsys.readouterr().out
+    ds = load_dataset(tmp_path)
+    rec = ds.records[0]
+    assert ds.name == "run1" and rec.role == "identification" and rec.frequency_hz == 1.0
+    assert np.allclose(rec.t, t) and np.allclose(rec.u, u) and np.allclose(rec.y, y)
+    assert rec.n_scored == 100  # the last period of 1 Hz at 10 ms
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dataset.toml", "run1.csv"]
+
+
+def test_a_csv_with_names_by_name_and_index(tmp_path):
+    t, u, y = _series()
+    csv = tmp_path / "sweep.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="time_s,volts,um", comments="", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "time_s", "--input", "1", "--output", "um",
+                 "--role", "validation", "--window", "1,3", "--name", "my-piezo", "--output-unit", "um"]) == 0
+    ds = load_dataset(tmp_path)
+    rec = ds.records[0]
+    assert (ds.name, ds.input_column, ds.output_unit, rec.role) == ("my-piezo", "volts", "um", "validation")
+    assert np.allclose(rec.y, y) and rec.n_scored == 200
+
+
+@pytest.mark.parametrize("columns, named", [
+    (["--time", "0", "--input", "1", "--output", "9"], "--output 9"),       # index out of range
+    (["--time", "t", "--input", "1", "--output", "2"], "no header row"),    # name on a headerless CSV
+    (["--time", "0", "--input", "1", "--output", "1"], "three different"),  # the same column twice
+    (["--time", "1", "--input", "0", "--output", "2"], "time is not increasing"),  # the loader refuses it
+])
+def test_bad_columns_are_refused_in_one_line_and_nothing_is_written(tmp_path, capsys, columns, named):
+    t, u, y = _series()
+    csv = tmp_path / "bare.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), *columns]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and named in err and "Traceback" not in err
+    assert [p.name for p in tmp_path.iterdir()] == ["bare.csv"]
+
+
+def test_an_unknown_name_lists_the_columns_and_an_existing_manifest_is_kept(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "named.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "volts", "--output", "y"]) == 2
+    assert "no such column (has t, u, y)" in capsys.readouterr().err
+    (tmp_path / "dataset.toml").write_text("keep me")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 2
+    assert "--force" in capsys.readouterr().err and (tmp_path / "dataset.toml").read_text() == "keep me"
