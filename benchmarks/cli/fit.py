@@ -12,7 +12,6 @@ falling back to a plain string).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 

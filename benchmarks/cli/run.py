@@ -12,7 +12,6 @@ cache; a folder without a manifest gets a one-line hint naming ``hysbench datase
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
