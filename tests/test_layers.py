@@ -76,3 +76,13 @@ def test_imports_point_down_only(top):
             if RANK.get(target, -1) > RANK[layer]:
                 upward.append(f"{path.relative_to(ROOT)}:{line} imports {name}")
     assert not upward, "imports pointing up a layer:\n" + "\n".join(upward)
+
+
+def test_no_hysbench_import_inside_a_function():
+    """Imports inside functions are how a cycle hides; every hysbench import is at module level."""
+    hidden = []
+    for _, path in python_files():
+        for line, name, in_function in imported_modules(ast.parse(path.read_text()), module_package(path)):
+            if in_function:
+                hidden.append(f"{path.relative_to(ROOT)}:{line} imports {name} inside a function")
+    assert not hidden, "\n".join(hidden)
