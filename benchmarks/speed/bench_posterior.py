@@ -16,15 +16,16 @@ noise (sigma 0.005 mm, phi 0.95), and the benchmark says so.
 
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
 from hysbench.data.dataset import load_dataset
-from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.identification.posterior import LogPosterior, sample_posterior, simulated_ar1_dataset
 from hysbench.models import get_model
 
-DEFAULT_DATASET = default_dataset_path()
+REPO = Path(__file__).resolve().parents[2]
+DEFAULT_DATASET = REPO / "data" / "virtual_dea"
 TARGET_SECONDS = 120.0
 TARGET_ESS = 1000
 
