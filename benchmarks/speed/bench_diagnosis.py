@@ -10,16 +10,16 @@ figures included, numba caches warm):
   through the creep transition, 2.9 million samples), when present.
 """
 
+from pathlib import Path
 
 import pytest
 
 from hysbench.benchmarks.cli import main as hysbench
 from hysbench.benchmarks.diagnosis.planted import planted_dataset
 from hysbench.data import save_dataset
-from hysbench.data.virtual_dea import default_dataset_path
 
 TARGET_S = 60.0
-VIRTUAL_DEA = default_dataset_path()
+VIRTUAL_DEA = Path(__file__).resolve().parents[2] / "data" / "virtual_dea"
 
 
 def _diagnose(folder, out):
