@@ -5,6 +5,7 @@ import pytest
 
 from hysbench.benchmarks.cli import COMMANDS, main
 from hysbench.benchmarks.cli.common import CommandError, parse_key_values, parse_method_options
+from hysbench.benchmarks.cli.report import REPORTS
 from hysbench.data.virtual_dea import default_dataset_path
 
 
@@ -13,6 +14,12 @@ def test_every_command_shows_an_example(command, capsys):
     assert main([command, "--help"]) == 0
     out = capsys.readouterr().out
     assert "example:\n  hysbench " + command in out
+
+
+@pytest.mark.parametrize("report", list(REPORTS))
+def test_every_report_shows_an_example(report, capsys):
+    assert main(["report", report, "--help"]) == 0
+    assert f"example (every argument at its default):\n  hysbench report {report}" in capsys.readouterr().out
 
 
 BAD = {

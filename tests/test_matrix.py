@@ -16,6 +16,7 @@ from dataclasses import replace
 
 from hysbench.benchmarks.matrix import cells as cells_module
 from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
+from hysbench.benchmarks.matrix.execute import run_matrix
 from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data import load_dataset
@@ -238,6 +239,25 @@ def test_stored_cells_of_other_code_or_format_are_recomputed(small_dataset, tmp_
     assert store.get(cell.key) is None
     store.put({**result, "key": "0" * 20})
     assert store.get(cell.key) is None
+
+
+def test_run_matrix_reuses_a_cell_of_the_same_code_and_recomputes_after_a_code_change(small_dataset, tmp_path,
+                                                                                     monkeypatch):
+    ds = load_dataset(small_dataset)
+    store = CellStore(tmp_path)
+    computed = []
+
+    def plan():
+        return plan_cells([(small_dataset, ds)], ["classical-pi"], ["varpro"], seed=0)
+
+    run_matrix(plan(), store, jobs=1, on_result=computed.append, quiet=True)
+    assert len(computed) == 1
+    run_matrix(plan(), store, jobs=1, on_result=computed.append, quiet=True)
+    assert len(computed) == 1  # same code: the stored cell is reused, nothing runs
+    monkeypatch.setattr(cells_module, "code_fingerprint", lambda: "edited code")
+    results = run_matrix(plan(), store, jobs=1, on_result=computed.append, quiet=True)
+    assert len(computed) == 2 and computed[1]["key"] != computed[0]["key"]  # other code: recomputed
+    assert list(results) == [computed[1]["key"]]
 
 
 class _NaNModel(HysteresisModel):

@@ -103,7 +103,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="report", metavar="NAME", parser_class=OneLineParser)
     sub.required = True
     for name, (help_text, arguments, _) in REPORTS.items():
-        arguments(sub.add_parser(name, help=help_text, description=help_text))
+        arguments(sub.add_parser(name, help=help_text, description=help_text,
+                                 epilog=f"example (every argument at its default):\n  hysbench report {name}",
+                                 formatter_class=argparse.RawDescriptionHelpFormatter))
 
 
 def main(args) -> int:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import math
 import time
 import traceback
 from dataclasses import asdict, dataclass, field
@@ -208,8 +207,8 @@ def run_cell(cell: Cell) -> dict:
         t0 = time.perf_counter()
         nonfinite = [r.file for r in ds.records if not np.all(np.isfinite(fit.simulate(r.u, r.dt)))]
         simulate_seconds = time.perf_counter() - t0
-        if not math.isfinite(fit.fitness):
-            nonfinite = nonfinite or [r for r in fit.fitted_on]
+        if not fit.success:  # the Fit's own flag: output not finite at the identified parameters
+            nonfinite = nonfinite or list(fit.fitted_on)
         status = "nonfinite" if nonfinite else "ok"
         error = f"non-finite model output on {', '.join(nonfinite)}" if nonfinite else ""
         return CellResult(
