@@ -31,7 +31,8 @@ from .controllers import PI, PI_BANDWIDTH_HZ, LinearGain, ModelInverse
 from .plant import DEAPlant
 from .references import Reference, references
 
-DEFAULT_MODELS = ("classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxation", "viscoelastic")
+DEFAULT_MODELS = ("classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxation", "mrpim+creep", "mrpim+interference",
+                  "viscoelastic")
 
 
 @dataclass
