@@ -42,13 +42,13 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-import scipy.linalg
 from scipy.optimize import least_squares, lsq_linear
 from scipy.stats import qmc
 
 from .base import Identifier
 from .errors import IdentificationError
 from .jacobian import CachedResidual, forward_difference
+from .linear import column_norms, solve_spectrum, spectrum_from_gram, spectrum_from_qr
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
 class Varpro(Identifier):
@@ -175,17 +175,11 @@ class SeparableProblem:
 
         if accurate:
             A = np.concatenate([wm * Phi for wm, Phi in zip(w, blocks)])
-            with np.errstate(over="ignore"):
-                D = np.sqrt(np.einsum("ij,ij->j", A, A))
+            D = column_norms(A)
             if not np.all(np.isfinite(D)):
                 self.problem.n_nonfinite += 1
                 return blown_up
-            D[~(D > 0)] = 1.0
-            Rb = scipy.linalg.qr(np.column_stack([A / D, self.b]), mode="r", check_finite=False)[0][: n + 1]
-            U, s, Vt = np.linalg.svd(Rb[:n, :n])  # A_s = Q U S V^T
-            V = Vt.T
-            ev = s * s
-            rhs = s * (U.T @ Rb[:n, n])  # V^T A_s^T b, with Rb[:n, n] = Q^T b
+            ev, V, rhs = spectrum_from_qr(A / D, self.b)
         else:
             with np.errstate(over="ignore", invalid="ignore"):
                 G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
@@ -195,24 +189,12 @@ class SeparableProblem:
                 return blown_up
             D = np.sqrt(np.diag(G)).copy()
             D[~(D > 0)] = 1.0
-            ev, V = np.linalg.eigh(G / np.outer(D, D))
-            ev, V = ev[::-1], V[:, ::-1]
-            rhs = V.T @ (Atb / D)
-        ev = np.maximum(ev, 0.0)
+            ev, V, rhs = spectrum_from_gram(G / np.outer(D, D), Atb / D)
+        spec = solve_spectrum(ev, V, rhs, self.max_condition)
+        ev, cond, alpha2, regularised = spec.ev, spec.condition_number, spec.alpha2, spec.regularised
         ev_max = float(ev[0]) if ev.size else 0.0
-        ev_min = float(ev[-1]) if ev.size else 0.0
-        cond = math.sqrt(ev_max / ev_min) if ev_min > 0 else math.inf
-        regularised = cond > self.max_condition
-        alpha2 = ev_max / self.max_condition**2 if regularised else 0.0
-        denom = ev + alpha2
-        safe = denom > ev_max * 1e-15 if ev_max > 0 else denom > 0
-
-        def apply_inverse(v):  # (A_s^T A_s + alpha2 I)^+ in V-coordinates
-            c = np.zeros_like(v)
-            c[safe] = v[safe] / denom[safe]
-            return V @ c
-
-        x = apply_inverse(rhs) / D
+        denom, safe = spec.denominators, spec.kept
+        x = spec.x_scaled / D
         bounded = False
         lo, hi = self.lin_lower, self.lin_upper
         if np.any(x < lo) or np.any(x > hi):

@@ -18,6 +18,7 @@ import numpy as np
 import pysindy as ps
 
 from hysbench.identification.criteria import bic
+from hysbench.identification.linear import scaled_lstsq
 from hysbench.models.extended import CREEP_TIME_BOUNDS, TAU_BOUNDS
 from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank
 
@@ -71,10 +72,7 @@ def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int =
     Theta = np.concatenate(blocks)
     # orthogonal to the base model's regressors, unit norm
     A = np.concatenate(bc.rows)
-    d = np.sqrt(np.einsum("ij,ij->j", A, A))
-    d[~(d > 0)] = 1.0
-    coef = np.linalg.lstsq(A / d, Theta, rcond=1e-10)[0]
-    Theta = Theta - (A / d) @ coef
+    Theta = Theta - A @ scaled_lstsq(A, Theta, rcond=1e-10)
     norms = np.sqrt(np.einsum("ij,ij->j", Theta, Theta))
     keep = norms > 1e-9 * max(float(norms.max()), 1e-300)
     Theta = Theta[:, keep] / norms[keep]

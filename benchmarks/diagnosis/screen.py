@@ -35,6 +35,7 @@ from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
 from hysbench.identification.criteria import effective_sample_size
+from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
@@ -63,12 +64,8 @@ class _BaseColumns:
 
 
 def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares with unit-norm columns (SVD, minimum norm): (theta, residual).
-
-    (The identification layer's solver needs a ``Problem``; see the report for the entry point wanted.)"""
-    d = np.sqrt(np.einsum("ij,ij->j", A, A))
-    d[~(d > 0)] = 1.0
-    theta = np.linalg.lstsq(A / d, y, rcond=1e-10)[0] / d
+    """Column-scaled least squares (minimum norm below 1e-10 of the largest singular value): (theta, residual)."""
+    theta = scaled_lstsq(A, y, rcond=1e-10)
     return theta, y - A @ theta
 
 

@@ -1,0 +1,83 @@
+"""The one column-scaled linear least-squares solve (identification/linear.py) against obvious references."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hysbench.identification.linear import (column_norms, scaled_lstsq, solve_spectrum, spectrum_from_gram,
+                                            spectrum_from_qr)
+
+
+def _design(seed: int, n: int = 60, k: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    scales = 10.0 ** rng.uniform(-4, 4, k)  # columns over eight decades
+    return rng.normal(size=(n, k)) * scales, rng.normal(size=n)
+
+
+def _pinv_reference(A, b, rcond):
+    """Obvious reference: explicit SVD pseudo-inverse of the column-scaled matrix."""
+    d = np.linalg.norm(A, axis=0)
+    d[d == 0] = 1.0
+    U, s, Vt = np.linalg.svd(A / d, full_matrices=False)
+    keep = s > rcond * s[0]
+    return (Vt[keep].T @ ((U[:, keep].T @ b) / s[keep].reshape(-1, *([1] * (b.ndim - 1))))) / (
+        d[:, None] if b.ndim == 2 else d)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000))
+def test_full_rank_matches_the_svd_reference(seed):
+    A, b = _design(seed)
+    x = scaled_lstsq(A, b)
+    ref = _pinv_reference(A, b, 1e-10)
+    np.testing.assert_allclose(x * column_norms(A), ref * column_norms(A), rtol=1e-9, atol=1e-12)
+
+
+def test_rank_deficient_gives_the_minimum_norm_solution_in_scaled_coordinates():
+    A, b = _design(1)
+    A = np.column_stack([A, 3.0 * A[:, 1], np.zeros(A.shape[0])])  # a repeated direction and a zero column
+    x = scaled_lstsq(A, b)
+    ref = _pinv_reference(A, b, 1e-10)
+    np.testing.assert_allclose(x, ref, rtol=1e-8, atol=1e-12)
+    assert x[-1] == 0.0
+    # the residual is the least-squares one: orthogonal to every column
+    assert np.max(np.abs((A / column_norms(A)).T @ (b - A @ x))) < 1e-10
+
+
+def test_several_right_hand_sides_equal_one_at_a_time():
+    A, b = _design(2)
+    B = np.column_stack([b, 2 * b + 1, np.sin(np.arange(b.size))])
+    X = scaled_lstsq(A, B)
+    for j in range(B.shape[1]):
+        np.testing.assert_allclose(X[:, j], scaled_lstsq(A, B[:, j]), rtol=1e-12, atol=1e-14)
+
+
+def test_ridge_above_max_condition_is_the_explicit_ridge_formula():
+    A, b = _design(3)
+    A[:, 4] = A[:, 3] * (A[0, 4] / A[0, 3]) + 1e-7 * np.abs(A[:, 3]).max() * np.random.default_rng(0).normal(
+        size=A.shape[0])  # nearly collinear columns
+    D = column_norms(A)
+    As = A / D
+    spec = solve_spectrum(*spectrum_from_qr(As, b), max_condition=1e3)
+    assert spec.regularised and spec.condition_number > 1e3
+    s_max = np.linalg.svd(As, compute_uv=False)[0]
+    alpha2 = (s_max / 1e3) ** 2
+    ref = np.linalg.solve(As.T @ As + alpha2 * np.eye(As.shape[1]), As.T @ b)
+    np.testing.assert_allclose(spec.x_scaled, ref, rtol=1e-7)
+
+
+def test_gram_and_qr_spectra_agree_when_well_conditioned():
+    A, b = _design(4)
+    As = A / column_norms(A)
+    fast = solve_spectrum(*spectrum_from_gram(As.T @ As, As.T @ b))
+    accurate = solve_spectrum(*spectrum_from_qr(As, b))
+    np.testing.assert_allclose(fast.x_scaled, accurate.x_scaled, rtol=1e-9)
+    assert fast.condition_number == pytest.approx(accurate.condition_number, rel=1e-6)
+
+
+def test_non_finite_input_is_refused():
+    A, b = _design(5)
+    A[3, 2] = np.nan
+    with pytest.raises(ValueError, match="not finite"):
+        scaled_lstsq(A, b)
