@@ -10,7 +10,6 @@ figures included, numba caches warm):
   through the creep transition, 2.9 million samples), when present.
 """
 
-from pathlib import Path
 
 import pytest
 
@@ -20,11 +19,12 @@ from hysbench.benchmarks.cli import main as hysbench
 from hysbench.benchmarks.diagnosis.planted import low_pass_convolution
 from hysbench.data import save_dataset
 from hysbench.data.dataset import Dataset, Record
+from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.data.protocol import FREQUENCIES_HZ, SAMPLE_TIME_S, paper_voltage, protocol_time, role_of, weight_of
 from hysbench.models import get_model
 
 TARGET_S = 60.0
-VIRTUAL_DEA = Path(__file__).resolve().parents[2] / "data" / "virtual_dea"
+VIRTUAL_DEA = default_dataset_path()
 
 
 def _diagnose(folder, out):

@@ -32,14 +32,14 @@ import numpy as np
 import pytest
 
 from hysbench.data.dataset import load_dataset
+from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.identification.posterior import LogPosterior, predictive, sample_posterior, simulated_ar1_dataset
 from hysbench.models import get_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 from misspecified_data import planted_relaxation_dataset, virtual_dea_dataset  # noqa: E402  (the tests' generators)
 
-REPO = Path(__file__).resolve().parents[2]
-DEFAULT_DATASET = REPO / "data" / "virtual_dea"
+DEFAULT_DATASET = default_dataset_path()
 TARGET_SECONDS = 120.0
 TARGET_ESS = 1000
 
