@@ -50,6 +50,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
+from .inverse import DEFAULT_GRID, SEARCH_SIZE, InverseArguments, Inversion, search_clipped, search_done, search_next, search_start
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
@@ -137,44 +138,52 @@ def _taylor3(z, h, sigma, beta, gamma, n):
 
 
 @njit(cache=True, nogil=True)
+def bouc_wen_step(z, d, beta, gamma, n):
+    """z after one sample interval in which xi changes by d (linear in between; module docstring);
+    a z that leaves (-Z_CAP, Z_CAP) (or NaN) comes back as +-Z_CAP, the caller then holds it."""
+    if d == 0.0:
+        return z
+    sigma = 1.0 if d > 0.0 else -1.0
+    if n == 1.0:
+        z = _exact_linear(z, d, sigma, beta, gamma)
+    else:
+        az = abs(z)
+        L = n * (abs(beta) + abs(gamma)) * (az ** (n - 1.0) if az > 1.0 else 1.0)
+        m = int(math.ceil(abs(d) * L / RK_STEP))
+        if m < 1:
+            m = 1
+        elif m > MAX_SUBSTEPS:
+            m = MAX_SUBSTEPS
+        h = d / m
+        if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
+            z_new = _taylor3(z, d, sigma, beta, gamma, n)
+            if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
+                z = z_new
+                m = 0
+        for _ in range(m):
+            if n < 2.0 and abs(z) <= 2.0 * abs(h):
+                # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
+                for _ in range(NEAR_ZERO_SPLIT):
+                    z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
+            else:
+                z = _rk4_crossing(z, h, sigma, beta, gamma, n)
+    if not abs(z) < Z_CAP:  # a diverging set (or NaN)
+        z = -Z_CAP if z < 0.0 else Z_CAP
+    return z
+
+
+@njit(cache=True, nogil=True)
 def _bouc_wen_z(xi, beta, gamma, n, out):
-    """z(k) for one parameter set into ``out``."""
+    """z(k) for one parameter set into ``out``; once z reaches the cap it is held there."""
     n_t = xi.shape[0]
     z = 0.0
     out[0] = 0.0
-    stiff0 = n * (abs(beta) + abs(gamma))
     for k in range(1, n_t):
-        d = xi[k] - xi[k - 1]
-        if d != 0.0:
-            sigma = 1.0 if d > 0.0 else -1.0
-            if n == 1.0:
-                z = _exact_linear(z, d, sigma, beta, gamma)
-            else:
-                az = abs(z)
-                L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
-                m = int(math.ceil(abs(d) * L / RK_STEP))
-                if m < 1:
-                    m = 1
-                elif m > MAX_SUBSTEPS:
-                    m = MAX_SUBSTEPS
-                h = d / m
-                if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
-                    z_new = _taylor3(z, d, sigma, beta, gamma, n)
-                    if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
-                        z = z_new
-                        m = 0
-                for _ in range(m):
-                    if n < 2.0 and abs(z) <= 2.0 * abs(h):
-                        # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
-                        for _ in range(NEAR_ZERO_SPLIT):
-                            z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
-                    else:
-                        z = _rk4_crossing(z, h, sigma, beta, gamma, n)
-            if not abs(z) < Z_CAP:  # a diverging set (or NaN): hold z at the cap from here on
-                z = -Z_CAP if z < 0.0 else Z_CAP
-                for j in range(k, n_t):
-                    out[j] = z
-                return
+        z = bouc_wen_step(z, xi[k] - xi[k - 1], beta, gamma, n)
+        if abs(z) >= Z_CAP:  # a diverging set: hold z at the cap from here on
+            for j in range(k, n_t):
+                out[j] = z
+            return
         out[k] = z
 
 
@@ -216,11 +225,47 @@ def bouc_wen_batch(xi, betas, gammas, ns, kxs, kzs, offsets):
     return out
 
 
+@njit(cache=True, nogil=True)
+def bouc_wen_candidate(u, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset):
+    """(y, xi, z) at this sample for input u, from xi1 = xi(k-1) and z = z(k-1) (``bouc_wen_step``)."""
+    xi = (2.0 * u - (range_hi + range_lo)) / (range_hi - range_lo)
+    if not first and abs(z) < Z_CAP:
+        z = bouc_wen_step(z, xi - xi1, beta, gamma, n)
+    return offset + kx * xi + kz * z, xi, z
+
+
+@njit(cache=True)
+def bouc_wen_steps(yd, u_given, range_lo, range_hi, beta, gamma, n, kx, kz, offset, u_limit_lo, u_limit_hi, u_start,
+                   max_step, n_grid, tol):
+    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
+    derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
+    given = u_given.shape[0] > 0
+    n_t = u_given.shape[0] if given else yd.shape[0]
+    u_out, y_out = np.empty(n_t), np.empty(n_t)
+    clipped = np.zeros(n_t, dtype=np.bool_)
+    st = np.empty(SEARCH_SIZE)
+    h = (u_limit_hi - u_limit_lo) / n_grid
+    u1, xi1, z = u_start, 0.0, 0.0
+    for k in range(n_t):
+        first = k == 0
+        if given:
+            x = u_given[k]
+        else:
+            x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, tol)
+            while not search_done(st):
+                y = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)[0]
+                x = search_next(st, y - yd[k], np.nan)
+            clipped[k] = search_clipped(st)
+        y, xi1, z = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)
+        u_out[k], y_out[k], u1 = x, y, x
+    return u_out, clipped, y_out
+
+
 class BoucWen(HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
-    inverse_unavailable = "an ODE driven by the input's rate; no step inverse is implemented"
+    inverse_unavailable = None
 
     def __init__(self, offset: bool = True):
         self.offset = offset
@@ -262,6 +307,41 @@ class BoucWen(HysteresisModel):
             return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
                                    offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    def _step_arguments(self, params, input_range):
+        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
+        if vec.shape != (self.n_params,):
+            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
+        p = self.unpack(vec)
+        lo, hi = map(float, input_range)
+        if not hi > lo:
+            raise ModelError(f"model {self.name!r} needs an input_range of positive width, got ({lo!r}, {hi!r})")
+        return lo, hi, p["beta"], p["gamma"], p["n"], p["kx"], p["kz"], p.get("offset", 0.0)
+
+    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
+        """The forward model through the inverse's step kernel (equals ``simulate``)."""
+        u = self._check_input(u, dt)
+        lo, hi = self._input_range(u, input_range)
+        return bouc_wen_steps(np.zeros(0), u, *self._step_arguments(params, (lo, hi)), lo, hi, u[0], np.inf, 2, 0.0)[2]
+
+    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
+               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
+        """The causal numerical inverse (arguments as ``inverse.StepInvertible.invert``). At each
+        sample z(k) is z(k-1) integrated over the interval with xi linear from xi(k-1) to the
+        candidate (``bouc_wen_step``, as the forward model), so y = c + k_x xi + k_z z(k) is
+        continuous in u and equals y(k-1) at u(k-1); the search (``inverse.search_next``,
+        derivative-free) walks out from u(k-1) and takes the nearest root. Its slope in u is
+        (k_x + k_z dz/dxi) dxi/du with dz/dxi = 1 - beta sgn(du) |z|^(n-1) z - gamma |z|^n: it
+        flattens where z nears its bound (beta + gamma)^(-1/n) and turns back where
+        k_x + k_z dz/dxi changes sign (k_x, k_z of opposite signs, or gamma < 0 making
+        dz/dxi > 1 on one branch with k_z < 0). There, and beyond the outputs reachable
+        within the limits, the sample is clipped to the nearest output the walk visits and
+        counted. n != 1 is integrated by RK4 with a step count that jumps with |du|: y is
+        continuous in u up to the scheme's error (< 1e-8 of |z|), within which a root may be missed."""
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        u, clipped, _ = bouc_wen_steps(a.yd, np.zeros(0), *self._step_arguments(params, a.input_range), a.lo, a.hi,
+                                       a.u_start, a.max_step, a.n_grid, a.tol)
+        return Inversion(u, clipped)
 
     def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
         u = self._check_input(u, dt)

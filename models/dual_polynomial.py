@@ -39,7 +39,6 @@ from .errors import ModelError
 
 class DualPolynomial(BranchModel):
     name = "dual-polynomial"
-    inverse_unavailable = "two branch polynomials switched by the input's direction; no step inverse is implemented"
 
     def __init__(self, order: int = 4, offset: bool = True):
         super().__init__(offset=offset)
@@ -52,13 +51,6 @@ class DualPolynomial(BranchModel):
 
     def _halfwidth_parameters(self):
         return [(f"h{j}", f"half-width H: coefficient of (1 - xi^2) xi^{j}") for j in range(self.order - 1)]
-
-    def _centre_basis(self, xi):
-        return self._powers(xi, 1, self.order)
-
-    def _halfwidth_basis(self, xi_clipped):
-        envelope = 1.0 - xi_clipped * xi_clipped
-        return envelope[:, None] * self._powers(xi_clipped, 0, self.order - 2)
 
     def branch_polynomials(self, params) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients (xi^0 ... xi^n, offset included) of P_rise + c and P_fall + c."""

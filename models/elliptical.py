@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .branches import BranchModel
+from .branches import ELLIPSE, BranchModel
 from .errors import ModelError
 
 LINEARISATIONS = ("square", "none")
@@ -48,8 +48,7 @@ LINEARISATIONS = ("square", "none")
 
 class Elliptical(BranchModel):
     name = "elliptical"
-    inverse_unavailable = ("the output switches branch with the input's direction and follows sqrt(1 - xi^2); "
-                           "no step inverse is implemented")
+    halfwidth_kind = ELLIPSE
 
     def __init__(self, linearise: str = "square", poly_order: int = 1, offset: bool = True):
         super().__init__(offset=offset)
@@ -69,8 +68,6 @@ class Elliptical(BranchModel):
     def _linearised(self, u):
         return u * np.abs(u) if self.linearise == "square" else u
 
-    def _centre_basis(self, xi):
-        return self._powers(xi, 1, self.poly_order)
-
-    def _halfwidth_basis(self, xi_clipped):
-        return np.sqrt(np.maximum(1.0 - xi_clipped * xi_clipped, 0.0))[:, None]
+    @property
+    def square_input(self) -> bool:
+        return self.linearise == "square"

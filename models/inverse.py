@@ -191,30 +191,127 @@ def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0
     return out
 
 
+# --- the root search, one home for every model's inverse ------------------------------
+# A reverse-communication search: the model's inversion kernel evaluates g = y(x) - y_d at
+# the x the search asks for and hands (g, dy/du) back, until the search is done. So one
+# jitted search serves every model's own (cached) kernel without passing functions.
+(S_PHASE, S_X, S_RESULT, S_CLIPPED, S_START, S_LO, S_HI, S_H, S_TOL, S_CLIP_TOL, S_BEST_U, S_BEST_G, S_UP_X,
+ S_UP_G, S_DN_X, S_DN_G, S_UP_DONE, S_DN_DONE, S_J, S_SIDE, S_XA, S_GA, S_XB, S_GB, S_G_PREV, S_ITER) = range(26)
+SEARCH_SIZE = 26
+PH_START, PH_WALK, PH_REFINE, PH_DONE = 0.0, 1.0, 2.0, 3.0
+
+
 @njit(cache=True, nogil=True)
-def _refine(xa, ga, xb, gb, target, tol, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-            fa, fb0, fb1, fpow, fw):
-    """Safeguarded Newton on a bracket [xa, xb] with g(xa) g(xb) < 0: a Newton step is taken when it
-    stays inside the bracket and the previous step at least halved |g|, else the bracket is bisected."""
-    x = xa if abs(ga) < abs(gb) else xb
-    g_prev = np.inf
-    for _ in range(NEWTON_ITERATIONS):
-        y, dy = step_output(x, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                            fa, fb0, fb1, fpow, fw)
-        gx = y - target
-        if abs(gx) <= tol:
-            return x
-        if (gx > 0) == (ga > 0):
-            xa, ga = x, gx
+def search_start(st, start, limit_lo, limit_hi, max_step, h, tol, clip_tol):
+    """Begin the search around the previous input ``start`` within the limits and +- max_step of
+    it (walk step h): returns the first x to evaluate. ``tol``: |g| that counts as a root;
+    ``clip_tol``: where no sign change is found, the sample counts as clipped when the nearest
+    output misses by more."""
+    st[:] = 0.0
+    st[S_PHASE] = PH_START
+    st[S_START], st[S_H], st[S_TOL], st[S_CLIP_TOL] = start, h, tol, clip_tol
+    st[S_LO], st[S_HI] = max(limit_lo, start - max_step), min(limit_hi, start + max_step)
+    st[S_X] = start
+    return start
+
+
+@njit(cache=True, nogil=True)
+def search_done(st):
+    return st[S_PHASE] == PH_DONE
+
+
+@njit(cache=True, nogil=True)
+def search_clipped(st):
+    return st[S_CLIPPED] != 0.0
+
+
+@njit(cache=True, nogil=True)
+def _finish(st, x, clipped):
+    st[S_RESULT] = x
+    st[S_CLIPPED] = 1.0 if clipped else 0.0
+    st[S_PHASE] = PH_DONE
+    st[S_X] = x
+    return x
+
+
+@njit(cache=True, nogil=True)
+def _walk_next(st):
+    """The next point of the outward walk (up, down, alternately), or the end of the search."""
+    while True:
+        up_done, dn_done = st[S_UP_DONE] != 0.0, st[S_DN_DONE] != 0.0
+        if up_done and dn_done:
+            return _finish(st, st[S_BEST_U], st[S_BEST_G] > st[S_CLIP_TOL])
+        if st[S_SIDE] >= 2.0:
+            st[S_SIDE] = 0.0
+            st[S_J] += 1.0
+        side = st[S_SIDE]
+        if (side == 0.0 and up_done) or (side == 1.0 and dn_done):
+            st[S_SIDE] = side + 1.0
+            continue
+        step = st[S_J] * st[S_H]
+        x = min(st[S_START] + step, st[S_HI]) if side == 0.0 else max(st[S_START] - step, st[S_LO])
+        st[S_X] = x
+        return x
+
+
+@njit(cache=True, nogil=True)
+def search_next(st, g, dy):
+    """Hand back g(x) (and dy/du at x; NaN where the model gives none: secant steps) for the x the
+    search asked for; returns the next x (the result once ``search_done``)."""
+    x = st[S_X]
+    tol = st[S_TOL]
+    phase = st[S_PHASE]
+    if phase == PH_START:
+        st[S_BEST_U], st[S_BEST_G] = x, abs(g)
+        if abs(g) <= tol:
+            return _finish(st, x, False)
+        st[S_UP_X], st[S_UP_G], st[S_DN_X], st[S_DN_G] = x, g, x, g
+        st[S_UP_DONE] = 1.0 if x >= st[S_HI] else 0.0
+        st[S_DN_DONE] = 1.0 if x <= st[S_LO] else 0.0
+        st[S_J], st[S_SIDE], st[S_PHASE] = 1.0, 0.0, PH_WALK
+        return _walk_next(st)
+    if phase == PH_WALK:
+        if abs(g) < st[S_BEST_G]:
+            st[S_BEST_U], st[S_BEST_G] = x, abs(g)
+        up = st[S_SIDE] == 0.0
+        px, pg = (st[S_UP_X], st[S_UP_G]) if up else (st[S_DN_X], st[S_DN_G])
+        if abs(g) <= tol:
+            return _finish(st, x, False)
+        if (g > 0) != (pg > 0):  # a bracket: refine from its better end (evaluated again, for dy/du)
+            st[S_XA], st[S_GA], st[S_XB], st[S_GB] = px, pg, x, g
+            st[S_G_PREV], st[S_ITER], st[S_PHASE] = np.inf, 0.0, PH_REFINE
+            st[S_X] = px if abs(pg) < abs(g) else x
+            return st[S_X]
+        if up:
+            st[S_UP_X], st[S_UP_G], st[S_UP_DONE] = x, g, 1.0 if x >= st[S_HI] else 0.0
         else:
-            xb, gb = x, gx
-        lo, hi = min(xa, xb), max(xa, xb)
-        if hi - lo <= 1e-15 * (abs(lo) + abs(hi) + 1e-300):
-            break
-        xn = x - gx / dy if dy != 0.0 else 0.5 * (lo + hi)
-        x = xn if (lo < xn < hi and abs(gx) <= 0.5 * g_prev) else 0.5 * (lo + hi)
-        g_prev = abs(gx)
-    return xa if abs(ga) < abs(gb) else xb
+            st[S_DN_X], st[S_DN_G], st[S_DN_DONE] = x, g, 1.0 if x <= st[S_LO] else 0.0
+        st[S_SIDE] += 1.0
+        return _walk_next(st)
+    # PH_REFINE: safeguarded Newton (secant without dy/du) on the bracket [xa, xb]: a step is
+    # taken when it stays inside the bracket and the previous one at least halved |g|, else bisection
+    xa, ga, xb, gb = st[S_XA], st[S_GA], st[S_XB], st[S_GB]
+    if abs(g) <= tol:
+        return _finish(st, x, False)
+    if (g > 0) == (ga > 0):
+        xa, ga = x, g
+    else:
+        xb, gb = x, g
+    st[S_XA], st[S_GA], st[S_XB], st[S_GB] = xa, ga, xb, gb
+    lo, hi = min(xa, xb), max(xa, xb)
+    if hi - lo <= 1e-15 * (abs(lo) + abs(hi) + 1e-300):
+        return _finish(st, xa if abs(ga) < abs(gb) else xb, False)
+    if dy != dy:  # NaN: secant through the bracket
+        xn = xb - gb * (xb - xa) / (gb - ga)
+    else:
+        xn = x - g / dy if dy != 0.0 else 0.5 * (lo + hi)
+    x_next = xn if (lo < xn < hi and abs(g) <= 0.5 * st[S_G_PREV]) else 0.5 * (lo + hi)
+    st[S_G_PREV] = abs(g)
+    st[S_ITER] += 1.0
+    if st[S_ITER] >= NEWTON_ITERATIONS:
+        return _finish(st, xa if abs(ga) < abs(gb) else xb, False)
+    st[S_X] = x_next
+    return x_next
 
 
 @njit(cache=True)
@@ -227,56 +324,21 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
     clipped = np.zeros(n, dtype=np.bool_)
     w = np.zeros(r_lo.shape[0])
     xf = np.zeros(fa.shape[0])
+    st = np.empty(SEARCH_SIZE)
     h = (u_limit_hi - u_limit_lo) / n_grid
     u1 = u2 = min(max(u_start, u_limit_lo), u_limit_hi)
     for k in range(n):
         first = k == 0
-        target = yd[k]
-        b = base[k]
-        u_lo = max(u_limit_lo, u1 - max_step)
-        u_hi = min(u_limit_hi, u1 + max_step)
-        start = u1
-        g0 = step_output(start, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                         fa, fb0, fb1, fpow, fw)[0] - target
-        best_u, best_g = start, abs(g0)
-        found = abs(g0) <= tol
-        u = start
-        xa = ga = xb = gb = 0.0
-        if not found:
-            up_x, up_g, dn_x, dn_g = start, g0, start, g0
-            up_done, dn_done = start >= u_hi, start <= u_lo
-            j = 1
-            while not found and not (up_done and dn_done):
-                for side in range(2):
-                    if (side == 0 and up_done) or (side == 1 and dn_done):
-                        continue
-                    x = min(start + j * h, u_hi) if side == 0 else max(start - j * h, u_lo)
-                    g = step_output(x, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                                    fa, fb0, fb1, fpow, fw)[0] - target
-                    if abs(g) < best_g:
-                        best_u, best_g = x, abs(g)
-                    px, pg = (up_x, up_g) if side == 0 else (dn_x, dn_g)
-                    if abs(g) <= tol:
-                        u, found = x, True
-                        break
-                    if (g > 0) != (pg > 0):
-                        xa, ga, xb, gb = px, pg, x, g
-                        found = True
-                        u = _refine(xa, ga, xb, gb, target, tol, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo,
-                                    g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
-                        break
-                    if side == 0:
-                        up_x, up_g, up_done = x, g, x >= u_hi
-                    else:
-                        dn_x, dn_g, dn_done = x, g, x <= u_lo
-                j += 1
-        if not found:
-            u = best_u
-            clipped[k] = True
-        u_out[k] = u
-        step_advance(u, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
-        u2 = u if first else u1
-        u1 = u
+        x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, tol)
+        while not search_done(st):
+            y, dy = step_output(x, first, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                                fa, fb0, fb1, fpow, fw)
+            x = search_next(st, y - yd[k], dy)
+        u_out[k] = x
+        clipped[k] = search_clipped(st)
+        step_advance(x, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
+        u2 = x if first else u1
+        u1 = x
     return u_out, clipped
 
 
@@ -320,28 +382,47 @@ class StepInvertible:
         that makes the model output ``y_desired``, sample by sample (module docstring).
         ``max_rate``: largest |du/dt| (input units per second; None: none); ``u_start``: the
         input before the first sample (default: the lower limit, an actuator at rest)."""
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        s = self._structure(dt, params, a.input_range, a.yd.size)
+        r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
+        u, clipped = invert_steps(a.yd, float(dt), np.ascontiguousarray(s.base), a.lo, a.hi, a.u_start, a.max_step,
+                                  a.n_grid, a.tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
+        return Inversion(u, clipped)
+
+
+@dataclass(frozen=True)
+class InverseArguments:
+    """The checked arguments every model's ``invert`` shares (see ``StepInvertible.invert``)."""
+
+    yd: np.ndarray
+    input_range: tuple | None
+    lo: float
+    hi: float
+    u_start: float
+    max_step: float  # largest input change per sample (inf: none)
+    n_grid: int
+    tol: float  # |y - y_d| that counts as reached
+
+    @classmethod
+    def check(cls, name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start) -> "InverseArguments":
         yd = np.ascontiguousarray(y_desired, dtype=float)
         if yd.ndim != 1 or yd.size == 0 or not np.all(np.isfinite(yd)):
-            raise ModelError(f"{self.name}: the desired output must be a non-empty, finite 1-D array")
+            raise ModelError(f"{name}: the desired output must be a non-empty, finite 1-D array")
         input_range = input_range if input_range is not None else input_limits
         input_limits = input_limits if input_limits is not None else input_range
         if input_limits is None:
-            raise ModelError(f"{self.name}: invert needs input_range (the fit's) or input_limits")
+            raise ModelError(f"{name}: invert needs input_range (the fit's) or input_limits")
         lo, hi = map(float, input_limits)
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
-            raise ModelError(f"{self.name}: input limits must have low < high, got {input_limits!r}")
+            raise ModelError(f"{name}: input limits must have low < high, got {input_limits!r}")
         if not (isinstance(n_grid, (int, np.integer)) and n_grid >= 2):
-            raise ModelError(f"{self.name}: n_grid must be an integer >= 2, got {n_grid!r}")
+            raise ModelError(f"{name}: n_grid must be an integer >= 2, got {n_grid!r}")
         if max_rate is not None and not max_rate > 0:
-            raise ModelError(f"{self.name}: max_rate must be positive, got {max_rate!r}")
+            raise ModelError(f"{name}: max_rate must be positive, got {max_rate!r}")
         max_step = np.inf if max_rate is None else float(max_rate) * float(dt)
-        s = self._structure(dt, params, input_range, yd.size)
-        tol = 1e-12 * (1.0 + float(np.max(np.abs(yd))))
-        r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
-        u, clipped = invert_steps(yd, float(dt), np.ascontiguousarray(s.base), lo, hi,
-                                  lo if u_start is None else float(u_start), max_step, int(n_grid), tol, r_lo, r_hi,
-                                  g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
-        return Inversion(u, clipped)
+        start = lo if u_start is None else float(u_start)
+        return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
+                   1e-12 * (1.0 + float(np.max(np.abs(yd)))))
 
 
 # --- the analytic inverse of classical P-I -------------------------------------------
