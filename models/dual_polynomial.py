@@ -27,6 +27,14 @@ at 0 (the loop is closed there) and M is extrapolated.
 Hyperparameter ``order`` n >= 2 (default 4, the order the seed paper chose for
 its own polynomial). Every parameter is linear; the model is rate-independent
 and, as published, needs a new parameter set to follow another rate.
+
+Inverse (``BranchModel.invert``): where it is not invertible. Each branch is a polynomial
+of order n in xi (plus the memory's linear term in a minor loop): it is invertible where its
+slope M' - s H' + memory keeps one sign. A fitted order-4 branch may flatten or turn back
+(typically near the range's ends, where the data constrain it least); desired outputs behind
+such a turn or beyond the branch's values within the input limits are clipped to the
+nearest output the search visits and counted. Where two inputs give y_d the one nearest
+the previous input is taken.
 """
 
 from __future__ import annotations

@@ -18,18 +18,27 @@ time from its state after the previous sample (k = 0, 1, ...; u = u(k)):
 state; ``step_advance`` commits a chosen u. ``step_simulate`` runs the model forward
 through them (the tests check it against each model's own forward kernel).
 
-The numerical inverse (``invert_steps``): at each sample, g(u) = y(k; u) - y_d(k) is
-searched on [u_lo, u_hi] (the input limits, narrowed to u(k-1) +- max_rate dt when a
-rate limit is given; u(-1) = ``u_start``, the input the actuator rests at) by walking
-outward from the previous input u(k-1) in steps of (u_hi - u_lo) / n_grid, both ways
-alternately, up to the first sign change: the root nearest the previous input, which
-keeps the input continuous where the model is not monotone in u. The bracket is refined
-by Newton steps with the analytic dy/du, falling back to bisection when a step leaves
-it. Where the walk finds no sign change (y_d beyond the outputs reachable within the
-limits, or a flat or non-monotone branch that does not reach it) the inverse takes the
-visited point with the smallest |g| (the nearest reachable output on that grid, the
-limits and the previous input included) and counts the sample as clipped. A touching
-root (g >= 0 on both sides) is counted as clipped too.
+The numerical inverse (``invert_steps``; for the other models their own kernels, all
+through one root search, ``search_start`` / ``search_next``): at each sample,
+g(u) = y(k; u) - y_d(k) is searched on [u_lo, u_hi] (the input limits, narrowed to
+u(k-1) +- max_rate dt when a rate limit is given; u(-1) = ``u_start``, the input the
+actuator rests at) by walking outward from the previous input u(k-1) in steps of
+(u_hi - u_lo) / n_grid, both ways alternately, up to the first sign change: the root nearest
+the previous input, which keeps the input continuous where the model is not monotone in u.
+The bracket is refined by Newton steps with the analytic dy/du (secant steps through the
+bracket for the models that give no dy/du), falling back to bisection when a step leaves it
+or does not halve |g|. Where the walk finds no sign change (y_d beyond the outputs reachable
+within the limits, or a flat or non-monotone branch that does not reach it) the inverse takes
+the visited point with the smallest |g| (the nearest reachable output on that grid, the
+limits and the previous input included) and counts the sample as clipped (Preisach: only
+when it misses by more than half its largest stair). A touching root (g >= 0 on both sides)
+is counted as clipped too.
+
+The search is reverse-communication (the model's kernel evaluates g where the search asks
+and hands it back), so each model keeps its own cached numba kernel and its own step
+function, the one its forward simulation runs: ``step_output`` / ``step_advance`` here for
+the P-I family, ``branches.branch_step`` (elliptical, dual-polynomial),
+``preisach.preisach_step`` (the relay rule ``relay_switch``), ``bouc_wen.bouc_wen_step``.
 
 Where each model is not invertible (the sample is then clipped as above):
 
@@ -44,8 +53,9 @@ Where each model is not invertible (the sample is then clipped as above):
 * rate-dependent-pi: thresholds grow with |u - u(k-1)|: the same kink at u(k-1).
 * mrpim+relaxation / +creep / +interference: as mrpim; the filters add c b1 u^p, the
   creep and the interference only shift the target.
-* mrpim+delay, +resonance, +saturation and the non-P-I models: not inverted here (each
-  says why in ``inverse_unavailable``).
+* elliptical, dual-polynomial, preisach, bouc-wen: see each model's ``invert``.
+* mrpim+delay, +resonance, +saturation, bouc-wen-oscillator: not inverted here (each says
+  why in ``inverse_unavailable``).
 
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
