@@ -4,7 +4,7 @@
   scored windows (the samples ``identify`` fits); its inverse u = (r - c) / K.
 * ``ModelInverse``: a model identified with ``hysbench.identification.identify`` and
   inverted (``HysteresisModel.invert``: causal, numerical, searched within the plant's
-  input limits; classical P-I with poly_order 1 uses its analytic inverse when the
+  input limits; every model the registry can invert, P-I family or not; classical P-I with poly_order 1 uses its analytic inverse when the
   loading curve increases, else the numerical one; ``viscoelastic``, the plant's own
   equations with identified parameters, is inverted through its physics kernel,
   ``dea_physics.invert_stretch``).
@@ -20,16 +20,16 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from hysbench.data.dataset import Dataset
 from hysbench.identification.api import identify
 from hysbench.identification.fit import Fit
-from hysbench.models import ClassicalPI, get_model
+from hysbench.models import ClassicalPI, Viscoelastic, get_model
 from hysbench.models.errors import HysbenchError, ModelError
-from hysbench.models.inverse import Inversion, StepInvertible
+from hysbench.models.inverse import Inversion
 
 PI_BANDWIDTH_HZ = 5.0
 PI_ZERO_S = 0.016
@@ -80,17 +80,19 @@ class ModelInverse:
     inverse: str  # "analytic" or "numerical"
     identify_seconds: float
     max_rate: float  # the numerical inverse's |du/dt| limit (input units per second)
+    identify_options: dict = field(default_factory=dict)
 
     @classmethod
     def identify(cls, name: str, dataset: Dataset, method: str = "auto", seed: int = 0,
-                 u_limits=(0.5, 2.5)) -> "ModelInverse":
+                 u_limits=(0.5, 2.5), **options) -> "ModelInverse":
+        """``options``: the identifier's options (``identify``'s keyword arguments)."""
         model = get_model(name)
         if model.inverse_unavailable:
             raise ModelError(f"model {name!r} cannot be inverted: {model.inverse_unavailable}")
         t0 = time.perf_counter()
-        fit = identify(model, dataset, method=method, seed=seed)
+        fit = identify(model, dataset, method=method, seed=seed, **options)
         seconds = time.perf_counter() - t0
-        inverse = "numerical" if isinstance(model, StepInvertible) else "numerical (physics kernel)"
+        inverse = "numerical (physics kernel)" if isinstance(model, Viscoelastic) else "numerical"
         if isinstance(model, ClassicalPI) and model.poly_order == 1:
             try:
                 model.invert_analytic(np.zeros(2), 1e-3, fit.params, fit.input_range)
@@ -98,7 +100,7 @@ class ModelInverse:
             except ModelError:
                 pass  # loading curve not increasing: the numerical inverse (it counts where it clips)
         rates = [np.max(np.abs(np.diff(r.u))) / r.dt for r in dataset.records if r.role == "identification"]
-        return cls(name, fit, inverse, seconds, RATE_FACTOR * float(max(rates)))
+        return cls(name, fit, inverse, seconds, RATE_FACTOR * float(max(rates)), dict(options))
 
     def invert(self, reference: np.ndarray, dt: float, u_limits) -> Inversion:
         model = self.fit.model_instance()
