@@ -21,6 +21,17 @@ there for the rest of the record (no further integration, which would need
 ever smaller steps), so such sets fit badly instead of overflowing or
 stalling an optimiser.
 
+Inverse (``KernelInvertible.invert``, kernel ``bouc_wen_steps``): at each sample z(k) is
+z(k-1) integrated over the interval with xi linear from xi(k-1) to the candidate
+(``bouc_wen_step``, the forward model's step), so y = c + k_x xi + k_z z(k) is continuous in
+u and equals y(k-1) at u(k-1); the search walks out from u(k-1) and takes the nearest root.
+The slope in u is (k_x + k_z dz/dxi) dxi/du, dz/dxi = 1 - beta sgn(du) |z|^(n-1) z -
+gamma |z|^n: it flattens where z nears its bound (beta + gamma)^(-1/n) and turns back where
+k_x + k_z dz/dxi changes sign (k_x and k_z of opposite signs, as fitted on the virtual DEA).
+There, and beyond the outputs reachable within the limits, the sample is clipped to the
+nearest output the walk visits and counted. For n != 1 the RK4 step count jumps with |du|,
+so y is continuous in u only up to the scheme's error (< 1e-8 of |z|).
+
 Integration at the data's step: the equation is rate-independent,
 dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
 so each sample interval is integrated in xi (xi taken linear between samples),
@@ -50,7 +61,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
-from .inverse import DEFAULT_GRID, SEARCH_SIZE, InverseArguments, Inversion, search_clipped, search_done, search_next, search_start
+from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
@@ -236,36 +247,30 @@ def bouc_wen_candidate(u, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx,
 
 @njit(cache=True)
 def bouc_wen_steps(yd, u_given, range_lo, range_hi, beta, gamma, n, kx, kz, offset, u_limit_lo, u_limit_hi, u_start,
-                   max_step, n_grid, tol):
+                   max_step, n_grid, tol, clip_tol):
     """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
     derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
-    given = u_given.shape[0] > 0
-    n_t = u_given.shape[0] if given else yd.shape[0]
-    u_out, y_out = np.empty(n_t), np.empty(n_t)
-    clipped = np.zeros(n_t, dtype=np.bool_)
+    n_t = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n_t), np.empty(n_t), np.zeros(n_t, dtype=np.bool_)
     st = np.empty(SEARCH_SIZE)
-    h = (u_limit_hi - u_limit_lo) / n_grid
     u1, xi1, z = u_start, 0.0, 0.0
     for k in range(n_t):
         first = k == 0
-        if given:
-            x = u_given[k]
-        else:
-            x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, tol)
-            while not search_done(st):
-                y = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)[0]
-                x = search_next(st, y - yd[k], np.nan)
-            clipped[k] = search_clipped(st)
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            y = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)[0]
+            x = search_next(st, y - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
         y, xi1, z = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)
         u_out[k], y_out[k], u1 = x, y, x
     return u_out, clipped, y_out
 
 
-class BoucWen(HysteresisModel):
+class BoucWen(KernelInvertible, HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
-    inverse_unavailable = None
+    step_kernel = staticmethod(bouc_wen_steps)
 
     def __init__(self, offset: bool = True):
         self.offset = offset
@@ -308,40 +313,9 @@ class BoucWen(HysteresisModel):
                                    offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
 
-    def _step_arguments(self, params, input_range):
-        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
-        if vec.shape != (self.n_params,):
-            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
-        p = self.unpack(vec)
-        lo, hi = map(float, input_range)
-        if not hi > lo:
-            raise ModelError(f"model {self.name!r} needs an input_range of positive width, got ({lo!r}, {hi!r})")
-        return lo, hi, p["beta"], p["gamma"], p["n"], p["kx"], p["kz"], p.get("offset", 0.0)
-
-    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
-        """The forward model through the inverse's step kernel (equals ``simulate``)."""
-        u = self._check_input(u, dt)
-        lo, hi = self._input_range(u, input_range)
-        return bouc_wen_steps(np.zeros(0), u, *self._step_arguments(params, (lo, hi)), lo, hi, u[0], np.inf, 2, 0.0)[2]
-
-    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
-               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
-        """The causal numerical inverse (arguments as ``inverse.StepInvertible.invert``). At each
-        sample z(k) is z(k-1) integrated over the interval with xi linear from xi(k-1) to the
-        candidate (``bouc_wen_step``, as the forward model), so y = c + k_x xi + k_z z(k) is
-        continuous in u and equals y(k-1) at u(k-1); the search (``inverse.search_next``,
-        derivative-free) walks out from u(k-1) and takes the nearest root. Its slope in u is
-        (k_x + k_z dz/dxi) dxi/du with dz/dxi = 1 - beta sgn(du) |z|^(n-1) z - gamma |z|^n: it
-        flattens where z nears its bound (beta + gamma)^(-1/n) and turns back where
-        k_x + k_z dz/dxi changes sign (k_x, k_z of opposite signs, or gamma < 0 making
-        dz/dxi > 1 on one branch with k_z < 0). There, and beyond the outputs reachable
-        within the limits, the sample is clipped to the nearest output the walk visits and
-        counted. n != 1 is integrated by RK4 with a step count that jumps with |du|: y is
-        continuous in u up to the scheme's error (< 1e-8 of |z|), within which a root may be missed."""
-        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
-        u, clipped, _ = bouc_wen_steps(a.yd, np.zeros(0), *self._step_arguments(params, a.input_range), a.lo, a.hi,
-                                       a.u_start, a.max_step, a.n_grid, a.tol)
-        return Inversion(u, clipped)
+    def step_arguments(self, vector, input_range) -> tuple:
+        p = self.unpack(vector)
+        return input_range[0], input_range[1], p["beta"], p["gamma"], p["n"], p["kx"], p["kz"], p.get("offset", 0.0)
 
     def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
         u = self._check_input(u, dt)

@@ -32,7 +32,18 @@ and M is extrapolated.
 
 Every output sample is linear in the coefficients of M and H (the reversal
 value y_t is itself such a combination), so the model is linear in all its
-parameters: ``branch_regressors`` runs the rule on each basis function.
+parameters: ``branch_regressors`` runs the rule on each basis function,
+one ``branch_step`` per sample.
+
+Inverse (``KernelInvertible.invert``, kernel ``branch_steps``, the same ``branch_step``): at
+each sample y is continuous in u: both branches leave the previous output (at a reversal
+the memory starts the new branch there), so the search, walking out from u(k-1), takes the
+root nearest the previous input. Not invertible, so clipped to the nearest output the walk
+visits and counted: a desired output beyond those reachable within the limits (and the rate
+limit) on the branch the input would take, or behind a flat or turning stretch of it (a
+branch not monotone in u; each model's docstring says where its shape does that). A
+turning stretch narrower than the walk's step (range / n_grid) that alone holds the root is
+stepped over.
 """
 
 from __future__ import annotations
@@ -42,7 +53,7 @@ from numba import njit
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
-from .inverse import DEFAULT_GRID, SEARCH_SIZE, InverseArguments, Inversion, search_clipped, search_done, search_next, search_start
+from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
 
 
 def normalised_input(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -166,31 +177,25 @@ def branch_candidate(u, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, 
 
 @njit(cache=True)
 def branch_steps(yd, u_given, coef, offset, x_lo, x_hi, square, n_centre, kind, n_half, u_limit_lo, u_limit_hi,
-                 u_start, max_step, n_grid, tol):
+                 u_start, max_step, n_grid, tol, clip_tol):
     """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
     derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
-    given = u_given.shape[0] > 0
-    n = u_given.shape[0] if given else yd.shape[0]
-    u_out, y_out = np.empty(n), np.empty(n)
-    clipped = np.zeros(n, dtype=np.bool_)
+    n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
     nc = n_centre + n_half
     jump, jump_c, row, prev_row = np.zeros(nc), np.zeros(nc), np.zeros(nc), np.zeros(nc)
     G, G_prev = np.zeros(n_centre), np.zeros(n_centre)
     K, K_prev = np.zeros(n_half), np.zeros(n_half)
     st = np.empty(SEARCH_SIZE)
-    h = (u_limit_hi - u_limit_lo) / n_grid
     u1, s_prev, xi_prev, xi_t = u_start, 1, 0.0, 0.0
     for k in range(n):
         first = k == 0
-        if given:
-            x = u_given[k]
-        else:
-            x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, tol)
-            while not search_done(st):
-                y = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef, offset,
-                                     x_lo, x_hi, square, kind, G, K, jump_c, row)[0]
-                x = search_next(st, y - yd[k], np.nan)
-            clipped[k] = search_clipped(st)
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            y = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef, offset,
+                                 x_lo, x_hi, square, kind, G, K, jump_c, row)[0]
+            x = search_next(st, y - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
         y, xi, sk, xt = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef,
                                          offset, x_lo, x_hi, square, kind, G, K, jump_c, row)
         jump[:] = jump_c  # commit
@@ -206,7 +211,7 @@ def branch_steps(yd, u_given, coef, offset, x_lo, x_hi, square, n_centre, kind, 
 COEF_BOUND = 10.0  # |coefficient| <= COEF_BOUND * y (basis functions are O(1) on [-1, 1])
 
 
-class BranchModel(HysteresisModel):
+class BranchModel(KernelInvertible, HysteresisModel):
     """Base of ``elliptical`` and ``dual-polynomial``: every parameter is linear.
 
     Subclasses define the centre-line and half-width parameters and bases.
@@ -281,38 +286,11 @@ class BranchModel(HysteresisModel):
         # the time loop is input-only (in branch_regressors); the parameter sets are one product
         return P @ Phi.T
 
-    # inverse (issue 15) -----------------------------------------------------
-    inverse_unavailable = None
+    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    step_kernel = staticmethod(branch_steps)
 
-    def _step_arguments(self, params, input_range):
-        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
-        if vec.shape != (self.n_params,):
-            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
-        lo, hi = map(float, input_range)
-        if not hi > lo:
-            raise ModelError(f"model {self.name!r} needs an input_range of positive width, got ({lo!r}, {hi!r})")
-        x_lo, x_hi = self._linearised(np.array([lo, hi]))
-        coef = np.ascontiguousarray(vec[: self.n_centre + self.n_halfwidth])
-        return (coef, float(vec[-1]) if self.offset else 0.0, float(x_lo), float(x_hi), self.square_input,
+    def step_arguments(self, vector, input_range) -> tuple:
+        x_lo, x_hi = self._linearised(np.array(input_range))
+        coef = np.ascontiguousarray(vector[: self.n_centre + self.n_halfwidth])
+        return (coef, float(vector[-1]) if self.offset else 0.0, float(x_lo), float(x_hi), self.square_input,
                 self.n_centre, self.halfwidth_kind, self.n_halfwidth)
-
-    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
-        """The forward model through the inverse's step kernel (equals ``simulate`` up to rounding)."""
-        u = self._check_input(u, dt)
-        lo, hi = self._input_range(u, input_range)
-        return branch_steps(np.zeros(0), u, *self._step_arguments(params, (lo, hi)), lo, hi, u[0], np.inf, 2, 0.0)[2]
-
-    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
-               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
-        """The causal numerical inverse (arguments as ``inverse.StepInvertible.invert``), searched
-        derivative-free by ``inverse.search_next``. At each sample y is continuous in u: both
-        branches leave the previous output (at a reversal the memory starts the new branch
-        there), so the walk from u(k-1) takes the root nearest the previous input. Not
-        invertible, so clipped to the nearest output the walk visits and counted: a desired
-        output beyond those reachable within the limits (and the rate limit) on the branch the
-        input would take, or behind a flat or turning stretch of it (a fitted branch that is not
-        monotone in u). Subclasses say where their shape does that."""
-        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
-        u, clipped, _ = branch_steps(a.yd, np.zeros(0), *self._step_arguments(params, a.input_range), a.lo, a.hi,
-                                     a.u_start, a.max_step, a.n_grid, a.tol)
-        return Inversion(u, clipped)

@@ -28,7 +28,7 @@ Hyperparameter ``order`` n >= 2 (default 4, the order the seed paper chose for
 its own polynomial). Every parameter is linear; the model is rate-independent
 and, as published, needs a new parameter set to follow another rate.
 
-Inverse (``BranchModel.invert``): where it is not invertible. Each branch is a polynomial
+Inverse (``KernelInvertible.invert``): where it is not invertible. Each branch is a polynomial
 of order n in xi (plus the memory's linear term in a minor loop): it is invertible where its
 slope M' - s H' + memory keeps one sign. A fitted order-4 branch may flatten or turn back
 (typically near the range's ends, where the data constrain it least); desired outputs behind

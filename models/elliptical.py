@@ -35,7 +35,7 @@ ellipse term is 0. ``poly_order`` K = 1 is the published centre line; more
 terms bend it. Every parameter is linear; one parameter set serves every
 frequency, so the model is rate-independent by construction.
 
-Inverse (``BranchModel.invert``): where it is not invertible. The ellipse has vertical
+Inverse (``KernelInvertible.invert``): where it is not invertible. The ellipse has vertical
 tangents at the range's ends: on the rising branch (K = 1) dy/dxi = m_1 + b xi / sqrt(1 - xi^2)
 runs to -inf as xi -> -1, so for b > 0 the branch first dips below y(-1) and turns up only at
 xi* = -m_1 / sqrt(m_1^2 + b^2) (the falling branch mirrors this at +1). Outputs below the

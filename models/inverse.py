@@ -209,17 +209,21 @@ def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0
  S_UP_G, S_DN_X, S_DN_G, S_UP_DONE, S_DN_DONE, S_J, S_SIDE, S_XA, S_GA, S_XB, S_GB, S_G_PREV, S_ITER) = range(26)
 SEARCH_SIZE = 26
 PH_START, PH_WALK, PH_REFINE, PH_DONE = 0.0, 1.0, 2.0, 3.0
+NO_INPUT = np.zeros(0)  # u_given of a kernel that searches
 
 
 @njit(cache=True, nogil=True)
-def search_start(st, start, limit_lo, limit_hi, max_step, h, tol, clip_tol):
-    """Begin the search around the previous input ``start`` within the limits and +- max_step of
-    it (walk step h): returns the first x to evaluate. ``tol``: |g| that counts as a root;
-    ``clip_tol``: where no sign change is found, the sample counts as clipped when the nearest
-    output misses by more."""
+def search_start(st, u_given, k, start, limit_lo, limit_hi, max_step, n_grid, tol, clip_tol):
+    """Begin the search at sample k around the previous input ``start`` within the limits and
+    +- max_step of it (walk step (limit_hi - limit_lo) / n_grid): returns the first x to
+    evaluate. ``tol``: |g| that counts as a root; ``clip_tol``: where no sign change is found,
+    the sample counts as clipped when the nearest output misses by more. With a non-empty
+    ``u_given`` (a kernel run forward) the search is done at once with x = u_given[k]."""
     st[:] = 0.0
+    if u_given.shape[0] > 0:
+        return _finish(st, u_given[k], False)
     st[S_PHASE] = PH_START
-    st[S_START], st[S_H], st[S_TOL], st[S_CLIP_TOL] = start, h, tol, clip_tol
+    st[S_START], st[S_H], st[S_TOL], st[S_CLIP_TOL] = start, (limit_hi - limit_lo) / n_grid, tol, clip_tol
     st[S_LO], st[S_HI] = max(limit_lo, start - max_step), min(limit_hi, start + max_step)
     st[S_X] = start
     return start
@@ -335,11 +339,10 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
     w = np.zeros(r_lo.shape[0])
     xf = np.zeros(fa.shape[0])
     st = np.empty(SEARCH_SIZE)
-    h = (u_limit_hi - u_limit_lo) / n_grid
     u1 = u2 = min(max(u_start, u_limit_lo), u_limit_hi)
     for k in range(n):
         first = k == 0
-        x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, tol)
+        x = search_start(st, NO_INPUT, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, tol)
         while not search_done(st):
             y, dy = step_output(x, first, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                                 fa, fb0, fb1, fpow, fw)
@@ -433,6 +436,50 @@ class InverseArguments:
         start = lo if u_start is None else float(u_start)
         return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
                    1e-12 * (1.0 + float(np.max(np.abs(yd)))))
+
+
+class KernelInvertible:
+    """Mixin for a model inverted through its own step kernel (elliptical, dual-polynomial,
+    preisach, bouc-wen): ``step_kernel(yd, u_given, *step_arguments, u_lo, u_hi, u_start,
+    max_step, n_grid, tol, clip_tol) -> (u, clipped, y)`` searches the input for yd with
+    ``search_next`` or, given a non-empty u_given, runs the model forward through the same steps."""
+
+    inverse_unavailable = None
+    step_kernel = None  # the model's jitted kernel (a staticmethod)
+
+    def step_arguments(self, vector: np.ndarray, input_range: tuple) -> tuple:
+        """The kernel's model arguments for a parameter vector and the operators' input range."""
+        raise NotImplementedError
+
+    def clip_tolerance(self, vector: np.ndarray, input_range: tuple, tol: float) -> float:
+        """How far the nearest output may miss y_d before the sample counts as clipped."""
+        return tol
+
+    def _step_setup(self, params, input_range) -> tuple:
+        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
+        if vec.shape != (self.n_params,):
+            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
+        lo, hi = map(float, input_range)
+        if not hi > lo:
+            raise ModelError(f"model {self.name!r} needs an input_range of positive width, got ({lo!r}, {hi!r})")
+        return vec, (lo, hi)
+
+    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
+        """The forward model through the inverse's step kernel (equals ``simulate``)."""
+        u = self._check_input(u, dt)
+        vec, rng = self._step_setup(params, self._input_range(u, input_range))
+        return self.step_kernel(np.zeros(0), u, *self.step_arguments(vec, rng), rng[0], rng[1], u[0], np.inf, 2, 0.0,
+                                0.0)[2]
+
+    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
+               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
+        """The causal numerical inverse (arguments as ``StepInvertible.invert``), searched
+        derivative-free; each model's docstring says where it is not invertible."""
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        vec, rng = self._step_setup(params, a.input_range)
+        u, clipped, _ = self.step_kernel(a.yd, np.zeros(0), *self.step_arguments(vec, rng), a.lo, a.hi, a.u_start,
+                                         a.max_step, a.n_grid, a.tol, self.clip_tolerance(vec, rng, a.tol))
+        return Inversion(u, clipped)
 
 
 # --- the analytic inverse of classical P-I -------------------------------------------

@@ -26,6 +26,19 @@ density is non-negative), so the exact solve is a non-negative least squares
 (scipy.optimize.nnls / lsq_linear with these bounds). Non-negative weights
 give the wiping-out and congruency properties of the Preisach model; the model
 is rate-independent.
+
+Inverse (``KernelInvertible.invert``, kernel ``preisach_steps``; ``preisach_step`` applies
+the relay rule ``relay_switch`` of the forward model): at each sample the output is a
+staircase in u, flat between switching levels, jumping where u crosses one (up above the
+previous input with non-negative weights, down below it). The search walks out from u(k-1):
+an output on a stair is met exactly (the previous input is kept while y_d stays on its
+stair); one between two stairs is bracketed by the jump, narrowed to the switching level,
+and the nearer stair is taken (a miss of at most half that jump, not counted as clipped; a
+stair reached only at a level exactly, u = alpha, is such a case). Clipped and counted only
+where y_d is out of reach of every stair within the limits by more than half the largest
+stair (``largest_stair``: the staircase's resolution). Negative weights (outside the
+default bounds) make the stairs non-monotone; the walk then takes the first bracket from
+u(k-1) or the nearest stair it visits.
 """
 
 from __future__ import annotations
@@ -35,8 +48,7 @@ from numba import njit, prange
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
-from .inverse import (DEFAULT_GRID, SEARCH_SIZE, InverseArguments, Inversion, search_clipped, search_done, search_next,
-                      search_start)
+from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
 
 WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
 
@@ -136,36 +148,28 @@ def preisach_steps(yd, u_given, alphas, betas, weights, offset, u_limit_lo, u_li
     """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
     derivative-free; clipped where the nearest output misses by more than ``clip_tol``), or, with
     a non-empty ``u_given``, the forward model through the same steps."""
-    given = u_given.shape[0] > 0
-    n = u_given.shape[0] if given else yd.shape[0]
-    u_out, y_out = np.empty(n), np.empty(n)
-    clipped = np.zeros(n, dtype=np.bool_)
+    n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
     state = -np.ones(alphas.shape[0], dtype=np.int8)
     acc = 0.0
     for i in range(weights.shape[0]):
         acc -= weights[i]
     st = np.empty(SEARCH_SIZE)
-    h = (u_limit_hi - u_limit_lo) / n_grid
     u1 = u_start
     for k in range(n):
-        if given:
-            x = u_given[k]
-        else:
-            x = search_start(st, u1, u_limit_lo, u_limit_hi, max_step, h, tol, clip_tol)
-            while not search_done(st):
-                x = search_next(st, offset + preisach_step(x, state, alphas, betas, weights, acc, False) - yd[k],
-                                np.nan)
-            clipped[k] = search_clipped(st)
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            x = search_next(st, offset + preisach_step(x, state, alphas, betas, weights, acc, False) - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
         acc = preisach_step(x, state, alphas, betas, weights, acc, True)
         u_out[k], y_out[k], u1 = x, offset + acc, x
     return u_out, clipped, y_out
 
 
-class Preisach(HysteresisModel):
+class Preisach(KernelInvertible, HysteresisModel):
     """Discrete Preisach model on a triangular relay grid; see the module docstring."""
 
     name = "preisach"
-    inverse_unavailable = None
 
     def __init__(self, grid_size: int = 10, offset: bool = True):
         self.grid_size = grid_size
@@ -220,43 +224,21 @@ class Preisach(HysteresisModel):
             Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
         return Phi
 
-    # inverse (issue 15) -----------------------------------------------------
-    def _step_arguments(self, params, input_range):
-        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
-        if vec.shape != (self.n_params,):
-            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
+    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    step_kernel = staticmethod(preisach_steps)
+
+    def step_arguments(self, vector, input_range) -> tuple:
         alphas, betas = self.grid(np.zeros(1), input_range)
-        return alphas, betas, np.ascontiguousarray(vec[: self.n_relays]), float(vec[-1]) if self.offset else 0.0
+        return alphas, betas, np.ascontiguousarray(vector[: self.n_relays]), float(vector[-1]) if self.offset else 0.0
 
     def largest_stair(self, params, input_range) -> float:
         """The largest jump of the staircase: 2 x the largest total weight of the relays that
         share a switching level (up or down)."""
-        alphas, betas, w, _ = self._step_arguments(params, input_range)
+        vec, rng = self._step_setup(params, input_range)
+        alphas, betas, w, _ = self.step_arguments(vec, rng)
         sums = [np.bincount(np.unique(v, return_inverse=True)[1], weights=w) for v in (alphas, betas)]
         return 2.0 * float(max(np.max(np.abs(s)) for s in sums))
 
-    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
-        """The forward model through the inverse's step kernel (equals ``simulate``)."""
-        u = self._check_input(u, dt)
-        lo, hi = self._input_range(u, input_range)
-        return preisach_steps(np.zeros(0), u, *self._step_arguments(params, (lo, hi)), lo, hi, u[0], np.inf, 2, 0.0,
-                              0.0)[2]
-
-    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
-               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
-        """The causal numerical inverse (arguments as ``inverse.StepInvertible.invert``). At each
-        sample the output is a staircase in u: flat between switching levels, a jump where u
-        crosses one (up, for u above the previous input, with non-negative weights; down below
-        it). The search (``inverse.search_next``, derivative-free) walks out from u(k-1): an
-        output on a stair is met exactly (the previous input is kept while y_d stays on its
-        stair); one between two stairs is bracketed by the jump, which the search narrows to
-        the switching level, and the nearer stair is taken (a miss of at most half that jump,
-        not counted as clipped). Clipped and counted only where y_d is out of reach of every
-        stair within the limits by more than half the largest stair (``largest_stair``), the
-        staircase's resolution. Negative weights (outside the default bounds) make the stairs
-        non-monotone; the walk then takes the first bracket from u(k-1) or the nearest visited stair."""
-        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
-        clip_tol = 0.5 * self.largest_stair(params, a.input_range) + a.tol
-        u, clipped, _ = preisach_steps(a.yd, np.zeros(0), *self._step_arguments(params, a.input_range), a.lo, a.hi,
-                                       a.u_start, a.max_step, a.n_grid, a.tol, clip_tol)
-        return Inversion(u, clipped)
+    def clip_tolerance(self, vector, input_range, tol) -> float:
+        """Half the largest stair: the staircase's resolution (module docstring)."""
+        return 0.5 * self.largest_stair(vector, input_range) + tol
