@@ -26,8 +26,8 @@ actuator rests at) by walking outward from the previous input u(k-1) in steps of
 (u_hi - u_lo) / n_grid, both ways alternately, up to the first sign change: the root nearest
 the previous input, which keeps the input continuous where the model is not monotone in u.
 The bracket is refined by Newton steps with the analytic dy/du (secant steps through the
-bracket for the models that give no dy/du), falling back to bisection when a step leaves it
-or does not halve |g|. Where the walk finds no sign change (y_d beyond the outputs reachable
+last two evaluations for the models that give no dy/du), falling back to bisection when a
+step leaves the bracket or does not halve |g|. Where the walk finds no sign change (y_d beyond the outputs reachable
 within the limits, or a flat or non-monotone branch that does not reach it) the inverse takes
 the visited point with the smallest |g| (the nearest reachable output on that grid, the
 limits and the previous input included) and counts the sample as clipped (Preisach: only
@@ -206,8 +206,9 @@ def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0
 # the x the search asks for and hands (g, dy/du) back, until the search is done. So one
 # jitted search serves every model's own (cached) kernel without passing functions.
 (S_PHASE, S_X, S_RESULT, S_CLIPPED, S_START, S_LO, S_HI, S_H, S_TOL, S_CLIP_TOL, S_BEST_U, S_BEST_G, S_UP_X,
- S_UP_G, S_DN_X, S_DN_G, S_UP_DONE, S_DN_DONE, S_J, S_SIDE, S_XA, S_GA, S_XB, S_GB, S_G_PREV, S_ITER) = range(26)
-SEARCH_SIZE = 26
+ S_UP_G, S_DN_X, S_DN_G, S_UP_DONE, S_DN_DONE, S_J, S_SIDE, S_XA, S_GA, S_XB, S_GB, S_G_PREV, S_ITER, S_NO_DY, S_XL,
+ S_GL) = range(29)
+SEARCH_SIZE = 29
 PH_START, PH_WALK, PH_REFINE, PH_DONE = 0.0, 1.0, 2.0, 3.0
 NO_INPUT = np.zeros(0)  # u_given of a kernel that searches
 
@@ -276,6 +277,7 @@ def search_next(st, g, dy):
     tol = st[S_TOL]
     phase = st[S_PHASE]
     if phase == PH_START:
+        st[S_NO_DY] = 1.0 if dy != dy else 0.0  # the model gives no dy/du: secant steps
         st[S_BEST_U], st[S_BEST_G] = x, abs(g)
         if abs(g) <= tol:
             return _finish(st, x, False)
@@ -294,7 +296,11 @@ def search_next(st, g, dy):
         if (g > 0) != (pg > 0):  # a bracket: refine from its better end (evaluated again, for dy/du)
             st[S_XA], st[S_GA], st[S_XB], st[S_GB] = px, pg, x, g
             st[S_G_PREV], st[S_ITER], st[S_PHASE] = np.inf, 0.0, PH_REFINE
-            st[S_X] = px if abs(pg) < abs(g) else x
+            if st[S_NO_DY] != 0.0:  # no dy/du to fetch: the first secant step through the bracket at once
+                st[S_XL], st[S_GL] = px, pg
+                st[S_X] = x - g * (x - px) / (g - pg)
+            else:
+                st[S_X] = px if abs(pg) < abs(g) else x
             return st[S_X]
         if up:
             st[S_UP_X], st[S_UP_G], st[S_UP_DONE] = x, g, 1.0 if x >= st[S_HI] else 0.0
@@ -315,8 +321,9 @@ def search_next(st, g, dy):
     lo, hi = min(xa, xb), max(xa, xb)
     if hi - lo <= 1e-15 * (abs(lo) + abs(hi) + 1e-300):
         return _finish(st, xa if abs(ga) < abs(gb) else xb, False)
-    if dy != dy:  # NaN: secant through the bracket
-        xn = xb - gb * (xb - xa) / (gb - ga)
+    if dy != dy:  # NaN: secant through the last two evaluations
+        xn = x - g * (x - st[S_XL]) / (g - st[S_GL]) if g != st[S_GL] else 0.5 * (lo + hi)
+        st[S_XL], st[S_GL] = x, g
     else:
         xn = x - g / dy if dy != 0.0 else 0.5 * (lo + hi)
     x_next = xn if (lo < xn < hi and abs(g) <= 0.5 * st[S_G_PREV]) else 0.5 * (lo + hi)
