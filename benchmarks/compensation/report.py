@@ -148,7 +148,7 @@ def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Pat
     for name, m in result["models"].items():
         options = ", ".join(f"{k}={v}" for k, v in m.get("identify_options", {}).items())
         lines.append(f"| {name} | {m['method']}{f' ({options})' if options else ''} | {m['inverse']} | {_fmt(m['validation_e_rms_mean'])} | "
-                     f"{_fmt(m.get('max_rate'))} |")
+                     f"{'none' if m.get('max_rate') is None else _fmt(m['max_rate'])} |")
     if result["not_invertible"]:
         lines += ["", "Not inverted:", ""]
         lines += [f"* `{name}`: {why}" for name, why in result["not_invertible"].items()]
