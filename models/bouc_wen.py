@@ -61,7 +61,8 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
-from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096

@@ -53,7 +53,8 @@ from numba import njit
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
-from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 
 def normalised_input(x: np.ndarray, lo: float, hi: float) -> np.ndarray:

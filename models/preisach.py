@@ -48,7 +48,8 @@ from numba import njit, prange
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
-from .inverse import SEARCH_SIZE, KernelInvertible, search_clipped, search_done, search_next, search_start
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
 
