@@ -53,7 +53,8 @@ Where each model is not invertible (the sample is then clipped as above):
 * rate-dependent-pi: thresholds grow with |u - u(k-1)|: the same kink at u(k-1).
 * mrpim+relaxation / +creep / +interference: as mrpim; the filters add c b1 u^p, the
   creep and the interference only shift the target.
-* elliptical, dual-polynomial, preisach, bouc-wen: see each model's ``invert``.
+* elliptical, dual-polynomial, preisach, bouc-wen (``KernelInvertible``): see each model's
+  module docstring (branches.py for the two branch models).
 * mrpim+delay, +resonance, +saturation, bouc-wen-oscillator: not inverted here (each says
   why in ``inverse_unavailable``).
 
