@@ -21,6 +21,17 @@ there for the rest of the record (no further integration, which would need
 ever smaller steps), so such sets fit badly instead of overflowing or
 stalling an optimiser.
 
+Inverse (``KernelInvertible.invert``, kernel ``bouc_wen_steps``): at each sample z(k) is
+z(k-1) integrated over the interval with xi linear from xi(k-1) to the candidate
+(``bouc_wen_step``, the forward model's step), so y = c + k_x xi + k_z z(k) is continuous in
+u and equals y(k-1) at u(k-1); the search walks out from u(k-1) and takes the nearest root.
+The slope in u is (k_x + k_z dz/dxi) dxi/du, dz/dxi = 1 - beta sgn(du) |z|^(n-1) z -
+gamma |z|^n: it flattens where z nears its bound (beta + gamma)^(-1/n) and turns back where
+k_x + k_z dz/dxi changes sign (k_x and k_z of opposite signs, as fitted on the virtual DEA).
+There, and beyond the outputs reachable within the limits, the sample is clipped to the
+nearest output the walk visits and counted. For n != 1 the RK4 step count jumps with |du|,
+so y is continuous in u only up to the scheme's error (< 1e-8 of |z|).
+
 Integration at the data's step: the equation is rate-independent,
 dz/dxi = 1 - sigma beta |z|^(n-1) z - gamma |z|^n with sigma = sign(dxi/dt),
 so each sample interval is integrated in xi (xi taken linear between samples),
@@ -50,6 +61,8 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
@@ -137,44 +150,52 @@ def _taylor3(z, h, sigma, beta, gamma, n):
 
 
 @njit(cache=True, nogil=True)
+def bouc_wen_step(z, d, beta, gamma, n):
+    """z after one sample interval in which xi changes by d (linear in between; module docstring);
+    a z that leaves (-Z_CAP, Z_CAP) (or NaN) comes back as +-Z_CAP, the caller then holds it."""
+    if d == 0.0:
+        return z
+    sigma = 1.0 if d > 0.0 else -1.0
+    if n == 1.0:
+        z = _exact_linear(z, d, sigma, beta, gamma)
+    else:
+        az = abs(z)
+        L = n * (abs(beta) + abs(gamma)) * (az ** (n - 1.0) if az > 1.0 else 1.0)
+        m = int(math.ceil(abs(d) * L / RK_STEP))
+        if m < 1:
+            m = 1
+        elif m > MAX_SUBSTEPS:
+            m = MAX_SUBSTEPS
+        h = d / m
+        if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
+            z_new = _taylor3(z, d, sigma, beta, gamma, n)
+            if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
+                z = z_new
+                m = 0
+        for _ in range(m):
+            if n < 2.0 and abs(z) <= 2.0 * abs(h):
+                # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
+                for _ in range(NEAR_ZERO_SPLIT):
+                    z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
+            else:
+                z = _rk4_crossing(z, h, sigma, beta, gamma, n)
+    if not abs(z) < Z_CAP:  # a diverging set (or NaN)
+        z = -Z_CAP if z < 0.0 else Z_CAP
+    return z
+
+
+@njit(cache=True, nogil=True)
 def _bouc_wen_z(xi, beta, gamma, n, out):
-    """z(k) for one parameter set into ``out``."""
+    """z(k) for one parameter set into ``out``; once z reaches the cap it is held there."""
     n_t = xi.shape[0]
     z = 0.0
     out[0] = 0.0
-    stiff0 = n * (abs(beta) + abs(gamma))
     for k in range(1, n_t):
-        d = xi[k] - xi[k - 1]
-        if d != 0.0:
-            sigma = 1.0 if d > 0.0 else -1.0
-            if n == 1.0:
-                z = _exact_linear(z, d, sigma, beta, gamma)
-            else:
-                az = abs(z)
-                L = stiff0 * (az ** (n - 1.0) if az > 1.0 else 1.0)
-                m = int(math.ceil(abs(d) * L / RK_STEP))
-                if m < 1:
-                    m = 1
-                elif m > MAX_SUBSTEPS:
-                    m = MAX_SUBSTEPS
-                h = d / m
-                if m == 1 and abs(d) * L <= TAYLOR_STEP and abs(d) <= TAYLOR_STEP * abs(z):
-                    z_new = _taylor3(z, d, sigma, beta, gamma, n)
-                    if (z_new > 0.0) == (z > 0.0):  # no sign change: done with this interval
-                        z = z_new
-                        m = 0
-                for _ in range(m):
-                    if n < 2.0 and abs(z) <= 2.0 * abs(h):
-                        # |z|^n is not smooth at 0 for n < 2: finer steps across the crossing
-                        for _ in range(NEAR_ZERO_SPLIT):
-                            z = _rk4_crossing(z, h / NEAR_ZERO_SPLIT, sigma, beta, gamma, n)
-                    else:
-                        z = _rk4_crossing(z, h, sigma, beta, gamma, n)
-            if not abs(z) < Z_CAP:  # a diverging set (or NaN): hold z at the cap from here on
-                z = -Z_CAP if z < 0.0 else Z_CAP
-                for j in range(k, n_t):
-                    out[j] = z
-                return
+        z = bouc_wen_step(z, xi[k] - xi[k - 1], beta, gamma, n)
+        if abs(z) >= Z_CAP:  # a diverging set: hold z at the cap from here on
+            for j in range(k, n_t):
+                out[j] = z
+            return
         out[k] = z
 
 
@@ -216,11 +237,41 @@ def bouc_wen_batch(xi, betas, gammas, ns, kxs, kzs, offsets):
     return out
 
 
-class BoucWen(HysteresisModel):
+@njit(cache=True, nogil=True)
+def bouc_wen_candidate(u, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset):
+    """(y, xi, z) at this sample for input u, from xi1 = xi(k-1) and z = z(k-1) (``bouc_wen_step``)."""
+    xi = (2.0 * u - (range_hi + range_lo)) / (range_hi - range_lo)
+    if not first and abs(z) < Z_CAP:
+        z = bouc_wen_step(z, xi - xi1, beta, gamma, n)
+    return offset + kx * xi + kz * z, xi, z
+
+
+@njit(cache=True)
+def bouc_wen_steps(yd, u_given, range_lo, range_hi, beta, gamma, n, kx, kz, offset, u_limit_lo, u_limit_hi, u_start,
+                   max_step, n_grid, tol, clip_tol):
+    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
+    derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
+    n_t = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n_t), np.empty(n_t), np.zeros(n_t, dtype=np.bool_)
+    st = np.empty(SEARCH_SIZE)
+    u1, xi1, z = u_start, 0.0, 0.0
+    for k in range(n_t):
+        first = k == 0
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            y = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)[0]
+            x = search_next(st, y - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
+        y, xi1, z = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)
+        u_out[k], y_out[k], u1 = x, y, x
+    return u_out, clipped, y_out
+
+
+class BoucWen(KernelInvertible, HysteresisModel):
     """Classical Bouc-Wen on the normalised input; see the module docstring."""
 
     name = "bouc-wen"
-    inverse_unavailable = "an ODE driven by the input's rate; no step inverse is implemented"
+    step_kernel = staticmethod(bouc_wen_steps)
 
     def __init__(self, offset: bool = True):
         self.offset = offset
@@ -262,6 +313,10 @@ class BoucWen(HysteresisModel):
             return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
                                    offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    def step_arguments(self, vector, input_range) -> tuple:
+        p = self.unpack(vector)
+        return input_range[0], input_range[1], p["beta"], p["gamma"], p["n"], p["kx"], p["kz"], p.get("offset", 0.0)
 
     def regressors(self, u, dt: float, nonlinear, input_range=None) -> np.ndarray:
         u = self._check_input(u, dt)

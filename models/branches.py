@@ -32,7 +32,18 @@ and M is extrapolated.
 
 Every output sample is linear in the coefficients of M and H (the reversal
 value y_t is itself such a combination), so the model is linear in all its
-parameters: ``branch_regressors`` runs the rule on each basis function.
+parameters: ``branch_regressors`` runs the rule on each basis function,
+one ``branch_step`` per sample.
+
+Inverse (``KernelInvertible.invert``, kernel ``branch_steps``, the same ``branch_step``): at
+each sample y is continuous in u: both branches leave the previous output (at a reversal
+the memory starts the new branch there), so the search, walking out from u(k-1), takes the
+root nearest the previous input. Not invertible, so clipped to the nearest output the walk
+visits and counted: a desired output beyond those reachable within the limits (and the rate
+limit) on the branch the input would take, or behind a flat or turning stretch of it (a
+branch not monotone in u; each model's docstring says where its shape does that). A
+turning stretch narrower than the walk's step (range / n_grid) that alone holds the root is
+stepped over.
 """
 
 from __future__ import annotations
@@ -42,6 +53,8 @@ from numba import njit
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 
 def normalised_input(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -68,53 +81,138 @@ def direction(u):
     return s
 
 
-@njit(cache=True)
-def branch_regressors(xi, s, centre_basis, halfwidth_basis):
-    """Columns of y - c for unit coefficients: first M's basis, then H's.
+ELLIPSE, POLYNOMIAL = 0, 1  # half-width bases: sqrt(1 - x^2); (1 - x^2) x^j, j = 0..n_half-1
 
-    centre_basis (T, nm): basis of M at xi; halfwidth_basis (T, nh): basis of
-    H at clip(xi). Column value on branch s: G or -s K, with the reversal
-    memory of the module docstring.
-    """
+
+@njit(cache=True, nogil=True)
+def branch_basis(xi, kind, G, K):
+    """The bases at one sample, in place: G = xi^1 .. xi^nm (centre line M) and K at the
+    clipped xi (half-width H, ``kind`` ELLIPSE or POLYNOMIAL), by repeated products."""
+    col = 1.0
+    for j in range(G.shape[0] + 1):
+        if j >= 1:
+            G[j - 1] = col
+        col = col * xi
+    xc = min(max(xi, -1.0), 1.0)
+    if kind == ELLIPSE:
+        K[0] = np.sqrt(max(1.0 - xc * xc, 0.0))
+    else:
+        envelope = 1.0 - xc * xc
+        col = 1.0
+        for j in range(K.shape[0]):
+            K[j] = envelope * col
+            col = col * xc
+
+
+@njit(cache=True, nogil=True)
+def branch_step(xi, sk, reversal, xi_prev, xi_t, G_prev, K_prev, prev_row, jump, G, K, row):
+    """One sample of the rule (module docstring) on every basis column: the row at xi on branch
+    sk into ``row``, from the bases G, K at xi. At a reversal the memory ``jump`` (in place) takes
+    the previous row's offset from the new branch at the previous sample (bases G_prev, K_prev).
+    Returns the reversal point xi_t in force."""
+    nm = G.shape[0]
+    nh = K.shape[0]
+    if reversal:
+        xi_t = xi_prev
+        for j in range(nm):
+            jump[j] = prev_row[j] - G_prev[j]
+        for j in range(nh):
+            jump[nm + j] = prev_row[nm + j] + sk * K_prev[j]
+    # decay weight of the memory
+    if sk > 0:
+        den = 1.0 - xi_t
+        w = (1.0 - xi) / den if den > 1e-12 else 0.0
+    else:
+        den = 1.0 + xi_t
+        w = (1.0 + xi) / den if den > 1e-12 else 0.0
+    if w < 0.0:
+        w = 0.0
+    elif w > 1.0:
+        w = 1.0
+    for j in range(nm):
+        row[j] = G[j] + jump[j] * w
+    for j in range(nh):
+        row[nm + j] = -sk * K[j] + jump[nm + j] * w
+    return xi_t
+
+
+@njit(cache=True)
+def branch_regressors(xi, s, n_centre, kind, n_half):
+    """Columns of y - c for unit coefficients: first M's n_centre basis functions, then H's
+    n_half (column value on branch s: G or -s K, with the reversal memory), one
+    ``branch_step`` per sample."""
     n_t = xi.shape[0]
-    nm = centre_basis.shape[1]
-    nh = halfwidth_basis.shape[1]
-    nc = nm + nh
-    out = np.empty((n_t, nc))
-    jump = np.zeros(nc)
+    out = np.empty((n_t, n_centre + n_half))
+    jump = np.zeros(n_centre + n_half)
+    G, G_prev = np.zeros(n_centre), np.zeros(n_centre)
+    K, K_prev = np.zeros(n_half), np.zeros(n_half)
     xi_t = 0.0
     for k in range(n_t):
-        sk = s[k]
-        if k > 0 and sk != s[k - 1]:
-            # reversal between k-1 and k: offset of the output from the new branch at k-1
-            xi_t = xi[k - 1]
-            for j in range(nm):
-                jump[j] = out[k - 1, j] - centre_basis[k - 1, j]
-            for j in range(nh):
-                jump[nm + j] = out[k - 1, nm + j] + sk * halfwidth_basis[k - 1, j]
-        # decay weight of the memory
-        if sk > 0:
-            den = 1.0 - xi_t
-            w = (1.0 - xi[k]) / den if den > 1e-12 else 0.0
-        else:
-            den = 1.0 + xi_t
-            w = (1.0 + xi[k]) / den if den > 1e-12 else 0.0
-        if w < 0.0:
-            w = 0.0
-        elif w > 1.0:
-            w = 1.0
-        for j in range(nm):
-            out[k, j] = centre_basis[k, j] + jump[j] * w
-        for j in range(nh):
-            out[k, nm + j] = -sk * halfwidth_basis[k, j] + jump[nm + j] * w
+        branch_basis(xi[k], kind, G, K)
+        reversal = k > 0 and s[k] != s[k - 1]
+        xi_t = branch_step(xi[k], s[k], reversal, xi[k - 1] if k > 0 else 0.0, xi_t, G_prev, K_prev,
+                           out[k - 1] if k > 0 else out[0], jump, G, K, out[k])
+        G_prev[:] = G
+        K_prev[:] = K
     return out
+
+
+@njit(cache=True, nogil=True)
+def branch_candidate(u, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef, offset, x_lo, x_hi,
+                     square, kind, G, K, jump_c, row):
+    """(y, xi, direction, xi_t) at this sample for input u, the state after the previous sample
+    (u1 = u(k-1), s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row) unchanged; the bases,
+    memory and row at u go to G, K, jump_c, row. y = offset + coef . row; the rule on
+    x = u |u| if ``square`` else u, normalised over [x_lo, x_hi]."""
+    sk = 1 if first else (1 if u > u1 else (-1 if u < u1 else s_prev))
+    x = u * abs(u) if square else u
+    xi = (2.0 * x - (x_hi + x_lo)) / (x_hi - x_lo)
+    branch_basis(xi, kind, G, K)
+    jump_c[:] = jump
+    xt = branch_step(xi, sk, (not first) and sk != s_prev, xi_prev, xi_t, G_prev, K_prev, prev_row, jump_c, G, K, row)
+    y = offset
+    for j in range(row.shape[0]):
+        y += coef[j] * row[j]
+    return y, xi, sk, xt
+
+
+@njit(cache=True)
+def branch_steps(yd, u_given, coef, offset, x_lo, x_hi, square, n_centre, kind, n_half, u_limit_lo, u_limit_hi,
+                 u_start, max_step, n_grid, tol, clip_tol):
+    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
+    derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
+    n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
+    nc = n_centre + n_half
+    jump, jump_c, row, prev_row = np.zeros(nc), np.zeros(nc), np.zeros(nc), np.zeros(nc)
+    G, G_prev = np.zeros(n_centre), np.zeros(n_centre)
+    K, K_prev = np.zeros(n_half), np.zeros(n_half)
+    st = np.empty(SEARCH_SIZE)
+    u1, s_prev, xi_prev, xi_t = u_start, 1, 0.0, 0.0
+    for k in range(n):
+        first = k == 0
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            y = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef, offset,
+                                 x_lo, x_hi, square, kind, G, K, jump_c, row)[0]
+            x = search_next(st, y - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
+        y, xi, sk, xt = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef,
+                                         offset, x_lo, x_hi, square, kind, G, K, jump_c, row)
+        jump[:] = jump_c  # commit
+        prev_row[:] = row
+        G_prev[:] = G
+        K_prev[:] = K
+        u1, s_prev, xi_prev, xi_t = x, sk, xi, xt
+        u_out[k], y_out[k] = x, y
+    return u_out, clipped, y_out
 
 
 # --- the shared model class ---------------------------------------------------
 COEF_BOUND = 10.0  # |coefficient| <= COEF_BOUND * y (basis functions are O(1) on [-1, 1])
 
 
-class BranchModel(HysteresisModel):
+class BranchModel(KernelInvertible, HysteresisModel):
     """Base of ``elliptical`` and ``dual-polynomial``: every parameter is linear.
 
     Subclasses define the centre-line and half-width parameters and bases.
@@ -135,22 +233,20 @@ class BranchModel(HysteresisModel):
         """The input on which the loop is drawn (identity unless overridden)."""
         return u
 
-    def _centre_basis(self, xi: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    halfwidth_kind = POLYNOMIAL  # the half-width basis (``branch_basis``)
 
-    @staticmethod
-    def _powers(x: np.ndarray, first: int, last: int) -> np.ndarray:
-        """Columns x^first ... x^last by repeated products (numpy's x**3 calls pow)."""
-        out = np.empty((x.size, last - first + 1))
-        col = np.ones_like(x)
-        for j in range(last + 1):
-            if j >= first:
-                out[:, j - first] = col
-            col = col * x
-        return out
+    @property
+    def n_centre(self) -> int:
+        return len(self._centre_parameters())
 
-    def _halfwidth_basis(self, xi_clipped: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+    @property
+    def n_halfwidth(self) -> int:
+        return len(self._halfwidth_parameters())
+
+    @property
+    def square_input(self) -> bool:
+        """The loop is drawn on u |u| (``_linearised``) rather than on u."""
+        return False
 
     # interface ------------------------------------------------------------
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
@@ -180,9 +276,7 @@ class BranchModel(HysteresisModel):
                 f"model {self.name!r} has no nonlinear parameters; got {sorted(nonlinear)}"
             )
         xi = self.normalised(u, input_range)
-        G = np.ascontiguousarray(self._centre_basis(xi), dtype=float)
-        K = np.ascontiguousarray(self._halfwidth_basis(np.clip(xi, -1.0, 1.0)), dtype=float)
-        Phi = branch_regressors(xi, direction(u), G, K)
+        Phi = branch_regressors(xi, direction(u), self.n_centre, self.halfwidth_kind, self.n_halfwidth)
         if self.offset:
             Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
         return Phi
@@ -192,3 +286,12 @@ class BranchModel(HysteresisModel):
         Phi = self.regressors(u, dt, None, input_range)
         # the time loop is input-only (in branch_regressors); the parameter sets are one product
         return P @ Phi.T
+
+    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    step_kernel = staticmethod(branch_steps)
+
+    def step_arguments(self, vector, input_range) -> tuple:
+        x_lo, x_hi = self._linearised(np.array(input_range))
+        coef = np.ascontiguousarray(vector[: self.n_centre + self.n_halfwidth])
+        return (coef, float(vector[-1]) if self.offset else 0.0, float(x_lo), float(x_hi), self.square_input,
+                self.n_centre, self.halfwidth_kind, self.n_halfwidth)

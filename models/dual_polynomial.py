@@ -27,6 +27,14 @@ at 0 (the loop is closed there) and M is extrapolated.
 Hyperparameter ``order`` n >= 2 (default 4, the order the seed paper chose for
 its own polynomial). Every parameter is linear; the model is rate-independent
 and, as published, needs a new parameter set to follow another rate.
+
+Inverse (``KernelInvertible.invert``): where it is not invertible. Each branch is a polynomial
+of order n in xi (plus the memory's linear term in a minor loop): it is invertible where its
+slope M' - s H' + memory keeps one sign. A fitted order-4 branch may flatten or turn back
+(typically near the range's ends, where the data constrain it least); desired outputs behind
+such a turn or beyond the branch's values within the input limits are clipped to the
+nearest output the search visits and counted. Where two inputs give y_d the one nearest
+the previous input is taken.
 """
 
 from __future__ import annotations
@@ -39,7 +47,6 @@ from .errors import ModelError
 
 class DualPolynomial(BranchModel):
     name = "dual-polynomial"
-    inverse_unavailable = "two branch polynomials switched by the input's direction; no step inverse is implemented"
 
     def __init__(self, order: int = 4, offset: bool = True):
         super().__init__(offset=offset)
@@ -52,13 +59,6 @@ class DualPolynomial(BranchModel):
 
     def _halfwidth_parameters(self):
         return [(f"h{j}", f"half-width H: coefficient of (1 - xi^2) xi^{j}") for j in range(self.order - 1)]
-
-    def _centre_basis(self, xi):
-        return self._powers(xi, 1, self.order)
-
-    def _halfwidth_basis(self, xi_clipped):
-        envelope = 1.0 - xi_clipped * xi_clipped
-        return envelope[:, None] * self._powers(xi_clipped, 0, self.order - 2)
 
     def branch_polynomials(self, params) -> tuple[np.ndarray, np.ndarray]:
         """Coefficients (xi^0 ... xi^n, offset included) of P_rise + c and P_fall + c."""

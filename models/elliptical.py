@@ -34,13 +34,22 @@ only covers the major loop, where the two coincide); outside the range the
 ellipse term is 0. ``poly_order`` K = 1 is the published centre line; more
 terms bend it. Every parameter is linear; one parameter set serves every
 frequency, so the model is rate-independent by construction.
+
+Inverse (``KernelInvertible.invert``): where it is not invertible. The ellipse has vertical
+tangents at the range's ends: on the rising branch (K = 1) dy/dxi = m_1 + b xi / sqrt(1 - xi^2)
+runs to -inf as xi -> -1, so for b > 0 the branch first dips below y(-1) and turns up only at
+xi* = -m_1 / sqrt(m_1^2 + b^2) (the falling branch mirrors this at +1). Outputs below the
+dip (above the crest) are out of reach: clipped to the nearest output and counted; an output
+between y(-1) and the dip's bottom has two roots on the branch, and the search takes the
+one nearest the previous input. More centre terms (K > 1) can add flat or turning stretches
+inside the range; minor loops follow the memory rule, which scales the same shape.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .branches import BranchModel
+from .branches import ELLIPSE, BranchModel
 from .errors import ModelError
 
 LINEARISATIONS = ("square", "none")
@@ -48,8 +57,7 @@ LINEARISATIONS = ("square", "none")
 
 class Elliptical(BranchModel):
     name = "elliptical"
-    inverse_unavailable = ("the output switches branch with the input's direction and follows sqrt(1 - xi^2); "
-                           "no step inverse is implemented")
+    halfwidth_kind = ELLIPSE
 
     def __init__(self, linearise: str = "square", poly_order: int = 1, offset: bool = True):
         super().__init__(offset=offset)
@@ -69,8 +77,6 @@ class Elliptical(BranchModel):
     def _linearised(self, u):
         return u * np.abs(u) if self.linearise == "square" else u
 
-    def _centre_basis(self, xi):
-        return self._powers(xi, 1, self.poly_order)
-
-    def _halfwidth_basis(self, xi_clipped):
-        return np.sqrt(np.maximum(1.0 - xi_clipped * xi_clipped, 0.0))[:, None]
+    @property
+    def square_input(self) -> bool:
+        return self.linearise == "square"

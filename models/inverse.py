@@ -18,18 +18,27 @@ time from its state after the previous sample (k = 0, 1, ...; u = u(k)):
 state; ``step_advance`` commits a chosen u. ``step_simulate`` runs the model forward
 through them (the tests check it against each model's own forward kernel).
 
-The numerical inverse (``invert_steps``): at each sample, g(u) = y(k; u) - y_d(k) is
-searched on [u_lo, u_hi] (the input limits, narrowed to u(k-1) +- max_rate dt when a
-rate limit is given; u(-1) = ``u_start``, the input the actuator rests at) by walking
-outward from the previous input u(k-1) in steps of (u_hi - u_lo) / n_grid, both ways
-alternately, up to the first sign change: the root nearest the previous input, which
-keeps the input continuous where the model is not monotone in u. The bracket is refined
-by Newton steps with the analytic dy/du, falling back to bisection when a step leaves
-it. Where the walk finds no sign change (y_d beyond the outputs reachable within the
-limits, or a flat or non-monotone branch that does not reach it) the inverse takes the
-visited point with the smallest |g| (the nearest reachable output on that grid, the
-limits and the previous input included) and counts the sample as clipped. A touching
-root (g >= 0 on both sides) is counted as clipped too.
+The numerical inverse (``invert_steps``; for the other models their own kernels, all
+through one root search, ``root_search.search_start`` / ``search_next``): at each sample,
+g(u) = y(k; u) - y_d(k) is searched on [u_lo, u_hi] (the input limits, narrowed to
+u(k-1) +- max_rate dt when a rate limit is given; u(-1) = ``u_start``, the input the
+actuator rests at) by walking outward from the previous input u(k-1) in steps of
+(u_hi - u_lo) / n_grid, both ways alternately, up to the first sign change: the root nearest
+the previous input, which keeps the input continuous where the model is not monotone in u.
+The bracket is refined by Newton steps with the analytic dy/du (secant steps through the
+last two evaluations for the models that give no dy/du), falling back to bisection when a
+step leaves the bracket or does not halve |g|. Where the walk finds no sign change (y_d beyond the outputs reachable
+within the limits, or a flat or non-monotone branch that does not reach it) the inverse takes
+the visited point with the smallest |g| (the nearest reachable output on that grid, the
+limits and the previous input included) and counts the sample as clipped (Preisach: only
+when it misses by more than half its largest stair). A touching root (g >= 0 on both sides)
+is counted as clipped too.
+
+The search is reverse-communication (the model's kernel evaluates g where the search asks
+and hands it back), so each model keeps its own cached numba kernel and its own step
+function, the one its forward simulation runs: ``step_output`` / ``step_advance`` here for
+the P-I family, ``branches.branch_step`` (elliptical, dual-polynomial),
+``preisach.preisach_step`` (the relay rule ``relay_switch``), ``bouc_wen.bouc_wen_step``.
 
 Where each model is not invertible (the sample is then clipped as above):
 
@@ -44,8 +53,10 @@ Where each model is not invertible (the sample is then clipped as above):
 * rate-dependent-pi: thresholds grow with |u - u(k-1)|: the same kink at u(k-1).
 * mrpim+relaxation / +creep / +interference: as mrpim; the filters add c b1 u^p, the
   creep and the interference only shift the target.
-* mrpim+delay, +resonance, +saturation and the non-P-I models: not inverted here (each
-  says why in ``inverse_unavailable``).
+* elliptical, dual-polynomial, preisach, bouc-wen (``KernelInvertible``): see each model's
+  module docstring (branches.py for the two branch models).
+* mrpim+delay, +resonance, +saturation, bouc-wen-oscillator: not inverted here (each says
+  why in ``inverse_unavailable``).
 
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
@@ -79,9 +90,9 @@ from numba import njit
 
 from .errors import ModelError
 from .kernels import play_update
+from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
-NEWTON_ITERATIONS = 80
 
 
 @dataclass
@@ -191,32 +202,6 @@ def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0
     return out
 
 
-@njit(cache=True, nogil=True)
-def _refine(xa, ga, xb, gb, target, tol, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-            fa, fb0, fb1, fpow, fw):
-    """Safeguarded Newton on a bracket [xa, xb] with g(xa) g(xb) < 0: a Newton step is taken when it
-    stays inside the bracket and the previous step at least halved |g|, else the bracket is bisected."""
-    x = xa if abs(ga) < abs(gb) else xb
-    g_prev = np.inf
-    for _ in range(NEWTON_ITERATIONS):
-        y, dy = step_output(x, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                            fa, fb0, fb1, fpow, fw)
-        gx = y - target
-        if abs(gx) <= tol:
-            return x
-        if (gx > 0) == (ga > 0):
-            xa, ga = x, gx
-        else:
-            xb, gb = x, gx
-        lo, hi = min(xa, xb), max(xa, xb)
-        if hi - lo <= 1e-15 * (abs(lo) + abs(hi) + 1e-300):
-            break
-        xn = x - gx / dy if dy != 0.0 else 0.5 * (lo + hi)
-        x = xn if (lo < xn < hi and abs(gx) <= 0.5 * g_prev) else 0.5 * (lo + hi)
-        g_prev = abs(gx)
-    return xa if abs(ga) < abs(gb) else xb
-
-
 @njit(cache=True)
 def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi, g_lo, g_hi,
                  weights, poly, q, fa, fb0, fb1, fpow, fw):
@@ -227,56 +212,20 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
     clipped = np.zeros(n, dtype=np.bool_)
     w = np.zeros(r_lo.shape[0])
     xf = np.zeros(fa.shape[0])
-    h = (u_limit_hi - u_limit_lo) / n_grid
+    st = np.empty(SEARCH_SIZE)
     u1 = u2 = min(max(u_start, u_limit_lo), u_limit_hi)
     for k in range(n):
         first = k == 0
-        target = yd[k]
-        b = base[k]
-        u_lo = max(u_limit_lo, u1 - max_step)
-        u_hi = min(u_limit_hi, u1 + max_step)
-        start = u1
-        g0 = step_output(start, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                         fa, fb0, fb1, fpow, fw)[0] - target
-        best_u, best_g = start, abs(g0)
-        found = abs(g0) <= tol
-        u = start
-        xa = ga = xb = gb = 0.0
-        if not found:
-            up_x, up_g, dn_x, dn_g = start, g0, start, g0
-            up_done, dn_done = start >= u_hi, start <= u_lo
-            j = 1
-            while not found and not (up_done and dn_done):
-                for side in range(2):
-                    if (side == 0 and up_done) or (side == 1 and dn_done):
-                        continue
-                    x = min(start + j * h, u_hi) if side == 0 else max(start - j * h, u_lo)
-                    g = step_output(x, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                                    fa, fb0, fb1, fpow, fw)[0] - target
-                    if abs(g) < best_g:
-                        best_u, best_g = x, abs(g)
-                    px, pg = (up_x, up_g) if side == 0 else (dn_x, dn_g)
-                    if abs(g) <= tol:
-                        u, found = x, True
-                        break
-                    if (g > 0) != (pg > 0):
-                        xa, ga, xb, gb = px, pg, x, g
-                        found = True
-                        u = _refine(xa, ga, xb, gb, target, tol, first, u1, u2, dt, b, w, xf, r_lo, r_hi, g_lo,
-                                    g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
-                        break
-                    if side == 0:
-                        up_x, up_g, up_done = x, g, x >= u_hi
-                    else:
-                        dn_x, dn_g, dn_done = x, g, x <= u_lo
-                j += 1
-        if not found:
-            u = best_u
-            clipped[k] = True
-        u_out[k] = u
-        step_advance(u, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
-        u2 = u if first else u1
-        u1 = u
+        x = search_start(st, NO_INPUT, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, tol)
+        while not search_done(st):
+            y, dy = step_output(x, first, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                                fa, fb0, fb1, fpow, fw)
+            x = search_next(st, y - yd[k], dy)
+        u_out[k] = x
+        clipped[k] = search_clipped(st)
+        step_advance(x, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
+        u2 = x if first else u1
+        u1 = x
     return u_out, clipped
 
 
@@ -320,27 +269,90 @@ class StepInvertible:
         that makes the model output ``y_desired``, sample by sample (module docstring).
         ``max_rate``: largest |du/dt| (input units per second; None: none); ``u_start``: the
         input before the first sample (default: the lower limit, an actuator at rest)."""
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        s = self._structure(dt, params, a.input_range, a.yd.size)
+        r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
+        u, clipped = invert_steps(a.yd, float(dt), np.ascontiguousarray(s.base), a.lo, a.hi, a.u_start, a.max_step,
+                                  a.n_grid, a.tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
+        return Inversion(u, clipped)
+
+
+@dataclass(frozen=True)
+class InverseArguments:
+    """The checked arguments every model's ``invert`` shares (see ``StepInvertible.invert``)."""
+
+    yd: np.ndarray
+    input_range: tuple | None
+    lo: float
+    hi: float
+    u_start: float
+    max_step: float  # largest input change per sample (inf: none)
+    n_grid: int
+    tol: float  # |y - y_d| that counts as reached
+
+    @classmethod
+    def check(cls, name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start) -> "InverseArguments":
         yd = np.ascontiguousarray(y_desired, dtype=float)
         if yd.ndim != 1 or yd.size == 0 or not np.all(np.isfinite(yd)):
-            raise ModelError(f"{self.name}: the desired output must be a non-empty, finite 1-D array")
+            raise ModelError(f"{name}: the desired output must be a non-empty, finite 1-D array")
         input_range = input_range if input_range is not None else input_limits
         input_limits = input_limits if input_limits is not None else input_range
         if input_limits is None:
-            raise ModelError(f"{self.name}: invert needs input_range (the fit's) or input_limits")
+            raise ModelError(f"{name}: invert needs input_range (the fit's) or input_limits")
         lo, hi = map(float, input_limits)
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
-            raise ModelError(f"{self.name}: input limits must have low < high, got {input_limits!r}")
+            raise ModelError(f"{name}: input limits must have low < high, got {input_limits!r}")
         if not (isinstance(n_grid, (int, np.integer)) and n_grid >= 2):
-            raise ModelError(f"{self.name}: n_grid must be an integer >= 2, got {n_grid!r}")
+            raise ModelError(f"{name}: n_grid must be an integer >= 2, got {n_grid!r}")
         if max_rate is not None and not max_rate > 0:
-            raise ModelError(f"{self.name}: max_rate must be positive, got {max_rate!r}")
+            raise ModelError(f"{name}: max_rate must be positive, got {max_rate!r}")
         max_step = np.inf if max_rate is None else float(max_rate) * float(dt)
-        s = self._structure(dt, params, input_range, yd.size)
-        tol = 1e-12 * (1.0 + float(np.max(np.abs(yd))))
-        r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
-        u, clipped = invert_steps(yd, float(dt), np.ascontiguousarray(s.base), lo, hi,
-                                  lo if u_start is None else float(u_start), max_step, int(n_grid), tol, r_lo, r_hi,
-                                  g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
+        start = lo if u_start is None else float(u_start)
+        return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
+                   1e-12 * (1.0 + float(np.max(np.abs(yd)))))
+
+
+class KernelInvertible:
+    """Mixin for a model inverted through its own step kernel (elliptical, dual-polynomial,
+    preisach, bouc-wen): ``step_kernel(yd, u_given, *step_arguments, u_lo, u_hi, u_start,
+    max_step, n_grid, tol, clip_tol) -> (u, clipped, y)`` searches the input for yd with
+    ``search_next`` or, given a non-empty u_given, runs the model forward through the same steps."""
+
+    inverse_unavailable = None
+    step_kernel = None  # the model's jitted kernel (a staticmethod)
+
+    def step_arguments(self, vector: np.ndarray, input_range: tuple) -> tuple:
+        """The kernel's model arguments for a parameter vector and the operators' input range."""
+        raise NotImplementedError
+
+    def clip_tolerance(self, vector: np.ndarray, input_range: tuple, tol: float) -> float:
+        """How far the nearest output may miss y_d before the sample counts as clipped."""
+        return tol
+
+    def _step_setup(self, params, input_range) -> tuple:
+        vec = self.pack(params) if isinstance(params, dict) else np.asarray(params, dtype=float)
+        if vec.shape != (self.n_params,):
+            raise ModelError(f"model {self.name!r} takes {self.n_params} parameters, got shape {vec.shape}")
+        lo, hi = map(float, input_range)
+        if not hi > lo:
+            raise ModelError(f"model {self.name!r} needs an input_range of positive width, got ({lo!r}, {hi!r})")
+        return vec, (lo, hi)
+
+    def simulate_steps(self, u, dt: float, params, input_range=None) -> np.ndarray:
+        """The forward model through the inverse's step kernel (equals ``simulate``)."""
+        u = self._check_input(u, dt)
+        vec, rng = self._step_setup(params, self._input_range(u, input_range))
+        return self.step_kernel(np.zeros(0), u, *self.step_arguments(vec, rng), rng[0], rng[1], u[0], np.inf, 2, 0.0,
+                                0.0)[2]
+
+    def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
+               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
+        """The causal numerical inverse (arguments as ``StepInvertible.invert``), searched
+        derivative-free; each model's docstring says where it is not invertible."""
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        vec, rng = self._step_setup(params, a.input_range)
+        u, clipped, _ = self.step_kernel(a.yd, np.zeros(0), *self.step_arguments(vec, rng), a.lo, a.hi, a.u_start,
+                                         a.max_step, a.n_grid, a.tol, self.clip_tolerance(vec, rng, a.tol))
         return Inversion(u, clipped)
 
 

@@ -26,6 +26,19 @@ density is non-negative), so the exact solve is a non-negative least squares
 (scipy.optimize.nnls / lsq_linear with these bounds). Non-negative weights
 give the wiping-out and congruency properties of the Preisach model; the model
 is rate-independent.
+
+Inverse (``KernelInvertible.invert``, kernel ``preisach_steps``; ``preisach_step`` applies
+the relay rule ``relay_switch`` of the forward model): at each sample the output is a
+staircase in u, flat between switching levels, jumping where u crosses one (up above the
+previous input with non-negative weights, down below it). The search walks out from u(k-1):
+an output on a stair is met exactly (the previous input is kept while y_d stays on its
+stair); one between two stairs is bracketed by the jump, narrowed to the switching level,
+and the nearer stair is taken (a miss of at most half that jump, not counted as clipped; a
+stair reached only at a level exactly, u = alpha, is such a case). Clipped and counted only
+where y_d is out of reach of every stair within the limits by more than half the largest
+stair (``largest_stair``: the staircase's resolution). Negative weights (outside the
+default bounds) make the stairs non-monotone; the walk then takes the first bracket from
+u(k-1) or the nearest stair it visits.
 """
 
 from __future__ import annotations
@@ -35,8 +48,20 @@ from numba import njit, prange
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .inverse import KernelInvertible
+from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
+
+
+@njit(cache=True, nogil=True)
+def relay_switch(state, uk, alpha, beta):
+    """A relay's state after input uk: +1 at or above alpha, -1 at or below beta, else held."""
+    if uk >= alpha:
+        return 1
+    if uk <= beta:
+        return -1
+    return state
 
 
 @njit(cache=True)
@@ -47,12 +72,8 @@ def relay_states(u, alphas, betas):
     out = np.empty((n_t, n_r), dtype=np.int8)
     state = -np.ones(n_r, dtype=np.int8)
     for k in range(n_t):
-        uk = u[k]
         for i in range(n_r):
-            if uk >= alphas[i]:
-                state[i] = 1
-            elif uk <= betas[i]:
-                state[i] = -1
+            state[i] = relay_switch(state[i], u[k], alphas[i], betas[i])
             out[k, i] = state[i]
     return out
 
@@ -64,13 +85,8 @@ def _switches(u, alphas, betas, ev_k, ev_i, ev_s, record):
     state = -np.ones(n_r, dtype=np.int8)
     count = 0
     for k in range(u.shape[0]):
-        uk = u[k]
         for i in range(n_r):
-            new = state[i]
-            if uk >= alphas[i]:
-                new = 1
-            elif uk <= betas[i]:
-                new = -1
+            new = relay_switch(state[i], u[k], alphas[i], betas[i])
             if new != state[i]:
                 state[i] = new
                 if record:
@@ -114,12 +130,47 @@ def preisach_batch(n_t, ev_k, ev_i, ev_s, weights, offsets):
     return out
 
 
-class Preisach(HysteresisModel):
+@njit(cache=True, nogil=True)
+def preisach_step(u, state, alphas, betas, weights, acc, commit):
+    """sum_i w_i R_i after input u, from the relay states ``state`` whose sum is ``acc`` (switch by
+    switch, as ``preisach_batch`` adds its events); the states move to u only if ``commit``."""
+    for i in range(alphas.shape[0]):
+        new = relay_switch(state[i], u, alphas[i], betas[i])
+        if new != state[i]:
+            acc += 2.0 * weights[i] * new
+            if commit:
+                state[i] = new
+    return acc
+
+
+@njit(cache=True)
+def preisach_steps(yd, u_given, alphas, betas, weights, offset, u_limit_lo, u_limit_hi, u_start, max_step, n_grid,
+                   tol, clip_tol):
+    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
+    derivative-free; clipped where the nearest output misses by more than ``clip_tol``), or, with
+    a non-empty ``u_given``, the forward model through the same steps."""
+    n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
+    u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
+    state = -np.ones(alphas.shape[0], dtype=np.int8)
+    acc = 0.0
+    for i in range(weights.shape[0]):
+        acc -= weights[i]
+    st = np.empty(SEARCH_SIZE)
+    u1 = u_start
+    for k in range(n):
+        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
+        while not search_done(st):
+            x = search_next(st, offset + preisach_step(x, state, alphas, betas, weights, acc, False) - yd[k], np.nan)
+        clipped[k] = search_clipped(st)
+        acc = preisach_step(x, state, alphas, betas, weights, acc, True)
+        u_out[k], y_out[k], u1 = x, offset + acc, x
+    return u_out, clipped, y_out
+
+
+class Preisach(KernelInvertible, HysteresisModel):
     """Discrete Preisach model on a triangular relay grid; see the module docstring."""
 
     name = "preisach"
-    inverse_unavailable = ("relay hysterons make the output a staircase in the input (flat between switching levels); "
-                           "no step inverse is implemented")
 
     def __init__(self, grid_size: int = 10, offset: bool = True):
         self.grid_size = grid_size
@@ -173,3 +224,22 @@ class Preisach(HysteresisModel):
         if self.offset:
             Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
         return Phi
+
+    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    step_kernel = staticmethod(preisach_steps)
+
+    def step_arguments(self, vector, input_range) -> tuple:
+        alphas, betas = self.grid(np.zeros(1), input_range)
+        return alphas, betas, np.ascontiguousarray(vector[: self.n_relays]), float(vector[-1]) if self.offset else 0.0
+
+    def largest_stair(self, params, input_range) -> float:
+        """The largest jump of the staircase: 2 x the largest total weight of the relays that
+        share a switching level (up or down)."""
+        vec, rng = self._step_setup(params, input_range)
+        alphas, betas, w, _ = self.step_arguments(vec, rng)
+        sums = [np.bincount(np.unique(v, return_inverse=True)[1], weights=w) for v in (alphas, betas)]
+        return 2.0 * float(max(np.max(np.abs(s)) for s in sums))
+
+    def clip_tolerance(self, vector, input_range, tol) -> float:
+        """Half the largest stair: the staircase's resolution (module docstring)."""
+        return 0.5 * self.largest_stair(vector, input_range) + tol

@@ -94,13 +94,13 @@ def test_cli_bad_input_is_one_line_and_exit_2(capsys, tmp_path):
 
 def test_cli_writes_report_and_json(tmp_path, capsys):
     out = tmp_path / "res"
-    code = cli_main(["compensate", str(default_dataset_path()), "--models", "classical-pi,preisach",
+    code = cli_main(["compensate", str(default_dataset_path()), "--models", "classical-pi,mrpim+delay",
                      "--references", "sine-1Hz", "--out", str(out), "--quiet"])
     assert code == 0
     data = json.loads((out / "compensation.json").read_text())
     cell = data["references"]["sine-1Hz"]
     assert set(cell) == {"linear", "classical-pi", "pi", "pi+linear", "pi+classical-pi"}
     assert set(cell["classical-pi"]) >= {"e_rms", "e_m", "clipped"}
-    assert "preisach" in data["not_invertible"]
-    assert "preisach: cannot be inverted" in capsys.readouterr().out
+    assert "mrpim+delay" in data["not_invertible"]
+    assert "mrpim+delay: cannot be inverted" in capsys.readouterr().out
     assert (out / "compensation.md").read_text().count("| sine-1Hz |") == 2

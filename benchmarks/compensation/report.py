@@ -146,8 +146,9 @@ def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Pat
     lines += ["| model | identifier | inverse | validation e_rms mean (%) | inverse rate limit (kV/s) |",
               "|---|---|---|---:|---:|"]
     for name, m in result["models"].items():
-        lines.append(f"| {name} | {m['method']} | {m['inverse']} | {_fmt(m['validation_e_rms_mean'])} | "
-                     f"{_fmt(m.get('max_rate'))} |")
+        options = ", ".join(f"{k}={v}" for k, v in m.get("identify_options", {}).items())
+        lines.append(f"| {name} | {m['method']}{f' ({options})' if options else ''} | {m['inverse']} | {_fmt(m['validation_e_rms_mean'])} | "
+                     f"{'none' if m.get('max_rate') is None else _fmt(m['max_rate'])} |")
     if result["not_invertible"]:
         lines += ["", "Not inverted:", ""]
         lines += [f"* `{name}`: {why}" for name, why in result["not_invertible"].items()]
