@@ -266,8 +266,9 @@ def predictive_text(s: dict, files: dict) -> list[str]:
           "(output units). A calibrated predictive covers about 50 % and 90 %; the target for held-out "
           "(validation) records is 80–97 % for the 90 % band. \"scale 1\": the same draws without the "
           "held-out scale.", "",
-          "| record | f (Hz) | role | scale | 50 % coverage | 90 % coverage | 90 % width | 50 % width | 90 % coverage, scale 1 "
-          "| 90 % width, scale 1 | model-only 90 % coverage | rms error of median | draws (non-finite) |",
+          "| record | f (Hz) | role | scale | 50 % coverage | 90 % coverage | 90 % width | 50 % width "
+          "| 90 % coverage, scale 1 | 90 % width, scale 1 | model-only 90 % coverage | rms error of median "
+          "| draws (non-finite) |",
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for role in ("validation", "identification"):
         for p in pv.get(role, []):
@@ -276,7 +277,8 @@ def predictive_text(s: dict, files: dict) -> list[str]:
             if c is None:
                 L.append(f"| {p['file']} | {f} | {role} | | no finite draw | | | | | | | | 0 ({p['nonfinite_draws']}) |")
                 continue
-            L.append(f"| {p['file']} | {f} | {role} | {p.get('predictive_scale', 1.0):.3g} | {_pct(c['50'])} | **{_pct(c['90'])}** | {_g(c['width_90'], 3)} | "
+            L.append(f"| {p['file']} | {f} | {role} | {p.get('predictive_scale', 1.0):.3g} | {_pct(c['50'])} | "
+                     f"**{_pct(c['90'])}** | {_g(c['width_90'], 3)} | "
                      f"{_g(c['width_50'], 3)} | {_pct(u['90'])} | {_g(u['width_90'], 3)} | "
                      f"{_pct(p['fraction_inside_model_band'])} | {_g(p['rms_error_of_median'], 3)} | "
                      f"{p['draws']} ({p['nonfinite_draws']}) |")
