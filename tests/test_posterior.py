@@ -395,6 +395,10 @@ def test_predictive_scale_interpolates_and_grows_with_distance():
     assert cal.scale_at(0.01) == pytest.approx(0.5 * math.exp(0.3 * math.log(2.0)))  # constant beyond the range
     assert cal.scale_at(None) == pytest.approx(2.0)  # unknown frequency: the largest (no folds: no growth)
     assert Calibration(0.9, constant=1.3).scale_at(0.2) == 1.3
+    # a record whose residuals the fit mostly absorbed (leverage > 0.5) is not a base: 0.8 Hz takes 0.4 Hz's
+    lev = Calibration(0.9, frequencies=[0.1, 0.4, 1.0], in_sample=[1.0, 2.0, 0.1], leverage=[0.1, 0.2, 0.9])
+    assert lev.scale_at(0.8) == pytest.approx(2.0)
+    assert lev.describe()["in_sample"][2]["used"] is False
 
 
 # --- the command line ----------------------------------------------------------------------

@@ -27,7 +27,11 @@ comes from held-out coverage, never from the records it is scored on:
 
 c_in(f_r) is the scale that covers fitted record r's own residuals at 90 % (the posterior at its
 median (theta_N, sigma, phi), predictive variance = linear-parameter variance + noise variance);
-c_in(f) interpolates ln c_in linearly in ln f, constant beyond the fitted range. beta (>= 0) is how
+c_in(f) interpolates ln c_in linearly in ln f, constant beyond the fitted range, over the records
+whose leverage (mean linear-parameter variance / noise variance) is <= 0.5: a short record nearly
+interpolated by the linear parameters has residuals far smaller than its error, and would pull
+its neighbours' scales down (full MRPIM's 1 Hz record at a 10 ms step: leverage 0.7-0.93, in-sample
+scale 0.12 where the 0.8 Hz record needs 0.46). beta (>= 0) is how
 fast the error grows away from the fitted frequencies: each identification record is left out in
 turn, the linear parameters (model and discrepancy) are refitted on the others, and beta solves
 mean held-out 90 % coverage = 90 % over the left-out records whose frequency lies inside the
@@ -58,6 +62,8 @@ DISCREPANCY_KINDS = ("relaxation", "none")
 DISCREPANCY_PRIOR_GAIN = 2.0  # prior sd of c_k: this x max|y| / max|u|
 CALIBRATION_LEVEL = 0.9
 SCALE_RANGE = (0.01, 100.0)
+LEVERAGE_MAX = 0.5  # a fitted record whose linear-parameter variance exceeds this x the noise variance: its
+# residuals were mostly absorbed by the fit, so its in-sample scale is not used as a base
 GROWTH_MAX = 10.0  # beta's upper end (per unit |ln f ratio|)
 
 
@@ -97,6 +103,7 @@ class Calibration:
     level: float
     frequencies: list = field(default_factory=list)  # fitted records' frequencies (Hz; None if unknown)
     in_sample: list = field(default_factory=list)  # scale covering each fitted record's own residuals
+    leverage: list = field(default_factory=list)  # per fitted record: mean linear-parameter var / noise var
     growth: float = 0.0  # beta: ln c grows by beta per unit |ln(f / nearest fitted f)|
     constant: float | None = None
     folds: list[dict] = field(default_factory=list)
@@ -110,8 +117,12 @@ class Calibration:
         return min(abs(math.log(frequency / f)) for f in known)
 
     def base_at(self, frequency) -> float:
-        """The in-sample scale interpolated linearly in (ln f, ln c), constant beyond the fitted range."""
-        pts = sorted((math.log(f), math.log(c)) for f, c in zip(self.frequencies, self.in_sample) if f)
+        """The in-sample scale interpolated linearly in (ln f, ln c), constant beyond the fitted range,
+        over the records whose residuals the fit did not mostly absorb (leverage <= LEVERAGE_MAX; all
+        records if none is)."""
+        lev = self.leverage or [0.0] * len(self.in_sample)
+        rows = [(f, c) for f, c, h in zip(self.frequencies, self.in_sample, lev) if f and h <= LEVERAGE_MAX]
+        pts = sorted((math.log(f), math.log(c)) for f, c in (rows or zip(self.frequencies, self.in_sample)) if f)
         if not frequency or not pts:
             return max(self.in_sample)
         xs, ys = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
@@ -133,7 +144,10 @@ class Calibration:
     def describe(self) -> dict:
         return {"kind": "constant" if self.constant is not None else "frequency",
                 "level": self.level, "constant_scale": self.constant, "growth_per_ln_frequency": self.growth,
-                "in_sample": [{"frequency_hz": f, "scale": c} for f, c in zip(self.frequencies, self.in_sample)],
+                "in_sample": [{"frequency_hz": f, "scale": c, "leverage": h, "used": h <= LEVERAGE_MAX}
+                              for f, c, h in zip(self.frequencies, self.in_sample,
+                                                 self.leverage or [0.0] * len(self.in_sample))],
+                "leverage_max": LEVERAGE_MAX,
                 "folds": self.folds, "note": self.note}
 
 
@@ -191,10 +205,11 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
     full = refit(range(len(pieces)))
     if full is None:
         return Calibration(level, constant=1.0, note="the linear fit to every piece failed: scale 1")
-    in_sample = []
+    in_sample, leverage = [], []
     for i in range(len(pieces)):
         e, v = errors(i, full)
         in_sample.append(_solve_increasing(lambda c: coverage(e, v, c), lo, hi, level))
+        leverage.append(float(np.mean(v - noise_var) / noise_var))
     freqs = [p[1] for p in pieces]
     held = []
     for i, (label, f, _, _) in enumerate(pieces):
@@ -210,7 +225,7 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
     if not held:
         return Calibration(level, constant=1.0, note="no fold could be refitted: scale 1")
     spread = [h for h in held if h["interior"] and h["distance"]]
-    cal = Calibration(level, frequencies=freqs, in_sample=in_sample)
+    cal = Calibration(level, frequencies=freqs, in_sample=in_sample, leverage=leverage)
     if spread:  # growth with the distance to the nearest fitted frequency, from interpolated records
         for h in held:
             h["used"] = h in spread
