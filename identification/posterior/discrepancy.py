@@ -221,14 +221,14 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
         interior = bool(f and others and min(others) < f < max(others))
         d = min(abs(math.log(f / g)) for g in others) if f and others else None
         held.append({"label": label, "frequency_hz": f, "interior": interior, "distance": d, "err": e, "var": v,
-                     "rms_error": float(np.sqrt(np.mean(e**2))), "i": i})
+                     "rms_error": float(np.sqrt(np.mean(e**2)))})
     if not held:
         return Calibration(level, constant=1.0, note="no fold could be refitted: scale 1")
-    spread = [h for h in held if h["interior"] and h["distance"]]
+    for h in held:
+        h["used"] = bool(h["interior"] and h["distance"])
+    spread = [h for h in held if h["used"]]
     cal = Calibration(level, frequencies=freqs, in_sample=in_sample, leverage=leverage)
     if spread:  # growth with the distance to the nearest fitted frequency, from interpolated records
-        for h in held:
-            h["used"] = h in spread
         used = spread
 
         def mean_cov(beta):
@@ -238,6 +238,10 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
         cal.growth = _solve_increasing(mean_cov, 0.0, GROWTH_MAX, level, log=False)
         cal.note = ("scale = in-sample scale interpolated in ln f, times exp(beta x distance to the nearest fitted "
                     "frequency); beta from the identification records held out by interpolation")
+        screened = [p[0] for p, h in zip(pieces, leverage) if h > LEVERAGE_MAX]
+        if screened:
+            cal.note += (f"; not a base for the interpolation (leverage > {LEVERAGE_MAX:g}, residuals mostly "
+                         f"absorbed by the fit): {', '.join(screened)}")
     else:  # no frequency spread (e.g. one record split in halves): one scale from every held-out piece
         for h in held:
             h["used"] = True
