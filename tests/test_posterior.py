@@ -33,8 +33,9 @@ from hysbench.identification.errors import IdentificationError
 from hysbench.identification.likelihood import (_whitened_gram_parallel, _whitened_gram_serial, ar1_loglik,
                                                 marginalise_linear, prais_winsten, whitened_gram)
 from hysbench.data.periodic import periodic_proxy, trim_history
-from hysbench.identification.posterior import (LogPosterior, autocorr_times, build_segments, convergence,
-                                               predictive, sample_posterior, simulated_ar1_dataset)
+from hysbench.identification.posterior import (Calibration, LogPosterior, autocorr_times, build_segments,
+                                               convergence, predictive, sample_posterior, simulated_ar1_dataset)
+from hysbench.identification.posterior.discrepancy import GROWTH_MAX
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel, Parameter
 from misspecified_data import planted_relaxation_dataset, virtual_dea_dataset
@@ -332,11 +333,12 @@ def misspecified_coverage(request):
     plain AR(1) predictive (no discrepancy, no held-out scale) on the first 2 of them."""
     generator = request.param
     model = get_model("mrpim", **SMALL)
-    cov, plain = [], []
+    cov, plain, calibrations = [], [], []
     for k in range(N_MISSPECIFIED):
         ds = planted_relaxation_dataset(k, model) if generator == "planted relaxation" else virtual_dea_dataset(k)
         run = sample_posterior(model, ds, n_walkers=16, max_steps=1200, min_ess=150, seed=k, progress=False)
         cov += [r["coverage"]["90"] for r in predictive(run, ds.validation, n_draws=100, seed=k)]
+        calibrations.append(run.calibration)
         if k < 2:
             run0 = sample_posterior(model, ds, n_walkers=16, max_steps=1200, min_ess=150, seed=k, progress=False,
                                     discrepancy="none", calibrate=False)
@@ -346,30 +348,57 @@ def misspecified_coverage(request):
           f"median {np.median(cov):.1%}, max {cov.max():.1%}; {np.mean((cov >= 0.8) & (cov <= 0.97)):.0%} of "
           f"{cov.size} in 80-97 %); plain AR(1) predictive on 2 of the data sets: mean {np.mean(plain):.1%}, "
           f"min {np.min(plain):.1%}")
-    return generator, cov, np.array(plain)
+    return generator, cov, np.array(plain), calibrations
 
 
 GENERATORS = ["virtual DEA", "planted relaxation"]
-COARSE_OVERCOVERS = pytest.mark.xfail(
-    strict=True, reason="known shortfall (README, posterior): on these coarse data sets (3 periods from rest, "
-    "20 ms step, reduced MRPIM) the predictive over-covers the planted relaxation (mean above 97 %)")
 
 
 @pytest.mark.parametrize("misspecified_coverage", GENERATORS, indirect=True)
 def test_predictive_intervals_are_not_too_narrow_when_the_model_is_wrong(misspecified_coverage):
-    """Mean held-out 90 % coverage >= 80 % on misspecified data, and the worst record at least as well
-    covered as under the plain AR(1) predictive."""
-    _, cov, plain = misspecified_coverage
+    """Mean held-out 90 % coverage >= 80 % on misspecified data, and the worst record no worse than
+    50 % or the plain AR(1) predictive's worst."""
+    _, cov, plain, _ = misspecified_coverage
     assert cov.mean() >= 0.80
     assert cov.min() >= min(plain.min(), 0.5)
 
 
-@pytest.mark.parametrize("misspecified_coverage", ["virtual DEA", pytest.param("planted relaxation",
-                                                                              marks=COARSE_OVERCOVERS)],
-                         indirect=True)
+@pytest.mark.parametrize("misspecified_coverage", GENERATORS, indirect=True)
 def test_predictive_intervals_are_not_too_wide_when_the_model_is_wrong(misspecified_coverage):
-    _, cov, _ = misspecified_coverage
+    _, cov, _, _ = misspecified_coverage
     assert cov.mean() <= 0.97
+
+
+@pytest.mark.parametrize("misspecified_coverage", GENERATORS, indirect=True)
+def test_growth_makes_the_held_out_records_covered_at_90(misspecified_coverage):
+    """Where beta is inside its range, the interpolated held-out records it was set on are covered at 90 %
+    on average (the smallest beta that reaches it: at most a step of the coverage above)."""
+    _, _, _, calibrations = misspecified_coverage
+    checked = 0
+    for cal in calibrations:
+        used = [f["coverage_90_scaled"] for f in cal.folds if f["used"]]
+        assert cal.constant is None and used
+        if 0 < cal.growth < GROWTH_MAX:
+            assert 0.9 <= np.mean(used) <= 0.91
+            checked += 1
+    assert checked >= 3
+
+
+def test_predictive_scale_interpolates_and_grows_with_distance():
+    """c(f) = c_in(f) exp(beta d(f)), against the formula written out."""
+    cal = Calibration(0.9, frequencies=[0.02, 0.1, 0.4, 1.0], in_sample=[0.5, 1.0, 2.0, 0.8], growth=0.3)
+    assert cal.scale_at(0.1) == pytest.approx(1.0)  # a fitted frequency: its own in-sample scale
+    f = 0.05  # between 0.02 and 0.1: ln c linear in ln f, nearest fitted 0.02 or 0.1 (x2.5 or x2)
+    w = math.log(f / 0.02) / math.log(0.1 / 0.02)
+    assert cal.scale_at(f) == pytest.approx(math.exp((1 - w) * math.log(0.5) + w * math.log(1.0))
+                                            * math.exp(0.3 * math.log(2.0)))
+    assert cal.scale_at(0.01) == pytest.approx(0.5 * math.exp(0.3 * math.log(2.0)))  # constant beyond the range
+    assert cal.scale_at(None) == pytest.approx(2.0)  # unknown frequency: the largest (no folds: no growth)
+    assert Calibration(0.9, constant=1.3).scale_at(0.2) == 1.3
+    # a record whose residuals the fit mostly absorbed (leverage > 0.5) is not a base: 0.8 Hz takes 0.4 Hz's
+    lev = Calibration(0.9, frequencies=[0.1, 0.4, 1.0], in_sample=[1.0, 2.0, 0.1], leverage=[0.1, 0.2, 0.9])
+    assert lev.scale_at(0.8) == pytest.approx(2.0)
+    assert lev.describe()["in_sample"][2]["used"] is False
 
 
 # --- the command line ----------------------------------------------------------------------

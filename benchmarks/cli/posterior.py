@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="model discrepancy added to the model's output: relaxation (default; first-order "
                              "relaxations of the input, integrated out) or none")
     parser.add_argument("--no-calibration", action="store_true",
-                        help="predictive noise scale 1 instead of the one set by leave-one-record-out coverage")
+                        help="predictive scale 1 instead of the one set by in-sample and leave-one-record-out coverage")
     parser.add_argument("--walkers", type=positive_int, default=16, help="emcee walkers (even, default 16)")
     parser.add_argument("--steps", type=positive_int, default=4000,
                         help="most steps in total (default 4000); sampling stops earlier once converged "

@@ -251,7 +251,6 @@ def predictive_text(s: dict, files: dict) -> list[str]:
     """The predictive section: what the bands are, how they were calibrated, coverage per record."""
     L = ["## Posterior predictive bands and their coverage", ""]
     d, cal = s.get("discrepancy", {}), s.get("predictive_calibration") or {}
-    kappa = cal.get("noise_scale", 1.0)
     if d.get("kind") == "relaxation":
         L.append("Model discrepancy: the model's output plus sum_k c_k (L_k u - u), first-order relaxations of the "
                  "input at tau = " + ", ".join(f"{t:.3g}" for t in d["relaxation_times_s"])
@@ -259,35 +258,27 @@ def predictive_text(s: dict, files: dict) -> list[str]:
                  + ", ".join(d["coefficients"]) + " in the table above).")
     else:
         L.append("Model discrepancy: none (the model's output alone).")
-    L += ["", f"Predictive noise: each draw's AR(1) noise path, scaled by kappa = {kappa:.3g}, chosen so that "
-          "identification records left out in turn are covered at 90 % (" + cal.get("note", "") + ").", ""]
-    if cal.get("folds"):
-        key = [k for k in cal["folds"][0] if k.endswith("_scaled")][0]
-        L += ["| held out | f (Hz) | used for kappa | rms error (refit without it) | 90 % coverage, kappa = 1 | "
-              f"with kappa = {kappa:.3g} |", "|---|---|---|---|---|---|"]
-        for f in cal["folds"]:
-            fr = f"{f['frequency_hz']:g}" if f["frequency_hz"] else "-"
-            L.append(f"| {f['held_out']} | {fr} | {'yes' if f['used'] else 'no (extrapolation)'} | "
-                     f"{_g(f['rms_error'], 3)} | {_pct(f[key.replace('_scaled', '_unscaled')])} | {_pct(f[key])} |")
-        L.append("")
+    L += [""] + calibration_text(cal)
     pv = s.get("predictive", {})
     if not pv.get("validation"):
         return L + ["The dataset has no validation records: no predictive bands.", ""]
     L += ["Coverage = share of the measured samples inside the band; width = mean band width "
           "(output units). A calibrated predictive covers about 50 % and 90 %; the target for held-out "
-          "(validation) records is 80–97 % for the 90 % band. \"kappa = 1\": the same draws without the "
+          "(validation) records is 80–97 % for the 90 % band. \"scale 1\": the same draws without the "
           "held-out scale.", "",
-          "| record | f (Hz) | role | 50 % coverage | 90 % coverage | 90 % width | 50 % width | 90 % coverage, kappa = 1 "
-          "| 90 % width, kappa = 1 | model-only 90 % coverage | rms error of median | draws (non-finite) |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "| record | f (Hz) | role | scale | 50 % coverage | 90 % coverage | 90 % width | 50 % width "
+          "| 90 % coverage, scale 1 | 90 % width, scale 1 | model-only 90 % coverage | rms error of median "
+          "| draws (non-finite) |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for role in ("validation", "identification"):
         for p in pv.get(role, []):
             f = f"{p['frequency_hz']:g}" if p["frequency_hz"] else "-"
             c, u = p.get("coverage"), p.get("unscaled")
             if c is None:
-                L.append(f"| {p['file']} | {f} | {role} | no finite draw | | | | | | | | 0 ({p['nonfinite_draws']}) |")
+                L.append(f"| {p['file']} | {f} | {role} | | no finite draw | | | | | | | | 0 ({p['nonfinite_draws']}) |")
                 continue
-            L.append(f"| {p['file']} | {f} | {role} | {_pct(c['50'])} | **{_pct(c['90'])}** | {_g(c['width_90'], 3)} | "
+            L.append(f"| {p['file']} | {f} | {role} | {p.get('predictive_scale', 1.0):.3g} | {_pct(c['50'])} | "
+                     f"**{_pct(c['90'])}** | {_g(c['width_90'], 3)} | "
                      f"{_g(c['width_50'], 3)} | {_pct(u['90'])} | {_g(u['width_90'], 3)} | "
                      f"{_pct(p['fraction_inside_model_band'])} | {_g(p['rms_error_of_median'], 3)} | "
                      f"{p['draws']} ({p['nonfinite_draws']}) |")
@@ -297,6 +288,34 @@ def predictive_text(s: dict, files: dict) -> list[str]:
           f"{nf.get('singular_linear_precision', 0)} with a singular linear precision.", ""]
     if files:
         L += [f"![posterior predictive bands on the validation records]({files['predictive']})", ""]
+    return L
+
+
+def calibration_text(cal: dict) -> list[str]:
+    """How the predictive scale was set: in-sample scales, growth with frequency distance, held-out folds."""
+    if cal.get("kind") == "constant" or not cal:
+        c = cal.get("constant_scale", 1.0) if cal else 1.0
+        L = [f"Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
+             f"per-sample median multiplied by {c:.3g} for every record ({cal.get('note', 'not calibrated')}).", ""]
+    else:
+        ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in cal["in_sample"] if p["frequency_hz"])
+        L = ["Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
+             "per-sample median multiplied by c(f) = c_in(f) exp(beta d), where c_in is the scale that covers the "
+             f"fitted records' own residuals at 90 % ({ins}), interpolated in ln f, d = |ln(f / nearest fitted "
+             f"frequency)|, and beta = {cal['growth_per_ln_frequency']:.3g} makes the identification records held "
+             "out by interpolation covered at 90 % on average (refitted without them).", ""]
+    folds = cal.get("folds") or []
+    if folds:
+        key = [k for k in folds[0] if k.endswith("_scaled")][0]
+        L += ["| held out | f (Hz) | d | used | rms error (refit without it) | 90 % coverage, scale 1 | scale | "
+              "90 % coverage with it |", "|---|---|---|---|---|---|---|---|"]
+        for f in folds:
+            fr = f"{f['frequency_hz']:g}" if f["frequency_hz"] else "-"
+            dist = "-" if f.get("distance") is None else f"{f['distance']:.2f}"
+            used = "yes" if f["used"] else ("no (extrapolation)" if not f["interior"] else "no")
+            L.append(f"| {f['held_out']} | {fr} | {dist} | {used} | {_g(f['rms_error'], 3)} | "
+                     f"{_pct(f[key.replace('_scaled', '_unscaled')])} | {f['scale']:.3g} | {_pct(f[key])} |")
+        L.append("")
     return L
 
 

@@ -28,9 +28,9 @@ Priors (stated in every output, see ``Priors.describe``):
   posterior is this prior, and the output says so.
 
 Discrepancy and predictive calibration. The model's output gets a discrepancy term, a few
-relaxations of the input integrated out with the linear parameters, and the predictive noise is
-scaled by kappa >= 1 chosen by leave-one-identification-record-out coverage: see
-``discrepancy``. Non-finite model outputs are counted, never scored (``target.LogPosterior``).
+relaxations of the input integrated out with the linear parameters, and the predictive spread is
+scaled per record frequency by c(f), set by in-sample and leave-one-identification-record-out
+coverage: see ``discrepancy``. Non-finite model outputs are counted, never scored (``target.LogPosterior``).
 
 Data. The fitted rows are the scored windows of the identification records
 (what ``identify`` fits), every sample with the same weight: eq. 9's weights

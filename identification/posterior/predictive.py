@@ -40,12 +40,14 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
 
     For ``n_draws`` kept states (evenly spaced) the model output (with the
     discrepancy term) is computed and an AR(1) (or iid) noise path with that
-    state's sigma, phi, scaled by the held-out calibration's kappa
-    (``run.noise_scale``), is added. ``observation`` bands include the noise
-    (where a new measurement should fall), ``model`` bands only the parameter
-    uncertainty. ``coverage`` holds the 50 % and 90 % bands' coverage and mean
-    width; ``unscaled`` the same with kappa = 1. Draws whose model output is
-    not finite are left out and counted in ``nonfinite_draws``.
+    state's sigma, phi is added. Each such draw's deviation from the per-sample
+    median is then multiplied by the held-out calibration's scale at the
+    record's frequency (``run.predictive_scale``, see ``discrepancy``).
+    ``observation`` bands include the noise (where a new measurement should
+    fall), ``model`` bands only the parameter uncertainty (unscaled).
+    ``coverage`` holds the 50 % and 90 % bands' coverage and mean width;
+    ``unscaled`` the same with scale 1. Draws whose model output is not finite
+    are left out and counted in ``nonfinite_draws``.
     """
     post = run.post
     rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 13]))
@@ -55,7 +57,6 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     pick = np.linspace(0, ch.shape[0] - 1, min(n_draws, ch.shape[0])).round().astype(int)
     nl, sigma, phi = post.split(ch[pick])
     lin = dr[pick]
-    kappa = run.noise_scale
     lo_q, hi_q = (1 - level) / 2, 1 - (1 - level) / 2
     check = nl[:1] if len(post.nonlinear_names) else np.zeros((1, 0))
     segs = build_segments(post.model, records, post.input_range, check, taus=post.taus)
@@ -66,14 +67,16 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
         noise = ar1_noise(s.n, sigma, phi, rng)
         Y, noise = Y[finite], noise[finite]
         y = s.y
+        scale = run.predictive_scale(s.frequency_hz)
         row = {"file": s.file, "frequency_hz": s.frequency_hz, "rows": s.n, "draws": int(finite.sum()),
-               "nonfinite_draws": int((~finite).sum()), "noise_scale": kappa}
+               "nonfinite_draws": int((~finite).sum()), "predictive_scale": scale}
         if not finite.any():
             row.update(coverage=None, unscaled=None, rms_error_of_median=None)
             out.append(row)
             continue
-        Yobs = Y + kappa * noise
         Yraw = Y + noise
+        centre = np.median(Yraw, axis=0)
+        Yobs = centre + scale * (Yraw - centre)
         cov, raw = {}, {}
         for lev in LEVELS:
             q = [(1 - lev) / 2, 1 - (1 - lev) / 2]

@@ -96,9 +96,9 @@ class PosteriorRun:
         nl, sigma, phi = self.post.split(np.median(ch, axis=0)[None])
         return nl[0], float(sigma[0]), float(phi[0])
 
-    @property
-    def noise_scale(self) -> float:
-        return 1.0 if self.calibration is None else self.calibration.scale
+    def predictive_scale(self, frequency_hz) -> float:
+        """The held-out calibration's scale of the predictive spread at a record's frequency."""
+        return 1.0 if self.calibration is None else self.calibration.scale_at(frequency_hz)
 
     def parameter_table(self) -> dict:
         S = self.samples()
@@ -311,10 +311,10 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                        resumed_from=done, n_walkers=n_walkers, moves=moves, seed=seed, dataset=dataset.name,
                        chain_file=None if path is None else str(path))
     if calibrate:
-        say("predictive scale: leave-one-record-out coverage ...")
+        say("predictive scale: in-sample and leave-one-record-out coverage ...")
         run.calibration = calibrate_scale(post, *run.median_state())
     else:
-        run.calibration = Calibration(1.0, 0.9, note="not calibrated (calibrate=False): noise scale 1")
+        run.calibration = Calibration(0.9, constant=1.0, note="not calibrated (calibrate=False): scale 1")
     return run
 
 
