@@ -41,7 +41,8 @@ from hysbench.benchmarks.diagnosis.residuals import (
     periodic_structure,
     spectral_peaks,
 )
-from hysbench.benchmarks.diagnosis.selection import Folds, score
+from hysbench.benchmarks.diagnosis.candidates import Candidate
+from hysbench.benchmarks.diagnosis.selection import Folds, decide, score
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.identification import Fit, identify
@@ -267,6 +268,39 @@ def test_heldout_score_counts_blocks_not_samples():
     s_same, s_better = score(folds, e_ref, same), score(folds, e_ref, better)
     assert abs(s_same["z"]) < 3.0 and abs(s_same["gain"]) < 0.05
     assert s_better["z"] > 4.0 and s_better["gain"] == pytest.approx(0.75) and s_better["folds_improved"] == 3
+
+
+def _scored(cause, folds, e_null, e, uncertainty=None):
+    c = Candidate(cause, cause, get_model("mrpim"), {}, 22, float(e @ e), e.size)
+    c.heldout = {**score(folds, e_null, e), "at_bound": []}
+    c.uncertainty = uncertainty or {}
+    return c
+
+
+def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival_makes_it_unexplained():
+    """A cause that removes 39 % of a large structured misfit on every held-out block is named, the other 61 %
+    reported as unexplained remainder; with a second cause taking about the same slice, the verdict is
+    unexplained (either would be a guess); with fold estimates that disagree, too."""
+    rng = np.random.default_rng(3)
+    folds = Folds(np.array([0, 4000, 8000, 12000]))
+    t = np.arange(12000) * DT
+    s1, s2 = np.sin(2 * np.pi * 0.37 * t), 0.8 * np.sin(2 * np.pi * 1.3 * t)
+    noise = rng.normal(0, 0.05, t.size)
+    e_null = s1 + s2 + noise
+    e_a = 0.6 * s1 + s2 + noise  # removes part of one component: 39 % of the misfit
+    e_b = s1 + 0.22 * s2 + noise  # another slice of about the same size (37 %)
+    screen = SimpleNamespace(n=t.size, noise_sd=0.05, creep_min=20.0)
+    a = _scored("delay", folds, e_null, e_a, {"delay": {"se": 1e-4, "folds": [0.010, 0.0101, 0.0099]}})
+    errors = {id(a): e_a}
+    v = decide(screen, folds, [a], [], errors, float(e_null @ e_null), structured=True)
+    assert v.cause == "delay" and v.remainder == pytest.approx(0.61, abs=0.03) and "unexplained" in v.reason
+    b = _scored("saturation", folds, e_null, e_b)
+    errors[id(b)] = e_b
+    v = decide(screen, folds, [a, b], [], errors, float(e_null @ e_null), structured=True)
+    assert v.cause == "unexplained" and v.partial is a and "saturation" in v.reason
+    wobbly = _scored("delay", folds, e_null, e_a, {"delay": {"se": 0.004, "folds": [0.004, 0.010, 0.016]}})
+    v = decide(screen, folds, [wobbly], [], {id(wobbly): e_a}, float(e_null @ e_null), structured=True)
+    assert v.cause == "unexplained" and "folds" in v.reason
 
 
 def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():

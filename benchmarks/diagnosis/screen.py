@@ -39,7 +39,7 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
-from .candidates import CREEP_PERIODS, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log
+from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log
 
 EXACT_GRID_SAMPLES = 300_000
 from .residuals import RecordResidual
@@ -261,6 +261,11 @@ class Screen:
         creep slower than the drive; a fit pinned at those limits is not named."""
         if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
             return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
+        if cause == "relaxation":
+            taus = estimates["tau_s"]
+            if any(b < DUPLICATE_TAU_RATIO * a for a, b in zip(taus, taus[1:])):
+                return (f"time constants closer than a factor {DUPLICATE_TAU_RATIO:g}: their difference is a "
+                        "band-pass, not a relaxation")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""
