@@ -42,6 +42,7 @@ from hysbench.benchmarks.diagnosis.residuals import (
     spectral_peaks,
 )
 from hysbench.benchmarks.diagnosis.candidates import Candidate
+from hysbench.benchmarks.diagnosis.screen import Screen
 from hysbench.benchmarks.diagnosis.selection import Folds, decide, score
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.protocol import paper_voltage, protocol_time
@@ -301,6 +302,16 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
     wobbly = _scored("delay", folds, e_null, e_a, {"delay": {"se": 0.004, "folds": [0.004, 0.010, 0.016]}})
     v = decide(screen, folds, [wobbly], [], {id(wobbly): e_a}, float(e_null @ e_null), structured=True)
     assert v.cause == "unexplained" and "folds" in v.reason
+
+
+def test_an_interference_at_a_drive_harmonic_with_one_phase_in_every_record_is_drive_locked():
+    rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
+    fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2)
+    fake.drive_harmonic = lambda f, tol: Screen.drive_harmonic(fake, f, tol)
+    locked = lambda f, phases: Screen.drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
+    assert locked(1.014, [2.79, 2.99]) and locked(9.0, [3.1, -3.1])  # the phase wraps
+    assert not locked(9.0, [0.3, 2.0])  # its own phase in every record: a disturbance
+    assert not locked(9.5, [2.79, 2.99])  # between harmonics
 
 
 def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
