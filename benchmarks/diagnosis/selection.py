@@ -33,9 +33,10 @@ Decision rule (``decide``):
    the one with fewest parameters is named. Another cause in that set is
    reported as ambiguous with it, with the drive that would separate them
    (``experiment``); so is creep when the named relaxation's slowest time
-   constant lies in creep's range and creep predicts as well (a slow low-pass
-   of a drive with one mean level and a drift since the start are the same
-   function there), even with creep's own time scale at its limit.
+   constant is longer than the longest drive period and creep predicts as
+   well (a slow low-pass of a drive with one mean level and a drift since the
+   start are nearly the same function), even with creep's own time scale at
+   its limit.
    Relaxation variants with time constants closer than a factor 1.25 are not
    admitted (two nearly equal low-passes with opposite gains are a band-pass,
    not a relaxation); closer than their fold uncertainty, the variant with one
@@ -44,10 +45,10 @@ Decision rule (``decide``):
    held-out misfit beyond white noise (n sd^2) is still named, with the rest
    reported as unexplained remainder, if it is *specific*: z >= ``Z_PASS`` on
    the block test, its fold estimates agree within ``PARTIAL_SE`` and it
-   predicts better than every other cause with held-out evidence by
-   z >= ``Z_SAME``. Otherwise the verdict is ``unexplained``; so it is if
-   nothing passes while the residual is structured (a candidate has held-out
-   evidence but fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
+   predicts better than every other passing cause by z >= ``Z_SAME``.
+   Otherwise the verdict is ``unexplained``; so it is if nothing passes
+   while the residual is structured (a candidate has held-out evidence but
+   fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
    squared error in all though not in most records, or the residual repeats
    from period to period: ``residuals.periodic_structure``).
    Otherwise nothing passes: ``none``.
@@ -62,7 +63,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import stats
 
-from .candidates import DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
+from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
 from .saturation import saturation_rss
 
@@ -353,13 +354,13 @@ def identified(c: Candidate) -> bool:
 def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate]) -> str:
     """Why a cause that removes only part of the misfit is not named ("" if it is): a partial explanation
     must pass the block test (z >= Z_PASS), have parameters that agree across the folds, and predict better
-    (z >= Z_SAME) than every other cause with held-out evidence -- when much of the misfit is something
-    else, several causes each take a slice of it, and naming one of them would be a guess."""
+    (z >= Z_SAME) than every other passing cause -- when much of the misfit is something else, several
+    causes each take a slice of it, and naming one of them would be a guess."""
     if chosen.heldout["z"] < Z_PASS:
         return f"its block test gives z = {chosen.heldout['z']:.1f} < {Z_PASS:g}"
     if not identified(chosen):
         return f"its parameters differ between the folds by more than {100 * PARTIAL_SE:.0f} %"
-    rivals = [c for c in candidates if c.cause != chosen.cause and significant(c)]
+    rivals = [c for c in candidates if c.cause != chosen.cause and passes(c)]  # admissible causes only
     close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME]
     if close:
         return f"{', '.join(sorted(set(close)))} predicts the held-out records about as well"
@@ -368,11 +369,11 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
 
 def slow_relaxation_twin(screen, folds: Folds, errors: dict, chosen: Candidate,
                          candidates: Sequence[Candidate]) -> Candidate | None:
-    """Creep, when the named relaxation's slowest time constant is in creep's range (slower than
-    ``CREEP_PERIODS`` drive periods) and creep predicts the held-out records as well (z < ``Z_SAME``), even
-    with its own time scale at its limit: under drives of one mean level a slow low-pass of the input and
-    a drift since the start are the same function."""
-    if chosen.cause != "relaxation" or max(chosen.estimates["tau_s"]) < screen.creep_min:
+    """Creep, when the named relaxation's slowest time constant is longer than the longest drive period and
+    creep predicts the held-out records as well (z < ``Z_SAME``), even with its own time scale at its limit
+    (``CREEP_PERIODS`` drive periods): under drives of one mean level a slow low-pass of the input and a
+    drift since the start are nearly the same function."""
+    if chosen.cause != "relaxation" or max(chosen.estimates["tau_s"]) < screen.creep_min / CREEP_PERIODS:
         return None
     twins = [c for c in candidates if c.cause == "creep" and significant(c)
              and pairwise_z(folds, errors, chosen, c) < Z_SAME]
