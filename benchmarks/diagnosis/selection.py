@@ -65,7 +65,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
-from .saturation import saturation_rss
+from .saturation import fit_level
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
@@ -140,7 +140,7 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
             fold_est.append({"amplitude": amp})
         return e, fold_est
     if c.cause == "saturation":
-        return _heldout_saturation(screen, folds, c), []
+        return _heldout_saturation(screen, folds, c, refit)
     names = own_nonlinear(screen, c) if refit else []
     fold_est, designs = [], []
     for m in range(folds.n):
@@ -161,21 +161,26 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
     return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m])), fold_est
 
 
-def _heldout_saturation(screen, folds: Folds, c: Candidate) -> np.ndarray:
+def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
+    """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
+    with ``refit`` the level too (returns the fold levels)."""
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
     base_nl = {k: c.params[k] for k in screen.base_nl_names}
     A = np.concatenate(screen.base_columns(base_nl).rows)
     sign = 1.0 if side == "upper" else -1.0
-    free = sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
     e = np.empty(screen.n)
+    fold_est = []
     for m in range(folds.n):
         test = folds.test(m)
-        train = ~test & free
+        if refit:
+            level = fit_level(screen, A[~test], screen.y[~test], side)
+            fold_est.append({"saturation_level": level})
+        train = ~test & (sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12))
         theta, _ = screen.solve(A[train], screen.y[train])
         pred = A[test] @ theta
         pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
         e[test] = screen.y[test] - pred
-    return e
+    return e, fold_est
 
 
 def signed_rank_z(d: np.ndarray) -> float:
@@ -341,10 +346,13 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
 
 
 def identified(c: Candidate) -> bool:
-    """Every parameter refitted per fold agrees across the folds within ``PARTIAL_SE`` (relative)."""
+    """Every parameter refitted per fold agrees across the folds within ``PARTIAL_SE`` (relative; a clipping
+    level relative to the output's range); a candidate with none refitted per fold does not show it."""
+    if not c.uncertainty:  # nothing refitted per fold: agreement not shown
+        return False
     for name, u in c.uncertainty.items():
-        if "relative_se" in u:
-            if u["relative_se"] > PARTIAL_SE:
+        if "relative_se" in u or "se_over_range" in u:
+            if u.get("relative_se", u.get("se_over_range")) > PARTIAL_SE:
                 return False
         elif u["se"] > PARTIAL_SE * max(abs(float(np.mean(u["folds"]))), 1e-300):
             return False
