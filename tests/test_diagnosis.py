@@ -332,8 +332,8 @@ def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
 # --- planted effects (drawn within the detection limits) --------------------------------------------
 # Detection limits (strength: rms of the effect, % of the output's peak-to-peak) measured by the accuracy
 # benchmark (results/diagnosis_accuracy.md, 200 cases); None: not reached there (another cause mimics it).
-LIMITS = {"relaxation": 6.94, "delay": 6.65, "resonance": None, "creep": None, "interference": 0.315,
-          "saturation": 1.38}
+LIMITS = {"relaxation": 0.71, "delay": 6.65, "resonance": None, "creep": None, "interference": 0.315,
+          "saturation": 1.08}
 # Causes without a limit there, or with one above what these drives reach on the Table 2 MRPIM (a delay of at
 # most 30 ms under 0.1-1 Hz sines: strength <= ~1.6 %): a strong draw must be named or reported as ambiguous.
 STRONG = {"delay": 1.2, "resonance": 3.0, "creep": 3.0}
