@@ -111,6 +111,7 @@ def run_case(case: dict) -> dict:
     return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
             "strength_pct": truth["strength_pct"], "effects": truth["effects"], "verdict": d.cause,
             "confirmed": d.confirmed, "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
+            "remainder": d.verdict.remainder,
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": bool(errors) and all(v <= TOLERANCE for v in errors.values()),
             "right": judge(truth, d.cause, also), "seconds": seconds}
@@ -145,6 +146,10 @@ def summary(rows: list[dict]) -> dict:
         "named_planted": len(named := [r for r in rows if r["verdict"] in VOCABULARY and r["verdict"] in r["kinds"]]),
         "named_confirmed": sum(1 for r in named if r["confirmed"]),
         "fully_right": sum(1 for r in named if r["confirmed"] and r["parameters_within"]),
+        "vocabulary_cases": len(vocab := [r for r in rows if r["kinds"][0] in VOCABULARY]),
+        "named_or_ambiguous": sum(1 for r in vocab if r["right"] or set(r.get("ambiguous_with", [])) & set(r["kinds"])),
+        "with_remainder": len(rem := [r for r in rows if r.get("remainder") is not None]),
+        "with_remainder_right": sum(r["right"] for r in rem),
         "detection_limits": {c: detection_limit(rows, c) for c in VOCABULARY},
         "seconds": sum(r["seconds"] for r in rows),
     }
@@ -174,7 +179,11 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"| parameters within 25 % (right verdicts) | **{100 * s['parameters_within_share']:.1f} %** of "
         f"{s['parameters_judged']} | >= 90 % |",
         f"| the planted cause named: confirmed on validation / also every parameter within 25 % | "
-        f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |", "",
+        f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |",
+        f"| vocabulary effects: right, or the planted cause listed as ambiguous with the named one | "
+        f"{s['named_or_ambiguous']} of {s['vocabulary_cases']} | - |",
+        f"| a cause named with an unexplained remainder (it removes < half of the misfit) / of them right | "
+        f"{s['with_remainder']} / {s['with_remainder_right']} | - |", "",
         "What counts as right: one vocabulary cause: it is named (virtual DEA: or its own relaxation named with the "
         "planted cause in `also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the "
         "base model absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: relaxation, its physics' own, or `unexplained`; real "

@@ -46,7 +46,7 @@ from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .selection import EXPLAIN_SHARE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
+from .selection import EXPLAIN_SHARE, PARTIAL_SE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -135,8 +135,10 @@ class Diagnosis:
                 f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
                 f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
                 f"within z = {Z_SAME:g} of the best is "
-                f"named if it removes >= {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise, else "
-                f"unexplained; nothing passing: unexplained if the residual is structured (period-to-period "
+                f"named; if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
+                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, better than every other "
+                f"cause by z >= {Z_SAME:g}) with the rest reported as unexplained remainder, else unexplained; "
+                f"nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
                 "records take no part")
 
@@ -199,6 +201,7 @@ class Diagnosis:
             "uncertainty": self.uncertainty, "not_identified": v.not_identified,
             "ambiguous_with": [c.cause for c in v.ambiguous_with], "suggested_experiments": self.experiments,
             "partial": v.partial.summary() if v.partial is not None else None,
+            "unexplained_remainder": v.remainder,
             "evidence": evidence, "extended_model": self.extended_model, "extended_fit": extended,
             "base_fit": {"method": self.base_fit.method, "params": self.base_fit.params,
                          "n_params": self.base_fit.n_params, "notes": self.base_fit.notes},

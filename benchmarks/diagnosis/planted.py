@@ -46,7 +46,7 @@ from scipy import signal
 from scipy.integrate import solve_ivp
 
 from hysbench.data.dataset import Dataset, Record, load_dataset
-from hysbench.data.excitations import multisine, triangle
+from hysbench.data.excitations import HIGH_KV, LOW_KV, multisine, triangle
 from hysbench.data.protocol import paper_voltage, period_samples
 from hysbench.data.virtual_dea import displacement_mm
 from hysbench.models import get_model
@@ -176,7 +176,10 @@ def _plant(base: str) -> Callable[[np.ndarray], np.ndarray]:
     if base == "mrpim":
         model = get_model("mrpim")
         params = model.preset("paper")
-        return lambda u: model.simulate(u, DT, params)
+        # one plant for every record: the thresholds r_i = (i-1)/N ||V||_inf over the drives' design range,
+        # not each record's own peak (a plant cannot know a record's future maximum; a multisine's peak
+        # differs per record)
+        return lambda u: model.simulate(u, DT, params, input_range=(LOW_KV, HIGH_KV))
     if base == "virtual-dea":
         return lambda u: displacement_mm(u, DT)
     raise HysbenchError(f"unknown base {base!r}")

@@ -12,42 +12,57 @@ from scipy.optimize import least_squares, minimize_scalar
 from .candidates import Candidate, estimates_of
 
 
-def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],
-                   want: bool = False):
-    """Censored fit at a clipping level: linear parameters solved on the samples not at the level."""
+def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
+    """(rss, theta, residual) of the censored fit at a clipping level: the linear parameters solved on the
+    samples not at the level, the prediction clipped there; (inf, None, None) if too few samples are free."""
     sign = 1.0 if side == "upper" else -1.0
-    A = np.concatenate(screen.base_columns(base_nl).rows)
-    free = sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
+    free = sign * y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
     screen.n_evaluations += 1
     if free.sum() < A.shape[1] + 1:
-        return (math.inf, None, None) if want else math.inf
-    theta, _ = screen.solve(A[free], screen.y[free])
+        return math.inf, None, None
+    theta, _ = screen.solve(A[free], y[free])
     pred = A @ theta
     pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
-    r = screen.y - pred
-    return (float(r @ r), theta, r) if want else float(r @ r)
+    r = y - pred
+    return float(r @ r), theta, r
+
+
+def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],
+                   want: bool = False):
+    """Censored fit at a clipping level on the screen's rows."""
+    A = np.concatenate(screen.base_columns(base_nl).rows)
+    out = censored_fit(screen, A, screen.y, side, level)
+    return out if want else out[0]
+
+
+def fit_level(screen, A: np.ndarray, y: np.ndarray, side: str) -> float:
+    """The clipping level of one side: a grid over the top 30 % of the output range, then Brent."""
+    sign = 1.0 if side == "upper" else -1.0
+    ys = sign * y
+    top, bottom = float(np.max(ys)), float(np.min(ys))
+    levels = sign * (top - np.linspace(0.0, 0.3, 31) * (top - bottom))
+    vals = [censored_fit(screen, A, y, side, L)[0] for L in levels]
+    i = int(np.argmin(vals))
+    a, b = sorted((levels[max(i - 1, 0)], levels[min(i + 1, len(levels) - 1)]))
+    level = float(levels[i])
+    if b > a:
+        res = minimize_scalar(lambda L: censored_fit(screen, A, y, side, L)[0], bounds=(a, b),
+                              method="bounded", options={"xatol": 1e-3 * max(screen.noise_sd, 1e-9)})
+        if res.fun < vals[i]:
+            level = float(res.x)
+    return level
+
 
 def fit_saturation(screen) -> Candidate:
     """Censored fit of a clipping level, both sides; the better side stands for the cause."""
     out = None
+    A = np.concatenate(screen.base_columns(screen.base_nl).rows)
     for side in ("upper", "lower"):
-        sign = 1.0 if side == "upper" else -1.0
-        ys = sign * screen.y
-        top, bottom = float(np.max(ys)), float(np.min(ys))
-        levels = sign * (top - np.linspace(0.0, 0.3, 31) * (top - bottom))
-        vals = [saturation_rss(screen, side, L, screen.base_nl) for L in levels]
-        i = int(np.argmin(vals))
-        a, b = sorted((levels[max(i - 1, 0)], levels[min(i + 1, len(levels) - 1)]))
-        level = float(levels[i])
-        if b > a:
-            res = minimize_scalar(lambda L: saturation_rss(screen, side, L, screen.base_nl), bounds=(a, b),
-                                  method="bounded", options={"xatol": 1e-3 * max(screen.noise_sd, 1e-9)})
-            if res.fun < vals[i]:
-                level = float(res.x)
-        c = _saturation_candidate(screen, side, level, screen.base_nl, "fixed base")
+        c = _saturation_candidate(screen, side, fit_level(screen, A, screen.y, side), screen.base_nl, "fixed base")
         if c is not None and (out is None or c.bic < out.bic):
             out = c
     return out
+
 
 def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str, float], stage: str):
     rss, theta, _ = saturation_rss(screen, side, level, base_nl, want=True)

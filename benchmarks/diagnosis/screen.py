@@ -40,10 +40,12 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
-from .candidates import CREEP_PERIODS, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log
+from .candidates import (CREEP_PERIODS, DUPLICATE_TAU_RATIO, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate,
+                         estimates_of, is_log)
+from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
-from .residuals import RecordResidual
+LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
 
 
 @dataclass
@@ -258,6 +260,14 @@ class Screen:
         creep slower than the drive; a fit pinned at those limits is not named."""
         if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
             return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
+        if cause == "relaxation":
+            taus = estimates["tau_s"]
+            if any(b < DUPLICATE_TAU_RATIO * a for a, b in zip(taus, taus[1:])):
+                return (f"time constants closer than a factor {DUPLICATE_TAU_RATIO:g}: their difference is a "
+                        "band-pass, not a relaxation")
+        if cause == "interference" and self.drive_locked(estimates):
+            return ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
+                    "not a disturbance of its own")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""
@@ -351,6 +361,17 @@ class Screen:
     def null_residuals(self) -> list[RecordResidual]:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
+
+    def drive_locked(self, estimates: Mapping) -> bool:
+        """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
+        every record's drive whose phases in the records (each from its own start) agree within
+        ``LOCKED_PHASE`` rad."""
+        phases = estimates.get("phase_rad_per_record") or []
+        longest = max(p.record.t.size * p.record.dt for p in self.parts)
+        if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
+            return False
+        spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
+        return spread < LOCKED_PHASE
 
     def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
         """Whether each frequency is a harmonic of every identification record's drive (within tolerance):

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
+import numpy as np
+
 from .candidates import MAX_RELAXATION, Candidate
 from .creep import fit_creep
 from .delay import fit_delay
@@ -29,6 +31,9 @@ def _score(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool
     c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "refit_per_fold": refit}
     if fold_est:
         c.uncertainty = jackknife(fold_est)
+        if "saturation_level" in c.uncertainty:  # a level has no natural zero: its spread over the output's range
+            u = c.uncertainty["saturation_level"]
+            u["se_over_range"] = u["se"] / max(float(np.ptp(screen.y)), 1e-300)
     errors[id(c)] = e
 
 

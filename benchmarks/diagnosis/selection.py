@@ -30,15 +30,27 @@ Decision rule (``decide``):
    "not identified (at bound)").
 2. Parsimony: among the passing candidates that the best (highest G) does not
    beat by z >= ``Z_SAME`` and that would be a verdict themselves (rule 3),
-   the one with fewest parameters is named. Another cause in that set is reported as ambiguous with it, with
-   the drive that would separate them (``experiment``).
-3. The named cause must remove at least ``EXPLAIN_SHARE`` of the base's
-   held-out misfit beyond white noise (n sd^2); if it does not, or if nothing
-   passes while the residual is structured (a candidate has held-out
-   evidence but fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
+   the one with fewest parameters is named. Another cause in that set is
+   reported as ambiguous with it, with the drive that would separate them
+   (``experiment``); so is creep when the named relaxation's slowest time
+   constant is longer than the longest drive period and creep predicts as
+   well (a slow low-pass of a drive with one mean level and a drift since the
+   start are nearly the same function), even with creep's own time scale at
+   its limit.
+   Relaxation variants with time constants closer than a factor 1.25 are not
+   admitted (two nearly equal low-passes with opposite gains are a band-pass,
+   not a relaxation); closer than their fold uncertainty, the variant with one
+   fewer is named if it predicts as well.
+3. A named cause that removes less than ``EXPLAIN_SHARE`` of the base's
+   held-out misfit beyond white noise (n sd^2) is still named, with the rest
+   reported as unexplained remainder, if it is *specific*: z >= ``Z_PASS`` on
+   the block test, its fold estimates agree within ``PARTIAL_SE`` and it
+   predicts better than every other passing cause by z >= ``Z_SAME``.
+   Otherwise the verdict is ``unexplained``; so it is if nothing passes
+   while the residual is structured (a candidate has held-out evidence but
+   fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
    squared error in all though not in most records, or the residual repeats
-   from period to period:
-   ``residuals.periodic_structure``), the verdict is ``unexplained``.
+   from period to period: ``residuals.periodic_structure``).
    Otherwise nothing passes: ``none``.
 """
 
@@ -51,9 +63,9 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import stats
 
-from .candidates import MIN_EXPLAINED, Candidate, is_log
+from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
-from .saturation import saturation_rss
+from .saturation import fit_level
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
@@ -62,6 +74,7 @@ EXPLAIN_SHARE = 0.5
 STRONG_GAIN = 0.10
 AT_BOUND = 0.01  # relative (log scale) distance to a search bound that counts as "at the bound"
 STRUCTURE_F = 4.0  # periodic-structure ratio above which a residual is "structured"
+PARTIAL_SE = 0.25  # a partial explanation's fold estimates must agree within this (relative)
 FOLD_NFEV = 8
 
 
@@ -127,7 +140,7 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
             fold_est.append({"amplitude": amp})
         return e, fold_est
     if c.cause == "saturation":
-        return _heldout_saturation(screen, folds, c), []
+        return _heldout_saturation(screen, folds, c, refit)
     names = own_nonlinear(screen, c) if refit else []
     fold_est, designs = [], []
     for m in range(folds.n):
@@ -148,21 +161,26 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
     return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m])), fold_est
 
 
-def _heldout_saturation(screen, folds: Folds, c: Candidate) -> np.ndarray:
+def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
+    """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
+    with ``refit`` the level too (returns the fold levels)."""
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
     base_nl = {k: c.params[k] for k in screen.base_nl_names}
     A = np.concatenate(screen.base_columns(base_nl).rows)
     sign = 1.0 if side == "upper" else -1.0
-    free = sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
     e = np.empty(screen.n)
+    fold_est = []
     for m in range(folds.n):
         test = folds.test(m)
-        train = ~test & free
+        if refit:
+            level = fit_level(screen, A[~test], screen.y[~test], side)
+            fold_est.append({"saturation_level": level})
+        train = ~test & (sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12))
         theta, _ = screen.solve(A[train], screen.y[train])
         pred = A[test] @ theta
         pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
         e[test] = screen.y[test] - pred
-    return e
+    return e, fold_est
 
 
 def signed_rank_z(d: np.ndarray) -> float:
@@ -249,19 +267,21 @@ class Verdict:
     reason: str = ""
     not_identified: list[str] = field(default_factory=list)  # "cause: parameter (at bound)"
     partial: Candidate | None = None  # the best candidate when the verdict is unexplained
+    remainder: float | None = None  # share of the held-out misfit (beyond noise) the named cause leaves
 
 
-def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate]) -> Candidate:
+def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds: Folds, errors: dict) -> Candidate:
     """A relaxation variant with two time constants closer than their uncertainty (or a factor 1.25)
-    gives way to the variant with one fewer, if that passes."""
+    gives way to the variant with one fewer, if that passes and does not predict worse (z < ``Z_SAME``)."""
     while chosen.cause == "relaxation" and chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
         taus = chosen.estimates["tau_s"]
         se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
         ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
         width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
-        close = any(math.log(taus[i + 1] / taus[i]) < max(math.log(1.25), 2 * max(width[i], width[i + 1]))
+        close = any(math.log(taus[i + 1] / taus[i]) < max(math.log(DUPLICATE_TAU_RATIO), 2 * max(width[i], width[i + 1]))
                     for i in range(len(taus) - 1))
-        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v)]
+        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v)
+                 and pairwise_z(folds, errors, chosen, v) < Z_SAME]
         if not (close and fewer):
             break
         chosen = fewer[0]
@@ -299,19 +319,70 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     same = [c for c in ok if c is best or (pairwise_z(folds, errors, best, c) < Z_SAME
                                            and c.heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
-    chosen = merge_duplicates(chosen, variants)
+    chosen = merge_duplicates(chosen, variants, folds, errors)
     others = {}
     for c in same:
         if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
             others[c.cause] = c
+    slow_twin = slow_relaxation_twin(screen, folds, errors, chosen, candidates)
+    if slow_twin is not None:
+        others.setdefault(slow_twin.cause, slow_twin)
     share = chosen.heldout.get("share_of_misfit", 1.0)
-    if share < EXPLAIN_SHARE:
-        return Verdict("unexplained", None, reason=(
-            f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
-            f"held-out misfit beyond white noise (needed: {100 * EXPLAIN_SHARE:.0f} %)"),
-            not_identified=not_identified, partial=chosen)
     reason = (f"predicts the held-out identification records better than the base model refitted the same way "
               f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
     if chosen is not best:
         reason += f"; simpler than {best.label}, which does not predict better by z >= {Z_SAME:g}"
-    return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified)
+    remainder = None
+    if share < EXPLAIN_SHARE:
+        why_not = not_specific(folds, errors, chosen, candidates)
+        if why_not:
+            return Verdict("unexplained", None, reason=(
+                f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
+                f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen)
+        remainder = 1.0 - share
+        reason += (f"; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
+                   f"the other {100 * remainder:.0f} % is unexplained")
+    return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified, remainder=remainder)
+
+
+def identified(c: Candidate) -> bool:
+    """Every parameter refitted per fold agrees across the folds within ``PARTIAL_SE`` (relative; a clipping
+    level relative to the output's range); a candidate with none refitted per fold does not show it."""
+    if not c.uncertainty:  # nothing refitted per fold: agreement not shown
+        return False
+    for name, u in c.uncertainty.items():
+        if "relative_se" in u or "se_over_range" in u:
+            if u.get("relative_se", u.get("se_over_range")) > PARTIAL_SE:
+                return False
+        elif u["se"] > PARTIAL_SE * max(abs(float(np.mean(u["folds"]))), 1e-300):
+            return False
+    return True
+
+
+def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate]) -> str:
+    """Why a cause that removes only part of the misfit is not named ("" if it is): a partial explanation
+    must pass the block test (z >= Z_PASS), have parameters that agree across the folds, and predict better
+    (z >= Z_SAME) than every other passing cause -- when much of the misfit is something else, several
+    causes each take a slice of it, and naming one of them would be a guess."""
+    if chosen.heldout["z"] < Z_PASS:
+        return f"its block test gives z = {chosen.heldout['z']:.1f} < {Z_PASS:g}"
+    if not identified(chosen):
+        return f"its parameters differ between the folds by more than {100 * PARTIAL_SE:.0f} %"
+    rivals = [c for c in candidates if c.cause != chosen.cause and passes(c)]  # admissible causes only
+    close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME]
+    if close:
+        return f"{', '.join(sorted(set(close)))} predicts the held-out records about as well"
+    return ""
+
+
+def slow_relaxation_twin(screen, folds: Folds, errors: dict, chosen: Candidate,
+                         candidates: Sequence[Candidate]) -> Candidate | None:
+    """Creep, when the named relaxation's slowest time constant is longer than the longest drive period and
+    creep predicts the held-out records as well (z < ``Z_SAME``), even with its own time scale at its limit
+    (``CREEP_PERIODS`` drive periods): under drives of one mean level a slow low-pass of the input and a
+    drift since the start are nearly the same function."""
+    if chosen.cause != "relaxation" or max(chosen.estimates["tau_s"]) < screen.creep_min / CREEP_PERIODS:
+        return None
+    twins = [c for c in candidates if c.cause == "creep" and significant(c)
+             and pairwise_z(folds, errors, chosen, c) < Z_SAME]
+    return max(twins, key=lambda c: c.heldout_gain) if twins else None
