@@ -70,14 +70,20 @@ def ar1_loglik(residual_segments, sigma: float, phi: float) -> float:
 _CHUNK = 256  # time samples per block (the block stays in the L1/L2 cache)
 
 
-@njit(cache=True, fastmath=True, nogil=True)
-def _gram_one(X, y, phi, out):
-    """out += Z Z' with Z = T_phi [X; y] (one AR(1) segment); X (m, n), out (m+1, m+1).
+# fast-math without the no-NaN/no-inf assumptions: a non-finite regressor must reach the diagonal
+_GRAM_FASTMATH = {"reassoc", "contract", "arcp", "nsz", "afn"}
+
+
+@njit(cache=True, fastmath=_GRAM_FASTMATH, nogil=True)
+def _gram_one(X, S, y, phi, out):
+    """out += Z Z' with Z = T_phi [X; S; y] (one AR(1) segment); X (m1, n), S (m2, n) rows
+    shared by every set (may be empty), out (m+1, m+1), m = m1 + m2.
 
     Z is formed block by block (``_CHUNK`` samples) and multiplied in 4 x 4
     register tiles; the first sample is scaled by sqrt(1 - phi^2).
     """
-    m, n = X.shape
+    m1, n = X.shape
+    m = m1 + S.shape[0]
     mp = ((m + 1 + 3) // 4) * 4
     head = np.sqrt(1.0 - phi * phi)
     buf = np.zeros((mp, _CHUNK))
@@ -87,13 +93,18 @@ def _gram_one(X, y, phi, out):
         width = t1 - t0
         first = 0
         if t0 == 0:
-            for i in range(m):
+            for i in range(m1):
                 buf[i, 0] = head * X[i, 0]
+            for i in range(m1, m):
+                buf[i, 0] = head * S[i - m1, 0]
             buf[m, 0] = head * y[0]
             first = 1
-        for i in range(m):
+        for i in range(m1):
             for t in range(first, width):
                 buf[i, t] = X[i, t0 + t] - phi * X[i, t0 + t - 1]
+        for i in range(m1, m):
+            for t in range(first, width):
+                buf[i, t] = S[i - m1, t0 + t] - phi * S[i - m1, t0 + t - 1]
         for t in range(first, width):
             buf[m, t] = y[t0 + t] - phi * y[t0 + t - 1]
         for I in range(0, mp, 4):
@@ -150,42 +161,55 @@ def _gram_one(X, y, phi, out):
 
 
 @njit(cache=True, parallel=True)
-def _whitened_gram_parallel(X, y, phis, out):
+def _whitened_gram_parallel(X, S, y, phis, out):
     for b in prange(X.shape[0]):
-        _gram_one(X[b], y, phis[b], out[b])
+        _gram_one(X[b], S, y, phis[b], out[b])
 
 
 @njit(cache=True)
-def _whitened_gram_serial(X, y, phis, out):
+def _whitened_gram_serial(X, S, y, phis, out):
     for b in range(X.shape[0]):
-        _gram_one(X[b], y, phis[b], out[b])
+        _gram_one(X[b], S, y, phis[b], out[b])
 
 
 # below this many multiply-adds a call runs on one thread: waking the thread pool costs more
 PARALLEL_MIN_WORK = 4_000_000
 
 
-def whitened_gram(X: np.ndarray, y: np.ndarray, phis: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Add the Gram matrices of the prewhitened augmented designs [X_b; y] to ``out``.
+def whitened_gram(X: np.ndarray, y: np.ndarray, phis: np.ndarray, out: np.ndarray | None = None,
+                  shared: np.ndarray | None = None) -> np.ndarray:
+    """Add the Gram matrices of the prewhitened augmented designs [X_b; shared; y] to ``out``.
 
-    X: (B, m, n), the regressors of one record with time along the last axis
-    (``model.windowed_regressors_batch(...).transpose(0, 2, 1)``); y: (n,);
-    phis: (B,). The record is one AR(1) segment. Returns out, (B, m+1, m+1),
-    whose last row and column hold Phi*' y* and y*' y*.
+    X: (B, m1, n), the regressors of one record with time along the last axis
+    (``model.windowed_regressors_batch(...).transpose(0, 2, 1)``); shared: (m2, n),
+    rows the same for every set (the discrepancy's columns), appended after X's; y: (n,);
+    phis: (B,). The record is one AR(1) segment. Returns out, (B, m+1, m+1) with
+    m = m1 + m2, whose last row and column hold Phi*' y* and y*' y*.
+    A non-finite regressor makes that set's diagonal non-finite (see ``nonfinite_sets``).
     """
     X = np.ascontiguousarray(X, dtype=float)
     y = np.ascontiguousarray(y, dtype=float)
     phis = np.ascontiguousarray(phis, dtype=float).reshape(-1)
-    n_set, m, n = X.shape
-    if y.shape != (n,) or phis.shape != (n_set,):
-        raise IdentificationError(f"whitened_gram: shapes X {X.shape}, y {y.shape}, phis {phis.shape} do not match")
+    n_set, m1, n = X.shape
+    S = np.zeros((0, n)) if shared is None else np.ascontiguousarray(shared, dtype=float)
+    m = m1 + S.shape[0]
+    if y.shape != (n,) or phis.shape != (n_set,) or S.shape[1:] != (n,):
+        raise IdentificationError(f"whitened_gram: shapes X {X.shape}, shared {S.shape}, y {y.shape}, "
+                                  f"phis {phis.shape} do not match")
     if out is None:
         out = np.zeros((n_set, m + 1, m + 1))
     if n_set > 1 and n_set * n * (m + 1) * (m + 2) // 2 >= PARALLEL_MIN_WORK:
-        _whitened_gram_parallel(X, y, phis, out)
+        _whitened_gram_parallel(X, S, y, phis, out)
     else:
-        _whitened_gram_serial(X, y, phis, out)
+        _whitened_gram_serial(X, S, y, phis, out)
     return out
+
+
+def nonfinite_sets(G: np.ndarray) -> np.ndarray:
+    """(B,) True where a Gram matrix from ``whitened_gram`` is not finite on its diagonal: a
+    regressor of that set was NaN or inf (its prewhitened square sums to NaN or inf)."""
+    d = np.diagonal(G, axis1=1, axis2=2)
+    return ~np.isfinite(d).all(axis=1)
 
 
 # --- the linear parameters, integrated out --------------------------------------

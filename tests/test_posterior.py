@@ -31,7 +31,8 @@ from hysbench.data.dataset import Dataset, Record, save_dataset
 from hysbench.data.protocol import IDENTIFICATION_WEIGHTS
 from hysbench.identification.errors import IdentificationError
 from hysbench.identification.likelihood import (_whitened_gram_parallel, _whitened_gram_serial, ar1_loglik,
-                                                marginalise_linear, prais_winsten, whitened_gram)
+                                                marginalise_linear, nonfinite_sets, prais_winsten,
+                                                whitened_gram)
 from hysbench.data.periodic import periodic_proxy, trim_history
 from hysbench.identification.posterior import (Calibration, LogPosterior, autocorr_times, build_segments,
                                                convergence, predictive, sample_posterior, simulated_ar1_dataset)
@@ -83,18 +84,29 @@ def test_ar1_loglik_outside_support_and_whitening():
 @pytest.mark.parametrize("kernel", [_whitened_gram_serial, _whitened_gram_parallel])
 def test_whitened_gram_equals_numpy(kernel):
     rng = np.random.default_rng(3)
-    for m, n in ((1, 1), (3, 7), (6, 300), (19, 1000)):
+    for m, k, n in ((1, 0, 1), (3, 0, 7), (2, 3, 7), (6, 0, 300), (19, 4, 1000)):
         X = rng.normal(size=(3, m, n))
+        S = rng.normal(size=(k, n))
         y = rng.normal(size=n)
         phis = np.array([0.0, 0.9, -0.4])
-        out = np.zeros((3, m + 1, m + 1))
-        kernel(X, y, phis, out)
+        out = np.zeros((3, m + k + 1, m + k + 1))
+        kernel(X, S, y, phis, out)
         for b in range(3):
-            Z = prais_winsten(np.vstack([X[b], y]), phis[b])
+            Z = prais_winsten(np.vstack([X[b], S, y]), phis[b])
             np.testing.assert_allclose(out[b], Z @ Z.T, rtol=1e-11, atol=1e-9)
     # accumulates over calls (records add up)
-    again = whitened_gram(X, y, phis, out.copy())
+    again = whitened_gram(X, y, phis, out.copy(), shared=S)
     np.testing.assert_allclose(again, 2 * out, rtol=1e-12)
+
+
+@pytest.mark.parametrize("bad_value", [np.nan, np.inf, -np.inf])
+def test_a_nonfinite_regressor_marks_its_set(bad_value):
+    rng = np.random.default_rng(4)
+    X = rng.normal(size=(4, 5, 600))
+    X[1, 3, 417] = bad_value
+    X[3, 0, 0] = bad_value  # the first sample, scaled by sqrt(1 - phi^2)
+    G = whitened_gram(X, rng.normal(size=600), np.array([0.5, 0.99, 0.0, 0.9]), shared=rng.normal(size=(2, 600)))
+    assert nonfinite_sets(G).tolist() == [False, True, False, True]
 
 
 # --- the linear parameters, integrated out ---------------------------------------------

@@ -16,7 +16,7 @@ from hysbench.data.periodic import periodic_proxy
 from hysbench.models.base import HysteresisModel
 
 from ..errors import IdentificationError
-from ..likelihood import LinearMarginal, marginalise_linear, whitened_gram
+from ..likelihood import LinearMarginal, marginalise_linear, nonfinite_sets, whitened_gram
 from ..problem import Problem
 from .discrepancy import (DISCREPANCY_KINDS, DISCREPANCY_PRIOR_GAIN, discrepancy_names, relaxation_columns,
                           relaxation_times)
@@ -264,25 +264,20 @@ class LogPosterior:
         p = len(self.linear_names)
         n_set = nl.shape[0]
         G = np.zeros((n_set, p + 1, p + 1))
-        bad = np.zeros(n_set, dtype=bool)
         threads = numba.get_num_threads()
         for s in self.segments:
             small = s.u.size * n_set < SERIAL_SAMPLES
             per_set = int(REGRESSOR_CHUNK_BYTES // (8 * s.n * p))
             chunk = n_set if small else max(threads, per_set // threads * threads)  # whole rounds of threads
+            shared = np.ascontiguousarray(s.basis.T) if s.n_basis else None
             with _numba_threads(1 if small else None):
                 for a in range(0, n_set, chunk):
                     sl = slice(a, a + chunk)
                     Phi = self.model.windowed_regressors_batch(s.u, s.dt, nl[sl], s.window, self.input_range)
-                    X = np.empty((Phi.shape[0], p, s.n))  # time along the last axis, one copy
-                    X[:, : Phi.shape[2]] = np.transpose(Phi, (0, 2, 1))
-                    if s.n_basis:
-                        X[:, Phi.shape[2]:] = s.basis.T
-                    finite = np.isfinite(X).all(axis=(1, 2))
-                    if not finite.all():
-                        bad[sl] |= ~finite
-                        X[~finite] = 0.0
-                    whitened_gram(X, s.y, phi[sl], G[sl])
+                    # time along the last axis: a view for the play models, whose sets are column-major
+                    whitened_gram(np.transpose(Phi, (0, 2, 1)), s.y, phi[sl], G[sl], shared=shared)
+        bad = nonfinite_sets(G)
+        G[bad] = 0.0  # never used: those sets get log posterior -inf
         self.n_evaluations += n_set
         self.n_nonfinite += int(bad.sum())
         return G, bad
