@@ -18,7 +18,7 @@ import time
 from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, dataset_paths, positive_int
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
-from hysbench.benchmarks.diagnosis.report import write_report
+from hysbench.benchmarks.diagnosis.report import verdict_lines, write_report
 from hysbench.models import get_model
 
 EXAMPLE = "hysbench diagnose data/virtual_dea --model mrpim --out results"
@@ -46,42 +46,18 @@ def main(args) -> int:
 
     diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS, progress=say)
     say("writing the report")
-    data = write_report(diag, args.out, args.json, note=args.note)
-    print(verdict(diag, data))
+    write_report(diag, args.out, args.json, note=args.note)
+    print(verdict(diag))
     return 0
 
 
-def verdict(diag, data: dict) -> str:
-    v = diag.verdict
-    lines = [f"cause: {diag.cause} ({v.reason})"]
-    if diag.parameters:
-        lines.append("parameters: " + ", ".join(f"{k} = {x:.4g}" if isinstance(x, float) else f"{k} = {x}"
-                                                for k, x in diag.parameters.items() if not isinstance(x, list)
-                                                or all(isinstance(y, float) for y in x)))
-    for k, u in diag.uncertainty.items():
-        lines.append(f"  uncertainty {k}: " + (f"±{100 * u['relative_se']:.2g} % (jackknife over folds)"
-                                               if "relative_se" in u else f"±{u['se']:.3g} (jackknife over folds)"))
-    for n in v.not_identified:
-        lines.append(f"not identified: {n}")
-    for c in v.ambiguous_with:
-        lines.append(f"ambiguous with: {c.cause} ({c.label}, held-out gain {100 * c.heldout_gain:.2f} %)")
-    for e in diag.experiments:
-        where = f" at {e['frequency_hz']:.3g} Hz" if e.get("frequency_hz") else ""
-        lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}{where}")
-    lines.append(f"also: {', '.join(data['also']) if data['also'] else 'none'}")
-    lines.append(f"extended model: {diag.extended_model or '-'}")
+def verdict(diag) -> str:
+    """The report's verdict lines, then each candidate's held-out score."""
+    lines = verdict_lines(diag)
     lines.append("evidence (leave-one-identification-record-out prediction against the base model refitted the same "
                  "way; validation records untouched):")
     for c in sorted(diag.candidates, key=lambda c: -c.heldout_gain):
         h = c.heldout
         lines.append(f"  {c.cause:<13} held-out gain {100 * c.heldout_gain:9.3f} %   z {h.get('z', 0.0):6.2f}   "
                      f"folds {h.get('folds_improved')}/{h.get('n_folds')}")
-    g = diag.gain()
-    if g:
-        x = g["validation"]
-        lines.append(f"validation gain (against the base model refitted on the same whole records): "
-                     f"{100 * x['explained_whole']:.2f} % of the residual sum of squares removed (whole records), "
-                     f"{100 * x['explained_window']:.2f} % (windows)")
-    if diag.warning:
-        lines.append(f"warning: {diag.warning}")
     return "\n".join(lines)

@@ -213,9 +213,61 @@ FIGURES = {
 
 
 # --- markdown ---------------------------------------------------------------------
+def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[str]:
+    """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its
+    parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
+    unit = d.dataset.output_unit or "output units"
+    lines = [f"cause: {strong(d.cause)} ({d.verdict.reason})"]
+    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
+             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit}
+    if d.chosen is not None:
+        lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
+                                                for k, v in d.parameters.items() if k in units))
+        if d.uncertainty:
+            lines.append("uncertainty (jackknife over the held-out folds): " + ", ".join(
+                f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"
+                for k, v in d.uncertainty.items()))
+        how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
+               if d.extended_fit else "phase fitted per record")
+        lines.append(f"extended model: {code(d.extended_model)} ({how})")
+    if d.verdict.partial is not None:
+        p = d.verdict.partial
+        lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
+                     f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
+    for c in d.verdict.ambiguous_with:
+        lines.append(strong(f"ambiguous with {c.cause}") + f": {c.label} predicts the held-out records as well "
+                     f"(gain {100 * c.heldout_gain:.2f} %; " + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
+                     + ")")
+    for e in d.experiments:
+        if e.get("frequency_hz"):
+            lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): drive with a {e['drive']} at "
+                         f"{_fmt(e['frequency_hz'], 3)} Hz, where the two fits differ most ({_fmt(e['separation'], 3)} "
+                         f"{unit} rms, noise sd {_fmt(e['noise_sd'], 3)})")
+        else:
+            lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}"
+                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
+    for n in d.verdict.not_identified:
+        lines.append(f"not identified: {n}")
+    lines.append(f"also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
+    lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
+                 f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
+    g = d.gain()
+    if g:
+        v = g["validation"]
+        lines.append(f"validation gain (records {', '.join(v['records'])}, against the base model refitted on the "
+                     "same whole records): " + strong(f"{100 * v['explained_whole']:.2f} %") + " of its residual sum "
+                     f"of squares removed over whole records, {100 * v['explained_window']:.2f} % on the scored "
+                     f"windows; mean e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
+        vw = g["validation_vs_base_fitted_on_windows"]
+        lines.append(f"against the base model fitted on the windows (the benchmark's): {100 * vw['explained_whole']:.2f} % "
+                     f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
+    if d.warning:
+        lines.append(strong("warning:") + f" {d.warning}.")
+    return lines
+
+
 def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     d = diag
-    unit = d.dataset.output_unit or "output units"
     lines = [f"# Diagnosis: {d.model} on {d.dataset.name}", ""]
     if note:
         lines += [note, ""]
@@ -224,52 +276,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         "records' scored windows, simulated over every record whole; candidate causes fitted on the identification "
         "records' whole length and chosen by leave-one-record-out prediction against the base model refitted the "
         "same way; the named extension identified with the identifiers and scored on validation records that took "
-        "part in no fit and no choice.", "", "## Verdict", "", f"* cause: **{d.cause}** ({d.verdict.reason})"]
-    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
-             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit}
-    if d.chosen is not None:
-        lines.append("* parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
-                                                  for k, v in d.parameters.items() if k in units))
-        if d.uncertainty:
-            lines.append("* uncertainty (jackknife over the held-out folds): " + ", ".join(
-                f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"
-                for k, v in d.uncertainty.items()))
-        how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
-               if d.extended_fit else "phase fitted per record")
-        lines.append(f"* extended model: `{d.extended_model}` ({how})")
-    if d.verdict.partial is not None:
-        p = d.verdict.partial
-        lines.append(f"* best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
-                     f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
-    for c in d.verdict.ambiguous_with:
-        lines.append(f"* **ambiguous with {c.cause}**: {c.label} predicts the held-out records as well "
-                     f"(gain {100 * c.heldout_gain:.2f} %; " + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
-                     + ")")
-    for e in d.experiments:
-        if e.get("frequency_hz"):
-            lines.append(f"* suggested experiment ({' vs '.join(e['causes'])}): drive with a {e['drive']} at "
-                         f"{_fmt(e['frequency_hz'], 3)} Hz, where the two fits differ most ({_fmt(e['separation'], 3)} "
-                         f"{unit} rms, noise sd {_fmt(e['noise_sd'], 3)})")
-        else:
-            lines.append(f"* suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}"
-                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
-    for n in d.verdict.not_identified:
-        lines.append(f"* not identified: {n}")
-    lines.append(f"* also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
-    lines.append(f"* measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
-                 f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
-    g = d.gain()
-    if g:
-        v = g["validation"]
-        lines.append(f"* validation gain (records {', '.join(v['records'])}, against the base model refitted on the "
-                     f"same whole records): **{100 * v['explained_whole']:.2f} %** of its residual sum of squares "
-                     f"removed over whole records, {100 * v['explained_window']:.2f} % on the scored windows; mean "
-                     f"e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
-        vw = g["validation_vs_base_fitted_on_windows"]
-        lines.append(f"* against the base model fitted on the windows (the benchmark's): {100 * vw['explained_whole']:.2f} % "
-                     f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
-        if d.warning:
-            lines.append(f"* **warning:** {d.warning}.")
+        "part in no fit and no choice.", "", "## Verdict", ""]
+    lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). Rule: {d.decision_rule}.", "",
