@@ -1,5 +1,6 @@
 """Datasets: the dataset.toml format, its loader, and data hysbench generates."""
 
+import hysbench.models  # noqa: F401  (first: numba's cache folder, see models/numba_cache.py)
 from .dataset import (
     ROLES,
     UNIFORM_STEP_TOLERANCE,

@@ -9,6 +9,8 @@ chains ``varpro+lsq`` and ``mpso+lsq``, and ``auto``. Each is a strategy object
 "varpro", seed, n_starts=4)``.
 """
 
+import hysbench.models  # noqa: F401  (first: numba's cache folder, see models/numba_cache.py)
+
 from .api import IDENTIFIERS, METHODS, applicable_methods, build_identifier, identify, list_methods
 from .base import Chain, Identifier
 from .errors import IdentificationError

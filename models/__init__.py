@@ -1,5 +1,6 @@
 """Hysteresis models behind one interface (see ``base.HysteresisModel``)."""
 
+from . import numba_cache  # noqa: F401  (first: numba's cache folder, before any kernel is defined)
 from .base import DataScale, HysteresisModel, Parameter
 from .bouc_wen import BoucWen
 from .bouc_wen_oscillator import BoucWenOscillator
