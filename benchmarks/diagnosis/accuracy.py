@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import time
 from collections import Counter
 from pathlib import Path
@@ -159,6 +160,15 @@ def _label(r: dict) -> str:
     return "+".join(r["kinds"])
 
 
+def _machine(s: dict) -> str:
+    """Where the wall time was measured: cores and the 1-min load average at the run's start and end."""
+    m = s.get("machine")
+    if not m:
+        return "machine load not recorded"
+    return (f"one process on a {m['cpu_count']}-core machine, 1-min load average {m['load_start']:.1f} at the "
+            f"start and {m['load_end']:.1f} at the end")
+
+
 def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     lines = ["# Accuracy of `hysbench diagnose` on planted effects", ""]
     if note:
@@ -167,8 +177,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy`), base model MRPIM; generators "
         "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
-        f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis, niced, on a "
-        "shared 2-core machine).", "",
+        f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
         "## Targets", "",
         "| measure | measured | target |", "|---|---|---|",
         f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %** | >= 90 % |",
@@ -234,8 +243,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def write(rows: list[dict], out: Path, wall_s: float, note: str = "") -> dict:
-    s = {**summary(rows), "wall_s": wall_s}
+def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None) -> dict:
+    s = {**summary(rows), "wall_s": wall_s, "machine": machine}
     write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
                                                                      default=lambda o: o.tolist())))
     write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
@@ -249,6 +258,7 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
     out = ensure_dir(out)
     say = progress or (lambda s: None)
     rows, t0 = [], time.perf_counter()
+    machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0]}
     cases = plan(n_cases, seed, bases)
     for i, case in enumerate(cases):
         rows.append(run_case(case))
@@ -256,15 +266,16 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
         say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
             f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
         if (i + 1) % write_every == 0:
-            write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.")
-    return write(rows, out, time.perf_counter() - t0)
+            write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
+                  machine={**machine, "load_end": os.getloadavg()[0]})
+    return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]})
 
 
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
     """Rewrite the report from the JSON of an earlier run (same cases, current report layout)."""
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
     wall = wall_s if wall_s is not None else data["summary"].get("wall_s", data["summary"]["seconds"])
-    return write(data["cases"], Path(folder), wall)
+    return write(data["cases"], Path(folder), wall, machine=data["summary"].get("machine"))
 
 
 def main(argv=None) -> int:
