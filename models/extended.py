@@ -18,7 +18,8 @@ output is built in the order of a physical measurement chain:
   units) and time scale T_c (nonlinear, s).
 * ``resonance``: H is the second-order low-pass of unit static gain,
   natural frequency f_n (Hz) and damping ratio zeta (both nonlinear). The
-  base's output offset (a sensor zero) is not filtered.
+  base's output offset (a sensor zero) is not filtered. The mode starts at
+  rest at the actuator's first output (in equilibrium with it).
 * ``delay``: a pure delay d (s, nonlinear): the whole actuator (base and the
   components above) runs on the input sampled at t - d (linear between
   samples), from rest at t = d; before that the output is the base's rest
@@ -32,7 +33,7 @@ output is built in the order of a physical measurement chain:
   no parameter enter linearly, so this model has no regressors (identify it
   with ``lsq`` or ``mpso``).
 
-Every dynamic block starts from rest (the signal it receives is zero before
+Every dynamic block but the mode starts from rest (the signal it receives is zero before
 t = 0; see ``filter_kernels``); the rest output of a late actuator is the
 base's output for the record's first input sample. Without saturation the model stays linear in the base's
 linear parameters and in the components' weights, so ``regressors`` applies

@@ -1,8 +1,13 @@
 """Numba kernels of the linear dynamic blocks that extend a hysteresis model.
 
-Every block starts from rest: the signal it filters is zero before the
-record's first sample and jumps to its first value at t = 0 (an actuator at
-rest before the record, as the play operators' zero initial state). Between
+The first-order block starts from rest: the signal it filters is zero before
+the record's first sample and jumps to its first value at t = 0 (an actuator at
+rest before the record, as the play operators' zero initial state). The
+second-order block (a mechanical mode) starts at rest at its signal's first
+value: the mode is in equilibrium with the output the record starts from
+(for a signal that starts at zero the two are the same; a mode started from
+zero would ring at every record's start, which a recording cut from continuous
+operation or held at a bias before it does not show). Between
 samples the filtered signal is taken linear (first-order hold), and each block
 is discretised exactly for that (no half-sample lag, unlike a zero-order hold):
 
@@ -10,7 +15,7 @@ is discretised exactly for that (no half-sample lag, unlike a zero-order hold):
       x[k+1] = a x[k] + b0 v[k] + b1 v[k+1],  a = exp(-h / tau),
       b1 = 1 - (tau / h)(1 - a),  b0 = (1 - a) - b1,  x[0] = 0.
 * second-order low-pass (unit static gain) x'' + 2 zeta w x' + w^2 x = w^2 v,
-  state s = (x, x'):  s[k+1] = Phi s[k] + G0 v[k] + G1 v[k+1],  s[0] = 0,
+  state s = (x, x'):  s[k+1] = Phi s[k] + G0 v[k] + G1 v[k+1],  s[0] = (v[0], 0),
   Phi, G0, G1 from the matrix exponential (``second_order_foh``).
 """
 
@@ -78,9 +83,10 @@ def lowpass1_bank(v, a, b0, b1):
 
 @njit(cache=True, fastmath=True)
 def _lowpass2(v, phi, g0, g1, out):
-    x0 = 0.0
+    # at rest at the first sample's level (a mode in equilibrium with the output it starts from)
+    x0 = v[0]
     x1 = 0.0
-    out[0] = 0.0
+    out[0] = x0
     for k in range(v.shape[0] - 1):
         vk = v[k]
         vn = v[k + 1]

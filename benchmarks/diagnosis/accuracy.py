@@ -23,20 +23,24 @@ Parameters: relative error of each named parameter (relaxation: the named
 time constant nearest the planted one; creep: the drift over the longest
 record; saturation: the level's error over the output's peak-to-peak).
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``.
+Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``
+(``--jobs N``: cases in N processes, default every core).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import time
 from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable
 
+import numba
 import numpy as np
 
 from hysbench.data.files import ensure_dir, write_atomic, write_json
@@ -151,6 +155,11 @@ def summary(rows: list[dict]) -> dict:
         "named_or_ambiguous": sum(1 for r in vocab if r["right"] or set(r.get("ambiguous_with", [])) & set(r["kinds"])),
         "with_remainder": len(rem := [r for r in rows if r.get("remainder") is not None]),
         "with_remainder_right": sum(r["right"] for r in rem),
+        "false_also_mrpim": sum(1 for r in rows if r["base"] == "mrpim" and set(r["also"]) - set(r["kinds"])),
+        "mrpim_cases": sum(1 for r in rows if r["base"] == "mrpim"),
+        "also_on_vdea_nulls": dict(Counter(a for r in rows if r["base"] == "virtual-dea" and r["kinds"][0] in NULLS
+                                           for a in r["also"])),
+        "vdea_nulls": sum(1 for r in rows if r["base"] == "virtual-dea" and r["kinds"][0] in NULLS),
         "detection_limits": {c: detection_limit(rows, c) for c in VOCABULARY},
         "seconds": sum(r["seconds"] for r in rows),
     }
@@ -165,7 +174,8 @@ def _machine(s: dict) -> str:
     m = s.get("machine")
     if not m:
         return "machine load not recorded"
-    return (f"one process on a {m['cpu_count']}-core machine, 1-min load average {m['load_start']:.1f} at the "
+    procs = m.get("jobs", 1)
+    return (f"{procs} process{'es' if procs > 1 else ''} on a {m['cpu_count']}-core machine, 1-min load average {m['load_start']:.1f} at the "
             f"start and {m['load_end']:.1f} at the end")
 
 
@@ -192,7 +202,11 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"| vocabulary effects: right, or the planted cause listed as ambiguous with the named one | "
         f"{s['named_or_ambiguous']} of {s['vocabulary_cases']} | - |",
         f"| a cause named with an unexplained remainder (it removes < half of the misfit) / of them right | "
-        f"{s['with_remainder']} / {s['with_remainder_right']} | - |", "",
+        f"{s['with_remainder']} / {s['with_remainder_right']} | - |",
+        f"| MRPIM base: a cause listed in `also` that was not planted | {s['false_also_mrpim']} of "
+        f"{s['mrpim_cases']} | - |",
+        f"| virtual DEA nulls ({s['vdea_nulls']}): causes listed in `also` (its physics: relaxation and a lag) | "
+        f"{', '.join(f'{k} {v}' for k, v in sorted(s['also_on_vdea_nulls'].items())) or 'none'} | - |", "",
         "What counts as right: one vocabulary cause: it is named (virtual DEA: or its own relaxation named with the "
         "planted cause in `also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the "
         "base model absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: relaxation, its physics' own, or `unexplained`; real "
@@ -251,23 +265,33 @@ def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: d
     return s
 
 
+def _one_thread() -> None:
+    numba.set_num_threads(1)  # the processes share the cores, not each process's kernels
+
+
 def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results", bases: tuple[str, ...] = BASES,
-                 progress: Callable[[str], None] | None = None, write_every: int = 10) -> dict:
+                 progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1) -> dict:
     """Run the plan and write the report (also every ``write_every`` cases, so a stopped run leaves its
-    largest honest part). Returns the summary."""
+    largest honest part). ``jobs`` > 1 runs the cases in that many processes (one numba thread each);
+    the cases are independent and seeded, so the rows are the same. Returns the summary."""
     out = ensure_dir(out)
     say = progress or (lambda s: None)
     rows, t0 = [], time.perf_counter()
-    machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0]}
+    machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
     cases = plan(n_cases, seed, bases)
-    for i, case in enumerate(cases):
-        rows.append(run_case(case))
-        r = rows[-1]
-        say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
-            f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
-        if (i + 1) % write_every == 0:
-            write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
-                  machine={**machine, "load_end": os.getloadavg()[0]})
+    with contextlib.ExitStack() as stack:
+        if jobs > 1:
+            pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread))
+            results = pool.map(run_case, cases)
+        else:
+            results = map(run_case, cases)
+        for i, r in enumerate(results):
+            rows.append(r)
+            say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
+                f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
+            if (i + 1) % write_every == 0:
+                write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
+                      machine={**machine, "load_end": os.getloadavg()[0]})
     return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]})
 
 
@@ -283,8 +307,12 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="results")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                        help="processes running cases at once (default: every core)")
     args = parser.parse_args(argv)
-    s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True))
+    if args.cases < 1 or args.jobs < 1:
+        parser.error("--cases and --jobs must be positive integers")
+    s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs)
     print(json.dumps({k: v for k, v in s.items() if k != "detection_limits"}, indent=1))
     return 0
 

@@ -216,29 +216,43 @@ class Diagnosis:
 
 
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
-    """Each other passing cause added to the named one (composite, refined on the screen); "also" if the
-    composite predicts the held-out records better than the named one alone (same test)."""
+    """Forward selection on top of the named cause: each other passing cause (best held-out gain first)
+    is added to what is kept so far (composite, refined on the screen; an interference as a per-record
+    sinusoid on top) and kept as "also" if that predicts the held-out records better than what was kept
+    before it (same test)."""
     screen, chosen = diag.screen, diag.chosen
     folds, errors = result["folds"], result["errors"]
     ambiguous = {c.cause for c in diag.verdict.ambiguous_with}
     others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and not c.limit
               and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))]
+    # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
+    if chosen.cause == "interference":
+        kept, kept_e, frequency = None, errors[id(screen.null)], chosen.estimates["frequency_hz"]
+    else:
+        kept, kept_e, frequency = chosen, errors[id(chosen)], None
+    reference = errors[id(chosen)]
     for c in sorted(others, key=lambda c: -c.heldout_gain)[:MAX_SECONDARY]:
-        say(f"trying {chosen.cause} + {c.cause}")
-        if "interference" in (chosen.cause, c.cause):  # a per-record sinusoid on top of the other's residual
-            inter, other = (chosen, c) if chosen.cause == "interference" else (c, chosen)
-            comp = copy.copy(c)
-            e = on_top(screen, folds, errors[id(other)], inter.estimates["frequency_hz"])
+        say(f"trying {' + '.join([chosen.cause, *(a.cause for a in diag.also), c.cause])}")
+        if c.cause == "interference":
+            if frequency is not None:
+                continue
+            comp, part, part_e = copy.copy(c), kept, kept_e
+            e = on_top(screen, folds, kept_e, c.estimates["frequency_hz"])
         else:
-            comp = screen.composite(chosen, c)
+            comp = copy.copy(c) if kept is None else screen.composite(kept, c)
             if comp is None:
                 continue
-            e, _ = heldout_errors(screen, folds, comp)
-        comp.heldout = score(folds, errors[id(chosen)], e)
+            part = comp
+            part_e = errors[id(c)] if kept is None else heldout_errors(screen, folds, comp)[0]
+            e = on_top(screen, folds, part_e, frequency) if frequency else part_e
+        comp.heldout = score(folds, reference, e)
         diag.secondary_tried.append(comp)
         h = comp.heldout
         if h["gain"] >= diag.settings["min_explained"] and h["z"] >= Z_PASS and 2 * h["folds_improved"] > h["n_folds"]:
             diag.also.append(comp)
+            kept, kept_e, reference = part, part_e, e
+            if c.cause == "interference":
+                frequency = c.estimates["frequency_hz"]
 
 
 def _confirm_interference(diag: Diagnosis) -> None:

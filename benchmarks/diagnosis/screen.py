@@ -401,11 +401,13 @@ class Screen:
 
     # --- composite (secondary causes) ---------------------------------------------
     def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10) -> Candidate | None:
-        """The primary's extension plus another cause, refined from both fits (separable causes only)."""
-        if {"saturation", "interference"} & {primary.cause, other.cause}:
+        """The primary's extension (itself possibly a composite) plus another cause, refined from both fits
+        (separable causes only)."""
+        parts = tuple(getattr(primary.model, "components", (primary.cause,)))
+        if {"saturation", "interference"} & {*parts, other.cause} or other.cause in parts:
             return None
         hyper = {**primary.hyperparameters, **other.hyperparameters}
-        model = self.extension((primary.cause, other.cause), **hyper)
+        model = self.extension((*parts, other.cause), **hyper)
         start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
         free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]
         z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
