@@ -248,7 +248,8 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         comp.heldout = score(folds, reference, e)
         diag.secondary_tried.append(comp)
         h = comp.heldout
-        if h["gain"] >= diag.settings["min_explained"] and h["z"] >= Z_PASS and 2 * h["folds_improved"] > h["n_folds"]:
+        if (h["gain"] >= diag.settings["min_explained"] and h["z"] >= Z_PASS and 2 * h["folds_improved"] > h["n_folds"]
+                and not comp.limit):
             diag.also.append(comp)
             kept, kept_e, reference = part, part_e, e
             if c.cause == "interference":
