@@ -278,14 +278,17 @@ def test_growth_makes_the_held_out_records_covered_at_90(misspecified_coverage):
 
 
 def test_predictive_scale_interpolates_and_grows_with_distance():
-    """c(f) = c_in(f) exp(beta d(f)), against the formula written out."""
+    """c(f) = c_in(f) exp(beta |ln f - ln f_a| |ln f - ln f_b|), against the formula written out."""
     cal = Calibration(0.9, frequencies=[0.02, 0.1, 0.4, 1.0], in_sample=[0.5, 1.0, 2.0, 0.8], growth=0.3)
     assert cal.scale_at(0.1) == pytest.approx(1.0)  # a fitted frequency: its own in-sample scale
-    f = 0.05  # between 0.02 and 0.1: ln c linear in ln f, nearest fitted 0.02 or 0.1 (x2.5 or x2)
+    f = 0.05  # between 0.02 and 0.1: ln c linear in ln f; distance ln(0.05/0.02) ln(0.1/0.05)
     w = math.log(f / 0.02) / math.log(0.1 / 0.02)
     assert cal.scale_at(f) == pytest.approx(math.exp((1 - w) * math.log(0.5) + w * math.log(1.0))
-                                            * math.exp(0.3 * math.log(2.0)))
-    assert cal.scale_at(0.01) == pytest.approx(0.5 * math.exp(0.3 * math.log(2.0)))  # constant beyond the range
+                                            * math.exp(0.3 * math.log(2.5) * math.log(2.0)))
+    # beyond the range: the scale held, the distance to the two nearest (0.02 and 0.1)
+    assert cal.scale_at(0.01) == pytest.approx(0.5 * math.exp(0.3 * math.log(2.0) * math.log(10.0)))
+    assert Calibration(0.9, frequencies=[0.4, 0.4], in_sample=[1.0, 1.0], growth=0.3).scale_at(0.8) == pytest.approx(
+        math.exp(0.3 * math.log(2.0) ** 2))  # one distinct fitted frequency: the distance squared
     assert cal.scale_at(None) == pytest.approx(2.0)  # unknown frequency: the largest (no folds: no growth)
     assert Calibration(0.9, constant=1.3).scale_at(0.2) == 1.3
     # a record whose residuals the fit mostly absorbed (leverage > 0.5) is not a base: 0.8 Hz takes 0.4 Hz's

@@ -23,7 +23,10 @@ record's frequency f (0.01-100): a learning rate 1 / c^2 for the linear paramete
 posterior spread scales by c, as under a tempered likelihood) and the noise scaled by c. c(f)
 comes from held-out coverage, never from the records it is scored on:
 
-    c(f) = c_in(f) exp(beta d(f)),   d(f) = |ln(f / nearest fitted frequency)|.
+    c(f) = c_in(f) exp(beta d(f)),   d(f) = |ln f - ln f_a| |ln f - ln f_b|,
+
+f_a, f_b the fitted frequencies on either side of f (beyond the fitted range: the two nearest),
+the shape of linear interpolation's error term in ln f: zero at a fitted frequency, largest midway.
 
 c_in(f_r) is the scale that covers fitted record r's own residuals at 90 % (the posterior at its
 median (theta_N, sigma, phi), predictive variance = linear-parameter variance + noise variance);
@@ -37,7 +40,12 @@ turn, the linear parameters (model and discrepancy) are refitted on the others, 
 mean held-out 90 % coverage = 90 % over the left-out records whose frequency lies inside the
 others' range (held out by interpolation, as validation records are; the end records are
 extrapolation, reported but not used), each at its own distance d. A validation record close to a
-fitted one thus gets a scale close to that record's in-sample one. Why not one scale from the
+fitted one thus gets a scale close to that record's in-sample one. Why the product and not the
+distance to the nearest fitted frequency (the previous rule): a left-out record's neighbours are
+x2.5-x5 away, a validation record's x1.25-x2, and a growth linear in that distance carried the
+held-out records' growth too far (on development data at the full setting, seeds 10-19: planted
+relaxation 98.6 % coverage against 96.2 % with the product; virtual DEA 91.2 % against 89.6 %).
+Why not one scale from the
 left-out records alone (the previous rule): a 3-record refit across the x4-x5 gaps of leaving
 one out predicts about twice as badly as the 4-record fit does at the validation frequencies,
 so that scale was biased high; here the left-out records only set the growth with distance.
@@ -64,7 +72,7 @@ CALIBRATION_LEVEL = 0.9
 SCALE_RANGE = (0.01, 100.0)
 LEVERAGE_MAX = 0.5  # a fitted record whose linear-parameter variance exceeds this x the noise variance: its
 # residuals were mostly absorbed by the fit, so its in-sample scale is not used as a base
-GROWTH_MAX = 10.0  # beta's upper end (per unit |ln f ratio|)
+GROWTH_MAX = 10.0  # beta's upper end (per unit of interpolation_distance)
 
 
 def relaxation_times(records) -> np.ndarray:
@@ -104,17 +112,14 @@ class Calibration:
     frequencies: list = field(default_factory=list)  # fitted records' frequencies (Hz; None if unknown)
     in_sample: list = field(default_factory=list)  # scale covering each fitted record's own residuals
     leverage: list = field(default_factory=list)  # per fitted record: mean linear-parameter var / noise var
-    growth: float = 0.0  # beta: ln c grows by beta per unit |ln(f / nearest fitted f)|
+    growth: float = 0.0  # beta: ln c grows by beta per unit of interpolation_distance
     constant: float | None = None
     folds: list[dict] = field(default_factory=list)
     note: str = ""
 
     def distance(self, frequency) -> float | None:
-        """|ln(f / nearest fitted frequency)|, None if either is unknown."""
-        known = [f for f in self.frequencies if f]
-        if not frequency or not known:
-            return None
-        return min(abs(math.log(frequency / f)) for f in known)
+        """``interpolation_distance`` to the fitted frequencies, None if either is unknown."""
+        return interpolation_distance(frequency, self.frequencies)
 
     def base_at(self, frequency) -> float:
         """The in-sample scale interpolated linearly in (ln f, ln c), constant beyond the fitted range,
@@ -149,6 +154,22 @@ class Calibration:
                                                  self.leverage or [0.0] * len(self.in_sample))],
                 "leverage_max": LEVERAGE_MAX,
                 "folds": self.folds, "note": self.note}
+
+
+def interpolation_distance(frequency, nodes) -> float | None:
+    """|ln f - ln f_a| |ln f - ln f_b|: f_a, f_b the nodes on either side of f, or beyond the nodes' range
+    the two nearest (one distinct node: its distance squared); None if f or every node is unknown."""
+    ln = sorted({math.log(g) for g in nodes if g})
+    if not frequency or not ln:
+        return None
+    x = math.log(frequency)
+    below, above = [a for a in ln if a <= x], [a for a in ln if a >= x]
+    if below and above:
+        a, b = below[-1], above[0]
+    else:
+        side = below[::-1] if below else above
+        a, b = side[0], side[min(1, len(side) - 1)]
+    return abs(x - a) * abs(x - b)
 
 
 def _pieces(post, nl: np.ndarray):
@@ -219,7 +240,7 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
         e, v = errors(i, fit)
         others = [g for j, g in enumerate(freqs) if j != i and g]
         interior = bool(f and others and min(others) < f < max(others))
-        d = min(abs(math.log(f / g)) for g in others) if f and others else None
+        d = interpolation_distance(f, others) if f and others else None
         held.append({"label": label, "frequency_hz": f, "interior": interior, "distance": d, "err": e, "var": v,
                      "rms_error": float(np.sqrt(np.mean(e**2)))})
     if not held:
@@ -236,8 +257,9 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
                                            * math.exp(beta * h["distance"])) for h in used]))
 
         cal.growth = _solve_increasing(mean_cov, 0.0, GROWTH_MAX, level, log=False)
-        cal.note = ("scale = in-sample scale interpolated in ln f, times exp(beta x distance to the nearest fitted "
-                    "frequency); beta from the identification records held out by interpolation")
+        cal.note = ("scale = in-sample scale interpolated in ln f, times exp(beta |ln f - ln f_a| |ln f - ln f_b|), "
+                    "f_a, f_b the fitted frequencies around f; beta from the identification records held out by "
+                    "interpolation")
         screened = [p[0] for p, h in zip(pieces, leverage) if h > LEVERAGE_MAX]
         if screened:
             cal.note += (f"; not a base for the interpolation (leverage > {LEVERAGE_MAX:g}, residuals mostly "
