@@ -1,7 +1,7 @@
 """The diagnosis's measured accuracy on planted effects (issue 14): ``accuracy.run_accuracy``.
 
-Not a CI test: 200 cases take about ten minutes in one process on a quiet 2-core machine; it runs
-them in one process per core.
+Not a CI test: 200 cases take 10.6 min in one process on the quiet 2-core machine, 5.4 min in one
+process per core (as here).
 ``HYSBENCH_ACCURACY_CASES`` sets the number of cases (default 200); the
 report goes to results/diagnosis_accuracy.md. The same run as a command:
 ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``.
