@@ -12,11 +12,16 @@ from scipy.optimize import least_squares, minimize_scalar
 from .candidates import Candidate, estimates_of
 
 
+def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
+    """The samples clearly away from a clipping level (by three noise sd) on its side."""
+    sign = 1.0 if side == "upper" else -1.0
+    return sign * y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
+
+
 def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
     """(rss, theta, residual) of the censored fit at a clipping level: the linear parameters solved on the
     samples not at the level, the prediction clipped there; (inf, None, None) if too few samples are free."""
-    sign = 1.0 if side == "upper" else -1.0
-    free = sign * y < sign * level - 3.0 * max(screen.noise_sd, 1e-12)
+    free = unclipped(screen, y, side, level)
     screen.n_evaluations += 1
     if free.sum() < A.shape[1] + 1:
         return math.inf, None, None

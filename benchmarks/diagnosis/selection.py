@@ -65,7 +65,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
-from .saturation import fit_level
+from .saturation import fit_level, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
@@ -167,7 +167,6 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False)
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
     base_nl = {k: c.params[k] for k in screen.base_nl_names}
     A = np.concatenate(screen.base_columns(base_nl).rows)
-    sign = 1.0 if side == "upper" else -1.0
     e = np.empty(screen.n)
     fold_est = []
     for m in range(folds.n):
@@ -175,7 +174,7 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False)
         if refit:
             level = fit_level(screen, A[~test], screen.y[~test], side)
             fold_est.append({"saturation_level": level})
-        train = ~test & (sign * screen.y < sign * level - 3.0 * max(screen.noise_sd, 1e-12))
+        train = ~test & unclipped(screen, screen.y, side, level)
         theta, _ = screen.solve(A[train], screen.y[train])
         pred = A[test] @ theta
         pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
