@@ -392,6 +392,18 @@ def test_an_effect_outside_the_vocabulary_gets_no_vocabulary_cause(kind):
         assert d.verdict.reason
 
 
+@pytest.mark.parametrize("seed", [5, 100083])
+def test_a_modulation_slower_than_the_records_is_not_named_interference(seed):
+    """A 40-s gain modulation on 15-s multisines: with its phase free per record a sinusoid of under two cycles
+    per record is a per-record drift (nearly an offset and a slope), so it is not an interference."""
+    ds, truth = planted_case(("gain-modulation",), "mrpim", "multisines", seed,
+                             effects={"gain-modulation": {"depth": 0.065, "period_s": 40.0, "phase_rad": 5.75}})
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause in ("unexplained", "none"), (d.cause, [(c.cause, c.heldout) for c in d.candidates])
+    slow = [c for c in d.candidates if c.cause == "interference" and c.estimates["frequency_hz"] * 15.0 < 2.0]
+    assert all("cycles" in c.limit for c in slow)
+
+
 def test_virtual_dea_relaxation_with_an_interference_on_top():
     """The virtual DEA's physics from rest (its own relaxation) with an interference planted: relaxation is named
     and the interference found on top of it, frequency within 25 %."""

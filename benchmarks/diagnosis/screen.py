@@ -40,8 +40,8 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
-from .candidates import (CREEP_PERIODS, DUPLICATE_TAU_RATIO, MAX_DAMPING, MAX_ROWS, MIN_EXPLAINED, Candidate,
-                         estimates_of, is_log)
+from .candidates import (CREEP_PERIODS, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES, MAX_DAMPING, MAX_ROWS,
+                         MIN_EXPLAINED, Candidate, estimates_of, is_log)
 from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
@@ -119,6 +119,11 @@ class Screen:
         """Creep is a drift much slower than the drive: at least twice the longest drive period."""
         periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
         return max(CREEP_TIME_BOUNDS[0] * self.scale.time, CREEP_PERIODS * max(periods, default=0.0))
+
+    @property
+    def shortest_span(self) -> float:
+        """The shortest time span (s) of a record's rows in the screen."""
+        return min(float((p.rows[-1] - p.rows[0] + 1) * p.record.dt) for p in self.parts)
 
     def bounds_of(self, model: HysteresisModel, name: str) -> tuple[float, float]:
         for p in model.parameters(self.scale):
@@ -265,6 +270,9 @@ class Screen:
             if any(b < DUPLICATE_TAU_RATIO * a for a, b in zip(taus, taus[1:])):
                 return (f"time constants closer than a factor {DUPLICATE_TAU_RATIO:g}: their difference is a "
                         "band-pass, not a relaxation")
+        if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < INTERFERENCE_MIN_CYCLES:
+            return (f"fewer than {INTERFERENCE_MIN_CYCLES:g} cycles in the shortest record ({self.shortest_span:.3g} s): "
+                    "with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                     "not a disturbance of its own")
