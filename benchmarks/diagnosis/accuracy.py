@@ -169,6 +169,11 @@ def _label(r: dict) -> str:
     return "+".join(r["kinds"])
 
 
+def _plan_seed(rows: list[dict]) -> str:
+    """The plan's seed, from the cases' seeds (``plan``: seed * 100000 + index)."""
+    return ", ".join(str(k) for k in sorted({r["seed"] // 100_000 for r in rows})) or "-"
+
+
 def _machine(s: dict) -> str:
     """Where the wall time was measured: cores and the 1-min load average at the run's start and end."""
     m = s.get("machine")
@@ -184,7 +189,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     if note:
         lines += [note, ""]
     lines += [
-        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy`), base model MRPIM; generators "
+        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {_plan_seed(rows)}`), "
+        "base model MRPIM; generators "
         "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
