@@ -52,6 +52,7 @@ PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 
            + [(k,) for k in OUT_OF_VOCABULARY]
            + [("relaxation", "interference"), ("delay", "creep"), ("resonance", "creep"), ("saturation", "relaxation")])
 TOLERANCE = 0.25
+PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95
 
 
@@ -64,7 +65,7 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES) -> list[di
         kinds = PATTERN[i % len(PATTERN)]
         base = cycle[(i // len(PATTERN) + i) % len(cycle)]
         drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
-        out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * 100_000 + i})
+        out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
     return out
 
 
@@ -170,8 +171,8 @@ def _label(r: dict) -> str:
 
 
 def _plan_seed(rows: list[dict]) -> str:
-    """The plan's seed, from the cases' seeds (``plan``: seed * 100000 + index)."""
-    return ", ".join(str(k) for k in sorted({r["seed"] // 100_000 for r in rows})) or "-"
+    """The plan's seed, from the cases' seeds (``plan``: seed * PLAN_STRIDE + index)."""
+    return ", ".join(str(k) for k in sorted({r["seed"] // PLAN_STRIDE for r in rows})) or "-"
 
 
 def _machine(s: dict) -> str:
@@ -180,8 +181,8 @@ def _machine(s: dict) -> str:
     if not m:
         return "machine load not recorded"
     procs = m.get("jobs", 1)
-    return (f"{procs} process{'es' if procs > 1 else ''} on a {m['cpu_count']}-core machine, 1-min load average {m['load_start']:.1f} at the "
-            f"start and {m['load_end']:.1f} at the end")
+    return (f"{procs} process{'es' if procs > 1 else ''} on a {m['cpu_count']}-core machine, 1-min load average "
+            f"{m['load_start']:.1f} at the start and {m['load_end']:.1f} at the end")
 
 
 def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:

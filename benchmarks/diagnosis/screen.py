@@ -271,8 +271,8 @@ class Screen:
                 return (f"time constants closer than a factor {DUPLICATE_TAU_RATIO:g}: their difference is a "
                         "band-pass, not a relaxation")
         if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < INTERFERENCE_MIN_CYCLES:
-            return (f"fewer than {INTERFERENCE_MIN_CYCLES:g} cycles in the shortest record ({self.shortest_span:.3g} s): "
-                    "with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
+            return (f"fewer than {INTERFERENCE_MIN_CYCLES:g} cycles in the shortest record "
+                    f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                     "not a disturbance of its own")

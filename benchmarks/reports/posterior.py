@@ -302,8 +302,9 @@ def calibration_text(cal: dict) -> list[str]:
         L = ["Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
              "per-sample median multiplied by c(f) = c_in(f) exp(beta d), where c_in is the scale that covers the "
              f"fitted records' own residuals at 90 % ({ins}), interpolated in ln f, d = |ln f - ln f_a| "
-             f"|ln f - ln f_b| (f_a, f_b the fitted frequencies around f; beyond them the two nearest), and beta = {cal['growth_per_ln_frequency']:.3g} makes the identification records held "
-             "out by interpolation covered at 90 % on average (refitted without them).", ""]
+             "|ln f - ln f_b| (f_a, f_b the fitted frequencies around f; beyond them the two nearest), and "
+             f"beta = {cal['growth_per_ln_frequency']:.3g} makes the identification records held out by "
+             "interpolation covered at 90 % on average (refitted without them).", ""]
     folds = cal.get("folds") or []
     if folds:
         key = [k for k in folds[0] if k.endswith("_scaled")][0]

@@ -1,6 +1,6 @@
 """The diagnosis's measured accuracy on planted effects (issue 14): ``accuracy.run_accuracy``.
 
-Not a CI test: 200 cases take 10.6 min in one process on the quiet 2-core machine, 5.4 min in one
+Not a CI test: 200 cases take 10.6 min in one process on the quiet 2-core machine, 5.1 min in one
 process per core (as here).
 ``HYSBENCH_ACCURACY_CASES`` sets the number of cases (default 200); the
 report goes to results/diagnosis_accuracy.md. The same run as a command:
@@ -17,7 +17,8 @@ RESULTS = Path(__file__).resolve().parents[2] / "results"
 
 def test_diagnosis_accuracy(benchmark):
     n = int(os.environ.get("HYSBENCH_ACCURACY_CASES", "200"))
-    summary = benchmark.pedantic(run_accuracy, args=(n,), kwargs={"out": RESULTS, "jobs": os.cpu_count() or 1}, rounds=1, iterations=1)
+    summary = benchmark.pedantic(run_accuracy, args=(n,), kwargs={"out": RESULTS, "jobs": os.cpu_count() or 1},
+                                 rounds=1, iterations=1)
     print(f"\nverdict right {100 * summary['right_share']:.1f} % of {summary['cases']} cases; "
           f"confirmed causes on nulls {summary['confirmed_on_nulls']}; parameters within 25 % "
           f"{100 * summary['parameters_within_share']:.1f} %")
