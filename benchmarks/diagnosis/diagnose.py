@@ -324,7 +324,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
     structure = periodic_structure(screen.null_residuals())
     structured = bool(structure["F"] > STRUCTURE_F) if structure["records"] else False
     verdict = decide(screen, result["folds"], result["candidates"], result["relaxation_variants"],
-                     result["errors"], result["null_sse"], structured)
+                     result["errors"], result["errors"][id(screen.null)], structured)
     timings["screen"] = time.perf_counter() - t1
 
     diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,

@@ -32,20 +32,26 @@ Decision rule (``decide``):
    beat by z >= ``Z_SAME`` and that would be a verdict themselves (rule 3),
    the one with fewest parameters is named. Another cause in that set is
    reported as ambiguous with it, with the drive that would separate them
-   (``experiment``); so is creep when the named relaxation's slowest time
-   constant is longer than the longest drive period and creep predicts as
-   well (a slow low-pass of a drive with one mean level and a drift since the
-   start are nearly the same function), even with creep's own time scale at
-   its limit.
+   (``experiment``). When the named relaxation's slowest time constant is
+   longer than the longest drive period and creep predicts as well (a slow
+   low-pass of a drive with one mean level and a drift since the start are
+   nearly the same function), creep is named instead -- the weaker claim: the
+   records do not show that the slow part depends on the input -- with the
+   relaxation as ambiguous, even with creep's own time scale at its limit.
    Relaxation variants with time constants closer than a factor 1.25 are not
    admitted (two nearly equal low-passes with opposite gains are a band-pass,
    not a relaxation); closer than their fold uncertainty, the variant with one
    fewer is named if it predicts as well.
 3. A named cause that removes less than ``EXPLAIN_SHARE`` of the base's
    held-out misfit beyond white noise (n sd^2) is still named, with the rest
-   reported as unexplained remainder, if it is *specific*: z >= ``Z_PASS`` on
-   the block test, its fold estimates agree within ``PARTIAL_SE`` and it
-   predicts better than every other passing cause by z >= ``Z_SAME``.
+   reported as unexplained remainder, if it is *specific*: the part it removes
+   passes the block test (z >= ``Z_PASS``), its fold estimates agree within
+   ``PARTIAL_SE``, and every other passing cause that predicts as well
+   (z < ``Z_SAME``) removes the *same* part (held-out improvements
+   e_null - e with cosine >= ``SAME_SLICE`` = 0.9): those are rival explanations of
+   one part, so the one with fewest parameters is named and the others are
+   ambiguous with it (as in rule 2). A rival that removes another part makes
+   it a guess.
    Otherwise the verdict is ``unexplained``; so it is if nothing passes
    while the residual is structured (a candidate has held-out evidence but
    fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
@@ -75,6 +81,7 @@ STRONG_GAIN = 0.10
 AT_BOUND = 0.01  # relative (log scale) distance to a search bound that counts as "at the bound"
 STRUCTURE_F = 4.0  # periodic-structure ratio above which a residual is "structured"
 PARTIAL_SE = 0.25  # a partial explanation's fold estimates must agree within this (relative)
+SAME_SLICE = 0.9  # two held-out improvements remove the same part: cosine >= 0.9 (81 % of each along the other)
 FOLD_NFEV = 8
 
 
@@ -293,8 +300,10 @@ def pairwise_z(folds: Folds, errors: dict, a: Candidate, b: Candidate) -> float:
 
 
 def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequence[Candidate], errors: dict,
-           null_sse: float, structured: bool) -> Verdict:
-    """See the module docstring (every relaxation variant competes, not only the best)."""
+           e_null: np.ndarray, structured: bool) -> Verdict:
+    """See the module docstring (every relaxation variant competes, not only the best); ``e_null``: the base
+    model's out-of-fold residuals."""
+    null_sse = float(e_null @ e_null)
     candidates = list({id(c): c for c in [*candidates, *variants]}.values())
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
@@ -317,6 +326,9 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     # as good as the best: not worse by z >= Z_SAME, and explaining enough of the misfit to be a verdict itself
     same = [c for c in ok if c is best or (pairwise_z(folds, errors, best, c) < Z_SAME
                                            and c.heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
+    if best.heldout["share_of_misfit"] < EXPLAIN_SHARE:  # a partial explanation: rivals for the same slice of it
+        same += [c for c in ok if c is not best and pairwise_z(folds, errors, best, c) < Z_SAME
+                 and same_slice(e_null, errors[id(best)], errors[id(c)]) and identified(c)]
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
     chosen = merge_duplicates(chosen, variants, folds, errors)
     others = {}
@@ -324,16 +336,27 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
         if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
             others[c.cause] = c
     slow_twin = slow_relaxation_twin(screen, folds, errors, chosen, candidates)
-    if slow_twin is not None:
-        others.setdefault(slow_twin.cause, slow_twin)
+    drift_note = ""
+    if slow_twin is not None:  # the weaker claim: a drift since the start, not a dependence on the input
+        others.pop(slow_twin.cause, None)
+        others = {chosen.cause: chosen, **others}
+        drift_note = (f"; named rather than relaxation: the relaxation's slowest time constant "
+                      f"({max(chosen.estimates['tau_s']):.3g} s) is longer than the longest drive period, so these "
+                      "records do not show that it depends on the input, and a drift since the start predicts "
+                      f"them as well (z < {Z_SAME:g})")
+        chosen = slow_twin
+        if "share_of_misfit" not in chosen.heldout:
+            chosen.heldout["share_of_misfit"] = (float((null_sse - chosen.heldout["sse"]) / excess)
+                                                 if excess > 0 else 1.0)
     share = chosen.heldout.get("share_of_misfit", 1.0)
     reason = (f"predicts the held-out identification records better than the base model refitted the same way "
               f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
-    if chosen is not best:
+    if chosen is not best and not drift_note:
         reason += f"; simpler than {best.label}, which does not predict better by z >= {Z_SAME:g}"
+    reason += drift_note
     remainder = None
     if share < EXPLAIN_SHARE:
-        why_not = not_specific(folds, errors, chosen, candidates)
+        why_not = not_specific(folds, errors, chosen, candidates, best, e_null)
         if why_not:
             return Verdict("unexplained", None, reason=(
                 f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
@@ -358,19 +381,31 @@ def identified(c: Candidate) -> bool:
     return True
 
 
-def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate]) -> str:
-    """Why a cause that removes only part of the misfit is not named ("" if it is): a partial explanation
-    must pass the block test (z >= Z_PASS), have parameters that agree across the folds, and predict better
-    (z >= Z_SAME) than every other passing cause -- when much of the misfit is something else, several
-    causes each take a slice of it, and naming one of them would be a guess."""
-    if chosen.heldout["z"] < Z_PASS:
-        return f"its block test gives z = {chosen.heldout['z']:.1f} < {Z_PASS:g}"
+def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray) -> bool:
+    """Two candidates remove the same part of the base's held-out misfit: their improvements (e_null - e)
+    point the same way (cosine >= ``SAME_SLICE``)."""
+    d_a, d_b = e_null - e_a, e_null - e_b
+    norm = float(np.linalg.norm(d_a) * np.linalg.norm(d_b))
+    return norm > 0 and float(d_a @ d_b) / norm >= SAME_SLICE
+
+
+def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate],
+                 best: Candidate | None = None, e_null: np.ndarray | None = None) -> str:
+    """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
+    pass the block test (z >= Z_PASS, by the best predictor of that part), its parameters must agree across
+    the folds, and every other passing cause that predicts about as well (z < Z_SAME) must remove the same
+    part (then it is ambiguous with it) -- when several causes each take a different slice of a misfit that
+    is mostly something else, naming one of them would be a guess."""
+    best = best or chosen
+    if best.heldout["z"] < Z_PASS:
+        return f"its block test gives z = {best.heldout['z']:.1f} < {Z_PASS:g}"
     if not identified(chosen):
         return f"its parameters differ between the folds by more than {100 * PARTIAL_SE:.0f} %"
     rivals = [c for c in candidates if c.cause != chosen.cause and passes(c)]  # admissible causes only
-    close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME]
+    close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME
+             and (e_null is None or not same_slice(e_null, errors[id(chosen)], errors[id(c)]))]
     if close:
-        return f"{', '.join(sorted(set(close)))} predicts the held-out records about as well"
+        return f"{', '.join(sorted(set(close)))} predicts the held-out records about as well, removing another part"
     return ""
 
 
