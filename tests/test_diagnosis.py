@@ -366,7 +366,7 @@ def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
 
 # --- planted effects (drawn within the detection limits) --------------------------------------------
 # Detection limits (strength: rms of the effect, % of the output's peak-to-peak) measured by the accuracy
-# benchmark, the largest over its plans of seeds 0, 1 and 2 (200 cases each; results/diagnosis_accuracy.md and
+# benchmark, the largest over its plans of seeds 0-3 (200 cases each; results/diagnosis_accuracy.md and
 # README "On fresh plans"); None: not reached on some plan (another cause mimics it).
 LIMITS = {"relaxation": 1.11, "delay": None, "resonance": None, "creep": None, "interference": 0.195,
           "saturation": 2.42}
