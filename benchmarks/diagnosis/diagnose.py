@@ -46,7 +46,8 @@ from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .selection import EXPLAIN_SHARE, PARTIAL_SE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict, decide, heldout_errors, promising, score
+from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
+                        decide, heldout_errors, promising, score)
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -135,9 +136,11 @@ class Diagnosis:
                 f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
                 f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
                 f"within z = {Z_SAME:g} of the best is "
-                f"named; if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
-                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, better than every other "
-                f"cause by z >= {Z_SAME:g}) with the rest reported as unexplained remainder, else unexplained; "
+                f"named (creep rather than a relaxation slower than every drive period that creep predicts as well); "
+                f"if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
+                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, every other cause "
+                f"within z = {Z_SAME:g} removing the same part, held-out improvements with cosine >= {SAME_SLICE:g}: "
+                f"those are ambiguous with it) with the rest reported as unexplained remainder, else unexplained; "
                 f"nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
                 "records take no part")
@@ -333,7 +336,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": min_explained,
                                "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
-                               "structure_f": STRUCTURE_F})
+                               "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F})
     if experiments and verdict.chosen is not None:
         for other in verdict.ambiguous_with:
             say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")

@@ -40,7 +40,7 @@ def _score(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool
 def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
                joint_nfev: int = 10, max_joint: int = 4, progress: Callable[[str], None] | None = None) -> dict:
     """Every candidate fitted and scored; returns {"library", "candidates" (best per cause),
-    "relaxation_variants", "folds", "errors" (out-of-fold residuals by id), "null_sse"}."""
+    "relaxation_variants", "folds", "errors" (out-of-fold residuals by id; the base's under id(screen.null))}."""
     say = progress or (lambda s: None)
     say("library screen (pysindy FROLS)")
     library = library_screen(screen, residuals)
@@ -78,4 +78,4 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             _score(screen, folds, e_null, errors, c, refit=True)
     best_relax = max(variants, key=lambda c: c.heldout_gain)
     return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,
-            "folds": folds, "errors": errors, "null_sse": float(e_null @ e_null)}
+            "folds": folds, "errors": errors}

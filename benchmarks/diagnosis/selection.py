@@ -320,8 +320,12 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
         return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
                        not_identified=not_identified)
     excess = null_sse - screen.n * screen.noise_sd**2
-    for c in ok:
+
+    def record_share(c: Candidate) -> None:  # the share of the held-out misfit beyond white noise it removes
         c.heldout["share_of_misfit"] = float((null_sse - c.heldout["sse"]) / excess) if excess > 0 else 1.0
+
+    for c in ok:
+        record_share(c)
     best = max(ok, key=lambda c: c.heldout_gain)
     # as good as the best: not worse by z >= Z_SAME, and explaining enough of the misfit to be a verdict itself
     same = [c for c in ok if c is best or (pairwise_z(folds, errors, best, c) < Z_SAME
@@ -346,8 +350,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                       f"them as well (z < {Z_SAME:g})")
         chosen = slow_twin
         if "share_of_misfit" not in chosen.heldout:
-            chosen.heldout["share_of_misfit"] = (float((null_sse - chosen.heldout["sse"]) / excess)
-                                                 if excess > 0 else 1.0)
+            record_share(chosen)
     share = chosen.heldout.get("share_of_misfit", 1.0)
     reason = (f"predicts the held-out identification records better than the base model refitted the same way "
               f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
