@@ -54,7 +54,7 @@ def second_order_foh(natural_frequency_hz: float, damping_ratio: float, h: float
 
 
 # --- kernels ---------------------------------------------------------------------
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _lowpass1(v, a, b0, b1, out):
     x = 0.0
     out[0] = 0.0
@@ -81,7 +81,7 @@ def lowpass1_bank(v, a, b0, b1):
     return out
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _lowpass2(v, phi, g0, g1, out):
     # at rest at the first sample's level (a mode in equilibrium with the output it starts from)
     x0 = v[0]

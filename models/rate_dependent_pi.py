@@ -92,7 +92,7 @@ def rd_play_window_batch(u, abs_du, r0, betas, w0, start, stop):
     return out
 
 
-@njit(cache=True, fastmath=True, nogil=True)
+@njit(cache=True, nogil=True)
 def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
     """out[k] = offset + sum_j poly[j-1] u^j + sum_i weights[i] W_i(k), one parameter set."""
     n_op = r0.shape[0]
