@@ -89,7 +89,7 @@ import numpy as np
 from numba import njit
 
 from .errors import ModelError
-from .kernels import play_update
+from .kernels import KERNEL_FASTMATH, play_update
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
@@ -135,7 +135,7 @@ class Inversion:
 
 
 # --- the step kernel ----------------------------------------------------------------
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def step_output(u, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """(y(k), dy/du) for input u at this sample, the state (w, xf, u1 = u(k-1), u2 = u(k-2)) unchanged."""
     if first:
@@ -174,7 +174,7 @@ def step_output(u, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weigh
     return y, dy
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def step_advance(u, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow):
     """Commit input u: the plays and filters move to sample k (in place)."""
     a = 0.0 if first else abs(u - u1) / dt

@@ -24,8 +24,13 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numpy as np  # noqa: E402
 from numba import njit, prange  # noqa: E402
 
+# Fast-math without reassociation or contraction (FMA): those let LLVM round differently depending on
+# where a kernel is inlined, so a kernel compiled in this process and the same kernel loaded from
+# numba's cache gave different last bits (tests/test_bitwise_reproducible.py).
+KERNEL_FASTMATH = {"nnan", "ninf", "nsz", "arcp", "afn"}
 
-@njit(inline="always")
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
 def play_update(w, lower, upper):
     """One sample of a play operator: its previous output w clamped into the band
     [lower, upper], the lower edge winning when the band is empty (eq. 6:
@@ -35,7 +40,7 @@ def play_update(w, lower, upper):
     return v if v > lower else lower
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
 def play_operators(h_left, h_right, thresholds, w0):
     """Outputs of N play operators, shape (T, N)."""
     n_t = h_left.shape[0]
@@ -54,7 +59,7 @@ def play_operators(h_left, h_right, thresholds, w0):
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def _pi_output(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, out):
     """out[k] = sum_j poly[j-1] u^j + q u''(k) + offset + sum_i weights[i] W_i(k).
 
@@ -89,7 +94,7 @@ def pi_output_batch(u, dt, backward, abs_du, ddu, gammas, lams, thresholds, weig
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def _play_window(u, dt, backward, abs_du, gamma, lam, thresholds, w0, start, rows, out):
     """Play operators run from sample 0; stored transposed in out (N, n): rows [start, start + n)
     when ``rows`` is empty, else the samples ``rows`` (sorted, distinct; ``start`` unused)."""
@@ -159,7 +164,7 @@ def pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, threshold
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, start, out):
     """``_pi_output`` storing only samples [start, start + out.size)."""
     n_op = thresholds.shape[0]

@@ -42,7 +42,7 @@ from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
 from .inverse import StepInvertible, StepStructure
-from .kernels import play_update
+from .kernels import KERNEL_FASTMATH, play_update
 
 POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
 WEIGHT_BOUND = 20.0  # |a_i| <= WEIGHT_BOUND * y / u
@@ -92,7 +92,7 @@ def rd_play_window_batch(u, abs_du, r0, betas, w0, start, stop):
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def _rd_pi_output(u, abs_du, r0, beta, weights, poly, offset, w0, out):
     """out[k] = offset + sum_j poly[j-1] u^j + sum_i weights[i] W_i(k), one parameter set."""
     n_op = r0.shape[0]
