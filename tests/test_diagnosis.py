@@ -540,3 +540,28 @@ def test_planted_effect_without_a_reachable_limit_is_named_or_ambiguous(cause):
     assert d.cause == cause or cause in ambiguous, (d.cause, ambiguous, truth)
     if cause in ambiguous:
         assert any(cause in e["causes"] and e["drive"] for e in d.experiments)
+
+
+def test_the_accuracy_report_counts_virtual_dea_verdicts_that_the_nulls_give_too():
+    """A planted relaxation or delay on the virtual DEA is judged right when its own relaxation is named
+    (the delay under "also"): what its nulls give. The report counts such cases and how many of them
+    recovered the planted time constant, so the headline cannot hide verdicts that show no detection."""
+    from hysbench.benchmarks.diagnosis.accuracy import judge, markdown, summary
+
+    def row(kinds, base, verdict, also=(), within=False):
+        truth = {"kinds": list(kinds), "base": base}
+        return {"kinds": list(kinds), "base": base, "drive": "sines", "seed": 7, "strength_pct": 1.0,
+                "effects": {}, "verdict": verdict, "confirmed": True, "also": list(also), "ambiguous_with": [],
+                "remainder": None, "parameters": {}, "parameter_errors": {"tau_s": 0.1 if within else 0.9},
+                "parameters_within": within, "right": judge(truth, verdict, list(also)), "seconds": 1.0}
+
+    rows = [row(["relaxation"], "virtual-dea", "relaxation", ["delay"]),  # the nulls' verdict, tau missed
+            row(["relaxation"], "virtual-dea", "relaxation", [], within=True),  # the nulls' verdict, tau found
+            row(["delay"], "virtual-dea", "relaxation", ["delay"]),  # the nulls' verdict
+            row(["delay"], "virtual-dea", "delay"),  # the planted cause named: evidence
+            row(["resonance"], "virtual-dea", "relaxation", ["delay"]),  # wrong, not counted
+            row(["relaxation"], "mrpim", "relaxation")]  # another base
+    assert [r["right"] for r in rows] == [True, True, True, True, False, True]
+    s = summary(rows)
+    assert (s["vdea_null_verdicts"], s["vdea_null_verdicts_recovered"]) == (3, 1)
+    assert "| 3 / 1 |" in markdown(rows, s, 1.0)
