@@ -162,7 +162,8 @@ def summary(rows: list[dict]) -> dict:
                                            for a in r["also"])),
         "vdea_nulls": sum(1 for r in rows if r["base"] == "virtual-dea" and r["kinds"][0] in NULLS),
         "vdea_null_verdicts": len(alike := [r for r in rows if _null_verdict_on_vdea(r)]),
-        "vdea_null_verdicts_recovered": sum(1 for r in alike if r["kinds"] == ["relaxation"] and r["parameters_within"]),
+        "vdea_null_verdicts_recovered": sum(1 for r in alike
+                                            if r["kinds"] == ["relaxation"] and r["parameters_within"]),
         "detection_limits": {c: detection_limit(rows, c) for c in VOCABULARY},
         "seconds": sum(r["seconds"] for r in rows),
     }
@@ -226,7 +227,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"{', '.join(f'{k} {v}' for k, v in sorted(s['also_on_vdea_nulls'].items())) or 'none'} | - |",
         f"| virtual DEA: a planted relaxation or delay counted right with the nulls' own verdict (relaxation, "
         f"delay under `also`) / of them a named time constant within 25 % of the planted one | "
-        f"{s.get('vdea_null_verdicts', '-')} / {s.get('vdea_null_verdicts_recovered', '-')} | - |", "",
+        f"{s['vdea_null_verdicts']} / {s['vdea_null_verdicts_recovered']} | - |", "",
         "What counts as right: one vocabulary cause: it is named (virtual DEA: or its own relaxation named with the "
         "planted cause in `also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the "
         "base model absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: relaxation, its physics' own, or `unexplained`; real "
