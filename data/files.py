@@ -63,3 +63,9 @@ def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
 
 def write_json(path: str | os.PathLike, obj) -> Path:
     return write_atomic(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+
+
+def shown_path(path: str | os.PathLike) -> str:
+    """A path as a report shows it: relative to the working folder when inside it, else as given."""
+    rel = os.path.relpath(path)
+    return str(path) if rel.startswith("..") else rel

@@ -565,3 +565,66 @@ def test_the_accuracy_report_counts_virtual_dea_verdicts_that_the_nulls_give_too
     s = summary(rows)
     assert (s["vdea_null_verdicts"], s["vdea_null_verdicts_recovered"]) == (3, 1)
     assert "| 3 / 1 |" in markdown(rows, s, 1.0)
+
+
+def test_planted_signals_are_what_each_effect_added():
+    """``truth["signals"]``: per effect and record, what the effect added before the noise. Here a creep,
+    its logarithmic law written out again; what is left of the output is the plant plus white noise of the
+    stated sd."""
+    from hysbench.benchmarks.diagnosis.planted import DT as PLANT_DT
+    ds, truth = planted_case(("creep",), "mrpim", "sines", 5)
+    e = truth["effects"]["creep"]
+    model = get_model("mrpim")
+    for r in ds.records:
+        s = truth["signals"]["creep"][r.file]
+        law = e["drift"] * np.log1p(r.t / e["t_c_s"]) / math.log1p(truth["longest_s"] / e["t_c_s"])
+        np.testing.assert_allclose(s, law, rtol=1e-12, atol=1e-15)
+        plant = model.simulate(r.u, PLANT_DT, model.preset("paper"), input_range=(0.5, 2.5))
+        left = r.y - s - plant
+        assert abs(np.std(left) / truth["noise_sd"] - 1) < 0.1 and abs(np.mean(left)) < 0.1 * truth["noise_sd"]
+
+
+@pytest.mark.parametrize("weight,shown", [(0.3, True), (3e-5, False)])
+def test_the_evidence_ceiling_sees_a_planted_effect_only_when_it_is_there(weight, shown):
+    """The planted effect's own waveform as a regressor passes the diagnosis's held-out test when the
+    effect is strong (1 s relaxation, 0.3 mm/kV) and not when it is 10^4 times weaker (below the noise)."""
+    from hysbench.benchmarks.diagnosis.evidence_ceiling import effect_evidence, shows_evidence
+    ds, truth = planted_case(("relaxation",), "mrpim", "sines", 3,
+                             effects={"relaxation": {"tau_s": 1.0, "weight": weight}})
+    d = diagnose(ds, seed=0, experiments=False, extend=False)
+    ev = effect_evidence(d, truth)
+    assert set(ev) == {"relaxation"} and "base" in ev["relaxation"]
+    assert shows_evidence(ev) is shown, ev
+    assert (d.cause == "relaxation") is shown
+
+
+def test_the_delay_search_on_short_records_reaches_a_delay_between_its_grid_points():
+    """On short records the delay is profiled on a geometric grid (about 50 % steps), then refined by Brent
+    between the best point's neighbours: a planted 43 ms delay (grid points 36 and 50 ms here) on the exact plant is found within
+    5 %. Refining only two samples either side of a grid point could not reach it."""
+    from hysbench.benchmarks.diagnosis.delay import fit_delay
+    ds, truth = planted_case(("delay",), "mrpim", "sines", 2, effects={"delay": {"delay_s": 0.043}})
+    d = diagnose(ds, seed=0, experiments=False, extend=False)
+    assert d.screen.small
+    c = fit_delay(d.screen)
+    assert abs(c.estimates["delay_s"] / 0.043 - 1) < 0.05, c.estimates
+
+
+def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow():
+    """Vocabulary cases whose planted effect shows no held-out evidence by itself bound the verdict share:
+    every other case right, and of those only the ones already right."""
+    from hysbench.benchmarks.diagnosis.accuracy import ceiling, markdown, summary
+
+    def row(kinds, right, shown):
+        return {"kinds": list(kinds), "base": "mrpim", "drive": "sines", "seed": 7, "strength_pct": 1.0,
+                "effects": {}, "verdict": "none", "confirmed": False, "also": [], "ambiguous_with": [],
+                "remainder": None, "parameters": {}, "parameter_errors": {}, "parameters_within": False,
+                "right": right, "seconds": 1.0, "effect_evidence": {}, "effect_shows_evidence": shown}
+
+    rows = [row(["delay"], True, True), row(["delay"], False, True), row(["creep"], False, False),
+            row(["creep"], True, False), row(["null-white"], True, False), row(["dead-zone"], False, True)]
+    e = ceiling(rows)["evidence"]
+    assert (e["vocabulary_cases"], e["with_evidence"], e["with_evidence_right"], e["without_evidence_right"]) == (4, 2, 1, 1)
+    assert e["ceiling_right"] == 2 + 2 + 1  # nulls and out-of-vocabulary, with evidence, right without
+    assert "**5 / 6 = 83.3 %**" in markdown(rows, summary(rows), 1.0)
+    assert ceiling([{k: v for k, v in r.items() if k != "effect_shows_evidence"} for r in rows]) == {}

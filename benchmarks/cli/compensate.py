@@ -24,7 +24,7 @@ from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argume
 from hysbench.benchmarks.compensation.controllers import PI_BANDWIDTH_HZ
 from hysbench.benchmarks.compensation.report import write_report
 from hysbench.benchmarks.compensation.run import DEFAULT_MODELS, check_models, compensate
-from hysbench.data.files import ensure_dir
+from hysbench.data.files import ensure_dir, shown_path
 from hysbench.identification.api import list_methods
 from hysbench.identification.errors import IdentificationError
 
@@ -65,7 +65,7 @@ def main(args) -> int:
     refs = [r.strip() for r in args.references.split(",")] if args.references else None
     result, runs = compensate(dataset, names, method=args.method, seed=args.seed, bandwidth_hz=args.bandwidth,
                               reference_names=refs, log=say)
-    parts = ["hysbench compensate", shlex.quote(str(dataset)), "--models", ",".join(names)]
+    parts = ["hysbench compensate", shlex.quote(shown_path(dataset)), "--models", ",".join(names)]
     if args.method != "auto":
         parts += ["--method", args.method]
     if args.bandwidth != PI_BANDWIDTH_HZ:

@@ -6,6 +6,7 @@ import math
 from typing import Mapping, Sequence
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from hysbench.models.extended import DELAY_BOUND
 
@@ -13,6 +14,7 @@ from .candidates import Candidate, local_minima
 
 PROFILE_POINTS = 16
 PROFILE_NFEV = 4
+PROFILE_XTOL = 0.01  # Brent's tolerance on the profile, relative to its bracket
 
 
 def _delayed_null(screen, z):
@@ -29,7 +31,8 @@ def fit_delay(screen) -> Candidate:
     exactly (Brent within two samples), since a first-order search can be led astray by a misfit
     of another kind; otherwise the first-order optimum is evaluated exactly, once. On short records
     (``Screen.small``) instead: the exact profile over a geometric grid of delays, the base's nonlinear
-    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then Brent."""
+    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then Brent on
+    that profile between the best grid point's neighbours."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
     hi = DELAY_BOUND * screen.scale.time
@@ -41,14 +44,22 @@ def fit_delay(screen) -> Candidate:
     best, best_rss = None, math.inf
     if screen.small:  # cheap: the profile over a geometric grid, the base's nonlinear parameters refitted
         free = [(n, False) for n in screen.base_nl_names]
-        for d in np.geomspace(min(dt, hi), hi, PROFILE_POINTS):
-            z = {**screen.base_nl, "delay": float(d)}
-            z = screen.refine(model, z, free, max_nfev=PROFILE_NFEV) if free else z
-            rss = screen.evaluate(model, z)[0]
-            if rss < best_rss:
-                best, best_rss = z, rss
-        z = screen.line_search(model, "delay", [max(best["delay"] - 2 * dt, 0.0), best["delay"],
-                                                min(best["delay"] + 2 * dt, hi)], fixed=best)
+        profile: dict[float, tuple[float, dict]] = {}
+
+        def profile_rss(d: float) -> float:
+            d = float(d)
+            if d not in profile:
+                z = {**screen.base_nl, "delay": d}
+                z = screen.refine(model, z, free, max_nfev=PROFILE_NFEV) if free else z
+                profile[d] = (screen.evaluate(model, z)[0], z)
+            return profile[d][0]
+
+        grid_d = np.geomspace(min(dt, hi), hi, PROFILE_POINTS)
+        j = int(np.argmin([profile_rss(d) for d in grid_d]))
+        # Brent on the profile between the best point's neighbours (the grid's steps are about 50 %)
+        a, b = (float(grid_d[j - 1]) if j else 0.0), float(grid_d[min(j + 1, grid_d.size - 1)])
+        minimize_scalar(profile_rss, bounds=(a, b), method="bounded", options={"xatol": PROFILE_XTOL * (b - a)})
+        z = min(profile.values(), key=lambda v: v[0])[1]
         return screen.candidate("delay", "pure delay", model, z, stage="joint")
     for d0 in starts:
         z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])

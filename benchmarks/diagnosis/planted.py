@@ -229,7 +229,8 @@ def _records(base: str, drive: str, seed: int) -> list[tuple[np.ndarray, np.ndar
 def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sines", seed: int = 0,
                  effects: dict | None = None) -> tuple[Dataset, dict]:
     """(dataset, truth) with the effects ``kinds`` (one or two of VOCABULARY, one of OUT_OF_VOCABULARY, or
-    a null) drawn with ``seed`` (``effects`` replaces the drawn parameters, by kind)."""
+    a null) drawn with ``seed`` (``effects`` replaces the drawn parameters, by kind). ``truth["signals"]``:
+    per effect and record file, what the effect added to the output before the noise (arrays; not JSON)."""
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), BASES.index(base), DRIVES.index(drive)]))
     recs = _records(base, drive, seed)
     ident = np.concatenate([y for _, _, y, role, _ in recs if role == "identification"])
@@ -246,24 +247,28 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
     if base == "piezo" and kinds[0] in NULLS:  # a null on the recording: its own noise, plus coloured noise
         sd = p2p * float(rng.uniform(*NOISE))
     records, eff_ss, n_id = [], 0.0, 0
+    signals = {k: {} for k in kinds}  # per effect and record: what it added (after the effects before it)
     for i, (t, u, y, role, f) in enumerate(recs):
         dt = float(t[1] - t[0])
         out = y
+        name = f"r{i}_{f:g}Hz" if f else f"r{i}_{drive}"
         for k in kinds:
+            before = out
             out = apply(k, drawn[k], t, u, out, dt, stats, rng)
+            signals[k][f"{name}.npz"] = out - before
         if role == "identification":
             eff_ss += float(np.sum((out - y) ** 2))
             n_id += y.size
         stats["offset_s"] += t[-1] + dt
         out = out + (noise(rng, y.size, sd, ar1) if sd > 0 else 0.0)
-        name = f"r{i}_{f:g}Hz" if f else f"r{i}_{drive}"
         records.append(Record(file=f"{name}.npz", t=t, u=u, y=out, role=role, frequency_hz=f))
     ds = Dataset(name=f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}", records=records,
                  input_unit="V" if base == "piezo" else "kV", output_unit="um" if base == "piezo" else "mm",
                  description=f"{base} driven by {drive}, planted {', '.join(kinds)} (seed {seed}); "
                              "hysbench.benchmarks.diagnosis.planted")
     truth = {"kinds": list(kinds), "effects": drawn, "base": base, "drive": drive, "seed": int(seed), "noise_sd": sd,
-             "p2p": p2p, "strength_pct": 100 * math.sqrt(eff_ss / max(n_id, 1)) / p2p, "longest_s": stats["longest_s"]}
+             "p2p": p2p, "strength_pct": 100 * math.sqrt(eff_ss / max(n_id, 1)) / p2p, "longest_s": stats["longest_s"],
+             "signals": signals}
     if "saturation" in kinds:
         truth["saturation_level"] = top - drawn["saturation"]["clipped_fraction"] * p2p
     return ds, truth

@@ -252,9 +252,13 @@ def passes(c: Candidate) -> bool:
 
 
 def significant(c: Candidate) -> bool:
-    """Held-out evidence for a candidate, whatever its meaning: gain >= MIN_EXPLAINED in a majority of folds,
-    and z >= Z_PASS or a gain >= STRONG_GAIN in every fold."""
-    h = c.heldout
+    """Held-out evidence for a candidate, whatever its meaning (``evidence``)."""
+    return evidence(c.heldout)
+
+
+def evidence(h: dict) -> bool:
+    """A held-out score (``score``) is evidence: gain >= MIN_EXPLAINED in a majority of folds, and z >= Z_PASS
+    or a gain >= STRONG_GAIN in every fold."""
     return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
         h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
 

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from hysbench.data.dataset import Dataset, load_dataset
-from hysbench.data.files import write_atomic
+from hysbench.data.files import shown_path, write_atomic
 from hysbench.identification import applicable_methods, identify
 from hysbench.models import get_model
 
@@ -115,7 +115,7 @@ def build_report(dataset: Dataset, description: str, models, methods, seed: int 
 
 def write_report(path: Path, out_file: Path, seed: int = 0, models=None, methods=None) -> int:
     dataset = load_dataset(path)
-    description = f"`{path}` (dataset `{dataset.name}`)"
+    description = f"`{shown_path(path)}` (dataset `{dataset.name}`)"
     models = list(models or BASELINES + REFERENCE_MODELS)
     for m in models:
         get_model(m)  # an unknown name fails here, before any fitting

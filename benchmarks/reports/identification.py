@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from hysbench.benchmarks.plots import pyplot, save_figure
-from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.data.files import ensure_dir, shown_path, write_atomic, write_json
 from hysbench.data.protocol import simulated_dataset
 from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.models import PAPER_TABLE2, get_model
@@ -281,8 +281,7 @@ def speed_section(results) -> list[str]:
 def write_report(path: Path, out: Path, seed: int = 0) -> int:
     out = ensure_dir(out)
     dataset = load_dataset(path)
-    shown = os.path.relpath(path) if not os.path.relpath(path).startswith("..") else str(path)
-    source = f"Dataset: `{shown}` ({dataset.name}, content hash {dataset.content_hash()[:12]})."
+    source = f"Dataset: `{shown_path(path)}` ({dataset.name}, content hash {dataset.content_hash()[:12]})."
     # warm the JIT so that times are those of the fits
     warm = Dataset("warm-up", [r for r in table2_dataset(1).records if r.frequency_hz in (0.4, 1.0)])
     for name in ("mrpim", "classical-pi"):
