@@ -324,9 +324,10 @@ def _ceiling_lines(s: dict) -> list[str]:
              "Each planted effect's exact waveform (what the generator added, one free gain) added as a regressor to "
              "the base model, and to the named cause's extension when another cause is named, and scored by the "
              "diagnosis's own held-out test (leave one identification record out; gain >= 1 % in a majority of folds "
-             "and block z >= 3, or >= 10 % in every fold). No extension predicts an effect better than its own "
-             "waveform, so an effect without this evidence cannot be found by a rule that names causes on held-out "
-             "evidence; a case is then right only by a verdict the base gives anyway (virtual DEA: its own "
+             "and block z >= 3, or >= 10 % in every fold). An extension predicts an effect at best about as well as "
+             "its exact waveform (better only where refitting the base's nonlinear parameters with it also removes "
+             "some of the base's own misfit), so an effect without this evidence can hardly be found by a rule that "
+             "names causes on held-out evidence; a case is then right only by a verdict the base gives anyway (virtual DEA: its own "
              "relaxation). For delay, resonance and saturation the waveform is the true plant output transformed, "
              "so it also carries part of what the base model misses: a generous bound there. An estimate, not a "
              "proof: the evidence is checked against the base and the named cause only, not against a composite.", "",

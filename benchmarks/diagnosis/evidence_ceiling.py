@@ -5,10 +5,11 @@ known exactly, with one free gain) is added as a regressor to the base model,
 and to the named cause's extension when that is another cause, and scored by
 the diagnosis's own held-out test (``selection``: leave one identification
 record out, linear parameters re-solved on the others, block signed-rank z,
-folds improved; ``selection.evidence``). No extension predicts the planted
-effect better than its own exact waveform, so an effect that fails this test
-is below what held-out evidence can show on these records: a rule that names a
-cause only on such evidence cannot find it. Benchmark-only: it needs the
+folds improved; ``selection.evidence``). An extension predicts the planted
+effect at best about as well as its exact waveform (better only where refitting
+the base's nonlinear parameters with it also removes some of the base's own
+misfit; here they stay at the base's fit), so an effect that fails this test is
+about at or below what held-out evidence can show on these records. Benchmark-only: it needs the
 generator's truth (``planted.planted_case``'s ``signals``).
 """
 
