@@ -3,7 +3,8 @@
 ``diagnose(dataset, model="mrpim")`` -> ``Diagnosis`` (see ``diagnose``);
 ``hysbench diagnose DATASET`` writes diagnosis.md, its figures and JSON
 (``report``; the command is ``hysbench.benchmarks.cli.diagnose``). ``planted`` plants effects with
-functional forms independent of the extensions; ``accuracy`` measures the diagnosis on them.
+functional forms independent of the extensions; ``accuracy`` measures the diagnosis on them and
+``evidence_ceiling`` how much held-out evidence each planted effect gives by itself.
 """
 
 from .candidates import Candidate
