@@ -588,13 +588,16 @@ def test_planted_signals_are_what_each_effect_added():
 def test_the_evidence_ceiling_sees_a_planted_effect_only_when_it_is_there(weight, shown):
     """The planted effect's own waveform as a regressor passes the diagnosis's held-out test when the
     effect is strong (1 s relaxation, 0.3 mm/kV) and not when it is 10^4 times weaker (below the noise)."""
-    from hysbench.benchmarks.diagnosis.evidence_ceiling import effect_evidence, shows_evidence
+    from hysbench.benchmarks.diagnosis.evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
     ds, truth = planted_case(("relaxation",), "mrpim", "sines", 3,
                              effects={"relaxation": {"tau_s": 1.0, "weight": weight}})
     d = diagnose(ds, seed=0, experiments=False, extend=False)
     ev = effect_evidence(d, truth)
     assert set(ev) == {"relaxation"} and "base" in ev["relaxation"]
     assert shows_evidence(ev) is shown, ev
+    # the vocabulary's own extension at the planted time constant: the same answer
+    assert ev["relaxation"]["extension_at_truth_on_base"]["evidence"] is shown
+    assert extension_could_show(ev) is shown
     assert (d.cause == "relaxation") is shown
 
 
@@ -628,3 +631,7 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
     assert e["ceiling_right"] == 2 + 2 + 1  # nulls and out-of-vocabulary, with evidence, right without
     assert "**5 / 6 = 83.3 %**" in markdown(rows, summary(rows), 1.0)
     assert ceiling([{k: v for k, v in r.items() if k != "effect_shows_evidence"} for r in rows]) == {}
+    for r, reach in zip(rows, [True, False, False, False, False, False]):  # the extension reaches only the first
+        r["extension_could_show"] = reach
+    e = ceiling(rows)["evidence"]
+    assert (e["extension_cases"], e["extension_cases_right"], e["extension_ceiling_right"]) == (1, 1, 2 + 1 + 1)

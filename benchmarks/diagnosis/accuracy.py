@@ -46,7 +46,7 @@ import numpy as np
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .diagnose import diagnose
-from .evidence_ceiling import effect_evidence, shows_evidence
+from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY, piezo_available, planted_case
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
@@ -123,7 +123,8 @@ def run_case(case: dict) -> dict:
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": bool(errors) and all(v <= TOLERANCE for v in errors.values()),
             "right": judge(truth, d.cause, also), "seconds": seconds,
-            "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect)}
+            "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect),
+            "extension_could_show": extension_could_show(per_effect)}
 
 
 def detection_limit(rows: list[dict], cause: str) -> dict:
@@ -184,7 +185,13 @@ def ceiling(rows: list[dict]) -> dict:
     seen = [r for r in vocab if r["effect_shows_evidence"]]
     unseen = [r for r in vocab if not r["effect_shows_evidence"]]
     best = len(rows) - len(vocab) + len(seen) + sum(r["right"] for r in unseen)
-    return {"evidence": {
+    tighter = {}
+    if all("extension_could_show" in r for r in vocab):
+        reach = [r for r in vocab if r["extension_could_show"]]
+        best_ext = len(rows) - len(vocab) + len(reach) + sum(r["right"] for r in vocab if not r["extension_could_show"])
+        tighter = {"extension_cases": len(reach), "extension_cases_right": sum(r["right"] for r in reach),
+                   "extension_ceiling_right": best_ext, "extension_ceiling_share": best_ext / len(rows)}
+    return {"evidence": {**tighter,
         "vocabulary_cases": len(vocab), "with_evidence": len(seen), "with_evidence_right": sum(r["right"] for r in seen),
         "without_evidence_right": sum(r["right"] for r in unseen), "ceiling_right": best,
         "ceiling_share": best / len(rows),
@@ -311,7 +318,12 @@ def _evidence_cell(r: dict) -> str:
     ev = r.get("effect_evidence")
     if not ev:
         return "-"
-    return "; ".join(f"{k}: " + ", ".join(f"on {ref} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, "
+    prefix = "extension_at_truth_on_"
+
+    def label(ref: str) -> str:
+        return f"extension at planted values on {ref[len(prefix):]}" if ref.startswith(prefix) else f"waveform on {ref}"
+
+    return "; ".join(f"{k}: " + ", ".join(f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, "
                                           f"z {v['z']:.1f}, {v['folds_improved']}/{v['n_folds']})"
                                           for ref, v in refs.items()) for k, refs in ev.items())
 
@@ -340,6 +352,12 @@ def _ceiling_lines(s: dict) -> list[str]:
                  f"{e['vocabulary_cases'] - e['with_evidence']} | {e['without_evidence_right']} |")
     lines += ["", f"Ceiling: with every null and out-of-vocabulary case right and every vocabulary case with evidence "
               f"right, **{e['ceiling_right']} / {s['cases']} = {100 * e['ceiling_share']:.1f} %** (the target is 90 %)."]
+    if "extension_ceiling_right" in e:
+        lines += ["", "Another estimate, with the vocabulary's own extensions: a planted relaxation, delay or mode counts only if "
+                  "its extension at the planted parameters (the base's nonlinear parameters refitted with it) gives "
+                  "that evidence on top of the base or of the named cause; creep, interference and clips as above. "
+                  f"{e['extension_cases']} vocabulary cases (of them right {e['extension_cases_right']}); ceiling "
+                  f"**{e['extension_ceiling_right']} / {s['cases']} = {100 * e['extension_ceiling_share']:.1f} %**."]
     return lines
 
 
