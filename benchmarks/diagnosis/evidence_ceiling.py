@@ -9,8 +9,10 @@ folds improved; ``selection.evidence``). An extension predicts the planted
 effect at best about as well as its exact waveform (better only where refitting
 the base's nonlinear parameters with it also removes some of the base's own
 misfit; here they stay at the base's fit), so an effect that fails this test is
-about at or below what held-out evidence can show on these records. Benchmark-only: it needs the
-generator's truth (``planted.planted_case``'s ``signals``).
+about at or below what held-out evidence can show on these records. A second
+reading (``extension_at_truth``) uses the vocabulary's own extension at the
+planted parameters instead. Benchmark-only: it needs the generator's truth
+(``planted.planted_case``'s ``signals`` and ``effects``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from .selection import Folds, evidence, out_of_fold, score
 
 NO_NAMED_REFERENCE = ("interference", "saturation")  # named causes whose held-out design is not one matrix
+AT_TRUTH_NFEV = 8  # the base's nonlinear parameters refitted around an extension at the planted parameters
 
 
 def planted_column(screen, signal: Mapping[str, np.ndarray]) -> np.ndarray | None:
@@ -44,7 +47,7 @@ def effect_evidence(diag, truth: Mapping) -> dict:
     """Per planted effect: its held-out score on top of the base model (``"base"``) and on top of the named
     cause's extension when another cause is named (``"named"``), each {gain, z, folds_improved, n_folds,
     evidence}; for a relaxation, delay or mode also the vocabulary's own extension at the planted parameters
-    against the base (``"extension_at_truth"``, see ``extension_at_truth``)."""
+    against each of them (``"extension_at_truth_on_base"``, ``"extension_at_truth_on_named"``)."""
     screen = diag.screen
     folds = Folds.of(screen)
     references = {"base": screen.design(screen.base, screen.base_nl)}
@@ -68,8 +71,6 @@ def effect_evidence(diag, truth: Mapping) -> dict:
                     score(folds, errors[ref], out_of_fold(screen, folds, lambda m: A_true)))
     return out
 
-
-AT_TRUTH_NFEV = 8
 
 
 def extension_at_truth(screen, kind: str, effect: Mapping, on=None) -> np.ndarray | None:
