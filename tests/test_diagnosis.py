@@ -603,7 +603,8 @@ def test_the_evidence_ceiling_sees_a_planted_effect_only_when_it_is_there(weight
 
 def test_the_delay_search_on_short_records_reaches_a_delay_between_its_grid_points():
     """On short records the delay is profiled on a geometric grid (about 50 % steps), then refined by Brent
-    between the best point's neighbours: a planted 43 ms delay (grid points 36 and 50 ms here) on the exact plant is found within
+    between the best point's neighbours: a planted 43 ms delay (grid points 36 and 50 ms here) on the exact
+    plant is found within
     5 %. Refining only two samples either side of a grid point could not reach it."""
     from hysbench.benchmarks.diagnosis.delay import fit_delay
     ds, truth = planted_case(("delay",), "mrpim", "sines", 2, effects={"delay": {"delay_s": 0.043}})
@@ -627,7 +628,8 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
     rows = [row(["delay"], True, True), row(["delay"], False, True), row(["creep"], False, False),
             row(["creep"], True, False), row(["null-white"], True, False), row(["dead-zone"], False, True)]
     e = ceiling(rows)["evidence"]
-    assert (e["vocabulary_cases"], e["with_evidence"], e["with_evidence_right"], e["without_evidence_right"]) == (4, 2, 1, 1)
+    counts = (e["vocabulary_cases"], e["with_evidence"], e["with_evidence_right"], e["without_evidence_right"])
+    assert counts == (4, 2, 1, 1)
     assert e["ceiling_right"] == 2 + 2 + 1  # nulls and out-of-vocabulary, with evidence, right without
     assert "**5 / 6 = 83.3 %**" in markdown(rows, summary(rows), 1.0)
     assert ceiling([{k: v for k, v in r.items() if k != "effect_shows_evidence"} for r in rows]) == {}

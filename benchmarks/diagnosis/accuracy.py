@@ -178,28 +178,32 @@ def ceiling(rows: list[dict]) -> dict:
     """The vocabulary cases whose planted effect, its exact waveform as a regressor, gives held-out evidence
     (``evidence_ceiling``), and the best verdict share a rule that names causes only on such evidence could
     reach: every other case right, and among the rest only those already right (by a verdict the base gives
-    anyway). Empty for rows from before the check."""
+    anyway); the same with the vocabulary's own extensions at the planted parameters (``extension_*``).
+    Empty for rows from before the check."""
     vocab = [r for r in rows if r["kinds"][0] in VOCABULARY]
     if not vocab or any("effect_shows_evidence" not in r for r in vocab):
         return {}
-    seen = [r for r in vocab if r["effect_shows_evidence"]]
-    unseen = [r for r in vocab if not r["effect_shows_evidence"]]
-    best = len(rows) - len(vocab) + len(seen) + sum(r["right"] for r in unseen)
-    tighter = {}
+
+    def reach(sub: list[dict], flag: str) -> tuple[int, int, int]:
+        """(cases with the flag, of them right, right among the others)"""
+        return (sum(r[flag] for r in sub), sum(r["right"] for r in sub if r[flag]),
+                sum(r["right"] for r in sub if not r[flag]))
+
+    others = len(rows) - len(vocab)
+    seen, seen_right, unseen_right = reach(vocab, "effect_shows_evidence")
+    out = {"vocabulary_cases": len(vocab), "with_evidence": seen, "with_evidence_right": seen_right,
+           "without_evidence_right": unseen_right, "ceiling_right": others + seen + unseen_right,
+           "ceiling_share": (others + seen + unseen_right) / len(rows), "by_base": {}}
+    for b in dict.fromkeys(r["base"] for r in vocab):
+        sub = [r for r in vocab if r["base"] == b]
+        n, right, rest = reach(sub, "effect_shows_evidence")
+        out["by_base"][b] = {"cases": len(sub), "with_evidence": n, "with_evidence_right": right,
+                             "without_evidence_right": rest}
     if all("extension_could_show" in r for r in vocab):
-        reach = [r for r in vocab if r["extension_could_show"]]
-        best_ext = len(rows) - len(vocab) + len(reach) + sum(r["right"] for r in vocab if not r["extension_could_show"])
-        tighter = {"extension_cases": len(reach), "extension_cases_right": sum(r["right"] for r in reach),
-                   "extension_ceiling_right": best_ext, "extension_ceiling_share": best_ext / len(rows)}
-    return {"evidence": {**tighter,
-        "vocabulary_cases": len(vocab), "with_evidence": len(seen), "with_evidence_right": sum(r["right"] for r in seen),
-        "without_evidence_right": sum(r["right"] for r in unseen), "ceiling_right": best,
-        "ceiling_share": best / len(rows),
-        "by_base": {b: {"cases": len(sub := [r for r in vocab if r["base"] == b]),
-                        "with_evidence": sum(r["effect_shows_evidence"] for r in sub),
-                        "with_evidence_right": sum(r["right"] for r in sub if r["effect_shows_evidence"]),
-                        "without_evidence_right": sum(r["right"] for r in sub if not r["effect_shows_evidence"])}
-                    for b in dict.fromkeys(r["base"] for r in vocab)}}}
+        n, right, rest = reach(vocab, "extension_could_show")
+        out.update(extension_cases=n, extension_cases_right=right, extension_ceiling_right=others + n + rest,
+                   extension_ceiling_share=(others + n + rest) / len(rows))
+    return {"evidence": out}
 
 
 def _null_verdict_on_vdea(r: dict) -> bool:
@@ -321,11 +325,14 @@ def _evidence_cell(r: dict) -> str:
     prefix = "extension_at_truth_on_"
 
     def label(ref: str) -> str:
-        return f"extension at planted values on {ref[len(prefix):]}" if ref.startswith(prefix) else f"waveform on {ref}"
+        return (f"extension at planted values on {ref[len(prefix):]}" if ref.startswith(prefix)
+                else f"waveform on {ref}")
 
-    return "; ".join(f"{k}: " + ", ".join(f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, "
-                                          f"z {v['z']:.1f}, {v['folds_improved']}/{v['n_folds']})"
-                                          for ref, v in refs.items()) for k, refs in ev.items())
+    def one(ref: str, v: dict) -> str:
+        return (f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, z {v['z']:.1f}, "
+                f"{v['folds_improved']}/{v['n_folds']})")
+
+    return "; ".join(f"{k}: " + ", ".join(one(ref, v) for ref, v in refs.items()) for k, refs in ev.items())
 
 
 def _ceiling_lines(s: dict) -> list[str]:
@@ -339,9 +346,10 @@ def _ceiling_lines(s: dict) -> list[str]:
              "and block z >= 3, or >= 10 % in every fold). An extension predicts an effect at best about as well as "
              "its exact waveform (better only where refitting the base's nonlinear parameters with it also removes "
              "some of the base's own misfit), so an effect without this evidence can hardly be found by a rule that "
-             "names causes on held-out evidence; a case is then right only by a verdict the base gives anyway (virtual DEA: its own "
-             "relaxation). For delay, resonance and saturation the waveform is the true plant output transformed, "
-             "so it also carries part of what the base model misses: a generous bound there. An estimate, not a "
+             "names causes on held-out evidence; a case is then right only by a verdict the base gives anyway "
+             "(virtual DEA: its own relaxation). For delay, resonance and saturation the waveform is the true "
+             "plant output transformed, so it also carries part of what the base model misses: a generous bound "
+             "there. An estimate, not a "
              "proof: the evidence is checked against the base and the named cause only, not against a composite.", "",
              "| base | vocabulary cases | effect shows evidence | of them right | no evidence | of them right |",
              "|---|---|---|---|---|---|"]
@@ -353,9 +361,9 @@ def _ceiling_lines(s: dict) -> list[str]:
     lines += ["", f"Ceiling: with every null and out-of-vocabulary case right and every vocabulary case with evidence "
               f"right, **{e['ceiling_right']} / {s['cases']} = {100 * e['ceiling_share']:.1f} %** (the target is 90 %)."]
     if "extension_ceiling_right" in e:
-        lines += ["", "Another estimate, with the vocabulary's own extensions: a planted relaxation, delay or mode counts only if "
-                  "its extension at the planted parameters (the base's nonlinear parameters refitted with it) gives "
-                  "that evidence on top of the base or of the named cause; creep, interference and clips as above. "
+        lines += ["", "Another estimate, with the vocabulary's own extensions: a planted relaxation, delay or mode "
+                  "counts only if its extension at the planted parameters (the base's nonlinear parameters "
+                  "refitted with it) gives that evidence on top of the base or of the named cause; creep, interference and clips as above. "
                   f"{e['extension_cases']} vocabulary cases (of them right {e['extension_cases_right']}); ceiling "
                   f"**{e['extension_ceiling_right']} / {s['cases']} = {100 * e['extension_ceiling_share']:.1f} %**."]
     return lines
