@@ -51,7 +51,8 @@ Decision rule (``decide``):
    e_null - e with cosine >= ``SAME_SLICE`` = 0.9): those are rival explanations of
    one part, so the one with fewest parameters is named and the others are
    ambiguous with it (as in rule 2). A rival that removes another part makes
-   it a guess.
+   it a guess -- if the rival's own parameters agree across the folds; one
+   whose fold estimates disagree is no explanation either.
    Otherwise the verdict is ``unexplained``; so it is if nothing passes
    while the residual is structured (a candidate has held-out evidence but
    fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
@@ -400,15 +401,15 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
                  best: Candidate | None = None, e_null: np.ndarray | None = None) -> str:
     """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
     pass the block test (z >= Z_PASS, by the best predictor of that part), its parameters must agree across
-    the folds, and every other passing cause that predicts about as well (z < Z_SAME) must remove the same
-    part (then it is ambiguous with it) -- when several causes each take a different slice of a misfit that
-    is mostly something else, naming one of them would be a guess."""
+    the folds, and every other passing cause that predicts about as well (z < Z_SAME), with its own parameters
+    agreeing across the folds, must remove the same part (then it is ambiguous with it) -- when several causes
+    each take a different slice of a misfit that is mostly something else, naming one of them would be a guess."""
     best = best or chosen
     if best.heldout["z"] < Z_PASS:
         return f"its block test gives z = {best.heldout['z']:.1f} < {Z_PASS:g}"
     if not identified(chosen):
         return f"its parameters differ between the folds by more than {100 * PARTIAL_SE:.0f} %"
-    rivals = [c for c in candidates if c.cause != chosen.cause and passes(c)]  # admissible causes only
+    rivals = [c for c in candidates if c.cause != chosen.cause and passes(c) and identified(c)]  # admissible ones
     close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME
              and (e_null is None or not same_slice(e_null, errors[id(chosen)], errors[id(c)]))]
     if close:
