@@ -135,6 +135,11 @@ class Dataset:
 
 
 # --- loading ---------------------------------------------------------------
+def shared_datasets_root() -> Path:
+    """``../shared/datasets`` beside the repository: the measured datasets, read in place, never copied."""
+    return Path(__file__).resolve().parents[2] / "shared" / "datasets"
+
+
 def load_dataset(path: str | os.PathLike) -> Dataset:
     """Read and check a dataset folder (or its dataset.toml)."""
     path = Path(path)

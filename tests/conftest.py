@@ -4,8 +4,9 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED_DATASETS = REPO.parent / "shared" / "datasets"
+from hysbench.data.dataset import shared_datasets_root
+
+SHARED_DATASETS = shared_datasets_root()  # ../shared/datasets beside the repository
 
 
 @pytest.fixture(scope="session")

@@ -3,7 +3,7 @@
 ``run_accuracy(n_cases)`` draws a fixed plan of cases -- each vocabulary
 cause alone, two at once, the out-of-vocabulary effects, nulls with white
 and AR(1) noise -- over three bases (the Table 2 MRPIM, the virtual DEA's
-physics, the real piezo recording when /work/shared/datasets has it) and
+physics, the real piezo recording when ../shared/datasets has it) and
 three drives (the protocol's sines, triangles, multisines), runs
 ``diagnose`` (base model MRPIM) on each and writes
 ``diagnosis_accuracy.md`` / ``.json``: the confusion matrix (true effect x

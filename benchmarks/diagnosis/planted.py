@@ -38,14 +38,13 @@ of (effect - plain plant) over the identification records, in % of p2p.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 from scipy import signal
 from scipy.integrate import solve_ivp
 
-from hysbench.data.dataset import Dataset, Record, load_dataset
+from hysbench.data.dataset import Dataset, Record, load_dataset, shared_datasets_root
 from hysbench.data.excitations import HIGH_KV, LOW_KV, multisine, triangle
 from hysbench.data.protocol import paper_voltage, period_samples
 from hysbench.data.virtual_dea import displacement_mm
@@ -57,7 +56,7 @@ OUT_OF_VOCABULARY = ("gain-modulation", "sensor-nonlinearity", "dead-zone")
 NULLS = ("null-white", "null-ar1")
 BASES = ("mrpim", "virtual-dea", "piezo")
 DRIVES = ("sines", "triangles", "multisines")
-SHARED = Path("/work/shared/datasets")
+SHARED = shared_datasets_root()
 PIEZO = SHARED / "piezo_sindy_1hz"
 DT = 2e-3  # the synthetic bases' sample time (s)
 FREQUENCIES = {0.1: "identification", 0.2: "validation", 0.4: "identification", 0.8: "validation",

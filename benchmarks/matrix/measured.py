@@ -6,8 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hysbench.data.dataset import Dataset, DatasetError, load_dataset
-from hysbench.data.virtual_dea import default_dataset_path
+from hysbench.data.dataset import Dataset, DatasetError, load_dataset, shared_datasets_root
 from hysbench.models import list_models
 
 # Registered out of the DEA matrix because they are not DEA models, but scored on measured data:
@@ -21,7 +20,7 @@ MEASURED_CELLS = "cells_measured"
 
 def default_datasets_root() -> Path:
     """../shared/datasets relative to the repository root (the folder holding data/)."""
-    return default_dataset_path().parent.parent.parent / "shared" / "datasets"
+    return shared_datasets_root()
 
 
 def suite_models() -> list[str]:

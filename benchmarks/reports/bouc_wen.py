@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.data.dataset import Dataset, DatasetError, Record, load_dataset
+from hysbench.data.dataset import Dataset, DatasetError, Record, load_dataset, shared_datasets_root
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
 from hysbench.models import get_model
 
-DEFAULT_DATASET = Path(__file__).resolve().parents[3] / "shared" / "datasets" / "bouc_wen_benchmark"
+DEFAULT_DATASET = shared_datasets_root() / "bouc_wen_benchmark"
 TRUE_PARAMS = {"m": 2.0, "c": 10.0, "k": 5e4, "alpha": 5e4, "gamma": 0.8, "delta": -1.1}  # beta = 1e3, nu = 1
 PUBLISHED = [  # SOURCE.md: RMSE on the validation multisine, m
     ("polynomial nonlinear state space (PNLSS), 217 parameters", 1.21e-5, "Noel et al. 2017, arXiv 1610.09138"),
