@@ -19,6 +19,7 @@ import json
 import math
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -182,6 +183,20 @@ def test_autocorrelation_time_and_convergence_flags():
     assert not short.converged and "autocorrelation times long" in short.problems[0]
     stuck = convergence(x[:, :, None], np.zeros((n, W, 0)), np.r_[np.full(W - 1, 0.4 * n), 0.0], burn=0)
     assert not stuck.converged and "stuck" in stuck.problems[-1]
+
+
+def test_a_walker_that_never_moves_gives_no_autocorrelation_time_and_no_warning():
+    """emcee averages the walkers' autocorrelation functions; a walker constant over the window makes that 0/0.
+    The time is NaN (not estimated, said so by the convergence check), without numpy's RuntimeWarning."""
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(500, 6, 1)).cumsum(axis=0)
+    x[:, 2, 0] = x[0, 2, 0]  # walker 2 never moves
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tau = autocorr_times(x)
+    assert np.isnan(tau[0])
+    c = convergence(x, np.zeros((500, 6, 0)), np.r_[np.full(5, 200.0), 0.0], burn=0)
+    assert not c.converged and any("could not be estimated" in q for q in c.problems)
 
 
 # --- calibration -------------------------------------------------------------------------

@@ -19,7 +19,9 @@ MIN_ACCEPTANCE = 0.05  # a walker accepting less is called stuck
 def autocorr_times(x: np.ndarray) -> np.ndarray:
     """emcee's integrated autocorrelation time per parameter of x (steps, walkers, params).
 
-    Parameters that never change (e.g. fixed) get NaN.
+    Parameters that never change (e.g. fixed) get NaN, and so does a parameter on which some walker did not
+    move over the whole window (emcee averages the walkers' autocorrelation functions, and a constant walker's
+    is 0/0); callers report NaN as "could not be estimated".
     """
     x = np.asarray(x, dtype=float)
     taus = np.full(x.shape[2], np.nan)
@@ -27,7 +29,8 @@ def autocorr_times(x: np.ndarray) -> np.ndarray:
         col = x[:, :, k]
         if x.shape[0] < 2 or not np.all(np.isfinite(col)) or np.all(col == col[0]):
             continue
-        taus[k] = float(emcee.autocorr.integrated_time(col[:, :, None], c=5, tol=0, quiet=True)[0])
+        with np.errstate(invalid="ignore", divide="ignore"):  # a stuck walker: NaN, reported, not a warning
+            taus[k] = float(emcee.autocorr.integrated_time(col[:, :, None], c=5, tol=0, quiet=True)[0])
     return taus
 
 
