@@ -42,7 +42,7 @@ from hysbench.benchmarks.diagnosis.residuals import (
     periodic_structure,
     spectral_peaks,
 )
-from hysbench.benchmarks.diagnosis.candidates import Candidate
+from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, Candidate
 from hysbench.benchmarks.diagnosis.screen import Screen
 from hysbench.benchmarks.diagnosis.selection import Folds, decide, score
 from hysbench.data.dataset import Record, save_dataset
@@ -308,6 +308,17 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
                                                                            "folds": [0.2, 0.5, 0.9]}})
     v = decide(screen, folds, [a, loose], [], {id(a): e_a, id(loose): e_b}, e_null, structured=True)
     assert v.cause == "delay" and v.remainder == pytest.approx(0.61, abs=0.03), v.reason
+    # a sinusoid at a drive harmonic with the same phase in every record is no cause, but with held-out evidence
+    # it shows a misfit locked to the drive: removing another part, it makes the partial cause a guess too
+    locked = _scored("interference", folds, e_null, e_b, {"amplitude": {"se": 1e-3, "folds": [0.5, 0.5, 0.5]}})
+    locked.limit = DRIVE_LOCKED
+    v = decide(screen, folds, [a, locked], [], {id(a): e_a, id(locked): e_b}, e_null, structured=True)
+    assert v.cause == "unexplained" and "locked to the drive" in v.reason, v.reason
+    e_weak = e_null + rng.normal(0, 0.05, t.size)  # no held-out evidence: it does not count
+    weak = _scored("interference", folds, e_null, e_weak)
+    weak.limit = DRIVE_LOCKED
+    v = decide(screen, folds, [a, weak], [], {id(a): e_a, id(weak): e_weak}, e_null, structured=True)
+    assert v.cause == "delay", v.reason
     # a rival for the SAME slice (another mode of explaining it, as a short lag for a delay): ambiguous, and the
     # candidate with fewer parameters is named
     e_c = 0.6 * s1 + s2 + rng.normal(0, 0.05, t.size)

@@ -40,8 +40,8 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
-from .candidates import (CREEP_PERIODS, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES, MAX_DAMPING, MAX_ROWS,
-                         MIN_EXPLAINED, Candidate, estimates_of, is_log)
+from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES, MAX_DAMPING,
+                         MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log)
 from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
@@ -274,8 +274,7 @@ class Screen:
             return (f"fewer than {INTERFERENCE_MIN_CYCLES:g} cycles in the shortest record "
                     f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
-            return ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
-                    "not a disturbance of its own")
+            return DRIVE_LOCKED
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""

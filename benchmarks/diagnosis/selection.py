@@ -52,7 +52,9 @@ Decision rule (``decide``):
    one part, so the one with fewest parameters is named and the others are
    ambiguous with it (as in rule 2). A rival that removes another part makes
    it a guess -- if the rival's own parameters agree across the folds; one
-   whose fold estimates disagree is no explanation either.
+   whose fold estimates disagree is no explanation either. So does a
+   sinusoid at a drive harmonic with the same phase in every record (no
+   interference: misfit locked to the drive) that has held-out evidence.
    Otherwise the verdict is ``unexplained``; so it is if nothing passes
    while the residual is structured (a candidate has held-out evidence but
    fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
@@ -70,7 +72,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import stats
 
-from .candidates import CREEP_PERIODS, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
+from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .interference import predict_heldout
 from .saturation import fit_level, unclipped
 
@@ -403,17 +405,21 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
     pass the block test (z >= Z_PASS, by the best predictor of that part), its parameters must agree across
     the folds, and every other passing cause that predicts about as well (z < Z_SAME), with its own parameters
     agreeing across the folds, must remove the same part (then it is ambiguous with it) -- when several causes
-    each take a different slice of a misfit that is mostly something else, naming one of them would be a guess."""
+    each take a different slice of a misfit that is mostly something else, naming one of them would be a guess.
+    A drive-locked sinusoid with held-out evidence counts as such a rival: it shows misfit locked to the drive."""
     best = best or chosen
     if best.heldout["z"] < Z_PASS:
         return f"its block test gives z = {best.heldout['z']:.1f} < {Z_PASS:g}"
     if not identified(chosen):
         return f"its parameters differ between the folds by more than {100 * PARTIAL_SE:.0f} %"
     rivals = [c for c in candidates if c.cause != chosen.cause and passes(c) and identified(c)]  # admissible ones
-    close = [c.cause for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME
+    # a sinusoid locked to the drive is no cause, but with evidence it shows a drive-locked misfit of its own
+    rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and significant(c)]
+    close = [c for c in rivals if pairwise_z(folds, errors, chosen, c) < Z_SAME
              and (e_null is None or not same_slice(e_null, errors[id(chosen)], errors[id(c)]))]
     if close:
-        return f"{', '.join(sorted(set(close)))} predicts the held-out records about as well, removing another part"
+        names = sorted({"a misfit locked to the drive" if c.limit == DRIVE_LOCKED else c.cause for c in close})
+        return f"{', '.join(names)} predicts the held-out records about as well, removing another part"
     return ""
 
 
