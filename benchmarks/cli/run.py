@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from hysbench.data.files import ensure_dir
-from hysbench.data.dataset import load_dataset
+from hysbench.data.dataset import load_dataset, shared_datasets_root
 from hysbench.data.virtual_dea import default_waveforms_path
 from hysbench.models.errors import HysbenchError
 
@@ -78,7 +78,7 @@ def _suite_datasets(args) -> tuple[list, list[str]]:
         return [(p, load_dataset(p)) for p in paths], []
     if args.dataset:
         raise CommandError("--suite measured takes no DATASET; it scores every dataset under --datasets-root")
-    root = Path(args.datasets_root) if args.datasets_root else measured.default_datasets_root()
+    root = Path(args.datasets_root) if args.datasets_root else shared_datasets_root()
     if not root.is_dir():
         raise CommandError(f"--datasets-root {root} is not a folder")
     found, skipped = measured.discover(root)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hysbench.data.dataset import Dataset, DatasetError, load_dataset, shared_datasets_root
+from hysbench.data.dataset import Dataset, DatasetError, load_dataset
 from hysbench.models import list_models
 
 # Registered out of the DEA matrix because they are not DEA models, but scored on measured data:
@@ -16,11 +16,6 @@ MEASURED_ONLY_MODELS = ("bouc-wen-oscillator",)
 MEASURED_CSV = "matrix_measured.csv"
 MEASURED_REPORT = "report_measured.md"
 MEASURED_CELLS = "cells_measured"
-
-
-def default_datasets_root() -> Path:
-    """../shared/datasets relative to the repository root (the folder holding data/)."""
-    return shared_datasets_root()
 
 
 def suite_models() -> list[str]:
