@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -15,6 +15,7 @@ from .candidates import Candidate, local_minima
 PROFILE_POINTS = 16
 PROFILE_NFEV = 4
 PROFILE_XTOL = 0.01  # Brent's tolerance on the profile, relative to its bracket
+SCAN_POINTS = 24  # the profile between the best grid point's neighbours: every half sample, at most this many
 
 
 def _delayed_null(screen, z):
@@ -25,14 +26,42 @@ def _delayed_null(screen, z):
     return screen.first_order(column)
 
 
+def scan_minimum(rss: Callable[[float], float], a: float, b: float, dt: float) -> float:
+    """The minimum of a delay's profile in [a, b]: scanned every half sample (at most ``SCAN_POINTS``),
+    then Brent around the scan's best. A profile is rough at the scale of a sample (the misfit's sharp
+    features line up only at the right fraction of a sample), so a local gradient step is no use."""
+    step = max(dt / 2, (b - a) / SCAN_POINTS)
+    pts = np.r_[a, np.arange(a + step, b, step), b]
+    vals = [rss(float(d)) for d in pts]
+    centre = float(pts[int(np.argmin(vals))])
+    lo, up = max(centre - step, a), min(centre + step, b)
+    if up > lo:
+        r = minimize_scalar(rss, bounds=(lo, up), method="bounded", options={"xatol": PROFILE_XTOL * (up - lo)})
+        if r.fun < min(vals):
+            return float(r.x)
+    return centre
+
+
+def refit_delay(screen, model, start: Mapping[str, float], training_rss: Callable[[dict], float]) -> dict:
+    """A delay refitted (the rest held) on a fold's training rows: the profile scanned between the
+    estimate divided and multiplied by the geometric grid's ratio (its neighbours in ``fit_delay``)."""
+    dt = min(p.record.dt for p in screen.parts)
+    hi = DELAY_BOUND * screen.scale.time
+    ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
+    d0 = float(start["delay"])
+    d = scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio, min(d0 * ratio, hi), dt)
+    return {**start, "delay": d}
+
+
 def fit_delay(screen) -> Candidate:
     """Searched to first order (the null's prediction delayed) on a grid of about two samples;
     if that passes the BIC threshold, the best grid points and a one-sample delay are searched
     exactly (Brent within two samples), since a first-order search can be led astray by a misfit
     of another kind; otherwise the first-order optimum is evaluated exactly, once. On short records
-    (``Screen.small``) instead: the exact profile over a geometric grid of delays, the base's nonlinear
-    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then Brent on
-    that profile between the best grid point's neighbours."""
+    (``Screen.small``) instead: the exact profile over a geometric grid of delays and the first-order
+    grid's best points, the base's nonlinear parameters refitted at each (a base with rate-dependent terms
+    takes up part of a delay), then that profile's minimum between the best point's neighbours
+    (``scan_minimum``)."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
     hi = DELAY_BOUND * screen.scale.time
@@ -54,11 +83,12 @@ def fit_delay(screen) -> Candidate:
                 profile[d] = (screen.evaluate(model, z)[0], z)
             return profile[d][0]
 
-        grid_d = np.geomspace(min(dt, hi), hi, PROFILE_POINTS)
+        # the geometric grid and the first-order search's minima (a misfit with sharp features, e.g. the
+        # corners of a triangle drive, gives a profile valley narrower than the grid's steps)
+        grid_d = np.unique(np.r_[np.geomspace(min(dt, hi), hi, PROFILE_POINTS), starts])
         j = int(np.argmin([profile_rss(d) for d in grid_d]))
-        # Brent on the profile between the best point's neighbours (the grid's steps are about 50 %)
         a, b = (float(grid_d[j - 1]) if j else 0.0), float(grid_d[min(j + 1, grid_d.size - 1)])
-        minimize_scalar(profile_rss, bounds=(a, b), method="bounded", options={"xatol": PROFILE_XTOL * (b - a)})
+        scan_minimum(profile_rss, a, b, dt)
         z = min(profile.values(), key=lambda v: v[0])[1]
         return screen.candidate("delay", "pure delay", model, z, stage="joint")
     for d0 in starts:

@@ -73,6 +73,7 @@ import numpy as np
 from scipy import stats
 
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
+from .delay import refit_delay
 from .interference import predict_heldout
 from .saturation import fit_level, unclipped
 
@@ -162,7 +163,10 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
                 A = screen.design(c.model, q)
                 return screen.solve(A[train], screen.y[train])[1]
 
-            z = screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV, residual=residual)
+            if names == ["delay"]:  # a rough profile: scanned, not a gradient step
+                z = refit_delay(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2)))
+            else:
+                z = screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV, residual=residual)
             fold_est.append({n: float(z[n]) for n in names})
         designs.append(z)
     if not names:
