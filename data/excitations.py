@@ -16,6 +16,9 @@ drives start at the midpoint. Random waveforms take a seed and are reproducible.
 * ``reversal_curves``: first-order reversal curves: from ``high``, ramp down to a
   reversal point and back up to ``high``, for reversal points evenly spaced
   between high and low (ramps at a fixed rate): minor loops that share one end.
+
+``drive_band`` reads the band of any sampled drive from its spectrum (for a record
+without a nominal frequency).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from hysbench.models.errors import HysbenchError
 
 LOW_KV = 0.5
 HIGH_KV = 2.5
+DRIVE_BAND_TAIL = 0.01  # drive_band: the share of a drive's power left out below f_lo and above f_hi
 
 
 class ExcitationError(HysbenchError):
@@ -52,6 +56,24 @@ def _onto(x: np.ndarray, low: float, high: float) -> np.ndarray:
     if span == 0:
         return np.full_like(x, 0.5 * (low + high))
     return low + (x - x.min()) * (high - low) / span
+
+
+def drive_band(u: np.ndarray, dt: float, tail: float = DRIVE_BAND_TAIL) -> tuple[float, float] | None:
+    """(f_lo, f_hi): the lowest and highest frequencies (Hz) of a drive, each cutting off ``tail`` of its
+    power (periodogram of u minus its mean), between the record's first bin 1 / (n dt) and Nyquist;
+    None for a constant drive."""
+    x = np.asarray(u, dtype=float)
+    if x.size < 4:
+        return None
+    power = np.abs(np.fft.rfft(x - x.mean()))[1:] ** 2
+    total = float(power.sum())
+    if not total > 0:
+        return None
+    f = np.fft.rfftfreq(x.size, dt)[1:]
+    share = np.cumsum(power) / total
+    lo = float(f[int(np.searchsorted(share, tail))])
+    hi = float(f[min(int(np.searchsorted(share, 1.0 - tail)), f.size - 1)])
+    return lo, max(hi, lo)
 
 
 def fade_in(u: np.ndarray, n_fade: int, start: float) -> np.ndarray:

@@ -679,6 +679,21 @@ def test_a_delay_under_a_triangle_drive_is_found_where_the_corners_line_up(delay
     assert parameter_errors(truth, "delay", d.parameters)["delay_s"] < 0.05
 
 
+def test_records_without_a_nominal_frequency_scale_the_causes_by_their_drive_band():
+    """Multisines (0.1-2 Hz tones, 15 s records, no ``frequency_hz``): the causes' time scale is the band's
+    shortest period (about 0.4 s), not the record's duration, so a 38 Hz interference is within reach and named
+    (before 2026-11-26 its search stopped at 500 / 15 s = 33 Hz and the verdict was `none`); creep's floor stays
+    the records' duration."""
+    ds, truth = planted_case(("interference",), "mrpim", "multisines", 5,
+                             effects={"interference": {"frequency_hz": 38.0, "amplitude": 0.05}})
+    assert all(r.frequency_hz is None for r in ds.records)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause == "interference" and d.confirmed, (d.verdict.reason, [(c.cause, c.estimates) for c in d.candidates])
+    assert 0.3 < d.screen.drive_time < 0.6 and d.screen.creep_min == pytest.approx(15.0)
+    errors = parameter_errors(truth, "interference", d.parameters)
+    assert errors["frequency_hz"] < 1e-3 and errors["amplitude"] < 0.25
+
+
 def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow():
     """Vocabulary cases whose planted effect shows no held-out evidence by itself bound the verdict share:
     every other case right, and of those only the ones already right."""

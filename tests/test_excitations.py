@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.data.excitations import (EXCITATIONS, ExcitationError, band_limited_random, decaying_sine,
+from hysbench.data.excitations import (EXCITATIONS, ExcitationError, band_limited_random, decaying_sine, drive_band,
                                        excitation, multisine, reversal_curves, triangle)
 
 
@@ -78,3 +78,24 @@ def test_bad_options_are_refused():
         band_limited_random(10.0, dt=0.1, f_max=6.0)
     with pytest.raises(ExcitationError, match="bad options"):
         excitation("triangle", colour="red")
+
+
+@given(st.floats(0.05, 5.0), st.floats(1.5, 6.0), st.integers(0, 3))
+@settings(max_examples=25, deadline=None)
+def test_drive_band_of_two_tones_is_their_frequencies(f_lo, ratio, seed):
+    """Two tones on whole periods of the record: the band's ends are the tones (the slow, obvious answer)."""
+    dt, n = 1e-3, 20_000
+    t = np.arange(n) * dt
+    k_lo = max(1, int(round(f_lo * n * dt)))
+    k_hi = max(k_lo + 1, int(round(k_lo * ratio)))
+    phase = np.random.default_rng(seed).uniform(0, 2 * np.pi, 2)
+    u = (1.5 + np.sin(2 * np.pi * k_lo / (n * dt) * t + phase[0])
+         + 0.5 * np.sin(2 * np.pi * k_hi / (n * dt) * t + phase[1]))
+    lo, hi = drive_band(u, dt)
+    assert lo == pytest.approx(k_lo / (n * dt)) and hi == pytest.approx(k_hi / (n * dt))
+
+
+def test_drive_band_of_a_multisine_spans_its_tones_and_a_constant_has_none():
+    lo, hi = drive_band(multisine(60.0, 2e-3, f_min=0.1, f_max=2.0, n_tones=12, seed=1), 2e-3)
+    assert 0.05 <= lo <= 0.1 and 2.0 <= hi <= 2.6  # the fade-in leaks a little power beyond the tones
+    assert drive_band(np.full(500, 1.5), 1e-3) is None

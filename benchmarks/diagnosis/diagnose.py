@@ -336,7 +336,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": min_explained,
                                "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
-                               "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F})
+                               "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
+                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min})
     if experiments and verdict.chosen is not None:
         for other in verdict.ambiguous_with:
             say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")
@@ -359,7 +360,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
     else:
         ext = registered_extension(base.name, chosen.cause, chosen.hyperparameters, base.get_hyperparameters())
         say(f"identifying {ext.name} on the identification records' whole length")
-        bounds = {n: list(screen.bounds_of(ext, n)) for n in ("creep_time", "damping_ratio") if n in ext.param_names}
+        bounds = {n: list(screen.bounds_of(ext, n)) for n in ext.nonlinear_names if n not in base.param_names}
         diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds, rows)
         diag.after = residuals_of_fit(diag.extended_fit, dataset)
     timings["extended_fit"] = time.perf_counter() - t1

@@ -35,7 +35,7 @@ def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int =
     Returns {"terms": [{name, group, explained, order}], "groups": {cause: share of the null's
     residual sum of squares explained}, "relaxation_taus": [time constants of kept low-pass terms]}.
     """
-    T = screen.scale.time
+    T = screen.drive_time
     taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), n_taus))
     creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(CREEP_TIME_BOUNDS[1] * T / 10), 5))
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])

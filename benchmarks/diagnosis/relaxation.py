@@ -14,7 +14,7 @@ from .candidates import BIC_THRESHOLD, MAX_RELAXATION, Candidate
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
                powers: Sequence[int] = (1,), stop_threshold: float = BIC_THRESHOLD) -> list[Candidate]:
-    T = screen.scale.time
+    T = screen.drive_time
     lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
     grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25))) + [float(s) for s in seeds if lo <= s <= hi]
     out, taus = [], []

@@ -280,7 +280,9 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
-              f"{d.settings['max_rows']} per record). Rule: {d.decision_rule}.", "",
+              f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
+              f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
+              f"Rule: {d.decision_rule}.", "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],

@@ -28,7 +28,7 @@ def fit_resonance(screen) -> Candidate:
     the two best points of the grid evaluated exactly) are evaluated exactly and the best refined
     exactly; otherwise the first-order optimum is evaluated exactly, once."""
     model = screen.extension(("resonance",))
-    T = screen.scale.time
+    T = screen.drive_time
     dt = min(p.record.dt for p in screen.parts)
     f_lo = RESONANCE_HZ_BOUNDS[0] / T
     f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)

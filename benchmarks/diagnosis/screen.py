@@ -27,13 +27,14 @@ held-out records (``selection``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
+from hysbench.data.excitations import drive_band
 from hysbench.identification.criteria import effective_sample_size
 from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
@@ -63,6 +64,16 @@ class _BaseColumns:
 
     rows: list  # (n_rows_m, n_base_linear) per record
     full: list | None  # {name: full-length column} per record, or None if not kept
+
+
+def shortest_period(record: Record) -> float:
+    """A record's shortest drive period (s): 1 / its nominal frequency, or else 1 / the high end of its input's
+    band (``drive_band``), at most its duration."""
+    if record.frequency_hz:
+        return 1.0 / record.frequency_hz
+    duration = record.t.size * record.dt
+    band = drive_band(record.u, record.dt)
+    return duration if band is None else min(1.0 / band[1], duration)
 
 
 def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,6 +109,8 @@ class Screen:
             self.parts.append(_Part(r, rows, r.y[rows].copy()))
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
+        self.drive_time = min(shortest_period(p.record) for p in self.parts)  # the causes' time scale
+        self.component_scale = replace(scale, time=self.drive_time)
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
         self.n_evaluations = 0
@@ -116,7 +129,9 @@ class Screen:
 
     @property
     def creep_min(self) -> float:
-        """Creep is a drift much slower than the drive: at least twice the longest drive period."""
+        """Creep is a drift much slower than the drive: at least twice the longest nominal drive period, and
+        at least the data scale's time (for records without a nominal frequency: the shortest one's duration;
+        a spectrum's lowest bins hold a record's fade-in and length, not a drive period)."""
         periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
         return max(CREEP_TIME_BOUNDS[0] * self.scale.time, CREEP_PERIODS * max(periods, default=0.0))
 
@@ -126,7 +141,9 @@ class Screen:
         return min(float((p.rows[-1] - p.rows[0] + 1) * p.record.dt) for p in self.parts)
 
     def bounds_of(self, model: HysteresisModel, name: str) -> tuple[float, float]:
-        for p in model.parameters(self.scale):
+        """A parameter's search bounds: the base's from the data scale, a cause's from the drive's periods."""
+        scale = self.scale if name in self.base.param_names else self.component_scale
+        for p in model.parameters(scale):
             if p.name == name:
                 if name == "creep_time":
                     return max(float(p.min), self.creep_min), float(p.max)
