@@ -690,6 +690,9 @@ def test_records_without_a_nominal_frequency_scale_the_causes_by_their_drive_ban
     d = diagnose(ds, seed=0, experiments=False)
     assert d.cause == "interference" and d.confirmed, (d.verdict.reason, [(c.cause, c.estimates) for c in d.candidates])
     assert 0.3 < d.screen.drive_time < 0.6 and d.screen.creep_min == pytest.approx(15.0)
+    # 500 / T would be about 1 kHz: a mode or a tone above the samples' Nyquist frequency is not searched
+    for cause, name in (("resonance", "natural_frequency"), ("interference", "interference_frequency")):
+        assert d.screen.bounds_of(d.screen.extension((cause,)), name)[1] == pytest.approx(0.5 / ds.records[0].dt)
     errors = parameter_errors(truth, "interference", d.parameters)
     assert errors["frequency_hz"] < 1e-3 and errors["amplitude"] < 0.25
 

@@ -149,8 +149,15 @@ class Screen:
                     return max(float(p.min), self.creep_min), float(p.max)
                 if name == "damping_ratio":  # a resonance is a mode: underdamped
                     return float(p.min), min(float(p.max), MAX_DAMPING)
+                if name in ("natural_frequency", "interference_frequency"):  # the samples show nothing faster
+                    return float(p.min), min(float(p.max), self.nyquist)
                 return float(p.min), float(p.max)
         raise KeyError(name)
+
+    @property
+    def nyquist(self) -> float:
+        """The Nyquist frequency (Hz) of the most coarsely sampled record."""
+        return 0.5 / max(p.record.dt for p in self.parts)
 
     # --- the base's columns ---------------------------------------------------
     def base_columns(self, base_nl: Mapping[str, float], full: bool = False) -> _BaseColumns:
