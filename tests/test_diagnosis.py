@@ -529,7 +529,11 @@ def test_cli_writes_report_and_json(tmp_path):
     res = _hysbench("diagnose", str(tmp_path / "ds"), "--out", str(out), "--json", str(tmp_path / "d.json"), "--quiet")
     assert res.returncode == 0, res.stderr
     assert "cause: interference" in res.stdout
-    data = json.loads((tmp_path / "d.json").read_text())
+
+    def refuse(constant):  # JSON has no NaN or infinity; strict parsers (jq, JavaScript) refuse them
+        raise AssertionError(f"diagnosis.json holds {constant}")
+
+    data = json.loads((tmp_path / "d.json").read_text(), parse_constant=refuse)
     for key in ("model", "cause", "reason", "parameters", "uncertainty", "evidence", "extended_model", "before",
                 "after", "also", "ambiguous_with", "not_identified"):
         assert key in data

@@ -50,7 +50,6 @@ class Candidate:
     delta_bic: float = math.nan  # against the null (effective sample size)
     explained: float = math.nan  # share of the null's identification RSS explained (in-sample)
     validation_rss: float = math.nan
-    validation_explained: float = math.nan
     hyperparameters: dict = field(default_factory=dict)
     stage: str = "joint"  # "fixed base": the base's nonlinear parameters held at the null's
     limit: str = ""  # why the candidate cannot be named (a parameter at the vocabulary's limit), if so
@@ -68,8 +67,7 @@ class Candidate:
         return {"cause": self.cause, "label": self.label, "model": self.model.name, "stage": self.stage,
                 "admissible": not self.limit, "limit": self.limit, "k": self.k,
                 "bic_effective": self.bic, "delta_bic_effective": self.delta_bic, "rss": self.rss, "n_rows": self.n,
-                "n_effective": self.n_effective, "explained_identification": self.explained,
-                "explained_validation": self.validation_explained, "heldout": self.heldout,
+                "n_effective": self.n_effective, "explained_identification": self.explained, "heldout": self.heldout,
                 "estimates": self.estimates, "uncertainty": self.uncertainty}
 
 

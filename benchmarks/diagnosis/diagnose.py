@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -215,7 +216,18 @@ class Diagnosis:
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
             "also": [c.cause for c in self.also], "timings_s": self.timings, "settings": self.settings,
         }
-        return json.loads(json.dumps(data, default=_plain))
+        return _strict(json.loads(json.dumps(data, default=_plain)))
+
+
+def _strict(obj):
+    """JSON has no NaN or infinity: a value that could not be computed is written as null."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _strict(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_strict(v) for v in obj]
+    return obj
 
 
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:

@@ -202,7 +202,7 @@ def signed_rank_z(d: np.ndarray) -> float:
     if d.size < 2:
         return 0.0
     p = stats.wilcoxon(d, alternative="greater").pvalue
-    return float(min(stats.norm.isf(max(p, 1e-300)), 40.0))
+    return float(np.clip(stats.norm.isf(max(p, 1e-300)), -40.0, 40.0))  # p = 1 (every block worse): -40, not -inf
 
 
 def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
