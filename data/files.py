@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from hysbench.models.errors import HysbenchError
 
@@ -59,6 +62,25 @@ def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
             pass
         raise
     return path
+
+
+def jsonable(obj):
+    """Plain, strict JSON: numpy values as Python ones, tuples as lists, keys as strings, and non-finite
+    floats as null (JSON has no NaN or infinity; jq and JavaScript refuse them)."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    return obj
 
 
 def write_json(path: str | os.PathLike, obj) -> Path:

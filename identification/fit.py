@@ -25,34 +25,13 @@ import numpy as np
 
 from hysbench.data.protocol import RecordScore, score_records
 from hysbench.data.dataset import Record
+from hysbench.data.files import jsonable
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
 from .errors import IdentificationError
 
 FORMAT = "hysbench-fit/1"
-
-
-def _num(x):
-    """JSON-safe float: non-finite values become None."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _num(obj)
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    return obj
 
 
 def _float(x):
@@ -150,7 +129,7 @@ class Fit:
 
     # --- JSON ------------------------------------------------------------------
     def to_dict(self) -> dict:
-        return _jsonable({
+        return jsonable({
             "format": FORMAT,
             "model": self.model,
             "hyperparameters": self.hyperparameters,

@@ -8,8 +8,6 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from hysbench.models.extended import DELAY_BOUND
-
 from .candidates import Candidate, local_minima
 
 PROFILE_POINTS = 16
@@ -46,7 +44,7 @@ def refit_delay(screen, model, start: Mapping[str, float], training_rss: Callabl
     """A delay refitted (the rest held) on a fold's training rows: the profile scanned between the
     estimate divided and multiplied by the geometric grid's ratio (its neighbours in ``fit_delay``)."""
     dt = min(p.record.dt for p in screen.parts)
-    hi = DELAY_BOUND * screen.drive_time
+    hi = screen.bounds_of(model, "delay")[1]
     ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
     d0 = float(start["delay"])
     d = scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio, min(d0 * ratio, hi), dt)
@@ -64,7 +62,7 @@ def fit_delay(screen) -> Candidate:
     (``scan_minimum``)."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
-    hi = DELAY_BOUND * screen.drive_time
+    hi = screen.bounds_of(model, "delay")[1]
     grid = np.linspace(0.0, hi, int(min(max(hi / (2 * dt), 10), 400)) + 1)
     vals = np.array([_delayed_null(screen, {**screen.base_nl, "delay": float(d)})[0] for d in grid])
     if not (screen.promising(float(vals.min())) or screen.small):  # not even to first order: one exact evaluation

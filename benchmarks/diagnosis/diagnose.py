@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import copy
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -35,6 +34,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.data.files import jsonable
 from hysbench.identification import Fit, data_scale, identify
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
@@ -216,18 +216,7 @@ class Diagnosis:
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
             "also": [c.cause for c in self.also], "timings_s": self.timings, "settings": self.settings,
         }
-        return _strict(json.loads(json.dumps(data, default=_plain)))
-
-
-def _strict(obj):
-    """JSON has no NaN or infinity: a value that could not be computed is written as null."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _strict(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_strict(v) for v in obj]
-    return obj
+        return jsonable(json.loads(json.dumps(data, default=_plain)))
 
 
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:

@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 
 from hysbench.benchmarks.plots import pyplot, save_figure
-from hysbench.data.files import write_atomic, write_json
+from hysbench.data.files import jsonable, write_atomic, write_json
 
 FACTOR_LABELS = {"order": "polynomial order", "q_term": "q V'' term", "envelopes": "envelopes",
                  "n_operators": "play operators N"}
@@ -201,17 +201,6 @@ def plot(result: dict, path) -> Path:
         ax.legend(fontsize=7)
     fig.suptitle(f"MRPIM ablation on {result['dataset']}: validation and leave-one-frequency-out e_rms")
     return save_figure(fig, path)
-
-
-def jsonable(obj):
-    """Plain JSON: tuples as lists, non-finite floats as null."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    return obj
 
 
 def write_outputs(result: dict, out: Path, json_path=None) -> list[Path]:
