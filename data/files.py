@@ -84,7 +84,8 @@ def jsonable(obj):
 
 
 def write_json(path: str | os.PathLike, obj) -> Path:
-    return write_atomic(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+    """Strict JSON (see ``jsonable``: a non-finite float is written as null), written atomically."""
+    return write_atomic(path, json.dumps(jsonable(obj), indent=2, sort_keys=False, allow_nan=False) + "\n")
 
 
 def shown_path(path: str | os.PathLike) -> str:

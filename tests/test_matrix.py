@@ -286,3 +286,23 @@ def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tm
     assert set(result["nonfinite_records"]) == {r.file for r in ds.records}
     assert "non-finite" in result["error"]
     assert matrix_rows([result]) == []  # not in the ranked table
+
+
+def test_a_non_finite_cell_is_stored_as_strict_json_and_read_back(small_dataset, tmp_path):
+    if "test-nan-model" not in list_models():
+        register("test-nan-model", _NaNModel, in_matrix=False)
+    ds = load_dataset(small_dataset)
+    cell = plan_cells([(small_dataset, ds)], ["test-nan-model"], ["lsq"], seed=0)[0]
+    result = run_cell(cell)
+    assert not np.isfinite(result["records"][0]["e_rms"])
+    store = CellStore(tmp_path)
+    path = store.put(result)
+
+    def refuse(constant):
+        raise ValueError(f"non-strict JSON constant {constant}")
+
+    stored = json.loads(path.read_text(), parse_constant=refuse)  # NaN / Infinity refused
+    assert stored["records"][0]["e_rms"] is None
+    again = store.get(cell.key)
+    assert again is not None and again["status"] == "nonfinite"
+    assert matrix_rows([again]) == []

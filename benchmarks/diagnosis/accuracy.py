@@ -292,7 +292,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         for r in rows:
             if r["right"] and r["verdict"] == cause:
                 for k, v in r["parameter_errors"].items():
-                    errs.setdefault(k, []).append(v)
+                    errs.setdefault(k, []).append(math.inf if v is None else v)  # null in JSON: not computed
         for k, v in errs.items():
             lines.append(f"| {cause} | {k} | {len(v)} | {100 * float(np.median(v)):.2f} % | "
                          f"{sum(x <= TOLERANCE for x in v)}/{len(v)} |")
@@ -329,7 +329,8 @@ def _evidence_cell(r: dict) -> str:
                 else f"waveform on {ref}")
 
     def one(ref: str, v: dict) -> str:
-        return (f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, z {v['z']:.1f}, "
+        z = "–" if v["z"] is None else f"{v['z']:.1f}"  # null in JSON: -inf from before the z was clipped
+        return (f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, z {z}, "
                 f"{v['folds_improved']}/{v['n_folds']})")
 
     return "; ".join(f"{k}: " + ", ".join(one(ref, v) for ref, v in refs.items()) for k, refs in ev.items())
