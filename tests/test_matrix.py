@@ -276,12 +276,16 @@ class _NaNModel(HysteresisModel):
         return np.full((P.shape[0], np.size(u)), np.nan)
 
 
-def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tmp_path):
+def _non_finite_cell(small_dataset):
     if "test-nan-model" not in list_models():
         register("test-nan-model", _NaNModel, in_matrix=False)
     ds = load_dataset(small_dataset)
     cell = plan_cells([(small_dataset, ds)], ["test-nan-model"], ["lsq"], seed=0)[0]
-    result = run_cell(cell)
+    return ds, cell, run_cell(cell)
+
+
+def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tmp_path):
+    ds, _, result = _non_finite_cell(small_dataset)
     assert result["status"] == "nonfinite"
     assert set(result["nonfinite_records"]) == {r.file for r in ds.records}
     assert "non-finite" in result["error"]
@@ -289,11 +293,7 @@ def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tm
 
 
 def test_a_non_finite_cell_is_stored_as_strict_json_and_read_back(small_dataset, tmp_path):
-    if "test-nan-model" not in list_models():
-        register("test-nan-model", _NaNModel, in_matrix=False)
-    ds = load_dataset(small_dataset)
-    cell = plan_cells([(small_dataset, ds)], ["test-nan-model"], ["lsq"], seed=0)[0]
-    result = run_cell(cell)
+    _, cell, result = _non_finite_cell(small_dataset)
     assert not np.isfinite(result["records"][0]["e_rms"])
     store = CellStore(tmp_path)
     path = store.put(result)
