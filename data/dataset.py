@@ -22,7 +22,8 @@ window = [950.0, 1000.0]   # optional [start, end] in s: what is fitted and scor
 Without ``window`` a periodic record is scored on its last full period, any
 other record on all of it. Models are always simulated from a record's first
 sample. Time must increase with a uniform step: every step within
-``UNIFORM_STEP_TOLERANCE`` (1 %) of the median step.
+``UNIFORM_STEP_TOLERANCE`` (1 %) of the median step. A drive frequency must lie
+below the Nyquist frequency 0.5/dt, and the output must vary in the scored window.
 """
 
 from __future__ import annotations
@@ -166,11 +167,13 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     if not (isinstance(delimiter, str) and len(delimiter) == 1):
         raise DatasetError(f"{toml_path.name}: delimiter must be one character")
     columns = (meta["time_column"], meta["input_column"], meta["output_column"])
+    _check_distinct_columns(toml_path.name, columns)
     records = []
     for i, rm in enumerate(records_meta):
         if not isinstance(rm, dict):
             raise DatasetError(f"{toml_path.name}: records[{i}] must be a table")
         records.append(_load_record(toml_path.parent, i, rm, columns, csv_columns, delimiter))
+    _unique_keys(records)
     return Dataset(
         name=meta["name"],
         description=meta.get("description", ""),
@@ -182,6 +185,30 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
         records=records,
         path=toml_path.parent,
     )
+
+
+def _check_distinct_columns(where: str, columns) -> None:
+    keys = ("time_column", "input_column", "output_column")
+    for i in range(3):
+        for j in range(i + 1, 3):
+            if columns[i] == columns[j]:
+                raise DatasetError(f"{where}: {keys[i]} and {keys[j]} are the same column {columns[i]!r}; "
+                                   f"time, input and output must be three different columns")
+
+
+def _unique_keys(records: list[Record]) -> None:
+    """A record's ``file`` is its key everywhere (roles, fit_on, scores, reports). A file listed more than
+    once (e.g. one recording, an identification and a validation window) is keyed STEM#k.SUFFIX,
+    k = 1, 2, ... in manifest order; its data were read from the file itself."""
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r.file] = counts.get(r.file, 0) + 1
+    seen: dict[str, int] = {}
+    for r in records:
+        if counts[r.file] > 1:
+            seen[r.file] = seen.get(r.file, 0) + 1
+            path = Path(r.file)
+            r.file = str(path.with_name(f"{path.stem}#{seen[r.file]}{path.suffix}"))
 
 
 def _check_keys(where: str, table: dict, required: Iterable[str], optional: Iterable[str]) -> None:
@@ -224,11 +251,27 @@ def _load_record(folder: Path, index: int, rm: dict, columns, csv_columns, delim
             raise DatasetError(f"{where}: window must be [start, end] in seconds")
         window = (_number(where, "window start", window[0]), _number(where, "window end", window[1]))
     file_path = folder / file
+    if file_path.is_dir():
+        raise DatasetError(f"{where}: is a folder, not a record file ({file_path})")
     if not file_path.is_file():
         raise DatasetError(f"{where}: file not found ({file_path})")
     t, u, y = _read_columns(file_path, where, columns, csv_columns, delimiter)
     check_series(where, t, u, y, columns)
-    return Record(file=file, t=t, u=u, y=y, role=role, frequency_hz=freq, weight=weight, window=window)
+    record = Record(file=file, t=t, u=u, y=y, role=role, frequency_hz=freq, weight=weight, window=window)
+    _check_output_span(where, record.y[record.scored])
+    return record
+
+
+def _check_output_span(where: str, y: np.ndarray) -> None:
+    """e_m and e_rms are % of the scored output's peak-to-peak: it must be positive and finite."""
+    with np.errstate(over="ignore"):
+        span = float(np.max(y) - np.min(y))
+    if span == 0:
+        raise DatasetError(f"{where}: output is constant in the scored window: the errors e_m and e_rms "
+                           f"(% of its peak-to-peak) are undefined")
+    if not math.isfinite(span):
+        raise DatasetError(f"{where}: the output's peak-to-peak in the scored window overflows a float "
+                           f"(max {np.max(y):g}, min {np.min(y):g})")
 
 
 def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
@@ -248,6 +291,8 @@ def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
                 raise DatasetError(f"{where}: column {c} must be 1-D, has shape {a.shape}")
             if not np.issubdtype(a.dtype, np.number):
                 raise DatasetError(f"{where}: column {c} is not numeric ({a.dtype})")
+            if np.issubdtype(a.dtype, np.complexfloating):
+                raise DatasetError(f"{where}: column {c} is complex ({a.dtype}); columns must be real numbers")
         return [a.astype(float) for a in arrays]
     return _read_csv(path, where, columns, csv_columns, delimiter)
 
@@ -257,19 +302,24 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{where}: cannot read CSV file: {exc}") from None
-    lines = text.splitlines()
+    lines = [ln for ln in text.splitlines() if ln.strip()]  # blank lines are skipped
     if csv_columns is None:
         if not lines:
-            raise DatasetError(f"{where}: empty record (no header row)")
+            raise DatasetError(f"{where}: empty record (the file holds no header row and no data)")
         header = [h.strip() for h in next(csv.reader([lines[0]], delimiter=delimiter))]
         body = lines[1:]
+        names_from = "the header row"
     else:
         header = list(csv_columns)
         body = lines
+        names_from = "csv_columns"
     missing = [c for c in columns if c not in header]
     if missing:
         raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} (has {', '.join(header)})")
-    body = [ln for ln in body if ln.strip()]
+    for c in columns:
+        if header.count(c) > 1:
+            raise DatasetError(f"{where}: column name {c!r} appears {header.count(c)} times in {names_from}; "
+                               f"which one is meant is ambiguous")
     if not body:
         raise DatasetError(f"{where}: empty record (no data rows)")
     wanted = [header.index(c) for c in columns]
@@ -316,17 +366,32 @@ def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, column
         )
 
 
+def _count_text(x: float) -> str:
+    """A sample count in plain readable digits, however large."""
+    if not math.isfinite(x):
+        return "more than 1e308"
+    return f"{x:.0f}" if x < 1e12 else f"{x:.3g}"
+
+
 def scored_window(where: str, t: np.ndarray, frequency_hz: float | None, window) -> tuple[int, int]:
     """Sample indices [start, stop) that are fitted and scored."""
     n = t.size
     dt = float((t[-1] - t[0]) / (n - 1)) if n > 1 else 0.0
     if frequency_hz is not None and n > 1:
-        period = int(round(1.0 / (frequency_hz * dt)))
-        if period > n:
+        with np.errstate(over="ignore", divide="ignore"):
+            nyquist = float(0.5 / np.float64(dt))
+            period_samples = float(1.0 / (np.float64(frequency_hz) * dt))  # inf if too long to count
+        if frequency_hz >= nyquist:
+            raise DatasetError(
+                f"{where}: frequency_hz {frequency_hz:g} Hz is at or above the Nyquist frequency {nyquist:g} Hz "
+                f"of the record (step {dt:g} s): a period needs more than two samples"
+            )
+        if not period_samples < n + 0.5:  # rounds to more than n samples
             raise DatasetError(
                 f"{where}: record is shorter than a period ({n} samples, one period of {frequency_hz:g} Hz "
-                f"is {period} samples)"
+                f"is {_count_text(period_samples)} samples)"
             )
+        period = int(round(period_samples))
     else:
         period = None
     if window is not None:

@@ -76,6 +76,16 @@ def drive_band(u: np.ndarray, dt: float, tail: float = DRIVE_BAND_TAIL) -> tuple
     return lo, max(hi, lo)
 
 
+def shortest_period(u: np.ndarray, dt: float, frequency_hz: float | None = None) -> float:
+    """A drive's shortest period (s): 1 / its nominal frequency, or else 1 / the high end of its band
+    (``drive_band``), at most its duration (a constant drive: its duration)."""
+    if frequency_hz:
+        return 1.0 / frequency_hz
+    duration = np.asarray(u).size * dt
+    band = drive_band(u, dt)
+    return duration if band is None else min(1.0 / band[1], duration)
+
+
 def fade_in(u: np.ndarray, n_fade: int, start: float) -> np.ndarray:
     """Blend from the constant ``start`` into u over the first n_fade samples (half-cosine)."""
     n_fade = min(max(n_fade, 1), u.size)

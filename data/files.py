@@ -42,9 +42,40 @@ def ensure_dir(path: str | os.PathLike) -> Path:
     return path
 
 
+def check_output_dir(path: str | os.PathLike) -> Path:
+    """Check, before any work and without creating anything, that ``path`` is a writable folder or can be
+    created as one (its nearest existing ancestor is a writable folder)."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise OutputError(f"output path {path} is not a folder")
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise OutputError(f"output folder {path} is not writable")
+        return path
+    ancestor = path.resolve().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise OutputError(f"cannot create output folder {path}: {ancestor} is not a folder")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot create output folder {path}: {ancestor} is not writable")
+    return path
+
+
+def check_output_file(path: str | os.PathLike) -> Path:
+    """Check, before any work and without creating anything, that a file can be written at ``path``."""
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"cannot write {path}: it is a folder")
+    check_output_dir(path.resolve().parent)
+    return path
+
+
 def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
     """Write a file through a temporary sibling and rename, so no reader sees it half-written."""
     path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"cannot write {path}: it is a folder")
     mode = "wb" if isinstance(data, bytes) else "w"
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -55,11 +86,13 @@ def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
         with os.fdopen(fd, mode, **({} if isinstance(data, bytes) else {"encoding": "utf-8"})) as fh:
             fh.write(data)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
     return path
 

@@ -38,6 +38,11 @@ def _float(x):
     return math.nan if x is None else float(x)
 
 
+def _shown(x: float, spec: str) -> str:
+    """A number as the summary prints it; a non-finite one as "non-finite" (never nan or inf)."""
+    return format(x, spec) if math.isfinite(x) else format("non-finite", f">{len(format(1.0, spec))}")
+
+
 @dataclass
 class Fit:
     model: str
@@ -106,7 +111,8 @@ class Fit:
         """A short text table: the fit, per-record errors, parameters."""
         lines = [
             f"model {self.model} ({self.n_params} parameters), method {self.method}, seed {self.seed}",
-            f"fitness (eq. 9) {self.fitness:.6g}   evaluations {self.n_evaluations}   time {self.fit_seconds:.2f} s",
+            f"fitness (eq. 9) {_shown(self.fitness, '.6g')}   evaluations {self.n_evaluations}   "
+            f"time {self.fit_seconds:.2f} s",
         ]
         if not self.success:
             lines.append(f"FAILED: {self.message}")
@@ -118,9 +124,9 @@ class Fit:
         ]
         for s in self.records:
             f = f"{s.frequency_hz:g}" if s.frequency_hz else "-"
-            lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {s.e_m:8.3f} {s.e_rms:8.3f}")
+            lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {_shown(s.e_m, '8.3f')} {_shown(s.e_rms, '8.3f')}")
         lines.append("")
-        items = [f"{k} = {v:.6g}" for k, v in self.params.items()]
+        items = [f"{k} = {_shown(v, '.6g')}" for k, v in self.params.items()]
         for i in range(0, len(items), 4):
             lines.append("   ".join(f"{it:<20}" for it in items[i:i + 4]).rstrip())
         for note in self.notes:

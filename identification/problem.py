@@ -23,6 +23,7 @@ import numpy as np
 
 from hysbench.data.protocol import input_range as records_input_range
 from hysbench.data.dataset import Record
+from hysbench.data.excitations import shortest_period
 from hysbench.models.base import DataScale, HysteresisModel
 
 from .errors import IdentificationError
@@ -31,19 +32,15 @@ from .errors import IdentificationError
 MAX_BATCH_ELEMENTS = 20_000_000
 
 
-def data_scale(records: Sequence[Record]) -> DataScale:
-    """DataScale of the fit records: max |u|, max |y| and the shortest drive period.
+def drive_time(record: Record) -> float:
+    """A fit record's shortest drive period: 1 / its nominal frequency, or for a record without one 1 / the
+    high end of its scored window's input band (``shortest_period``)."""
+    return shortest_period(record.u[record.scored], record.dt, record.frequency_hz)
 
-    A record without a frequency contributes its scored window's duration as
-    its characteristic time.
-    """
-    times = []
-    for r in records:
-        if r.frequency_hz:
-            times.append(1.0 / r.frequency_hz)
-        else:
-            times.append(r.n_scored * r.dt)
-    return DataScale.of([r.u for r in records], [r.y for r in records], time=min(times))
+
+def data_scale(records: Sequence[Record]) -> DataScale:
+    """DataScale of the fit records: max |u|, max |y| and the shortest drive period (``drive_time``)."""
+    return DataScale.of([r.u for r in records], [r.y for r in records], time=min(drive_time(r) for r in records))
 
 
 @dataclass
@@ -66,6 +63,13 @@ class Problem:
     def build(cls, model: HysteresisModel, records: Sequence[Record],
               bounds: Mapping[str, Sequence[float]] | None = None) -> "Problem":
         records = list(records)
+        if records and not any(r.weight > 0 for r in records):
+            raise IdentificationError(f"every fit record ({', '.join(r.file for r in records)}) has weight 0: "
+                                      "eq. 9 has nothing to fit")
+        if records and model.n_params > sum(r.n_scored for r in records):
+            raise IdentificationError(
+                f"model {model.name!r} has {model.n_params} parameters, more than the {sum(r.n_scored for r in records)} "
+                "scored samples of the fit records: nothing determines them (use fewer operators or longer windows)")
         scale = data_scale(records)
         lower, upper = (np.array(b, dtype=float) for b in model.bounds(scale))
         names = model.param_names

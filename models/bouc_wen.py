@@ -61,6 +61,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
+from .hyperparameters import check_bool
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
@@ -274,7 +275,7 @@ class BoucWen(KernelInvertible, HysteresisModel):
     step_kernel = staticmethod(bouc_wen_steps)
 
     def __init__(self, offset: bool = True):
-        self.offset = offset
+        self.offset = check_bool(self.name, "offset", offset)
 
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         g = GAIN_BOUND * scale.y

@@ -59,6 +59,7 @@ from numba import njit, prange
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .hyperparameters import check_choice, check_int, check_number
 
 INTERPOLATIONS = ("fourier", "linear", "hold")
 STATE_CAP = 1e12
@@ -147,21 +148,12 @@ class BoucWenOscillator(HysteresisModel):
 
     def __init__(self, fixed_nu: float | None = 1.0, beta: float = 1000.0, n_substeps: int = 20,
                  input_interpolation: str = "fourier"):
-        if fixed_nu is not None and (isinstance(fixed_nu, bool) or not isinstance(fixed_nu, (int, float))
-                                     or not 1.0 <= fixed_nu <= NU_MAX):
-            raise ModelError(f"{self.name}: fixed_nu must be None (nu identified) or a number in [1, {NU_MAX}], "
-                             f"got {fixed_nu!r}")
-        if isinstance(beta, bool) or not isinstance(beta, (int, float)) or not (beta > 0 and math.isfinite(beta)):
-            raise ModelError(f"{self.name}: beta must be a positive number, got {beta!r}")
-        if isinstance(n_substeps, bool) or not isinstance(n_substeps, (int, np.integer)) or not 1 <= n_substeps <= 1000:
-            raise ModelError(f"{self.name}: n_substeps must be an integer in [1, 1000], got {n_substeps!r}")
-        if input_interpolation not in INTERPOLATIONS:
-            raise ModelError(f"{self.name}: input_interpolation must be one of {', '.join(INTERPOLATIONS)}, "
-                             f"got {input_interpolation!r}")
-        self.fixed_nu = fixed_nu
-        self.beta = beta
-        self.n_substeps = n_substeps
-        self.input_interpolation = input_interpolation
+        name = self.name
+        self.fixed_nu = None if fixed_nu is None else check_number(name, "fixed_nu (None: nu identified)",
+                                                                    fixed_nu, 1.0, NU_MAX)
+        self.beta = check_number(name, "beta", beta, positive=True)
+        self.n_substeps = check_int(name, "n_substeps", n_substeps, 1, 1000)
+        self.input_interpolation = check_choice(name, "input_interpolation", input_interpolation, INTERPOLATIONS)
 
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         stiff = scale.u / scale.y

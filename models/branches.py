@@ -53,6 +53,7 @@ from numba import njit
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .hyperparameters import check_bool
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
@@ -220,7 +221,7 @@ class BranchModel(KernelInvertible, HysteresisModel):
     """
 
     def __init__(self, offset: bool = True):
-        self.offset = offset
+        self.offset = check_bool(self.name, "offset", offset)
 
     # subclasses -----------------------------------------------------------
     def _centre_parameters(self) -> list[tuple[str, str]]:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from .branches import BranchModel
-from .errors import ModelError
+from .hyperparameters import check_int
 
 
 class DualPolynomial(BranchModel):
@@ -50,9 +50,7 @@ class DualPolynomial(BranchModel):
 
     def __init__(self, order: int = 4, offset: bool = True):
         super().__init__(offset=offset)
-        self.order = order
-        if not (isinstance(order, (int, np.integer)) and 2 <= order <= 12):
-            raise ModelError(f"dual-polynomial: order must be an integer in 2..12, got {order!r}")
+        self.order = check_int(self.name, "order", order, 2, 12)
 
     def _centre_parameters(self):
         return [(f"m{j}", f"centre line M: coefficient of xi^{j}") for j in range(1, self.order + 1)]

@@ -50,7 +50,7 @@ from __future__ import annotations
 import numpy as np
 
 from .branches import ELLIPSE, BranchModel
-from .errors import ModelError
+from .hyperparameters import check_choice, check_int
 
 LINEARISATIONS = ("square", "none")
 
@@ -61,12 +61,8 @@ class Elliptical(BranchModel):
 
     def __init__(self, linearise: str = "square", poly_order: int = 1, offset: bool = True):
         super().__init__(offset=offset)
-        self.linearise = linearise
-        self.poly_order = poly_order
-        if linearise not in LINEARISATIONS:
-            raise ModelError(f"elliptical: linearise must be one of {', '.join(LINEARISATIONS)}, got {linearise!r}")
-        if not (isinstance(poly_order, (int, np.integer)) and 1 <= poly_order <= 8):
-            raise ModelError(f"elliptical: poly_order must be an integer in 1..8, got {poly_order!r}")
+        self.linearise = check_choice(self.name, "linearise", linearise, LINEARISATIONS)
+        self.poly_order = check_int(self.name, "poly_order", poly_order, 1, 8)
 
     def _centre_parameters(self):
         return [(f"m{j}", f"centre line: coefficient of xi^{j}") for j in range(1, self.poly_order + 1)]

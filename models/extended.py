@@ -51,6 +51,7 @@ import numpy as np
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .hyperparameters import check_choice, check_int, check_int_list
 from .inverse import StepInvertible, StepStructure
 from .filter_kernels import (
     first_order_foh,
@@ -89,22 +90,28 @@ class ExtendedModel(StepInvertible, HysteresisModel):
     def __init__(self, base: str = "mrpim", components: Sequence[str] = ("relaxation",),
                  base_hyperparameters: Mapping | None = None, n_relaxation: int = 1,
                  relaxation_powers: Sequence[int] = (1,), saturation_side: str = "upper"):
+        owner = "extended model"
+        if not isinstance(base, str):
+            raise ModelError(f"{owner}: base must be a registered model name, got {base!r}")
+        if isinstance(components, str) or not isinstance(components, (list, tuple, set, frozenset)) or not all(
+                isinstance(c, str) for c in components):
+            raise ModelError(f"{owner}: components must be a list of names from {', '.join(CAUSES)}, "
+                             f"got {components!r}")
+        if base_hyperparameters is not None and not isinstance(base_hyperparameters, Mapping):
+            raise ModelError(f"{owner}: base_hyperparameters must be a mapping name -> value, "
+                             f"got {base_hyperparameters!r}")
         self.base = base
         self.components = tuple(sorted(set(components), key=lambda c: ORDER.get(c, len(ORDER))))
         self.base_hyperparameters = dict(base_hyperparameters or {})
-        self.n_relaxation = n_relaxation
-        self.relaxation_powers = tuple(int(p) for p in relaxation_powers)
-        self.saturation_side = saturation_side
+        self.n_relaxation = check_int(owner, "n_relaxation", n_relaxation, 1, 6)
+        self.relaxation_powers = check_int_list(owner, "relaxation_powers", relaxation_powers, 1, 4)
+        if len(set(self.relaxation_powers)) != len(self.relaxation_powers):
+            raise ModelError(f"{owner}: relaxation_powers must not repeat a power, got {relaxation_powers!r}")
+        self.saturation_side = check_choice(owner, "saturation_side", saturation_side, ("upper", "lower"))
         unknown = [c for c in components if c not in CAUSES]
         if unknown or not self.components:
             raise ModelError(f"extended model: unknown or no components {list(components)!r}; "
                              f"choose from {', '.join(CAUSES)}")
-        if not (isinstance(n_relaxation, (int, np.integer)) and 1 <= n_relaxation <= 6):
-            raise ModelError(f"extended model: n_relaxation must be an integer in 1..6, got {n_relaxation!r}")
-        if not self.relaxation_powers or any(p < 1 or p > 4 for p in self.relaxation_powers):
-            raise ModelError(f"extended model: relaxation_powers must be integers in 1..4, got {relaxation_powers!r}")
-        if saturation_side not in ("upper", "lower"):
-            raise ModelError(f"extended model: saturation_side must be 'upper' or 'lower', got {saturation_side!r}")
         self.base_model = get_model(base, **self.base_hyperparameters)
         if isinstance(self.base_model, ExtendedModel):
             raise ModelError("extended model: the base must not itself be extended (list all components instead)")
@@ -452,8 +459,12 @@ def factory(base: str, components: Sequence[str]):
     def make(**hyper):
         hyper = dict(hyper)
         given_base = hyper.pop("base", base)
-        given = tuple(hyper.pop("components", components))
-        if given_base != base or tuple(sorted(given, key=ORDER.get)) != tuple(sorted(components, key=ORDER.get)):
+        given = hyper.pop("components", components)
+        if isinstance(given, str) or not isinstance(given, (list, tuple, set, frozenset)):
+            raise ModelError(f"model {extended_name(base, components)!r}: components must be a list of names, "
+                             f"got {given!r}")
+        given = tuple(given)
+        if given_base != base or sorted(map(str, given)) != sorted(components):
             raise ModelError(f"model {extended_name(base, components)!r} cannot be built with base {given_base!r} "
                              f"and components {list(given)!r}")
         return ExtendedModel(base=base, components=tuple(components), **hyper)

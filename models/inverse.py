@@ -89,6 +89,7 @@ import numpy as np
 from numba import njit
 
 from .errors import ModelError
+from .hyperparameters import check_int
 from .kernels import KERNEL_FASTMATH, play_update
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
@@ -302,8 +303,7 @@ class InverseArguments:
         lo, hi = map(float, input_limits)
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
             raise ModelError(f"{name}: input limits must have low < high, got {input_limits!r}")
-        if not (isinstance(n_grid, (int, np.integer)) and n_grid >= 2):
-            raise ModelError(f"{name}: n_grid must be an integer >= 2, got {n_grid!r}")
+        n_grid = check_int(name, "n_grid", n_grid, 2)
         if max_rate is not None and not max_rate > 0:
             raise ModelError(f"{name}: max_rate must be positive, got {max_rate!r}")
         max_step = np.inf if max_rate is None else float(max_rate) * float(dt)

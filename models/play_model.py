@@ -21,6 +21,7 @@ import numpy as np
 from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
+from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
 from .inverse import StepInvertible, StepStructure
 from .kernels import (
     pi_output,
@@ -53,26 +54,14 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
         derivative: str = "backward",
         derivative_window: float = 0.05,
     ):
-        self.n_operators = n_operators
-        self.poly_order = poly_order
-        self.q_term = q_term
-        self.envelopes = envelopes
-        self.offset = offset
-        self.derivative = derivative
-        self.derivative_window = derivative_window
-        self._validate()
-
-    def _validate(self) -> None:
-        if not (isinstance(self.n_operators, (int, np.integer)) and self.n_operators >= 1):
-            raise ModelError(f"{self.name}: n_operators must be a positive integer, got {self.n_operators!r}")
-        if not (isinstance(self.poly_order, (int, np.integer)) and 0 <= self.poly_order <= 12):
-            raise ModelError(f"{self.name}: poly_order must be an integer in 0..12, got {self.poly_order!r}")
-        if self.derivative not in DERIVATIVE_METHODS:
-            raise ModelError(
-                f"{self.name}: unknown derivative {self.derivative!r}; choose one of {', '.join(DERIVATIVE_METHODS)}"
-            )
-        if not self.derivative_window > 0:
-            raise ModelError(f"{self.name}: derivative_window must be positive, got {self.derivative_window!r}")
+        name = self.name
+        self.n_operators = check_int(name, "n_operators", n_operators, 1, MAX_OPERATORS)
+        self.poly_order = check_int(name, "poly_order", poly_order, 0, 12)
+        self.q_term = check_bool(name, "q_term", q_term)
+        self.envelopes = check_bool(name, "envelopes", envelopes)
+        self.offset = check_bool(name, "offset", offset)
+        self.derivative = check_choice(name, "derivative", derivative, DERIVATIVE_METHODS)
+        self.derivative_window = check_number(name, "derivative_window", derivative_window, positive=True)
 
     # --- parameters ------------------------------------------------------
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:

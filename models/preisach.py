@@ -48,6 +48,7 @@ from numba import njit, prange
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .hyperparameters import check_bool, check_int
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
@@ -173,11 +174,9 @@ class Preisach(KernelInvertible, HysteresisModel):
     name = "preisach"
 
     def __init__(self, grid_size: int = 10, offset: bool = True):
-        self.grid_size = grid_size
-        self.offset = offset
-        if not (isinstance(grid_size, (int, np.integer)) and 1 <= grid_size <= 100):
-            raise ModelError(f"preisach: grid_size must be an integer in 1..100, got {grid_size!r}")
-        self._index = [(i, j) for i in range(grid_size) for j in range(i + 1)]
+        self.grid_size = check_int(self.name, "grid_size", grid_size, 1, 100)
+        self.offset = check_bool(self.name, "offset", offset)
+        self._index = [(i, j) for i in range(self.grid_size) for j in range(i + 1)]
 
     @property
     def n_relays(self) -> int:

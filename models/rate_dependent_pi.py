@@ -41,6 +41,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
+from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
 from .inverse import StepInvertible, StepStructure
 from .kernels import KERNEL_FASTMATH, play_update
 
@@ -145,21 +146,12 @@ class RateDependentPI(StepInvertible, HysteresisModel):
         derivative: str = "backward",
         derivative_window: float = 0.05,
     ):
-        self.n_operators = n_operators
-        self.poly_order = poly_order
-        self.offset = offset
-        self.derivative = derivative
-        self.derivative_window = derivative_window
-        if not (isinstance(n_operators, (int, np.integer)) and n_operators >= 1):
-            raise ModelError(f"{self.name}: n_operators must be a positive integer, got {n_operators!r}")
-        if not (isinstance(poly_order, (int, np.integer)) and 0 <= poly_order <= 12):
-            raise ModelError(f"{self.name}: poly_order must be an integer in 0..12, got {poly_order!r}")
-        if derivative not in DERIVATIVE_METHODS:
-            raise ModelError(
-                f"{self.name}: unknown derivative {derivative!r}; choose one of {', '.join(DERIVATIVE_METHODS)}"
-            )
-        if not derivative_window > 0:
-            raise ModelError(f"{self.name}: derivative_window must be positive, got {derivative_window!r}")
+        name = self.name
+        self.n_operators = check_int(name, "n_operators", n_operators, 1, MAX_OPERATORS)
+        self.poly_order = check_int(name, "poly_order", poly_order, 0, 12)
+        self.offset = check_bool(name, "offset", offset)
+        self.derivative = check_choice(name, "derivative", derivative, DERIVATIVE_METHODS)
+        self.derivative_window = check_number(name, "derivative_window", derivative_window, positive=True)
 
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         u, y, T = scale.u, scale.y, scale.time

@@ -47,6 +47,7 @@ from .dea_physics import TRUTH
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
+from .hyperparameters import check_bool, check_int, check_number
 from .inverse import Inversion
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
@@ -78,26 +79,18 @@ class Viscoelastic(HysteresisModel):
         offset: bool = True,
         warmup_stride: int = 5,
     ):
-        self.n_branches = n_branches
-        self.gent_limit = gent_limit
-        self.prestretch = prestretch
-        self.transverse_prestretch = transverse_prestretch
-        self.length_ratio = length_ratio
-        self.length0 = length0
-        self.thickness = thickness
-        self.eps_r = eps_r
-        self.volts_per_input_unit = volts_per_input_unit
-        self.offset = offset
-        self.warmup_stride = warmup_stride
-        if not (isinstance(warmup_stride, (int, np.integer)) and 1 <= warmup_stride <= 1000):
-            raise ModelError(f"{self.name}: warmup_stride must be an integer in 1..1000, got {warmup_stride!r}")
-        if not (isinstance(n_branches, (int, np.integer)) and 0 <= n_branches <= 8):
-            raise ModelError(f"{self.name}: n_branches must be an integer in 0..8, got {n_branches!r}")
-        for key in ("gent_limit", "prestretch", "transverse_prestretch", "length_ratio", "length0", "thickness",
-                    "eps_r", "volts_per_input_unit"):
-            v = getattr(self, key)
-            if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
-                raise ModelError(f"{self.name}: {key} must be a positive number, got {v!r}")
+        name = self.name
+        self.n_branches = check_int(name, "n_branches", n_branches, 0, 8)
+        self.gent_limit = check_number(name, "gent_limit", gent_limit, positive=True)
+        self.prestretch = check_number(name, "prestretch", prestretch, positive=True)
+        self.transverse_prestretch = check_number(name, "transverse_prestretch", transverse_prestretch, positive=True)
+        self.length_ratio = check_number(name, "length_ratio", length_ratio, positive=True)
+        self.length0 = check_number(name, "length0", length0, positive=True)
+        self.thickness = check_number(name, "thickness", thickness, positive=True)
+        self.eps_r = check_number(name, "eps_r", eps_r, positive=True)
+        self.volts_per_input_unit = check_number(name, "volts_per_input_unit", volts_per_input_unit, positive=True)
+        self.offset = check_bool(name, "offset", offset)
+        self.warmup_stride = check_int(name, "warmup_stride", warmup_stride, 1, 1000)
 
     # --- scales ------------------------------------------------------------
     def stress_scale_kpa(self, scale: DataScale) -> float:

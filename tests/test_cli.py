@@ -63,3 +63,40 @@ def test_key_values_are_json_or_text():
 
 def test_the_default_dataset_is_the_shipped_virtual_dea():
     assert (default_dataset_path() / "dataset.toml").is_file()
+
+
+DESTINATION_IS_A_FOLDER = {
+    "fit": ["fit", "--model", "classical-pi", "--json", "{tmp}"],
+    "diagnose": ["diagnose", "--out", "{tmp}/new", "--json", "{tmp}"],
+    "posterior": ["posterior", "--model", "classical-pi", "--out", "{tmp}/new", "--json", "{tmp}"],
+    "ablate": ["ablate", "--out", "{tmp}/new", "--json", "{tmp}"],
+    "compensate": ["compensate", "--models", "classical-pi", "--out", "{tmp}/new", "--json", "{tmp}"],
+}
+
+
+@pytest.mark.parametrize("command", list(DESTINATION_IS_A_FOLDER))
+def test_a_destination_that_is_a_folder_is_refused_before_any_work(command, tmp_path, capsys):
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in DESTINATION_IS_A_FOLDER[command]]
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"cannot write {tmp_path}: it is a folder" in err
+    assert not (tmp_path / "new").exists()  # nothing created, no empty output folder left
+
+
+def test_report_baselines_refuses_an_unknown_method_before_fitting_and_takes_a_folder(tmp_path, capsys):
+    code = main(["report", "baselines", "--models", "classical-pi", "--methods", "nosuch", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown method(s) nosuch" in err and "Traceback" not in err
+    assert not (tmp_path / "baselines.md").exists()
+
+
+def test_data_virtual_dea_does_not_replace_a_measured_dataset_without_force(tmp_path, capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "dataset.toml").write_text('name = "mine"\n')
+    (mine / "notes.md").write_text("my notes\n")
+    code = main(["data", "virtual-dea", "--out", str(mine), "--excitation", "triangle"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--force" in err
+    assert (mine / "notes.md").read_text() == "my notes\n"

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hysbench.benchmarks.cli import main
 from hysbench.data import Dataset, DatasetError, Record, load_dataset, save_dataset
 
 HEADER = """name = "test"
@@ -238,3 +239,107 @@ def test_cli_reports_refusal_in_one_line(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "check", str(ok)],
                           capture_output=True, text=True)
     assert proc.returncode == 0 and "r.csv" in proc.stdout
+
+
+@pytest.mark.parametrize("frequency", ["500.0", "1e6"])  # Nyquist of a 1 ms step is 500 Hz
+def test_refuses_frequency_at_or_above_nyquist(tmp_path, capsys, frequency):
+    refuse(tmp_path, "r.csv: frequency_hz .* Hz is at or above the Nyquist frequency 500 Hz",
+           record_toml=GOOD.replace("2.0", frequency))
+    assert main(["check", str(tmp_path)]) == 2  # the old default window was empty and check crashed
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Nyquist" in err
+
+
+@pytest.mark.parametrize("frequency, samples", [("1e-300", "1e+303"), ("1e-320", "more than 1e308")])
+def test_refuses_a_period_too_long_in_plain_numbers(tmp_path, frequency, samples):
+    msg = refuse(tmp_path, "r.csv: record is shorter than a period", record_toml=GOOD.replace("2.0", frequency))
+    assert f"is {samples} samples" in msg and len(msg) < 200
+
+
+def test_refuses_output_constant_in_scored_window(tmp_path):
+    t = np.arange(1000) * 1e-3
+    u = np.sin(2 * np.pi * 2.0 * t)
+    y = np.where(t < 0.5, u, 3.0)  # varies in the warm-up, constant in the last period
+    write_csv(tmp_path / "r.csv", t, u, y)
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    with pytest.raises(DatasetError, match=r"r.csv: output is constant in the scored window.*e_m and e_rms"):
+        load_dataset(tmp_path)
+
+
+def test_refuses_output_span_that_overflows(tmp_path):
+    t = np.arange(1000) * 1e-3
+    u = np.sin(2 * np.pi * 2.0 * t)
+    write_csv(tmp_path / "r.csv", t, u, 1e308 * np.sign(u))  # max - min is inf
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    with pytest.raises(DatasetError, match="r.csv: the output's peak-to-peak in the scored window overflows"):
+        load_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("first, second", [("time", "input"), ("input", "output"), ("time", "output")])
+def test_refuses_the_same_column_for_two_roles(tmp_path, first, second):
+    names = {"time": "t", "input": "u", "output": "y"}
+    header = HEADER.replace(f'{second}_column = "{names[second]}"', f'{second}_column = "{names[first]}"')
+    refuse(tmp_path, f"dataset.toml: {first}_column and {second}_column are the same column '{names[first]}'",
+           record_toml=GOOD, header=header)
+
+
+def _sine_columns(n=1000, dt=1e-3, f=2.0, extra=1):
+    """t, u, extra zero columns, y: a 2 Hz sine record as CSV columns."""
+    t = np.arange(n) * dt
+    u = np.sin(2 * np.pi * f * t)
+    return np.column_stack([t, u, *[np.zeros(n)] * extra, 2 * u])
+
+
+def test_refuses_a_used_column_name_twice_in_the_header(tmp_path):
+    np.savetxt(tmp_path / "r.csv", _sine_columns(), delimiter=",", header="t,u,u,y", comments="")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    with pytest.raises(DatasetError, match="r.csv: column name 'u' appears 2 times in the header row"):
+        load_dataset(tmp_path)
+    # a duplicate name the manifest does not use is harmless
+    np.savetxt(tmp_path / "r.csv", _sine_columns(extra=2), delimiter=",", header="t,u,x,x,y", comments="")
+    load_dataset(tmp_path)
+
+
+def test_refuses_a_used_column_name_twice_in_csv_columns(tmp_path):
+    np.savetxt(tmp_path / "r.csv", _sine_columns(), delimiter=",")
+    (tmp_path / "dataset.toml").write_text(HEADER + 'csv_columns = ["t", "u", "u", "y"]\n' + GOOD)
+    with pytest.raises(DatasetError, match="r.csv: column name 'u' appears 2 times in csv_columns"):
+        load_dataset(tmp_path)
+
+
+def test_refuses_whitespace_only_csv_as_empty(tmp_path):
+    folder = make(tmp_path, GOOD)
+    (folder / "r.csv").write_text("   \n  \n")
+    with pytest.raises(DatasetError, match="r.csv: empty record .*no header row and no data"):
+        load_dataset(folder)
+
+
+def test_refuses_a_folder_in_place_of_a_record_file(tmp_path):
+    folder = make(tmp_path, GOOD, csv=False)
+    (folder / "r.csv").mkdir()
+    with pytest.raises(DatasetError, match="r.csv: is a folder, not a record file"):
+        load_dataset(folder)
+
+
+def test_refuses_a_complex_npz_column(tmp_path):
+    t = np.arange(1000) * 1e-3
+    np.savez(tmp_path / "r.npz", t=t, u=np.sin(t) + 1j * np.cos(t), y=np.sin(t))
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD.replace("r.csv", "r.npz"))
+    with pytest.raises(DatasetError, match="r.npz: column u is complex"):
+        load_dataset(tmp_path)
+
+
+def test_one_file_listed_twice_gives_two_records_each_scored_in_its_own_role(tmp_path):
+    """One recording, an identification and a validation window (the shared piezo dataset's layout): a record's
+    file name is its key everywhere, so both were labelled identification in every score and report."""
+    from hysbench.identification import identify
+    from hysbench.models import get_model
+
+    toml = ('\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "identification"\nwindow = [0.0, 1.0]\n'
+            '\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "validation"\nwindow = [1.0, 1.5]\n')
+    ds = load_dataset(make(tmp_path, toml, n=2000))
+    assert [r.file for r in ds.records] == ["r#1.csv", "r#2.csv"]
+    assert ds.record("r#2.csv").role == "validation" and ds.record("r#2.csv").start == 1000
+    fit = identify(get_model("classical-pi"), ds, method="varpro", seed=0)
+    assert fit.fitted_on == ["r#1.csv"]
+    assert [(s.file, s.role) for s in fit.records] == [("r#1.csv", "identification"), ("r#2.csv", "validation")]

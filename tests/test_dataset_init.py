@@ -65,3 +65,25 @@ def test_an_unknown_name_lists_the_columns_and_an_existing_manifest_is_kept(tmp_
     (tmp_path / "dataset.toml").write_text("keep me")
     assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 2
     assert "--force" in capsys.readouterr().err and (tmp_path / "dataset.toml").read_text() == "keep me"
+
+
+def test_a_frequency_at_or_above_nyquist_is_refused_and_nothing_is_written(tmp_path, capsys):
+    t, u, y = _series()  # 10 ms: Nyquist 50 Hz
+    csv = tmp_path / "bare.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "0", "--input", "1", "--output", "2",
+                 "--frequency", "1e6"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Nyquist frequency 50 Hz" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["bare.csv"]
+
+
+@pytest.mark.parametrize("input_column", ["volt", "1"])  # by name or by index
+def test_a_column_name_twice_in_the_header_is_refused(tmp_path, capsys, input_column):
+    t, u, y = _series()
+    csv = tmp_path / "dup.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="time,volt,volt", comments="", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "time", "--input", input_column, "--output", "2"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "2 columns 'volt'" in err
+    assert [p.name for p in tmp_path.iterdir()] == ["dup.csv"]

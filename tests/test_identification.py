@@ -497,3 +497,25 @@ def test_varpro_searches_log_scale_parameters_in_log_coordinates():
     for s in fit.diagnostics["varpro"]["local_searches"]:
         lo, hi = fit.bounds["tau1"]
         assert lo <= s["start"][model.nonlinear_names.index("tau1")] <= hi
+
+
+@pytest.mark.parametrize("method", ["varpro", "lsq"])
+def test_fit_records_that_all_weigh_zero_are_refused(method):
+    """eq. 9 with every k_m = 0 has nothing to fit: varpro divided by zero, lsq 'succeeded' on nothing."""
+    model = get_model("mrpim")
+    ds = simulated_dataset(model, model.preset("paper"), n_periods=1.5, seed=1, frequencies=(0.4, 1.0),
+                           name="zero-weights")
+    for r in ds.records:
+        r.weight = 0.0
+    with pytest.raises(IdentificationError, match="weight 0"):
+        identify(model, ds, method=method, seed=0)
+
+
+def test_more_parameters_than_scored_samples_are_refused():
+    """varpro had stopped with a matmul shape error after minutes (1006 linear parameters, 800 rows)."""
+    model = get_model("classical-pi", n_operators=60)
+    ds = simulated_dataset(get_model("mrpim"), get_model("mrpim").preset("paper"), n_periods=1.5, seed=1,
+                           frequencies=(1.0,), dt=0.025, name="short")
+    assert sum(r.n_scored for r in ds.identification) < model.n_params
+    with pytest.raises(IdentificationError, match="more than the .* scored samples"):
+        identify(model, ds, method="varpro", seed=0)

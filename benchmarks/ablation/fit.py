@@ -11,8 +11,9 @@ import numpy as np
 
 from hysbench.data.dataset import Dataset, Record
 from hysbench.identification.criteria import lag1_autocorrelation
-from hysbench.identification import Problem, SeparableProblem, data_scale, identify
-from hysbench.models import get_model
+from hysbench.identification import Problem, SeparableProblem, identify
+from hysbench.identification.problem import drive_time
+from hysbench.models import DataScale, get_model
 
 from hysbench.data.protocol import score_records
 
@@ -20,17 +21,19 @@ from .plan import Variant, frequency_groups
 
 class FullBounds:
     """The default bounds ``identify`` would use when fitting the untrimmed records
-    ``fit_on`` (they scale with max |u|, max |y| of the fit records), so that a
-    fit on trimmed records is the same problem. ``data_scale`` is called on
-    two-sample stand-ins holding each record's extremes, computed once."""
+    ``fit_on`` (they scale with max |u|, max |y| and the drive period of the fit records), so that a
+    fit on trimmed records is the same problem: ``data_scale`` of the fit records, from each record's
+    extremes and ``drive_time``, computed once."""
 
     def __init__(self, full: Dataset):
         self._proxies = {r.file: SimpleNamespace(
-            file=r.file, u=np.array([r.u.min(), r.u.max()]), y=np.array([r.y.min(), r.y.max()]),
-            frequency_hz=r.frequency_hz, n_scored=r.n_scored, dt=r.dt) for r in full.records}
+            u=np.array([r.u.min(), r.u.max()]), y=np.array([r.y.min(), r.y.max()]), time=drive_time(r))
+            for r in full.records}
 
     def __call__(self, model, fit_on: Sequence[str]) -> dict:
-        lo, hi = model.bounds(data_scale([self._proxies[f] for f in fit_on]))
+        proxies = [self._proxies[f] for f in fit_on]
+        scale = DataScale.of([p.u for p in proxies], [p.y for p in proxies], time=min(p.time for p in proxies))
+        lo, hi = model.bounds(scale)
         return {n: [float(a), float(b)] for n, a, b in zip(model.param_names, lo, hi)}
 
 

@@ -11,7 +11,7 @@ from hysbench.data.dataset import load_dataset
 
 from hysbench.benchmarks.ablation import N_OPERATORS, ORDERS, AblationError, run_ablation
 from hysbench.benchmarks.reports.ablation import write_outputs
-from hysbench.data.files import ensure_dir
+from hysbench.data.files import check_output_dir, check_output_file, ensure_dir
 
 from .common import add_dataset_argument, add_jobs_argument, add_seed_argument, dataset_paths
 
@@ -52,9 +52,9 @@ def main(args: argparse.Namespace) -> int:
         raise AblationError(f"--orders: the model allows orders up to 12, got {max(orders)}")
     n_ops = _integers(args.operators, "operators", 1)
     dataset = load_dataset(dataset_paths(args.dataset)[0])
-    out = ensure_dir(args.out)
+    check_output_dir(args.out)
     if args.json:
-        ensure_dir(Path(args.json).resolve().parent)
+        check_output_file(args.json)
 
     def progress(variant, row):
         if not args.quiet:
@@ -65,6 +65,9 @@ def main(args: argparse.Namespace) -> int:
 
     result = run_ablation(dataset, orders=orders, n_operators=n_ops, grid=not args.no_grid, seed=args.seed,
                           jobs=jobs, trim=not args.full_records, progress=progress)
+    out = ensure_dir(args.out)
+    if args.json:
+        ensure_dir(Path(args.json).resolve().parent)
     paths = write_outputs(result, out, args.json)
     if not args.quiet:
         for line in result["conclusions"]:

@@ -24,7 +24,7 @@ from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argume
 from hysbench.benchmarks.compensation.controllers import PI_BANDWIDTH_HZ
 from hysbench.benchmarks.compensation.report import write_report
 from hysbench.benchmarks.compensation.run import DEFAULT_MODELS, check_models, compensate
-from hysbench.data.files import ensure_dir, shown_path
+from hysbench.data.files import check_output_dir, check_output_file, shown_path
 from hysbench.identification.api import list_methods
 from hysbench.identification.errors import IdentificationError
 
@@ -55,7 +55,9 @@ def main(args) -> int:
     if not (args.bandwidth > 0 and args.bandwidth < 100):
         raise IdentificationError(f"--bandwidth must lie in (0, 100) Hz, got {args.bandwidth!r}")
     check_models(names)  # an unknown model fails here, before any work
-    ensure_dir(args.out)
+    check_output_dir(args.out)
+    if args.json:
+        check_output_file(args.json)
     t0 = time.perf_counter()
 
     def say(msg: str) -> None:

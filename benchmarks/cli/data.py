@@ -45,18 +45,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub.required = True
     p = sub.add_parser("virtual-dea", help="the virtual DEA's seven records (the default dataset)",
                        description=__doc__.split("\n\n")[1])
-    p.add_argument("--out", required=True, help="output folder (replaced if it is a dataset folder)")
+    p.add_argument("--out", required=True,
+                   help="output folder (replaced if it holds a virtual DEA made by this command, else only with --force)")
+    p.add_argument("--force", action="store_true", help="replace any dataset folder at --out")
     p.add_argument("--seed", type=nonnegative_int, default=DEFAULT_SEED,
                    help=f"seed of the sensor noise (default {DEFAULT_SEED}, the shipped dataset's)")
     p.add_argument("--excitation", metavar="NAME[,NAME...]",
                    help=f"unseen drives instead of the seven sines: {', '.join(EXCITATIONS)}, or all")
 
 
-def check_output_folder(out: Path) -> None:
+def check_output_folder(out: Path, force: bool = False) -> None:
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / "dataset.toml").is_file():
         raise OutputError(f"--out {out} is a non-empty folder without dataset.toml; refusing to replace it")
+    if (out / "dataset.toml").is_file() and not (out / "truth.json").is_file() and not force:
+        raise OutputError(f"--out {out} holds a dataset not made by this command (no truth.json); "
+                          "refusing to replace it without --force")
     parent = out.parent if str(out.parent) else Path(".")
     if parent.exists() and not parent.is_dir():
         raise OutputError(f"cannot write {out}: {parent} is not a folder")
@@ -69,7 +74,7 @@ def main(args) -> int:
         raise DataCommandError(f"--seed must be an integer in 0..{SEED_MAX}, got {args.seed}")
     out = Path(args.out)
     names = excitation_names(args.excitation)
-    check_output_folder(out)
+    check_output_folder(out, args.force)
     t0 = time.perf_counter()
     try:
         if names:

@@ -121,6 +121,12 @@ def main(args) -> int:
     columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
     if len(set(columns)) < 3:
         raise CommandError(f"--time, --input and --output must be three different columns, got indices {columns}")
+    if header is not None:
+        for role, k in zip(ROLE_NAMES, columns):
+            if header.count(header[k]) > 1:
+                raise CommandError(f"--{role} {getattr(args, role)}: the header row names {header.count(header[k])} "
+                                   f"columns {header[k]!r}, so a manifest cannot tell them apart (rename them in "
+                                   f"the CSV)")
     text = manifest(args, csv_path, header, columns, len(row))
     check = csv_path.parent / ".dataset-init.check.toml"
     write_atomic(check, text)

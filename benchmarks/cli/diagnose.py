@@ -19,6 +19,7 @@ from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argume
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
 from hysbench.benchmarks.diagnosis.report import verdict_lines, write_report
+from hysbench.data.files import check_output_dir, check_output_file
 from hysbench.models import get_model
 
 EXAMPLE = "hysbench diagnose data/virtual_dea --model mrpim --out results"
@@ -37,7 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    model = get_model(args.model)  # an unknown name fails here, before any work
+    model = get_model(args.model)  # an unknown name or an unwritable destination fails here, before any work
+    check_output_dir(args.out)
+    if args.json:
+        check_output_file(args.json)
     t0 = time.perf_counter()
 
     def say(msg: str) -> None:

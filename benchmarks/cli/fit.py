@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hysbench.data.files import ensure_dir, write_json
+from hysbench.data.files import check_output_file, ensure_dir, write_json
 from hysbench.models import get_model
 
 from hysbench.identification.api import identify, list_methods
@@ -45,10 +45,11 @@ def main(args) -> int:
     dataset = dataset_paths(args.dataset)[0]
     model = get_model(args.model, **hyper)
     if args.json:  # refuse an unwritable destination before spending time on the fit
-        ensure_dir(Path(args.json).parent)
+        check_output_file(args.json)
     fit = identify(model, dataset, method=args.method, seed=args.seed, **options)
     print(fit.summary())
     if args.json:
+        ensure_dir(Path(args.json).resolve().parent)
         write_json(args.json, fit.to_dict())
         print(f"\nwrote {args.json}")
     if not fit.success:

@@ -23,7 +23,7 @@ from pathlib import Path
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, dataset_paths, nonnegative_int,
                                            positive_int)
 
-from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.data.files import check_output_dir, check_output_file, ensure_dir, write_atomic, write_json
 from hysbench.data.dataset import load_dataset
 from hysbench.models import get_model
 
@@ -102,13 +102,14 @@ def main(args) -> int:
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     dataset = load_dataset(dataset_paths(args.dataset)[0])
     model = get_model(args.model)
-    out = ensure_dir(args.out)
-    json_path = Path(args.json) if args.json else out / "posterior.json"
-    if json_path.parent != out:
-        ensure_dir(json_path.parent)
-    chain = None if args.no_chain else Path(args.chain) if args.chain else out / "posterior_chain.h5"
+    check_output_dir(args.out)
+    json_path = check_output_file(args.json) if args.json else Path(args.out) / "posterior.json"
+    chain = None if args.no_chain else Path(args.chain) if args.chain else Path(args.out) / "posterior_chain.h5"
     if chain is not None and chain.exists() and chain.is_dir():
         raise IdentificationError(f"chain file {chain} is a folder")
+    out = ensure_dir(args.out)
+    if json_path.parent != out:
+        ensure_dir(json_path.parent)
     if chain is not None:
         ensure_dir(chain.parent)
     run = sample_posterior(model, dataset, noise=args.noise, n_walkers=args.walkers, max_steps=args.steps,

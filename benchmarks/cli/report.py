@@ -35,7 +35,7 @@ def _identification_arguments(parser):
 
 def _baselines_arguments(parser):
     add_dataset_argument(parser)
-    parser.add_argument("--out", default="results/baselines.md", help="output file (default results/baselines.md)")
+    parser.add_argument("--out", default="results/baselines.md", help="output file, or a folder to write baselines.md in (default results/baselines.md)")
     add_seed_argument(parser)
     parser.add_argument("--models", help="comma-separated models (default: the five baselines, classical-pi, mrpim)")
     parser.add_argument("--methods", help="comma-separated methods tried per model (default: varpro)")

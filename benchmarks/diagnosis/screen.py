@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
-from hysbench.data.excitations import drive_band
+from hysbench.data.excitations import shortest_period
 from hysbench.identification.criteria import effective_sample_size
 from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
@@ -64,16 +64,6 @@ class _BaseColumns:
 
     rows: list  # (n_rows_m, n_base_linear) per record
     full: list | None  # {name: full-length column} per record, or None if not kept
-
-
-def shortest_period(record: Record) -> float:
-    """A record's shortest drive period (s): 1 / its nominal frequency, or else 1 / the high end of its input's
-    band (``drive_band``), at most its duration."""
-    if record.frequency_hz:
-        return 1.0 / record.frequency_hz
-    duration = record.t.size * record.dt
-    band = drive_band(record.u, record.dt)
-    return duration if band is None else min(1.0 / band[1], duration)
 
 
 def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,7 +99,8 @@ class Screen:
             self.parts.append(_Part(r, rows, r.y[rows].copy()))
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
-        self.drive_time = min(shortest_period(p.record) for p in self.parts)  # the causes' time scale
+        # the causes' time scale
+        self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
         self.component_scale = replace(scale, time=self.drive_time)
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
@@ -130,10 +121,11 @@ class Screen:
     @property
     def creep_min(self) -> float:
         """Creep is a drift much slower than the drive: at least twice the longest nominal drive period, and
-        at least the data scale's time (for records without a nominal frequency: the shortest one's duration;
-        a spectrum's lowest bins hold a record's fade-in and length, not a drive period)."""
+        at least the shortest record's span: 1 / its frequency, or for a record without a nominal frequency its
+        scored duration (a spectrum's lowest bins hold a record's fade-in and length, not a drive period)."""
         periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
-        return max(CREEP_TIME_BOUNDS[0] * self.scale.time, CREEP_PERIODS * max(periods, default=0.0))
+        spans = [1.0 / r.frequency_hz if r.frequency_hz else r.n_scored * r.dt for r in (p.record for p in self.parts)]
+        return max(CREEP_TIME_BOUNDS[0] * min(spans), CREEP_PERIODS * max(periods, default=0.0))
 
     @property
     def shortest_span(self) -> float:

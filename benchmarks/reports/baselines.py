@@ -16,9 +16,10 @@ import time
 from pathlib import Path
 
 from hysbench.data.dataset import Dataset, load_dataset
-from hysbench.data.files import shown_path, write_atomic
-from hysbench.identification import applicable_methods, identify
+from hysbench.data.files import check_output_file, ensure_dir, shown_path, write_atomic
+from hysbench.identification import METHODS, applicable_methods, identify
 from hysbench.models import get_model
+from hysbench.models.errors import HysbenchError
 
 BASELINES = ("elliptical", "dual-polynomial", "bouc-wen", "preisach", "rate-dependent-pi")
 REFERENCE_MODELS = ("classical-pi", "mrpim")  # shown beside the baselines for scale
@@ -114,13 +115,20 @@ def build_report(dataset: Dataset, description: str, models, methods, seed: int 
 
 
 def write_report(path: Path, out_file: Path, seed: int = 0, models=None, methods=None) -> int:
+    """``out_file``: the report file, or a folder to write baselines.md in (as the other reports' --out)."""
+    out_file = Path(out_file) / "baselines.md" if Path(out_file).is_dir() else Path(out_file)
+    check_output_file(out_file)  # unknown names and an unwritable destination fail before any fitting
     dataset = load_dataset(path)
     description = f"`{shown_path(path)}` (dataset `{dataset.name}`)"
     models = list(models or BASELINES + REFERENCE_MODELS)
     for m in models:
-        get_model(m)  # an unknown name fails here, before any fitting
+        get_model(m)
     methods = list(methods or DEFAULT_METHODS)
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise HysbenchError(f"unknown method(s) {', '.join(unknown)} (known: {', '.join(METHODS)})")
     text = build_report(dataset, description, models, methods, seed)
+    ensure_dir(out_file.resolve().parent)
     write_atomic(out_file, text)
     print(f"wrote {out_file}")
     return 0

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from hysbench.data.dataset import Dataset, DatasetError, Record, load_dataset, shared_datasets_root
-from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.data.files import check_output_dir, ensure_dir, write_atomic, write_json
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
 from hysbench.models import get_model
@@ -112,6 +112,7 @@ def build(dataset_path: Path, out: Path, seed: int) -> dict:
     rows.append(fit_comparison("classical-pi", dataset, seed, "varpro"))  # its weights solved exactly
     result = {"dataset": dataset.name, "seed": seed, "published": PUBLISHED, "rows": rows,
               "true_parameters": interpolation_check(dataset), "load_average": os.getloadavg()[0]}
+    out = ensure_dir(out)
     write_json(out / "bouc_wen_benchmark.json", result)
     write_atomic(out / "bouc_wen_benchmark.md", render(result))
     return result
@@ -221,6 +222,6 @@ def write_report(out_dir, seed: int = 0, dataset: Path = DEFAULT_DATASET) -> int
     dataset = Path(dataset)
     if not (dataset / "dataset.toml").is_file():
         raise DatasetError(f"no Bouc-Wen benchmark dataset at {dataset} (give DATASET)")
-    build(dataset, ensure_dir(out_dir), seed)
+    build(dataset, check_output_dir(out_dir), seed)
     print(f"wrote {out_dir}/bouc_wen_benchmark.md")
     return 0
