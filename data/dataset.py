@@ -323,6 +323,11 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     if not body:
         raise DatasetError(f"{where}: empty record (no data rows)")
     wanted = [header.index(c) for c in columns]
+    counts = np.array([ln.count(delimiter) + 1 for ln in body]) if '"' not in text else None
+    if counts is not None and np.any(counts != len(header)):
+        k = int(np.flatnonzero(counts != len(header))[0])
+        raise DatasetError(f"{where}: columns of unequal length (data row {k + 1} has {counts[k]} fields, "
+                           f"{names_from} names {len(header)})")
     try:
         data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
     except ValueError:

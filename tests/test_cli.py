@@ -100,3 +100,21 @@ def test_data_virtual_dea_does_not_replace_a_measured_dataset_without_force(tmp_
     err = capsys.readouterr().err
     assert code == 2 and "--force" in err
     assert (mine / "notes.md").read_text() == "my notes\n"
+
+
+def test_version_is_printed(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        from hysbench.benchmarks.cli import build_parser
+        build_parser().parse_args(["--version"])
+    assert exit_info.value.code == 0 and capsys.readouterr().out.startswith("hysbench ")
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["posterior", "--burn", "50", "--steps", "20", "--fixed-steps", "--out", "{tmp}/new"], "--burn 50"),
+    (["compensate", "--references", ",", "--out", "{tmp}/new"], "--references names no reference"),
+])
+def test_options_refused_before_any_work(argv, named, tmp_path, capsys):
+    code = main([a.replace("{tmp}", str(tmp_path)) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 2 and named in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "new").exists()

@@ -343,3 +343,17 @@ def test_one_file_listed_twice_gives_two_records_each_scored_in_its_own_role(tmp
     fit = identify(get_model("classical-pi"), ds, method="varpro", seed=0)
     assert fit.fitted_on == ["r#1.csv"]
     assert [(s.file, s.role) for s in fit.records] == [("r#1.csv", "identification"), ("r#2.csv", "validation")]
+
+
+@pytest.mark.parametrize("change", ["extra field", "missing unused field"])
+def test_refuses_a_ragged_row_even_in_columns_it_does_not_use(tmp_path, change):
+    """A row with a field more or fewer than the header is a malformed file, whichever column it hits."""
+    t = np.arange(1000) * 1e-3
+    u = np.sin(2 * np.pi * 2.0 * t)
+    (tmp_path / "r.csv").write_text("t,u,y,note\n" + "\n".join(f"{a!r},{b!r},{2 * b!r},0" for a, b in zip(t, u)) + "\n")
+    lines = (tmp_path / "r.csv").read_text().splitlines()
+    lines[30] = lines[30] + ",7" if change == "extra field" else lines[30].rsplit(",", 1)[0]
+    (tmp_path / "r.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    with pytest.raises(DatasetError, match="unequal length .*data row 30"):
+        load_dataset(tmp_path)

@@ -10,6 +10,7 @@ exit status 2, never as a traceback.
 from __future__ import annotations
 
 import argparse
+from importlib.metadata import PackageNotFoundError, version as _dist_version
 import importlib
 import sys
 
@@ -37,8 +38,16 @@ COMMANDS = {
 }
 
 
+def _version() -> str:
+    try:
+        return _dist_version("hysbench")
+    except PackageNotFoundError:  # running from a source tree
+        return "0+unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="hysbench", description="Benchmark suite for rate-dependent hysteresis models.")
+    parser.add_argument("--version", action="version", version=f"hysbench {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     sub.required = True
     for name, (module, help_text) in COMMANDS.items():

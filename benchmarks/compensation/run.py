@@ -93,11 +93,16 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
                             "(the virtual DEA) takes kV and gives mm: compensate needs a dataset recorded on it")
     refs = references(ds, dt)  # refuses a dataset without the protocol's sines, before any identification
     if reference_names is not None:
-        unknown = sorted(set(reference_names) - {r.name for r in refs})
+        if not any(reference_names):
+            raise HysbenchError(f"--references names no reference; known: {', '.join(r.name for r in refs)}")
+        unknown = sorted(set(n for n in reference_names if n) - {r.name for r in refs})
         if unknown:
             raise HysbenchError(f"unknown reference(s) {', '.join(unknown)}; known: {', '.join(r.name for r in refs)}")
         refs = [r for r in refs if r.name in reference_names]
     invertible, not_invertible = check_models(models)
+    if not invertible:
+        raise HysbenchError("no model to compare: " + "; ".join(f"{n} cannot be inverted ({why})"
+                                                                 for n, why in not_invertible.items()))
     for name, why in not_invertible.items():
         log(f"{name}: cannot be inverted: {why}")
     linear = LinearGain.fit(ds)
