@@ -112,9 +112,10 @@ def test_version_is_printed(capsys):
 @pytest.mark.parametrize("argv, named", [
     (["posterior", "--burn", "50", "--steps", "20", "--fixed-steps", "--out", "{tmp}/new"], "--burn 50"),
     (["compensate", "--references", ",", "--out", "{tmp}/new"], "--references names no reference"),
+    (["run", "--unseen", "{tmp}/nosuch", "--out", "{tmp}/new"], "--unseen {tmp}/nosuch: no such dataset folder"),
 ])
 def test_options_refused_before_any_work(argv, named, tmp_path, capsys):
     code = main([a.replace("{tmp}", str(tmp_path)) for a in argv])
     err = capsys.readouterr().err
-    assert code == 2 and named in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and named.replace("{tmp}", str(tmp_path)) in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "new").exists()

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from hysbench.data.files import ensure_dir
-from hysbench.data.dataset import load_dataset, shared_datasets_root
+from hysbench.data.dataset import DatasetError, load_dataset, shared_datasets_root
 from hysbench.data.virtual_dea import default_waveforms_path
 from hysbench.models.errors import HysbenchError
 
@@ -90,11 +90,16 @@ def _suite_datasets(args) -> tuple[list, list[str]]:
 def _unseen_dataset(args, datasets):
     if args.suite != "default" or (args.unseen or "").lower() == "none":
         return None
+    if args.unseen and not Path(args.unseen).exists():
+        raise CommandError(f"--unseen {args.unseen}: no such dataset folder")
     if not any(ds.name == unseen.IDENTIFIED_ON for _, ds in datasets):
         if args.unseen:
             raise CommandError(f"--unseen needs cells identified on {unseen.IDENTIFIED_ON!r}; no such dataset is run")
         return None
-    return load_dataset(args.unseen or default_waveforms_path())
+    try:
+        return load_dataset(args.unseen or default_waveforms_path())
+    except DatasetError as exc:
+        raise CommandError(f"--unseen: {exc}") from None
 
 
 def main(args) -> int:
