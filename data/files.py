@@ -35,6 +35,10 @@ def ensure_dir(path: str | os.PathLike) -> Path:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"cannot create output folder {path}: {exc.strerror or exc}") from None
+    return _writable_folder(path)
+
+
+def _writable_folder(path: Path) -> Path:
     if not path.is_dir():
         raise OutputError(f"output path {path} is not a folder")
     if not os.access(path, os.W_OK | os.X_OK):
@@ -47,11 +51,7 @@ def check_output_dir(path: str | os.PathLike) -> Path:
     created as one (its nearest existing ancestor is a writable folder)."""
     path = Path(path)
     if path.exists():
-        if not path.is_dir():
-            raise OutputError(f"output path {path} is not a folder")
-        if not os.access(path, os.W_OK | os.X_OK):
-            raise OutputError(f"output folder {path} is not writable")
-        return path
+        return _writable_folder(path)
     ancestor = path.resolve().parent
     while not ancestor.exists():
         ancestor = ancestor.parent
