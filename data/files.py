@@ -38,11 +38,13 @@ def ensure_dir(path: str | os.PathLike) -> Path:
     return _writable_folder(path)
 
 
-def _writable_folder(path: Path) -> Path:
+def _writable_folder(path: Path, inside: Path | None = None) -> Path:
+    """``path`` if it is a writable folder; ``inside``: the folder to be created in it, named in the message."""
+    lead = f"cannot create output folder {inside}: {path}" if inside else None
     if not path.is_dir():
-        raise OutputError(f"output path {path} is not a folder")
+        raise OutputError(f"{lead} is not a folder" if lead else f"output path {path} is not a folder")
     if not os.access(path, os.W_OK | os.X_OK):
-        raise OutputError(f"output folder {path} is not writable")
+        raise OutputError(f"{lead} is not writable" if lead else f"output folder {path} is not writable")
     return path
 
 
@@ -55,10 +57,7 @@ def check_output_dir(path: str | os.PathLike) -> Path:
     ancestor = path.resolve().parent
     while not ancestor.exists():
         ancestor = ancestor.parent
-    if not ancestor.is_dir():
-        raise OutputError(f"cannot create output folder {path}: {ancestor} is not a folder")
-    if not os.access(ancestor, os.W_OK | os.X_OK):
-        raise OutputError(f"cannot create output folder {path}: {ancestor} is not writable")
+    _writable_folder(ancestor, inside=path)
     return path
 
 
