@@ -203,6 +203,13 @@ def _unique_keys(records: list[Record]) -> None:
     counts: dict[str, int] = {}
     for r in records:
         counts[r.file] = counts.get(r.file, 0) + 1
+    for a in records:  # held out means held out: no validation sample is also fitted
+        for b in records:
+            if (a.file == b.file and a.role == "identification" and b.role == "validation"
+                    and max(a.start, b.start) < min(a.stop, b.stop)):
+                raise DatasetError(f"{a.file}: its validation window overlaps its identification window "
+                                   f"({a.t[max(a.start, b.start)]:g}-{a.t[min(a.stop, b.stop) - 1]:g} s); "
+                                   "validation samples must take no part in the fit")
     seen: dict[str, int] = {}
     for r in records:
         if counts[r.file] > 1:

@@ -357,3 +357,10 @@ def test_refuses_a_ragged_row_even_in_columns_it_does_not_use(tmp_path, change):
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
     with pytest.raises(DatasetError, match="unequal length .*data row 30"):
         load_dataset(tmp_path)
+
+
+def test_refuses_a_validation_window_that_overlaps_the_identification_window_of_the_same_file(tmp_path):
+    toml = ('\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "identification"\nwindow = [0.0, 1.0]\n'
+            '\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "validation"\nwindow = [0.5, 1.5]\n')
+    with pytest.raises(DatasetError, match="r.csv: its validation window overlaps its identification window"):
+        load_dataset(make(tmp_path, toml, n=2000))
