@@ -306,3 +306,12 @@ def test_a_non_finite_cell_is_stored_as_strict_json_and_read_back(small_dataset,
     again = store.get(cell.key)
     assert again is not None and again["status"] == "nonfinite"
     assert matrix_rows([again]) == []
+
+
+def test_an_unreachable_dask_scheduler_leaves_no_output_folder(small_dataset, tmp_path):
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "new"
+    proc = run([str(small_dataset), *FAST, "--dask", "tcp://127.0.0.1:1", "--out", str(out)])
+    assert proc.returncode == 2 and "cannot connect to the Dask scheduler" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not out.exists()

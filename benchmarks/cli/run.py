@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -126,6 +127,7 @@ def main(args) -> int:
     is_measured = args.suite == "measured"
     csv_name, report_name = ((measured.MEASURED_CSV, measured.MEASURED_REPORT) if is_measured
                              else ("matrix.csv", "report.md"))
+    out_existed = Path(args.out).exists()
     out = ensure_dir(args.out)
     store = CellStore(out, measured.MEASURED_CELLS if is_measured else "cells")
     reused = sum(1 for c in cells if not args.force and store.get(c.key) is not None)
@@ -136,8 +138,13 @@ def main(args) -> int:
         results[res["key"]] = res
         write_matrix_csv(out, list(results.values()), csv_name)
 
-    all_results = run_matrix(cells, store, jobs=args.jobs, dask_address=args.dask, force=args.force,
-                             on_result=on_result, quiet=args.quiet)
+    try:
+        all_results = run_matrix(cells, store, jobs=args.jobs, dask_address=args.dask, force=args.force,
+                                 on_result=on_result, quiet=args.quiet)
+    except BaseException:
+        if not out_existed and not any(p.is_file() for p in out.rglob("*")):  # no empty folders left behind
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     ordered = [all_results[c.key] for c in cells]
     write_matrix_csv(out, ordered, csv_name)
     extra = []
