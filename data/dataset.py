@@ -270,15 +270,11 @@ def _load_record(folder: Path, index: int, rm: dict, columns, csv_columns, delim
 
 
 def _check_output_span(where: str, y: np.ndarray) -> None:
-    """e_m and e_rms are % of the scored output's peak-to-peak: it must be positive and finite."""
-    with np.errstate(over="ignore"):
-        span = float(np.max(y) - np.min(y))
-    if span == 0:
+    """e_m and e_rms are % of the scored output's peak-to-peak: it must be positive (``check_series`` keeps
+    it finite)."""
+    if float(np.max(y) - np.min(y)) == 0:
         raise DatasetError(f"{where}: output is constant in the scored window: the errors e_m and e_rms "
                            f"(% of its peak-to-peak) are undefined")
-    if not math.isfinite(span):
-        raise DatasetError(f"{where}: the output's peak-to-peak in the scored window overflows a float "
-                           f"(max {np.max(y):g}, min {np.min(y):g})")
 
 
 def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
@@ -351,6 +347,9 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     return [data[:, k].copy() for k in range(len(columns))]
 
 
+MAX_MAGNITUDE = 1e100  # |value| of any column: squares summed over many samples stay finite
+
+
 def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
     """Refuse unequal lengths, empty records, NaN/inf and non-uniform time."""
     lengths = {c: a.size for c, a in zip(columns, (t, u, y))}
@@ -362,6 +361,10 @@ def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, column
         if not np.all(np.isfinite(a)):
             k = int(np.flatnonzero(~np.isfinite(a))[0])
             raise DatasetError(f"{where}: column {c} holds NaN or inf (first at sample {k})")
+        if np.any(np.abs(a) > MAX_MAGNITUDE):
+            k = int(np.flatnonzero(np.abs(a) > MAX_MAGNITUDE)[0])
+            raise DatasetError(f"{where}: column {c} holds {a[k]:g} at sample {k}, beyond {MAX_MAGNITUDE:g} in "
+                               "magnitude: sums of squares would overflow (rescale the column's unit)")
     if t.size < 2:
         raise DatasetError(f"{where}: a record needs at least two samples")
     steps = np.diff(t)

@@ -266,12 +266,15 @@ def test_refuses_output_constant_in_scored_window(tmp_path):
         load_dataset(tmp_path)
 
 
-def test_refuses_output_span_that_overflows(tmp_path):
+@pytest.mark.parametrize("column", ["u", "y"])
+def test_refuses_values_whose_squares_overflow(tmp_path, column):
+    """1e308 passed: max - min of the output was inf, and an input of 1e308 gave parameter bounds near 1e-306."""
     t = np.arange(1000) * 1e-3
     u = np.sin(2 * np.pi * 2.0 * t)
-    write_csv(tmp_path / "r.csv", t, u, 1e308 * np.sign(u))  # max - min is inf
+    big = 1e308 * np.sign(u)
+    write_csv(tmp_path / "r.csv", t, big if column == "u" else u, big if column == "y" else u)
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
-    with pytest.raises(DatasetError, match="r.csv: the output's peak-to-peak in the scored window overflows"):
+    with pytest.raises(DatasetError, match=f"r.csv: column {column} holds .* beyond 1e\\+100 in magnitude"):
         load_dataset(tmp_path)
 
 
