@@ -36,6 +36,7 @@ import os
 import shutil
 import tempfile
 import tomllib
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
@@ -46,6 +47,7 @@ from hysbench.models.errors import HysbenchError
 
 ROLES = ("identification", "validation")
 UNIFORM_STEP_TOLERANCE = 0.01
+MAX_MAGNITUDE = 1e100  # |value| of any column: squares summed over many samples stay finite
 TOP_REQUIRED = ("name", "time_column", "input_column", "output_column", "records")
 TOP_OPTIONAL = ("description", "input_unit", "output_unit", "csv_columns", "delimiter")
 RECORD_REQUIRED = ("file", "role")
@@ -173,6 +175,7 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
         if not isinstance(rm, dict):
             raise DatasetError(f"{toml_path.name}: records[{i}] must be a table")
         records.append(_load_record(toml_path.parent, i, rm, columns, csv_columns, delimiter))
+    _check_held_out(records)
     _unique_keys(records)
     return Dataset(
         name=meta["name"],
@@ -196,24 +199,26 @@ def _check_distinct_columns(where: str, columns) -> None:
                                    f"time, input and output must be three different columns")
 
 
-def _unique_keys(records: list[Record]) -> None:
-    """A record's ``file`` is its key everywhere (roles, fit_on, scores, reports). A file listed more than
-    once (e.g. one recording, an identification and a validation window) is keyed STEM#k.SUFFIX,
-    k = 1, 2, ... in manifest order; its data were read from the file itself."""
-    counts: dict[str, int] = {}
-    for r in records:
-        counts[r.file] = counts.get(r.file, 0) + 1
-    for a in records:  # held out means held out: no validation sample is also fitted
+def _check_held_out(records: list[Record]) -> None:
+    """Held out means held out: no validation window overlaps an identification window of the same file."""
+    for a in records:
         for b in records:
             if (a.file == b.file and a.role == "identification" and b.role == "validation"
                     and max(a.start, b.start) < min(a.stop, b.stop)):
                 raise DatasetError(f"{a.file}: its validation window overlaps its identification window "
                                    f"({a.t[max(a.start, b.start)]:g}-{a.t[min(a.stop, b.stop) - 1]:g} s); "
                                    "validation samples must take no part in the fit")
-    seen: dict[str, int] = {}
+
+
+def _unique_keys(records: list[Record]) -> None:
+    """A record's ``file`` is its key everywhere (roles, fit_on, scores, reports). A file listed more than
+    once (e.g. one recording, an identification and a validation window) is keyed STEM#k.SUFFIX,
+    k = 1, 2, ... in manifest order; its data were read from the file itself."""
+    counts = Counter(r.file for r in records)
+    seen: Counter = Counter()
     for r in records:
         if counts[r.file] > 1:
-            seen[r.file] = seen.get(r.file, 0) + 1
+            seen[r.file] += 1
             path = Path(r.file)
             r.file = str(path.with_name(f"{path.stem}#{seen[r.file]}{path.suffix}"))
 
@@ -347,11 +352,8 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     return [data[:, k].copy() for k in range(len(columns))]
 
 
-MAX_MAGNITUDE = 1e100  # |value| of any column: squares summed over many samples stay finite
-
-
 def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
-    """Refuse unequal lengths, empty records, NaN/inf and non-uniform time."""
+    """Refuse unequal lengths, empty records, NaN/inf, values beyond MAX_MAGNITUDE and non-uniform time."""
     lengths = {c: a.size for c, a in zip(columns, (t, u, y))}
     if len(set(lengths.values())) > 1:
         raise DatasetError(f"{where}: columns of unequal length ({', '.join(f'{c}: {n}' for c, n in lengths.items())})")

@@ -40,7 +40,7 @@ def _float(x):
 
 def _shown(x: float, spec: str) -> str:
     """A number as the summary prints it; a non-finite one as "non-finite" (never nan or inf)."""
-    return format(x, spec) if math.isfinite(x) else format("non-finite", f">{len(format(1.0, spec))}")
+    return format(x, spec) if math.isfinite(x) else "non-finite"
 
 
 @dataclass

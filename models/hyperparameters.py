@@ -45,10 +45,14 @@ def _span(lo, hi) -> str:
     return f"<= {hi}" if hi is not None else ""
 
 
+def _int_in(value, lo: int | None, hi: int | None) -> bool:
+    return (isinstance(value, (int, np.integer)) and not _is_bool(value)
+            and (lo is None or value >= lo) and (hi is None or value <= hi))
+
+
 def check_int(owner: str, name: str, value, lo: int | None = None, hi: int | None = None) -> int:
     """``value`` if it is an integer (not a bool) in lo..hi (inclusive; None: unbounded)."""
-    if (isinstance(value, (int, np.integer)) and not _is_bool(value)
-            and (lo is None or value >= lo) and (hi is None or value <= hi)):
+    if _int_in(value, lo, hi):
         return int(value)
     span = _span(lo, hi)
     raise ModelError(f"{owner}: {name} must be an integer{' ' + span if span else ''}, got {value!r}")
@@ -60,13 +64,9 @@ def check_int_list(owner: str, name: str, values, lo: int | None = None, hi: int
     what = f"{owner}: {name} must be a non-empty list of integers{' ' + span if span else ''}, got {values!r}"
     if not isinstance(values, (list, tuple, np.ndarray)) or len(values) == 0:
         raise ModelError(what)
-    out = []
-    for v in values:
-        if not (isinstance(v, (int, np.integer)) and not _is_bool(v)
-                and (lo is None or v >= lo) and (hi is None or v <= hi)):
-            raise ModelError(what)
-        out.append(int(v))
-    return tuple(out)
+    if not all(_int_in(v, lo, hi) for v in values):
+        raise ModelError(what)
+    return tuple(int(v) for v in values)
 
 
 def check_number(owner: str, name: str, value, lo: float | None = None, hi: float | None = None,
