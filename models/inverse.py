@@ -89,7 +89,7 @@ import numpy as np
 from numba import njit
 
 from .errors import ModelError
-from .hyperparameters import check_int
+from .hyperparameters import check_int, check_number
 from .kernels import KERNEL_FASTMATH, play_update
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
@@ -278,6 +278,11 @@ class StepInvertible:
         return Inversion(u, clipped)
 
 
+def check_max_rate(name: str, max_rate) -> float | None:
+    """An inverse's |du/dt| limit: None (no limit) or a positive, finite number (not a bool)."""
+    return None if max_rate is None else check_number(name, "max_rate", max_rate, positive=True)
+
+
 @dataclass(frozen=True)
 class InverseArguments:
     """The checked arguments every model's ``invert`` shares (see ``StepInvertible.invert``)."""
@@ -304,9 +309,8 @@ class InverseArguments:
         if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
             raise ModelError(f"{name}: input limits must have low < high, got {input_limits!r}")
         n_grid = check_int(name, "n_grid", n_grid, 2)
-        if max_rate is not None and not max_rate > 0:
-            raise ModelError(f"{name}: max_rate must be positive, got {max_rate!r}")
-        max_step = np.inf if max_rate is None else float(max_rate) * float(dt)
+        max_rate = check_max_rate(name, max_rate)
+        max_step = np.inf if max_rate is None else max_rate * float(dt)
         start = lo if u_start is None else float(u_start)
         return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
                    1e-12 * (1.0 + float(np.max(np.abs(yd)))))

@@ -48,7 +48,7 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import Inversion
+from .inverse import Inversion, check_max_rate
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -195,7 +195,8 @@ class Viscoelastic(HysteresisModel):
             raise ModelError(f"{self.name}: invert needs a positive length, got {length!r}")
         kv = self.volts_per_input_unit / 1000.0
         lo, hi = float(limits[0]) * kv, float(limits[1]) * kv
-        step = np.inf if max_rate is None else float(max_rate) * kv * float(dt)
+        max_rate = check_max_rate(self.name, max_rate)
+        step = np.inf if max_rate is None else max_rate * kv * float(dt)
         start = lo if u_start is None else float(u_start) * kv
         dlam = (yd - offset) / length
         tol = 1e-12 * (1.0 + float(np.max(np.abs(dlam))))

@@ -87,3 +87,12 @@ def test_a_column_name_twice_in_the_header_is_refused(tmp_path, capsys, input_co
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "2 columns 'volt'" in err
     assert [p.name for p in tmp_path.iterdir()] == ["dup.csv"]
+
+
+def test_a_loader_refusal_names_the_file_once(tmp_path, capsys):
+    csv = tmp_path / "ragged.csv"
+    csv.write_text("t,u,y\n0,1,2\n0.001,1.1\n")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "unequal length" in err
+    assert err.count("ragged.csv") == 1, err  # was "DIR/ragged.csv: ragged.csv: columns of unequal length ..."

@@ -134,7 +134,8 @@ def main(args) -> int:
         ds = load_dataset(check)  # the loader's own checks (numbers, uniform time, window) before the real name
         os.replace(check, target)
     except DatasetError as exc:
-        raise CommandError(f"{csv_path}: {exc}") from None
+        message = str(exc).removeprefix(f"{csv_path.name}: ")  # the loader names the file itself
+        raise CommandError(f"{csv_path}: {message}") from None
     finally:
         check.unlink(missing_ok=True)
     rec = ds.records[0]
