@@ -43,8 +43,11 @@ def _writable_folder(path: Path, inside: Path | None = None) -> Path:
     lead = f"cannot create output folder {inside}: {path}" if inside else None
     if not path.is_dir():
         raise OutputError(f"{lead} is not a folder" if lead else f"output path {path} is not a folder")
-    if not os.access(path, os.W_OK | os.X_OK):
-        raise OutputError(f"{lead} is not writable" if lead else f"output folder {path} is not writable")
+    try:  # a probe, not os.access: that says root may write anywhere, /proc included
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".hysbench-probe-"):
+            pass
+    except OSError:
+        raise OutputError(f"{lead} is not writable" if lead else f"output folder {path} is not writable") from None
     return path
 
 

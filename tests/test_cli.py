@@ -1,6 +1,8 @@
 """The command line as one package: every command shows an example, shares its argument types,
 and refuses bad input in one line with exit status 2."""
 
+import os
+
 import pytest
 
 from hysbench.benchmarks.cli import COMMANDS, main
@@ -82,6 +84,14 @@ def test_a_destination_that_is_a_folder_is_refused_before_any_work(command, tmp_
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert f"cannot write {tmp_path}: it is a folder" in err
     assert not (tmp_path / "new").exists()  # nothing created, no empty output folder left
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs a /proc file system")
+def test_an_output_folder_the_system_refuses_is_named_before_any_work(capsys):
+    # os.access says root may write /proc; the check now writes a probe file instead
+    assert main(["ablate", "--out", "/proc/hysbench-out"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "/proc is not writable" in err, err
 
 
 def test_report_baselines_refuses_an_unknown_method_before_fitting_and_takes_a_folder(tmp_path, capsys):
