@@ -26,6 +26,7 @@ BIC_THRESHOLD = 10.0  # screen-internal: one more term must lower BIC (effective
 MIN_EXPLAINED = 0.01  # a cause must remove this share of the base's held-out sum of squares
 CREEP_PERIODS = 2.0  # creep's time scale is at least this many of the longest drive period
 MAX_DAMPING = 1.0  # a resonance (a mode) is underdamped
+MAX_CLIPPED_SLOPE = 0.5  # where a clip cuts, the output varies with the model at less than half its slope
 INTERFERENCE_MIN_CYCLES = 2.0  # an interference completes at least this many cycles in every fitted record
 DUPLICATE_TAU_RATIO = 1.25  # relaxation time constants closer than this factor are one (merged or not admitted)
 LOG_SCALE = ("tau", "creep_time", "natural_frequency", "damping_ratio")

@@ -32,6 +32,17 @@ def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
     return float(r @ r), theta, r
 
 
+def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float) -> float:
+    """Where the unclipped prediction passes the level: the slope of the output against it (least squares
+    with an intercept; 0 for a flat top, 1 for no clip); nan with fewer than three such samples."""
+    cut = pred > level if side == "upper" else pred < level
+    if cut.sum() < 3:
+        return math.nan
+    p = pred[cut] - pred[cut].mean()
+    ss = float(p @ p)
+    return float(p @ y[cut]) / ss if ss > 0 else math.nan
+
+
 def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],
                    want: bool = False):
     """Censored fit at a clipping level on the screen's rows."""
@@ -70,14 +81,17 @@ def fit_saturation(screen) -> Candidate:
 
 
 def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str, float], stage: str):
-    rss, theta, _ = saturation_rss(screen, side, level, base_nl, want=True)
+    A = np.concatenate(screen.base_columns(base_nl).rows)
+    rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
     if theta is None:
         return None
     model = screen.extension(("saturation",), saturation_side=side)
     params = {**dict(base_nl), **dict(zip(screen.base_lin, map(float, theta))), "saturation_level": float(level)}
+    estimates = {**estimates_of("saturation", params, model),
+                 "slope_where_clipped": slope_where_clipped(A @ theta, screen.y, side, level)}
     c = Candidate("saturation", f"clipped from {'above' if side == 'upper' else 'below'}", model, params,
-                  model.n_params, rss, screen.n, estimates_of("saturation", params, model),
-                  n_effective=screen.n_effective, hyperparameters={"saturation_side": side})
+                  model.n_params, rss, screen.n, estimates, n_effective=screen.n_effective,
+                  hyperparameters={"saturation_side": side})
     c.stage = stage
     return screen._finish(c)
 

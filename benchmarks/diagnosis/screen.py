@@ -42,7 +42,7 @@ from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS
 
 from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES, MAX_DAMPING,
-                         MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log)
+                         MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log)
 from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
@@ -291,6 +291,9 @@ class Screen:
                     f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return DRIVE_LOCKED
+        if cause == "saturation" and estimates.get("slope_where_clipped", 0.0) >= MAX_CLIPPED_SLOPE:
+            return (f"where it would clip, the output still rises with the model (slope "
+                    f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""
