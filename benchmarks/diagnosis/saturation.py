@@ -87,8 +87,10 @@ def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str,
         return None
     model = screen.extension(("saturation",), saturation_side=side)
     params = {**dict(base_nl), **dict(zip(screen.base_lin, map(float, theta))), "saturation_level": float(level)}
-    estimates = {**estimates_of("saturation", params, model),
-                 "slope_where_clipped": slope_where_clipped(A @ theta, screen.y, side, level)}
+    estimates = estimates_of("saturation", params, model)
+    slope = slope_where_clipped(A @ theta, screen.y, side, level)
+    if math.isfinite(slope):  # else the level cuts no sample
+        estimates["slope_where_clipped"] = slope
     c = Candidate("saturation", f"clipped from {'above' if side == 'upper' else 'below'}", model, params,
                   model.n_params, rss, screen.n, estimates, n_effective=screen.n_effective,
                   hyperparameters={"saturation_side": side})
