@@ -33,7 +33,7 @@ from hysbench.identification.posterior import (DISCREPANCY_KINDS, MOVES, NOISE_M
 from hysbench.benchmarks.reports.posterior import (corner_figure, correlation_figure, identifiability, predictive_figure,
                                render_markdown, trace_figure)
 
-EXAMPLE = "hysbench posterior data/virtual_dea --walkers 16 --steps 4000 --out results"
+EXAMPLE = "hysbench posterior data/virtual_dea --walkers 16 --steps 8000 --out results"
 
 
 def _burn(text: str):
@@ -61,8 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-calibration", action="store_true",
                         help="predictive scale 1 instead of the one set by in-sample and leave-one-record-out coverage")
     parser.add_argument("--walkers", type=positive_int, default=16, help="emcee walkers (even, default 16)")
-    parser.add_argument("--steps", type=positive_int, default=4000,
-                        help="most steps in total (default 4000); sampling stops earlier once converged "
+    parser.add_argument("--steps", type=positive_int, default=8000,
+                        help="most steps in total (default 8000); sampling stops earlier once converged "
                              "with --min-ess effective samples, unless --fixed-steps")
     parser.add_argument("--min-ess", type=_non_negative_float, default=1000.0,
                         help="effective samples every parameter needs before stopping early (default 1000)")
@@ -160,6 +160,9 @@ def main(args) -> int:
     if bad:
         print(f"hysbench posterior: WARNING: {bad} log-posterior evaluations had non-finite model outputs "
               "(rejected, counted in the JSON under nonfinite_model_outputs)", file=sys.stderr)
+    if len(summary.get("modes") or []) > 1:
+        print(f"modes: {len(summary['modes'])} separated; kept states "
+              + ", ".join(f"{m['share_of_kept_states']:.0%}" for m in summary["modes"]) + " (see posterior.md)")
     print(f"converged: {'yes' if summary['converged'] else 'NO'}; wall {summary['wall_seconds']:.1f} s; "
           f"wrote {out / 'posterior.md'} and {json_path}")
     if not summary["converged"]:

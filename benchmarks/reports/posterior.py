@@ -194,6 +194,7 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
         f"{sm['acceptance_fraction']['mean']:.2f} (walkers {sm['acceptance_fraction']['min']:.2f}–"
         f"{sm['acceptance_fraction']['max']:.2f}); smallest ESS {_g(s['min_ess'])}; "
         f"**converged: {'yes' if s['converged'] else 'NO'}**",
+        modes_line(s),
         f"- wall time {s['wall_seconds']:.1f} s (sampling {s['sampling_seconds']:.1f} s"
         + (f"; over the runs that built the chain, this one {s['this_run_seconds']:.1f} s"
            if sm["resumed_from_step"] else "")
@@ -243,6 +244,19 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
     return "\n".join(L).rstrip() + "\n"
 
 
+def modes_line(s: dict) -> str:
+    """One bullet: the separated posterior modes the walkers started in and the share of kept states in each."""
+    modes = s.get("modes") or []
+    if len(modes) < 2:
+        return "- modes: one (the mode search from the six best start candidates found no other separated mode)"
+    names = [n for n in modes[0]["mode"] if n not in ("log_sigma", "phi")]
+    parts = [", ".join(f"{n} {_g(m['mode'][n], 3)}" for n in names)
+             + f" (log posterior {m['log_posterior'] - modes[0]['log_posterior']:+.1f}, {m['walkers']} walkers at the "
+               f"start, **{m['share_of_kept_states']:.0%} of the kept states**)" for m in modes]
+    return (f"- **modes: {len(modes)} separated** (a valley between each pair); the walkers started in every one and "
+            f"mode jumps carried them between: " + "; ".join(parts))
+
+
 def _pct(x) -> str:
     return "-" if x is None else f"{x:.1%}"
 
@@ -259,13 +273,27 @@ def predictive_text(s: dict, files: dict) -> list[str]:
     else:
         L.append("Model discrepancy: none (the model's output alone).")
     L += [""] + calibration_text(cal)
+    per_mode = s.get("predictive_calibration_per_mode") or []
+    if len(per_mode) > 1:
+        L += ["The posterior has separated modes (see the top). Each mode is calibrated as above at its own median "
+              "state, and each predictive draw's deviation is taken from its own mode's per-sample median and "
+              "multiplied by its mode's scale; the table's scale is the main mode's. Per mode:", ""]
+        for k, c in enumerate(per_mode):
+            if c is None:
+                L.append(f"- mode {k + 1}: holds no kept state, not calibrated")
+            else:
+                ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in c["in_sample"]
+                                if p["frequency_hz"])
+                L.append(f"- mode {k + 1}: " + (f"one scale {c['constant_scale']:.3g}" if c["kind"] == "constant" else
+                                                f"in-sample scales {ins}; beta {c['growth_per_ln_frequency']:.3g}"))
+        L.append("")
     pv = s.get("predictive", {})
     if not pv.get("validation"):
         return L + ["The dataset has no validation records: no predictive bands.", ""]
     L += ["Coverage = share of the measured samples inside the band; width = mean band width "
           "(output units). A calibrated predictive covers about 50 % and 90 %; the target for held-out "
           "(validation) records is 80–97 % for the 90 % band. \"scale 1\": the same draws without the "
-          "held-out scale.", "",
+          "held-out scale. With separated modes the scale column lists each mode's.", "",
           "| record | f (Hz) | role | scale | 50 % coverage | 90 % coverage | 90 % width | 50 % width "
           "| 90 % coverage, scale 1 | 90 % width, scale 1 | model-only 90 % coverage | rms error of median "
           "| draws (non-finite) |",
@@ -277,7 +305,8 @@ def predictive_text(s: dict, files: dict) -> list[str]:
             if c is None:
                 L.append(f"| {p['file']} | {f} | {role} | | no finite draw | | | | | | | | 0 ({p['nonfinite_draws']}) |")
                 continue
-            L.append(f"| {p['file']} | {f} | {role} | {p.get('predictive_scale', 1.0):.3g} | {_pct(c['50'])} | "
+            scale = "/".join(f"{v:.3g}" for v in p.get("predictive_scale_per_mode") or [p.get("predictive_scale", 1.0)])
+            L.append(f"| {p['file']} | {f} | {role} | {scale} | {_pct(c['50'])} | "
                      f"**{_pct(c['90'])}** | {_g(c['width_90'], 3)} | "
                      f"{_g(c['width_50'], 3)} | {_pct(u['90'])} | {_g(u['width_90'], 3)} | "
                      f"{_pct(p['fraction_inside_model_band'])} | {_g(p['rms_error_of_median'], 3)} | "

@@ -43,11 +43,15 @@ that it reproduces the full record's regressors.
 Start. ``identify(model, dataset, "varpro")`` gives theta_N and the noise start
 comes from the residuals there. Because varpro minimises eq. 9 (weighted,
 independent residuals), its optimum need not be near the mode of this
-posterior: it is compared with 64 Sobol points of the theta_N prior box in one
-batched evaluation and the best is kept. A few Newton steps on the log
-posterior (finite-difference derivatives, batched) then find its mode and a
-Laplace covariance, and the walkers start as draws from that Gaussian (a
-diagonal ball from the curvature where the Hessian is not negative definite).
+posterior: it is ranked with 64 Sobol points of the theta_N prior box in one
+batched evaluation. From the best six (skipping those in the basin of a mode
+already found), a few Newton steps on the log posterior (finite-difference
+derivatives, batched) find a mode and its Laplace covariance. Every mode that
+a valley separates from the others, within 10 log units of the best, is kept;
+the walkers start split evenly between them, as draws from each one's Gaussian
+(a diagonal ball from the curvature where the Hessian is not negative
+definite), and with two or more modes a tenth of the moves are mode jumps
+(``modes``).
 
 Convergence is measured, not assumed: emcee's integrated autocorrelation time
 tau per parameter (linear ones from their draws), the chain after burn-in at
@@ -60,9 +64,9 @@ with its snooker variant (0.2) by default, whose autocorrelation times on
 MRPIM were about 0.6 of the stretch move's.
 
 Modules: ``target`` (segments, priors, the log posterior), ``discrepancy`` (the discrepancy term
-and the held-out calibration), ``start`` (start point and mode), ``convergence``, ``backend``
-(the chain file), ``run`` (``sample_posterior``, ``PosteriorRun``), ``predictive`` (bands,
-coverage, synthetic AR(1) data).
+and the held-out calibration), ``start`` (start candidates and one mode), ``modes`` (separated
+modes: search, start, jumps), ``convergence``, ``backend`` (the chain file), ``run``
+(``sample_posterior``, ``PosteriorRun``), ``predictive`` (bands, coverage, synthetic AR(1) data).
 """
 
 from .backend import CHAIN_FORMAT, open_backend, settings_fingerprint
@@ -70,13 +74,17 @@ from .convergence import BURN_TAUS, MIN_ACCEPTANCE, TAU_FACTOR, Convergence, aut
 from .discrepancy import DISCREPANCY_KINDS, Calibration, calibrate_scale, relaxation_columns, relaxation_times
 from .predictive import ar1_noise, predictive, predictive_coverage, simulated_ar1_dataset
 from .run import MOVES, PosteriorRun, sample_posterior
-from .start import find_mode, initial_walkers, noise_estimate, screen_start
+from .modes import (JUMP_SHARE, ModeJump, find_modes, mode_locations, mode_search_starts, nearest_mode, separated,
+                    walkers_in_modes, with_mode_jumps)
+from .start import find_mode, initial_walkers, noise_estimate, screen_candidates
 from .target import NOISE_MODELS, LogPosterior, Priors, Segment, build_segments
 
 __all__ = [
-    "BURN_TAUS", "CHAIN_FORMAT", "DISCREPANCY_KINDS", "MIN_ACCEPTANCE", "MOVES", "NOISE_MODELS", "TAU_FACTOR",
+    "BURN_TAUS", "CHAIN_FORMAT", "JUMP_SHARE", "ModeJump", "DISCREPANCY_KINDS", "MIN_ACCEPTANCE", "MOVES", "NOISE_MODELS", "TAU_FACTOR",
     "Calibration", "Convergence", "LogPosterior", "PosteriorRun", "Priors", "Segment", "ar1_noise",
-    "autocorr_times", "build_segments", "calibrate_scale", "convergence", "find_mode", "initial_walkers",
+    "autocorr_times", "build_segments", "calibrate_scale", "convergence", "find_mode", "find_modes", "initial_walkers",
+    "mode_locations", "mode_search_starts", "nearest_mode",
     "noise_estimate", "open_backend", "predictive", "predictive_coverage", "relaxation_columns",
-    "relaxation_times", "sample_posterior", "screen_start", "settings_fingerprint", "simulated_ar1_dataset",
+    "relaxation_times", "sample_posterior", "screen_candidates", "separated", "settings_fingerprint",
+    "simulated_ar1_dataset", "walkers_in_modes", "with_mode_jumps",
 ]

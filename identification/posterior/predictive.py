@@ -13,6 +13,7 @@ from hysbench.data.dataset import Dataset, Record
 from hysbench.data.protocol import simulated_dataset
 from hysbench.models.base import HysteresisModel
 
+from .modes import nearest_mode
 from .run import PosteriorRun
 from .target import build_segments
 
@@ -30,6 +31,17 @@ def ar1_noise(n: int, sigma: np.ndarray, phi: np.ndarray, rng: np.random.Generat
     return out
 
 
+def scale_about_mode_medians(Y: np.ndarray, mode: np.ndarray, scales) -> np.ndarray:
+    """Draws (n, T) with each draw's deviation from its own mode's per-sample median multiplied by that
+    mode's scale: median_k + scales[k] (Y - median_k) for the rows in mode k."""
+    out = np.empty_like(Y)
+    for k in np.unique(mode):
+        rows = mode == k
+        centre = np.median(Y[rows], axis=0)
+        out[rows] = centre + scales[int(k)] * (Y[rows] - centre)
+    return out
+
+
 def _inside(y, lo, hi) -> float:
     return float(np.mean((y >= lo) & (y <= hi)))
 
@@ -42,7 +54,11 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     discrepancy term) is computed and an AR(1) (or iid) noise path with that
     state's sigma, phi is added. Each such draw's deviation from the per-sample
     median is then multiplied by the held-out calibration's scale at the
-    record's frequency (``run.predictive_scale``, see ``discrepancy``).
+    record's frequency (``run.predictive_scale``, see ``discrepancy``). With
+    separated posterior modes, each draw's deviation is taken from the median
+    of its own mode's draws and scaled by that mode's scale, and
+    ``predictive_scale`` is the main mode's (``predictive_scale_per_mode``
+    lists every mode's).
     ``observation`` bands include the noise (where a new measurement should
     fall), ``model`` bands only the parameter uncertainty (unscaled).
     ``coverage`` holds the 50 % and 90 % bands' coverage and mean width;
@@ -56,6 +72,7 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     dr = run.draws[b:].reshape(-1, run.draws.shape[-1])
     pick = np.linspace(0, ch.shape[0] - 1, min(n_draws, ch.shape[0])).round().astype(int)
     nl, sigma, phi = post.split(ch[pick])
+    mode = nearest_mode(post, ch[pick], run.mode_locations())
     lin = dr[pick]
     lo_q, hi_q = (1 - level) / 2, 1 - (1 - level) / 2
     check = nl[:1] if len(post.nonlinear_names) else np.zeros((1, 0))
@@ -65,18 +82,21 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
         Y = post.window_outputs(s, nl, lin)
         finite = np.isfinite(Y).all(axis=1)
         noise = ar1_noise(s.n, sigma, phi, rng)
-        Y, noise = Y[finite], noise[finite]
+        Y, noise, in_mode = Y[finite], noise[finite], mode[finite]
         y = s.y
         scale = run.predictive_scale(s.frequency_hz)
         row = {"file": s.file, "frequency_hz": s.frequency_hz, "rows": s.n, "draws": int(finite.sum()),
                "nonfinite_draws": int((~finite).sum()), "predictive_scale": scale}
+        if len(run.mode_locations()) > 1:
+            row["predictive_scale_per_mode"] = [run.predictive_scale(s.frequency_hz, k)
+                                                for k in range(len(run.mode_locations()))]
         if not finite.any():
             row.update(coverage=None, unscaled=None, rms_error_of_median=None)
             out.append(row)
             continue
         Yraw = Y + noise
-        centre = np.median(Yraw, axis=0)
-        Yobs = centre + scale * (Yraw - centre)
+        Yobs = scale_about_mode_medians(Yraw, in_mode, [run.predictive_scale(s.frequency_hz, k)
+                                                        for k in range(int(in_mode.max()) + 1)])
         cov, raw = {}, {}
         for lev in LEVELS:
             q = [(1 - lev) / 2, 1 - (1 - lev) / 2]

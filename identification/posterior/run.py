@@ -24,7 +24,9 @@ from ..errors import IdentificationError
 from .backend import open_backend, settings_fingerprint, store_start
 from .convergence import TAU_FACTOR, Convergence, convergence
 from .discrepancy import Calibration, calibrate_scale
-from .start import find_mode, initial_walkers, noise_estimate, screen_start
+from .modes import (JUMP_SHARE, find_modes, mode_locations, mode_search_starts, nearest_mode, walkers_in_modes,
+                    with_mode_jumps)
+from .start import noise_estimate, screen_candidates
 from .target import LogPosterior
 
 
@@ -53,7 +55,8 @@ class PosteriorRun:
     seed: int | None
     dataset: str
     chain_file: str | None
-    calibration: Calibration | None = None
+    calibration: Calibration | None = None  # of the mode holding most kept states
+    mode_calibrations: list = field(default_factory=list)  # one per start mode (None: the mode holds no kept state)
     notes: list[str] = field(default_factory=list)
 
     # --- reported parameters: model order, then sigma and phi -------------------------
@@ -90,15 +93,47 @@ class PosteriorRun:
             tau[k + 1], ess[k + 1] = tau_c[d_nl + 1], ess_c[d_nl + 1]
         return tau, ess
 
-    def median_state(self) -> tuple[np.ndarray, float, float]:
-        """(theta_N, sigma, phi) at the posterior medians of the kept chain."""
+    def mode_locations(self) -> np.ndarray:
+        """The separated modes the walkers started in (sampler coordinates, best first): (k, d)."""
+        return mode_locations(self.post, self.start)
+
+    def mode_of_kept(self) -> np.ndarray:
+        """Index of the nearest start mode for every kept state (flattened like ``samples``)."""
         ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
+        return nearest_mode(self.post, ch, self.mode_locations())
+
+    def mode_shares(self) -> list[float]:
+        """Share of the kept states nearest to each start mode."""
+        k = max(1, len(self.mode_locations()))
+        return [float(v) for v in np.bincount(self.mode_of_kept(), minlength=k) / max(1, self.mode_of_kept().size)]
+
+    def modes_summary(self) -> list[dict]:
+        """The start modes with their log posterior, walkers at the start and share of the kept states."""
+        found = (self.start or {}).get("modes") or []
+        return [{**m, "share_of_kept_states": share} for m, share in zip(found, self.mode_shares())]
+
+    def main_mode(self) -> int:
+        """The start mode holding most kept states."""
+        return int(np.argmax(np.bincount(self.mode_of_kept())))
+
+    def median_state(self, mode: int | None = None) -> tuple[np.ndarray, float, float] | None:
+        """(theta_N, sigma, phi) at the posterior medians of the kept states in ``mode`` (default: the mode
+        holding most of them; a coordinate-wise median across separated modes can fall in the valley
+        between them); None if the mode holds no kept state."""
+        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
+        ch = ch[self.mode_of_kept() == (self.main_mode() if mode is None else mode)]
+        if not len(ch):
+            return None
         nl, sigma, phi = self.post.split(np.median(ch, axis=0)[None])
         return nl[0], float(sigma[0]), float(phi[0])
 
-    def predictive_scale(self, frequency_hz) -> float:
-        """The held-out calibration's scale of the predictive spread at a record's frequency."""
-        return 1.0 if self.calibration is None else self.calibration.scale_at(frequency_hz)
+    def predictive_scale(self, frequency_hz, mode: int | None = None) -> float:
+        """The held-out calibration's scale of the predictive spread at a record's frequency; with ``mode``,
+        that of the draws in that start mode (each mode is calibrated at its own median state)."""
+        cal = self.calibration
+        if mode is not None and mode < len(self.mode_calibrations) and self.mode_calibrations[mode] is not None:
+            cal = self.mode_calibrations[mode]
+        return 1.0 if cal is None else cal.scale_at(frequency_hz)
 
     def parameter_table(self) -> dict:
         S = self.samples()
@@ -137,6 +172,9 @@ class PosteriorRun:
                                             "integrated out with the linear parameters"
                                             if self.post.discrepancy == "relaxation" else "none")},
             "predictive_calibration": None if self.calibration is None else self.calibration.describe(),
+            "predictive_calibration_per_mode": (
+                [None if c is None else c.describe() for c in self.mode_calibrations]
+                if len(self.mode_calibrations) > 1 else None),
             "nonfinite_model_outputs": {"log_posterior_evaluations": self.post.n_nonfinite,
                                         "singular_linear_precision": self.post.n_singular,
                                         "of_evaluations": self.post.n_evaluations},
@@ -165,6 +203,7 @@ class PosteriorRun:
                 "input_range": list(self.post.input_range),
             },
             "start": self.start,
+            "modes": self.modes_summary(),
             "correlation": {"names": names, "matrix": [[round(float(v), 4) for v in row] for row in corr]},
             "wall_seconds": self.wall_seconds,
             "sampling_seconds": self.sampling_seconds,
@@ -179,7 +218,7 @@ def _num(x):
 
 
 def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "ar1", n_walkers: int = 16,
-                     max_steps: int = 4000, min_ess: float = 1000.0, fixed_steps: bool = False,
+                     max_steps: int = 8000, min_ess: float = 1000.0, fixed_steps: bool = False,
                      burn: int | str = "auto", seed: int | None = 0, moves: str = "de",
                      chain_file: str | os.PathLike | None = None, restart: bool = False,
                      progress: bool | None = None, check_every: int = 50, start_params: Mapping | None = None,
@@ -233,27 +272,25 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
         nl0 = np.array([float(start_params[n]) for n in post.nonlinear_names])
         nl0 = np.clip(nl0, post.priors.nonlinear_lower, post.priors.nonlinear_upper)
         sigma0, phi0 = noise_estimate(post, nl0)
-        nl1 = screen_start(post, nl0, sigma0, phi0, seed)
-        if not np.array_equal(nl1, nl0):
-            nl0 = nl1
-            sigma0, phi0 = noise_estimate(post, nl0)
-        x0 = post.coords(nl0, sigma0, phi0)
-        say("start: posterior mode and Laplace covariance ...")
-        mode, cov, info = find_mode(post, x0)
+        say("start: posterior modes and Laplace covariances ...")
+        modes = find_modes(post, mode_search_starts(post, screen_candidates(post, nl0, sigma0, phi0, seed)))
+        best = modes[0]
+        rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
+        p0 = walkers_in_modes(post, modes, n_walkers, rng)
         start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
                  "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
-                 "mode": dict(zip(post.coord_names, map(float, mode))),
-                 "screened_start": dict(zip(post.nonlinear_names, map(float, nl0))),
-                 "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(cov))))),
-                 "mode_search": info, "seconds": time.perf_counter() - ts}
-        rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
-        p0 = initial_walkers(post, mode, cov, n_walkers, rng)
+                 "mode": dict(zip(post.coord_names, map(float, best["x"]))),
+                 "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(best["cov"]))))),
+                 "mode_search": best["info"],
+                 "modes": [{"mode": dict(zip(post.coord_names, map(float, m["x"]))),
+                            "log_posterior": m["log_posterior"], "walkers": m["walkers"]} for m in modes],
+                 "seconds": time.perf_counter() - ts}
         store_start(path, start)
     else:
         post.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7, done]))
 
     sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
-                                    moves=MOVES[moves](emcee))
+                                    moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start)))
     if p0 is not None:
         sampler.random_state = np.random.RandomState(0 if seed is None else int(seed)).get_state()
     else:  # resuming: the last stored state (coordinates, log posterior, draws, random state)
@@ -310,9 +347,20 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                        sampling_seconds=earlier["sampling"] + sampling_seconds, this_run_seconds=wall,
                        resumed_from=done, n_walkers=n_walkers, moves=moves, seed=seed, dataset=dataset.name,
                        chain_file=None if path is None else str(path))
+    if len(run.mode_locations()) > 1:
+        shares = ", ".join(f"{v:.0%}" for v in run.mode_shares())
+        where = "; ".join(", ".join(f"{n} {m['mode'][n]:.3g}" for n in post.nonlinear_names)
+                          for m in start["modes"])
+        run.notes.append(
+            f"the posterior has {len(start['modes'])} separated modes ({where}); the walkers started evenly in "
+            f"them, mode jumps were {JUMP_SHARE:.0%} of the moves, and the kept states lie {shares} in each; "
+            "medians and intervals span every mode; the predictive scale is calibrated in each mode at its own "
+            "median state, and each predictive draw is scaled about its mode's median by its mode's scale")
     if calibrate:
         say("predictive scale: in-sample and leave-one-record-out coverage ...")
-        run.calibration = calibrate_scale(post, *run.median_state())
+        states = [run.median_state(k) for k in range(max(1, len(run.mode_locations())))]
+        run.mode_calibrations = [None if st is None else calibrate_scale(post, *st) for st in states]
+        run.calibration = run.mode_calibrations[run.main_mode()]
     else:
         run.calibration = Calibration(0.9, constant=1.0, note="not calibrated (calibrate=False): scale 1")
     return run

@@ -1,5 +1,6 @@
 """The start: the varpro optimum, screened against Sobol points of the prior box, then Newton
-steps to the posterior mode and its Laplace covariance, from which the walkers are drawn."""
+steps to a posterior mode and its Laplace covariance, from which walkers are drawn (``modes``
+runs the search from several candidates)."""
 
 from __future__ import annotations
 
@@ -131,25 +132,27 @@ def find_mode(post: LogPosterior, x0: np.ndarray, max_iter: int = 12) -> tuple[n
     return x, cov, info
 
 
-def screen_start(post: LogPosterior, nl0: np.ndarray, sigma: float, phi: float, seed, n: int = 64) -> np.ndarray:
-    """The best of nl0 and ``n`` scrambled Sobol points of the nonlinear prior box, by log posterior
-    at the given noise parameters (one batched evaluation): the identifiers' optimum (weighted
-    least squares) need not be near the mode under the AR(1) likelihood."""
+def screen_candidates(post: LogPosterior, nl0: np.ndarray, sigma: float, phi: float, seed,
+                      n: int = 64) -> np.ndarray:
+    """nl0 and ``n`` scrambled Sobol points of the nonlinear prior box, best first by log posterior at
+    the given noise parameters (one batched evaluation; non-finite last): the identifiers' optimum
+    (weighted least squares) need not be near the mode under the AR(1) likelihood."""
     d = nl0.size
     if d == 0:
-        return nl0
+        return nl0[None]
     lo, hi = post.priors.nonlinear_lower, post.priors.nonlinear_upper
     pts = lo + qmc.Sobol(d, scramble=True, seed=np.random.default_rng(seed)).random(n) * (hi - lo)
     cands = np.vstack([nl0[None], pts])
-    X = np.array([post.coords(c, sigma, phi) for c in cands])
-    lp = post.log_prob(X)
-    return cands[int(np.argmax(lp))]
+    lp = post.log_prob(np.array([post.coords(c, sigma, phi) for c in cands]))
+    return cands[np.argsort(-np.where(np.isfinite(lp), lp, -np.inf), kind="stable")]
 
 
 def initial_walkers(post: LogPosterior, mode: np.ndarray, cov: np.ndarray, n_walkers: int,
                     rng: np.random.Generator) -> np.ndarray:
     """Walkers drawn from the Laplace Gaussian (or a diagonal ball), inside the prior support."""
     d = mode.size
+    if n_walkers == 0:
+        return np.empty((0, d))
     L = np.linalg.cholesky(cov + 1e-300 * np.eye(d))
     out = np.empty((0, d))
     for _ in range(100):
@@ -159,5 +162,6 @@ def initial_walkers(post: LogPosterior, mode: np.ndarray, cov: np.ndarray, n_wal
         if out.shape[0] >= n_walkers:
             return out[:n_walkers]
     raise IdentificationError("posterior: cannot place the walkers inside the prior support around the mode")
+
 
 
