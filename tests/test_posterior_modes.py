@@ -169,3 +169,26 @@ def test_draws_are_scaled_about_their_own_modes_median(k, n, seed):
                            0.5 * (sorted(same[:, t])[len(same) // 2 - 1] + sorted(same[:, t])[len(same) // 2])
                            for t in range(5)])
         assert np.allclose(out[i], centre + scales[mode[i]] * (Y[i] - centre))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 50), st.integers(1, 3), st.integers(0, 10_000))
+def test_bound_shares_match_a_loop(n, d, seed):
+    from hysbench.identification.posterior.run import BOUND_BAND, bound_shares
+
+    rng = np.random.default_rng(seed)
+    lo, hi = rng.uniform(-2, 0, d), rng.uniform(0.1, 2, d)
+    X = lo + (hi - lo) * rng.choice([0.0, 0.005, 0.5, 0.995, 1.0, 0.02], size=(n, d))
+    got = bound_shares(X, lo, hi)
+    for c in range(d):
+        w = BOUND_BAND * (hi[c] - lo[c])
+        assert got[c, 0] == sum(1 for v in X[:, c] if v <= lo[c] + w) / n
+        assert got[c, 1] == sum(1 for v in X[:, c] if v >= hi[c] - w) / n
+
+
+def test_the_report_names_a_parameter_at_its_prior_bound():
+    from hysbench.benchmarks.reports.posterior import bound_line
+
+    line = bound_line({"at_prior_bound": {"gamma": {"bound": "lower", "value": -0.1, "share": 0.4}}})
+    assert "gamma: 40 %" not in line and "gamma: 40% of the kept states" in line and "lower bound -0.1" in line
+    assert "no nonlinear parameter" in bound_line({"at_prior_bound": {}})

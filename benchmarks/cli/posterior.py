@@ -160,6 +160,9 @@ def main(args) -> int:
     if bad:
         print(f"hysbench posterior: WARNING: {bad} log-posterior evaluations had non-finite model outputs "
               "(rejected, counted in the JSON under nonfinite_model_outputs)", file=sys.stderr)
+    for name, b in (summary.get("at_prior_bound") or {}).items():
+        print(f"hysbench posterior: NOTE: {name}: {b['share']:.0%} of the kept states at the prior's {b['bound']} "
+              f"bound {b['value']:g} (the prior cuts the posterior off; see posterior.md)", file=sys.stderr)
     if len(summary.get("modes") or []) > 1:
         print(f"modes: {len(summary['modes'])} separated; kept states "
               + ", ".join(f"{m['share_of_kept_states']:.0%}" for m in summary["modes"]) + " (see posterior.md)")

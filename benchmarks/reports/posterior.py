@@ -195,6 +195,7 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
         f"{sm['acceptance_fraction']['max']:.2f}); smallest ESS {_g(s['min_ess'])}; "
         f"**converged: {'yes' if s['converged'] else 'NO'}**",
         modes_line(s),
+        bound_line(s),
         f"- wall time {s['wall_seconds']:.1f} s (sampling {s['sampling_seconds']:.1f} s"
         + (f"; over the runs that built the chain, this one {s['this_run_seconds']:.1f} s"
            if sm["resumed_from_step"] else "")
@@ -242,6 +243,16 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
     for note in s.get("notes", []):
         L += [f"Note: {note}", ""]
     return "\n".join(L).rstrip() + "\n"
+
+
+def bound_line(s: dict) -> str:
+    """One bullet: nonlinear parameters whose posterior the prior's bounds cut off."""
+    at = s.get("at_prior_bound") or {}
+    if not at:
+        return "- prior bounds: no nonlinear parameter has 5 % or more of its kept states at a bound"
+    return ("- **at a prior bound** (the prior cuts the posterior off; that end of the interval is the bound's, "
+            "not the data's): " + "; ".join(f"{n}: {b['share']:.0%} of the kept states within 1 % of the range "
+                                            f"from the {b['bound']} bound {_g(b['value'])}" for n, b in at.items()))
 
 
 def modes_line(s: dict) -> str:

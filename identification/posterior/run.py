@@ -107,6 +107,19 @@ class PosteriorRun:
         k = max(1, len(self.mode_locations()))
         return [float(v) for v in np.bincount(self.mode_of_kept(), minlength=k) / max(1, self.mode_of_kept().size)]
 
+    def at_prior_bound(self) -> dict:
+        """Nonlinear parameters with >= ``BOUND_SHARE`` of the kept states within ``BOUND_BAND`` of the
+        prior's range from a bound: name -> {"bound", "value", "share"} (the prior cuts the posterior off)."""
+        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
+        nl = self.post.split(ch)[0]
+        lo, hi = self.post.priors.nonlinear_lower, self.post.priors.nonlinear_upper
+        out = {}
+        for name, (s_lo, s_hi), a, b in zip(self.post.nonlinear_names, bound_shares(nl, lo, hi), lo, hi):
+            side = max((s_lo, "lower", a), (s_hi, "upper", b))
+            if side[0] >= BOUND_SHARE:
+                out[name] = {"bound": side[1], "value": float(side[2]), "share": float(side[0])}
+        return out
+
     def modes_summary(self) -> list[dict]:
         """The start modes with their log posterior, walkers at the start and share of the kept states."""
         found = (self.start or {}).get("modes") or []
@@ -204,12 +217,25 @@ class PosteriorRun:
             },
             "start": self.start,
             "modes": self.modes_summary(),
+            "at_prior_bound": self.at_prior_bound(),
             "correlation": {"names": names, "matrix": [[round(float(v), 4) for v in row] for row in corr]},
             "wall_seconds": self.wall_seconds,
             "sampling_seconds": self.sampling_seconds,
             "this_run_seconds": self.this_run_seconds,
             "notes": self.notes,
         }
+
+
+BOUND_BAND = 0.01  # "at a prior bound": within this share of the prior's range from it
+BOUND_SHARE = 0.05  # a nonlinear parameter with this share of its kept states at a bound is reported
+
+
+def bound_shares(values: np.ndarray, lower: np.ndarray, upper: np.ndarray, band: float = BOUND_BAND) -> np.ndarray:
+    """Share of the rows of ``values`` (n, d) within ``band`` x (upper - lower) of each column's lower and
+    upper bound: (d, 2)."""
+    width = band * (np.asarray(upper, dtype=float) - np.asarray(lower, dtype=float))
+    values = np.atleast_2d(values)
+    return np.column_stack([np.mean(values <= lower + width, axis=0), np.mean(values >= upper - width, axis=0)])
 
 
 def _num(x):
@@ -356,6 +382,11 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
             f"them, mode jumps were {JUMP_SHARE:.0%} of the moves, and the kept states lie {shares} in each; "
             "medians and intervals span every mode; the predictive scale is calibrated in each mode at its own "
             "median state, and each predictive draw is scaled about its mode's median by its mode's scale")
+    for name, b in run.at_prior_bound().items():
+        run.notes.append(
+            f"{name}: {b['share']:.0%} of the kept states lie within {BOUND_BAND:.0%} of the prior's range from its "
+            f"{b['bound']} bound {b['value']:g}; the prior cuts the posterior off there, so that end of its interval "
+            "is the bound's, not the data's")
     if calibrate:
         say("predictive scale: in-sample and leave-one-record-out coverage ...")
         states = [run.median_state(k) for k in range(max(1, len(run.mode_locations())))]
