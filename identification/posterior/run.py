@@ -104,8 +104,8 @@ class PosteriorRun:
 
     def mode_shares(self) -> list[float]:
         """Share of the kept states nearest to each start mode."""
-        k = max(1, len(self.mode_locations()))
-        return [float(v) for v in np.bincount(self.mode_of_kept(), minlength=k) / max(1, self.mode_of_kept().size)]
+        which = self.mode_of_kept()
+        return [float(v) for v in np.bincount(which, minlength=max(1, len(self.mode_locations()))) / max(1, which.size)]
 
     def at_prior_bound(self) -> dict:
         """Nonlinear parameters with >= ``BOUND_SHARE`` of the kept states within ``BOUND_BAND`` of the
