@@ -14,7 +14,7 @@ from hysbench.data.dataset import Dataset
 from ..errors import IdentificationError
 from .target import LogPosterior
 
-CHAIN_FORMAT = "hysbench-posterior-chain/2"  # 2: discrepancy coefficients among the blobs
+CHAIN_FORMAT = "hysbench-posterior-chain/3"  # 2: discrepancy coefficients among the blobs; 3: walkers start in every separated mode, with mode jumps
 
 
 # --- the chain file ------------------------------------------------------------------
