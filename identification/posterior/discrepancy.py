@@ -29,7 +29,8 @@ f_a, f_b the fitted frequencies on either side of f (beyond the fitted range: th
 the shape of linear interpolation's error term in ln f: zero at a fitted frequency, largest midway.
 
 c_in(f_r) is the scale that covers fitted record r's own residuals at 90 % (the posterior at its
-median (theta_N, sigma, phi), predictive variance = linear-parameter variance + noise variance);
+median (theta_N, sigma, phi), predictive variance = linear-parameter variance + noise variance; with
+separated modes each mode is calibrated at its own median, see ``modes``);
 c_in(f) interpolates ln c_in linearly in ln f, constant beyond the fitted range, over the records
 whose leverage (mean linear-parameter variance / noise variance) is <= 0.5: a short record nearly
 interpolated by the linear parameters has residuals far smaller than its error, and would pull
