@@ -80,8 +80,8 @@ from .start import find_mode, initial_walkers, noise_estimate, screen_candidates
 from .target import NOISE_MODELS, LogPosterior, Priors, Segment, build_segments
 
 __all__ = [
-    "BURN_TAUS", "CHAIN_FORMAT", "JUMP_SHARE", "ModeJump", "DISCREPANCY_KINDS", "MIN_ACCEPTANCE", "MOVES", "NOISE_MODELS", "TAU_FACTOR",
-    "Calibration", "Convergence", "LogPosterior", "PosteriorRun", "Priors", "Segment", "ar1_noise",
+    "BURN_TAUS", "CHAIN_FORMAT", "DISCREPANCY_KINDS", "JUMP_SHARE", "MIN_ACCEPTANCE", "MOVES", "NOISE_MODELS",
+    "TAU_FACTOR", "Calibration", "Convergence", "LogPosterior", "ModeJump", "PosteriorRun", "Priors", "Segment", "ar1_noise",
     "autocorr_times", "build_segments", "calibrate_scale", "convergence", "find_mode", "find_modes", "initial_walkers",
     "mode_locations", "mode_search_starts", "nearest_mode",
     "noise_estimate", "open_backend", "predictive", "predictive_coverage", "relaxation_columns",

@@ -72,7 +72,9 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     dr = run.draws[b:].reshape(-1, run.draws.shape[-1])
     pick = np.linspace(0, ch.shape[0] - 1, min(n_draws, ch.shape[0])).round().astype(int)
     nl, sigma, phi = post.split(ch[pick])
-    mode = nearest_mode(post, ch[pick], run.mode_locations())
+    modes = run.mode_locations()
+    n_modes = max(1, len(modes))
+    mode = nearest_mode(post, ch[pick], modes)
     lin = dr[pick]
     lo_q, hi_q = (1 - level) / 2, 1 - (1 - level) / 2
     check = nl[:1] if len(post.nonlinear_names) else np.zeros((1, 0))
@@ -84,19 +86,17 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
         noise = ar1_noise(s.n, sigma, phi, rng)
         Y, noise, in_mode = Y[finite], noise[finite], mode[finite]
         y = s.y
-        scale = run.predictive_scale(s.frequency_hz)
+        scales = [run.predictive_scale(s.frequency_hz, k) for k in range(n_modes)]
         row = {"file": s.file, "frequency_hz": s.frequency_hz, "rows": s.n, "draws": int(finite.sum()),
-               "nonfinite_draws": int((~finite).sum()), "predictive_scale": scale}
-        if len(run.mode_locations()) > 1:
-            row["predictive_scale_per_mode"] = [run.predictive_scale(s.frequency_hz, k)
-                                                for k in range(len(run.mode_locations()))]
+               "nonfinite_draws": int((~finite).sum()), "predictive_scale": run.predictive_scale(s.frequency_hz)}
+        if n_modes > 1:
+            row["predictive_scale_per_mode"] = scales
         if not finite.any():
             row.update(coverage=None, unscaled=None, rms_error_of_median=None)
             out.append(row)
             continue
         Yraw = Y + noise
-        Yobs = scale_about_mode_medians(Yraw, in_mode, [run.predictive_scale(s.frequency_hz, k)
-                                                        for k in range(int(in_mode.max()) + 1)])
+        Yobs = scale_about_mode_medians(Yraw, in_mode, scales)
         cov, raw = {}, {}
         for lev in LEVELS:
             q = [(1 - lev) / 2, 1 - (1 - lev) / 2]

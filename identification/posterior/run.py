@@ -97,10 +97,13 @@ class PosteriorRun:
         """The separated modes the walkers started in (sampler coordinates, best first): (k, d)."""
         return mode_locations(self.post, self.start)
 
+    def kept_states(self) -> np.ndarray:
+        """The kept chain (after burn-in), flattened: (steps x walkers, d) sampler coordinates."""
+        return self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
+
     def mode_of_kept(self) -> np.ndarray:
         """Index of the nearest start mode for every kept state (flattened like ``samples``)."""
-        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
-        return nearest_mode(self.post, ch, self.mode_locations())
+        return nearest_mode(self.post, self.kept_states(), self.mode_locations())
 
     def mode_shares(self) -> list[float]:
         """Share of the kept states nearest to each start mode."""
@@ -110,8 +113,7 @@ class PosteriorRun:
     def at_prior_bound(self) -> dict:
         """Nonlinear parameters with >= ``BOUND_SHARE`` of the kept states within ``BOUND_BAND`` of the
         prior's range from a bound: name -> {"bound", "value", "share"} (the prior cuts the posterior off)."""
-        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
-        nl = self.post.split(ch)[0]
+        nl = self.post.split(self.kept_states())[0]
         lo, hi = self.post.priors.nonlinear_lower, self.post.priors.nonlinear_upper
         out = {}
         for name, (s_lo, s_hi), a, b in zip(self.post.nonlinear_names, bound_shares(nl, lo, hi), lo, hi):
@@ -133,8 +135,8 @@ class PosteriorRun:
         """(theta_N, sigma, phi) at the posterior medians of the kept states in ``mode`` (default: the mode
         holding most of them; a coordinate-wise median across separated modes can fall in the valley
         between them); None if the mode holds no kept state."""
-        ch = self.chain[self.conv.burn:].reshape(-1, self.chain.shape[-1])
-        ch = ch[self.mode_of_kept() == (self.main_mode() if mode is None else mode)]
+        which = self.mode_of_kept()
+        ch = self.kept_states()[which == (int(np.argmax(np.bincount(which))) if mode is None else mode)]
         if not len(ch):
             return None
         nl, sigma, phi = self.post.split(np.median(ch, axis=0)[None])
