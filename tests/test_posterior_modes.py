@@ -192,3 +192,32 @@ def test_the_report_names_a_parameter_at_its_prior_bound():
     line = bound_line({"at_prior_bound": {"gamma": {"bound": "lower", "value": -0.1, "share": 0.4}}})
     assert "gamma: 40 %" not in line and "gamma: 40% of the kept states" in line and "lower bound -0.1" in line
     assert "no nonlinear parameter" in bound_line({"at_prior_bound": {}})
+
+
+def test_moves_within_modes_sample_each_mode_and_the_masses():
+    """DE and snooker drawing helpers from the walker's own mode (``WithinModes``), with the mode jumps:
+    the kept states reproduce each mode's mean, spread and mass of a two-Gaussian mixture (unequal
+    masses and shapes, a mode with too few walkers at times: the fallback to every helper)."""
+    import emcee
+
+    from hysbench.identification.posterior import with_mode_jumps
+    from hysbench.identification.posterior.modes import WithinModes
+
+    post = ToyPosterior([[0.5, -0.4], [-0.6, 0.5]], [[0.05, 0.08], [0.03, 0.04]], [0.8, 0.2])
+    post.in_support = lambda X: np.all(np.abs(X) <= 1, axis=1)
+    mass = np.array([0.8 * 0.05 * 0.08, 0.2 * 0.03 * 0.04])
+    modes = [{"x": c, "cov": np.diag(s**2)} for c, s in zip(post.centres, post.sds)]
+    p0 = walkers_in_modes(post, modes, 16, np.random.default_rng(7))
+    moves = with_mode_jumps([(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)], post, post.centres)
+    assert all(isinstance(m, WithinModes) for m, _ in moves[:2])
+    sampler = emcee.EnsembleSampler(16, 2, post.log_prob, vectorize=True, moves=moves)
+    sampler.random_state = np.random.RandomState(8).get_state()
+    sampler.run_mcmc(p0, 6000, progress=False)
+    kept = sampler.get_chain(discard=500, flat=True)
+    which = nearest_mode(post, kept, post.centres)
+    share = np.bincount(which, minlength=2) / len(kept)
+    assert abs(share[0] - mass[0] / mass.sum()) < 0.04, share
+    for k in range(2):
+        x = kept[which == k]
+        assert np.all(np.abs(x.mean(axis=0) - post.centres[k]) < 0.15 * post.sds[k]), (k, x.mean(axis=0))
+        assert np.all(np.abs(x.std(axis=0) / post.sds[k] - 1) < 0.1), (k, x.std(axis=0))

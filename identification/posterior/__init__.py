@@ -50,7 +50,9 @@ derivatives, batched) find a mode and its Laplace covariance. Every mode that
 a valley separates from the others, within 10 log units of the best, is kept;
 the walkers start split evenly between them, as draws from each one's Gaussian
 (a diagonal ball from the curvature where the Hessian is not negative
-definite), and with two or more modes a tenth of the moves are mode jumps
+definite). With two or more modes, the ensemble moves draw their helper walkers
+from the moving walker's own mode, and a fifth of the moves are mode jumps that
+carry a point's place in its mode's Laplace shape over to another mode
 (``modes``).
 
 Convergence is measured, not assumed: emcee's integrated autocorrelation time

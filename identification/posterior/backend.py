@@ -14,7 +14,9 @@ from hysbench.data.dataset import Dataset
 from ..errors import IdentificationError
 from .target import LogPosterior
 
-CHAIN_FORMAT = "hysbench-posterior-chain/3"  # 2: discrepancy coefficients among the blobs; 3: walkers start in every separated mode, with mode jumps
+# 2: discrepancy coefficients among the blobs; 3: walkers start in every separated mode, with mode
+# jumps; 4: ensemble moves within modes, jumps mapped by the modes' Laplace shapes
+CHAIN_FORMAT = "hysbench-posterior-chain/4"
 
 
 # --- the chain file ------------------------------------------------------------------

@@ -82,6 +82,15 @@ def mode_locations(post: LogPosterior, start: dict | None) -> np.ndarray:
     return np.array([[m["mode"][n] for n in post.coord_names] for m in found]).reshape(-1, post.ndim)
 
 
+def mode_covariances(post: LogPosterior, start: dict | None) -> list[np.ndarray] | None:
+    """The modes' Laplace covariances (sampler coordinates) from a run's stored start, in
+    ``mode_locations`` order; None if the start did not store them."""
+    found = (start or {}).get("modes") or []
+    if not found or any("covariance" not in m for m in found):
+        return None
+    return [np.array(m["covariance"], dtype=float).reshape(post.ndim, post.ndim) for m in found]
+
+
 def walkers_in_modes(post: LogPosterior, modes: list[dict], n_walkers: int, rng: np.random.Generator) -> np.ndarray:
     """``n_walkers`` split evenly between the modes (the first ones get the remainder), each drawn from
     its mode's Laplace Gaussian; returns (n_walkers, d) and records each mode's count under "walkers"."""
@@ -93,33 +102,89 @@ def walkers_in_modes(post: LogPosterior, modes: list[dict], n_walkers: int, rng:
 
 
 class ModeJump(emcee.moves.MHMove):
-    """Metropolis move x -> x + (m_j - m_i): i the mode nearest to x, j another mode drawn uniformly.
+    """Metropolis move from the mode i nearest to x to another mode j drawn uniformly.
 
-    The reverse proposal is drawn with the same probability when x + (m_j - m_i) is nearest to m_j;
-    otherwise it could not be proposed back, and the move is rejected (log factor -inf).
+    Without shapes: x -> x + (m_j - m_i). With each mode's Laplace covariance C = L L': x ->
+    m_j + L_j L_i^-1 (x - m_i), which carries a point's place in its mode's shape over to the other
+    mode's (log factor log |det L_j| - log |det L_i|, the map's Jacobian). Either way the reverse map
+    is drawn with the same probability when the landing point is nearest to m_j; otherwise it could
+    not be proposed back, and the move is rejected (log factor -inf).
     """
 
-    def __init__(self, post: LogPosterior, modes: np.ndarray):
+    def __init__(self, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None):
         self.post, self.modes = post, np.asarray(modes, dtype=float)
+        self.chols = None if covs is None else [np.linalg.cholesky(np.asarray(c, dtype=float)) for c in covs]
         super().__init__(self._propose)
 
     def _propose(self, coords: np.ndarray, random) -> tuple[np.ndarray, np.ndarray]:
         k = len(self.modes)
         i = nearest_mode(self.post, coords, self.modes)
         j = (i + 1 + random.randint(0, k - 1, size=len(coords))) % k
-        q = coords + self.modes[j] - self.modes[i]
+        if self.chols is None:
+            q, log_det = coords + self.modes[j] - self.modes[i], np.zeros(len(coords))
+        else:
+            q, log_det = np.empty_like(coords), np.empty(len(coords))
+            for n, (a, b) in enumerate(zip(i, j)):
+                La, Lb = self.chols[a], self.chols[b]
+                q[n] = self.modes[b] + Lb @ np.linalg.solve(La, coords[n] - self.modes[a])
+                log_det[n] = np.sum(np.log(np.diag(Lb))) - np.sum(np.log(np.diag(La)))
         back = nearest_mode(self.post, q, self.modes) == j
-        return q, np.where(back, 0.0, -np.inf)
+        return q, np.where(back, log_det, -np.inf)
 
 
-JUMP_SHARE = 0.1  # share of steps that are mode jumps when there are separated modes
+class WithinModes(emcee.moves.RedBlueMove):
+    """An ensemble move (DE, snooker, stretch) whose helper walkers are those of the walker's own mode.
+
+    Between walkers in different modes a difference vector spans the valley, and the proposal
+    lands nowhere useful: with a 60/40 split that is half of all DE proposals. Here the
+    complementary walkers are cut down to those nearest to the moving walker's mode (all of them
+    when that leaves too few for the move), and a proposal that lands nearer another mode is
+    rejected. The pool then depends only on the mode, which x and its proposal share, so the
+    base move's proposal stays as symmetric (with the same factor) as it was.
+    """
+
+    def __init__(self, move: emcee.moves.RedBlueMove, post: LogPosterior, modes: np.ndarray):
+        self.move, self.post, self.modes = move, post, np.asarray(modes, dtype=float)
+        super().__init__(nsplits=move.nsplits, randomize_split=move.randomize_split,
+                         live_dangerously=move.live_dangerously)
+
+    def setup(self, coords):
+        self.move.setup(coords)
+
+    def get_proposal(self, s, c, random):
+        mode_s = nearest_mode(self.post, s, self.modes)
+        mode_c = [nearest_mode(self.post, cj, self.modes) for cj in c]
+        q, factors = np.empty_like(s), np.empty(len(s))
+        for k in np.unique(mode_s):
+            rows = mode_s == k
+            pool = [cj[mk == k] for cj, mk in zip(c, mode_c)]
+            if not _enough(self.move, pool):
+                pool = c
+            q[rows], factors[rows] = self.move.get_proposal(s[rows], pool, random)
+        same = nearest_mode(self.post, q, self.modes) == mode_s
+        return q, np.where(same, factors, -np.inf)
 
 
-def with_mode_jumps(moves, post: LogPosterior, modes: np.ndarray):
-    """emcee moves (None: the stretch move) with ``ModeJump`` added at ``JUMP_SHARE`` when there are
-    two or more modes; unchanged otherwise."""
+def _enough(move, pool: list[np.ndarray]) -> bool:
+    """Whether ``move`` can draw its helper walkers from ``pool``: the snooker one from each of three
+    sets, DE two distinct ones, stretch one."""
+    sizes = [len(p) for p in pool]
+    if isinstance(move, emcee.moves.DESnookerMove):
+        return len(sizes) >= 3 and min(sizes[:3]) >= 1
+    return sum(sizes) >= (2 if isinstance(move, emcee.moves.DEMove) else 1)
+
+
+JUMP_SHARE = 0.2  # share of steps that are mode jumps when there are separated modes
+
+
+def with_mode_jumps(moves, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None):
+    """emcee moves (None: the stretch move) for separated modes: each ensemble move drawing its helper
+    walkers from the walker's own mode (``WithinModes``), and ``ModeJump`` at ``JUMP_SHARE``; unchanged
+    with one mode."""
     if len(modes) < 2:
         return moves
     base = [(emcee.moves.StretchMove(), 1.0)] if moves is None else list(moves)
     total = sum(w for _, w in base)
-    return [(m, (1.0 - JUMP_SHARE) * w / total) for m, w in base] + [(ModeJump(post, modes), JUMP_SHARE)]
+    within = [(WithinModes(m, post, modes) if isinstance(m, emcee.moves.RedBlueMove) else m,
+               (1.0 - JUMP_SHARE) * w / total) for m, w in base]
+    return within + [(ModeJump(post, modes, covs), JUMP_SHARE)]

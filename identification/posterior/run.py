@@ -24,8 +24,8 @@ from ..errors import IdentificationError
 from .backend import open_backend, settings_fingerprint, store_start
 from .convergence import TAU_FACTOR, Convergence, convergence
 from .discrepancy import Calibration, calibrate_scale
-from .modes import (JUMP_SHARE, find_modes, mode_locations, mode_search_starts, nearest_mode, walkers_in_modes,
-                    with_mode_jumps)
+from .modes import (JUMP_SHARE, find_modes, mode_covariances, mode_locations, mode_search_starts, nearest_mode,
+                    walkers_in_modes, with_mode_jumps)
 from .start import noise_estimate, screen_candidates
 from .target import LogPosterior
 
@@ -311,14 +311,16 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                  "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(best["cov"]))))),
                  "mode_search": best["info"],
                  "modes": [{"mode": dict(zip(post.coord_names, map(float, m["x"]))),
-                            "log_posterior": m["log_posterior"], "walkers": m["walkers"]} for m in modes],
+                            "log_posterior": m["log_posterior"], "walkers": m["walkers"],
+                            "covariance": [[float(v) for v in row] for row in m["cov"]]} for m in modes],
                  "seconds": time.perf_counter() - ts}
         store_start(path, start)
     else:
         post.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7, done]))
 
     sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
-                                    moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start)))
+                                    moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start),
+                                                          mode_covariances(post, start)))
     if p0 is not None:
         sampler.random_state = np.random.RandomState(0 if seed is None else int(seed)).get_state()
     else:  # resuming: the last stored state (coordinates, log posterior, draws, random state)
@@ -381,7 +383,8 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                           for m in start["modes"])
         run.notes.append(
             f"the posterior has {len(start['modes'])} separated modes ({where}); the walkers started evenly in "
-            f"them, mode jumps were {JUMP_SHARE:.0%} of the moves, and the kept states lie {shares} in each; "
+            f"them, the ensemble moves drew their helper walkers from the walker's own mode, mode jumps (mapped "
+            f"by the modes' Laplace shapes) were {JUMP_SHARE:.0%} of the moves, and the kept states lie {shares} in each; "
             "medians and intervals span every mode; the predictive scale is calibrated in each mode at its own "
             "median state, and each predictive draw is scaled about its mode's median by its mode's scale")
     for name, b in run.at_prior_bound().items():
