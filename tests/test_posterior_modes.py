@@ -11,6 +11,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import logsumexp
@@ -194,10 +195,13 @@ def test_the_report_names_a_parameter_at_its_prior_bound():
     assert "no nonlinear parameter" in bound_line({"at_prior_bound": {}})
 
 
-def test_moves_within_modes_sample_each_mode_and_the_masses():
+@pytest.mark.parametrize("shapes", ["none", "true", "wrong"])
+def test_moves_within_modes_sample_each_mode_and_the_masses(shapes):
     """DE and snooker drawing helpers from the walker's own mode (``WithinModes``), with the mode jumps:
     the kept states reproduce each mode's mean, spread and mass of a two-Gaussian mixture (unequal
-    masses and shapes, a mode with too few walkers at times: the fallback to every helper)."""
+    masses and shapes, a mode with too few walkers at times: the fallback to every helper). The jumps
+    plain shifts, mapped by the true shapes, or by wrong centres and covariances (a pilot's noisy
+    estimate): any fixed map keeps detailed balance, so only the speed may differ."""
     import emcee
 
     from hysbench.identification.posterior import with_mode_jumps
@@ -208,7 +212,14 @@ def test_moves_within_modes_sample_each_mode_and_the_masses():
     mass = np.array([0.8 * 0.05 * 0.08, 0.2 * 0.03 * 0.04])
     modes = [{"x": c, "cov": np.diag(s**2)} for c, s in zip(post.centres, post.sds)]
     p0 = walkers_in_modes(post, modes, 16, np.random.default_rng(7))
-    moves = with_mode_jumps([(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)], post, post.centres)
+    covs, centres = None, None
+    if shapes == "true":
+        covs = [np.diag(s**2) for s in post.sds]
+    elif shapes == "wrong":
+        covs = [np.array([[4.0, 1.0], [1.0, 1.0]]) * s[0] ** 2 for s in post.sds]
+        centres = post.centres + 0.5 * post.sds
+    moves = with_mode_jumps([(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)], post, post.centres,
+                            covs, centres)
     assert all(isinstance(m, WithinModes) for m, _ in moves[:2])
     sampler = emcee.EnsembleSampler(16, 2, post.log_prob, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(8).get_state()

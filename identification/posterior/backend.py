@@ -15,8 +15,9 @@ from ..errors import IdentificationError
 from .target import LogPosterior
 
 # 2: discrepancy coefficients among the blobs; 3: walkers start in every separated mode, with mode
-# jumps; 4: ensemble moves within modes, jumps mapped by the modes' Laplace shapes
-CHAIN_FORMAT = "hysbench-posterior-chain/4"
+# jumps; 4: ensemble moves within modes, jumps mapped by the modes' Laplace shapes; 5: jumps mapped by each
+# mode's mean and covariance from a pilot run
+CHAIN_FORMAT = "hysbench-posterior-chain/5"
 
 
 # --- the chain file ------------------------------------------------------------------

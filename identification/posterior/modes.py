@@ -83,12 +83,44 @@ def mode_locations(post: LogPosterior, start: dict | None) -> np.ndarray:
 
 
 def mode_covariances(post: LogPosterior, start: dict | None) -> list[np.ndarray] | None:
-    """The modes' Laplace covariances (sampler coordinates) from a run's stored start, in
-    ``mode_locations`` order; None if the start did not store them."""
+    """The covariances the mode jumps map by (sampler coordinates; the pilot's if it measured them, else the
+    Laplace ones), from a run's stored start in ``mode_locations`` order; None if the start did not store them."""
     found = (start or {}).get("modes") or []
-    if not found or any("covariance" not in m for m in found):
+    key = "pilot_covariance" if found and all("pilot_covariance" in m for m in found) else "covariance"
+    if not found or any(key not in m for m in found):
         return None
-    return [np.array(m["covariance"], dtype=float).reshape(post.ndim, post.ndim) for m in found]
+    return [np.array(m[key], dtype=float).reshape(post.ndim, post.ndim) for m in found]
+
+
+def jump_centres(post: LogPosterior, start: dict | None) -> np.ndarray | None:
+    """The pilot's mean of each mode (sampler coordinates), if it measured them; else None (the modes)."""
+    found = (start or {}).get("modes") or []
+    if not found or any("pilot_mean" not in m for m in found):
+        return None
+    return np.array([m["pilot_mean"] for m in found], dtype=float).reshape(-1, post.ndim)
+
+
+PILOT_STEPS = 200  # steps of a pilot run that measures each mode's mean and covariance for the jumps
+
+
+def pilot_shapes(post: LogPosterior, modes: list[dict], moves, p0: np.ndarray, seed: int | None,
+                 steps: int = PILOT_STEPS) -> np.ndarray:
+    """Run the sampler ``steps`` steps from ``p0`` (jumps mapped by the Laplace shapes) and store each mode's
+    mean and covariance over the second half's states in it as "pilot_mean", "pilot_covariance" (a mode with
+    fewer than 10 x d such states keeps its Laplace shape). Returns the last walker positions: the kept chain
+    starts there, with the jumps fixed from then on."""
+    M = np.array([m["x"] for m in modes])
+    sampler = emcee.EnsembleSampler(len(p0), post.ndim, post, vectorize=True,
+                                    moves=with_mode_jumps(moves, post, M, [m["cov"] for m in modes]))
+    sampler.random_state = np.random.RandomState([0 if seed is None else int(seed), 13]).get_state()
+    state = sampler.run_mcmc(p0, steps, progress=False)
+    X = sampler.get_chain(discard=steps // 2, flat=True)
+    which = nearest_mode(post, X, M)
+    for k, m in enumerate(modes):
+        S = X[which == k]
+        if len(S) >= 10 * post.ndim:
+            m["pilot_mean"], m["pilot_cov"] = S.mean(axis=0), np.cov(S.T)
+    return state.coords
 
 
 def walkers_in_modes(post: LogPosterior, modes: list[dict], n_walkers: int, rng: np.random.Generator) -> np.ndarray:
@@ -111,8 +143,10 @@ class ModeJump(emcee.moves.MHMove):
     not be proposed back, and the move is rejected (log factor -inf).
     """
 
-    def __init__(self, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None):
+    def __init__(self, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None,
+                 centres: np.ndarray | None = None):
         self.post, self.modes = post, np.asarray(modes, dtype=float)
+        self.centres = self.modes if centres is None else np.asarray(centres, dtype=float)
         self.chols = None if covs is None else [np.linalg.cholesky(np.asarray(c, dtype=float)) for c in covs]
         super().__init__(self._propose)
 
@@ -121,12 +155,12 @@ class ModeJump(emcee.moves.MHMove):
         i = nearest_mode(self.post, coords, self.modes)
         j = (i + 1 + random.randint(0, k - 1, size=len(coords))) % k
         if self.chols is None:
-            q, log_det = coords + self.modes[j] - self.modes[i], np.zeros(len(coords))
+            q, log_det = coords + self.centres[j] - self.centres[i], np.zeros(len(coords))
         else:
             q, log_det = np.empty_like(coords), np.empty(len(coords))
             for n, (a, b) in enumerate(zip(i, j)):
                 La, Lb = self.chols[a], self.chols[b]
-                q[n] = self.modes[b] + Lb @ np.linalg.solve(La, coords[n] - self.modes[a])
+                q[n] = self.centres[b] + Lb @ np.linalg.solve(La, coords[n] - self.centres[a])
                 log_det[n] = np.sum(np.log(np.diag(Lb))) - np.sum(np.log(np.diag(La)))
         back = nearest_mode(self.post, q, self.modes) == j
         return q, np.where(back, log_det, -np.inf)
@@ -177,7 +211,8 @@ def _enough(move, pool: list[np.ndarray]) -> bool:
 JUMP_SHARE = 0.2  # share of steps that are mode jumps when there are separated modes
 
 
-def with_mode_jumps(moves, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None):
+def with_mode_jumps(moves, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None,
+                    centres: np.ndarray | None = None):
     """emcee moves (None: the stretch move) for separated modes: each ensemble move drawing its helper
     walkers from the walker's own mode (``WithinModes``), and ``ModeJump`` at ``JUMP_SHARE``; unchanged
     with one mode."""
@@ -187,4 +222,4 @@ def with_mode_jumps(moves, post: LogPosterior, modes: np.ndarray, covs: list[np.
     total = sum(w for _, w in base)
     within = [(WithinModes(m, post, modes) if isinstance(m, emcee.moves.RedBlueMove) else m,
                (1.0 - JUMP_SHARE) * w / total) for m, w in base]
-    return within + [(ModeJump(post, modes, covs), JUMP_SHARE)]
+    return within + [(ModeJump(post, modes, covs, centres), JUMP_SHARE)]

@@ -24,8 +24,8 @@ from ..errors import IdentificationError
 from .backend import open_backend, settings_fingerprint, store_start
 from .convergence import TAU_FACTOR, Convergence, convergence
 from .discrepancy import Calibration, calibrate_scale
-from .modes import (JUMP_SHARE, find_modes, mode_covariances, mode_locations, mode_search_starts, nearest_mode,
-                    walkers_in_modes, with_mode_jumps)
+from .modes import (JUMP_SHARE, PILOT_STEPS, find_modes, jump_centres, mode_covariances, mode_locations,
+                    mode_search_starts, nearest_mode, pilot_shapes, walkers_in_modes, with_mode_jumps)
 from .start import noise_estimate, screen_candidates
 from .target import LogPosterior
 
@@ -305,6 +305,9 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
         best = modes[0]
         rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
         p0 = walkers_in_modes(post, modes, n_walkers, rng)
+        if len(modes) > 1:
+            say(f"start: a {PILOT_STEPS}-step pilot measures each mode's shape for the mode jumps ...")
+            p0 = pilot_shapes(post, modes, MOVES[moves](emcee), p0, seed)
         start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
                  "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
                  "mode": dict(zip(post.coord_names, map(float, best["x"]))),
@@ -312,7 +315,10 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                  "mode_search": best["info"],
                  "modes": [{"mode": dict(zip(post.coord_names, map(float, m["x"]))),
                             "log_posterior": m["log_posterior"], "walkers": m["walkers"],
-                            "covariance": [[float(v) for v in row] for row in m["cov"]]} for m in modes],
+                            "covariance": [[float(v) for v in row] for row in m["cov"]],
+                            **({"pilot_mean": [float(v) for v in m["pilot_mean"]],
+                                "pilot_covariance": [[float(v) for v in row] for row in m["pilot_cov"]]}
+                               if "pilot_cov" in m else {})} for m in modes],
                  "seconds": time.perf_counter() - ts}
         store_start(path, start)
     else:
@@ -320,7 +326,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
 
     sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
                                     moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start),
-                                                          mode_covariances(post, start)))
+                                                          mode_covariances(post, start), jump_centres(post, start)))
     if p0 is not None:
         sampler.random_state = np.random.RandomState(0 if seed is None else int(seed)).get_state()
     else:  # resuming: the last stored state (coordinates, log posterior, draws, random state)
