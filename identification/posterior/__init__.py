@@ -52,8 +52,9 @@ the walkers start split evenly between them, as draws from each one's Gaussian
 (a diagonal ball from the curvature where the Hessian is not negative
 definite). With two or more modes, the ensemble moves draw their helper walkers
 from the moving walker's own mode, and a fifth of the moves are mode jumps that
-carry a point's place in its mode's Laplace shape over to another mode
-(``modes``).
+carry a point's place in its mode's shape over to another mode; the shapes (each
+mode's mean and covariance) are measured on a 200-step pilot run before the kept
+chain starts (``modes``).
 
 Convergence is measured, not assumed: emcee's integrated autocorrelation time
 tau per parameter (linear ones from their draws), the chain after burn-in at

@@ -390,7 +390,8 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
         run.notes.append(
             f"the posterior has {len(start['modes'])} separated modes ({where}); the walkers started evenly in "
             f"them, the ensemble moves drew their helper walkers from the walker's own mode, mode jumps (mapped "
-            f"by the modes' Laplace shapes) were {JUMP_SHARE:.0%} of the moves, and the kept states lie {shares} in each; "
+            f"by each mode's mean and covariance from a {PILOT_STEPS}-step pilot run) were {JUMP_SHARE:.0%} of the "
+            f"moves, and the kept states lie {shares} in each; "
             "medians and intervals span every mode; the predictive scale is calibrated in each mode at its own "
             "median state, and each predictive draw is scaled about its mode's median by its mode's scale")
     for name, b in run.at_prior_bound().items():
