@@ -751,3 +751,22 @@ def test_a_gain_modulation_is_not_named_a_clip():
     assert clip.estimates["slope_where_clipped"] > 0.5 and "not a clip" in clip.limit
     assert d.cause != "saturation"
 
+
+
+def test_a_held_out_gain_carried_by_one_record_alone_is_not_evidence():
+    """Evidence that only the record it improves most carries (coloured noise can throw the base's extrapolation
+    to one record far off) is not enough for `unexplained`; a gain spread over the records is; with two records
+    nothing is left to check."""
+    from hysbench.benchmarks.diagnosis.selection import Folds, carried_by_one_record
+
+    rng = np.random.default_rng(3)
+    folds = Folds(np.array([0, 4000, 6000, 7000]))
+    e_null = rng.normal(size=7000)
+    one = e_null.copy()
+    one[6000:] *= 0.3  # the third record predicted much better, the others as the base
+    one[:6000] += 0.01 * rng.normal(size=6000)
+    spread = 0.8 * e_null  # every record 36 % better
+    assert carried_by_one_record(folds, e_null, one)
+    assert not carried_by_one_record(folds, e_null, spread)
+    two = Folds(np.array([0, 4000, 7000]))
+    assert not carried_by_one_record(two, e_null, one)
