@@ -392,10 +392,9 @@ def carried_by_one_record(folds: Folds, e_null: np.ndarray, e_c: np.ndarray) -> 
         return False
     gain = [float(e_null[folds.test(m)] @ e_null[folds.test(m)] - e_c[folds.test(m)] @ e_c[folds.test(m)])
             for m in range(folds.n)]
-    keep = np.ones(folds.starts[-1], dtype=bool)
-    keep[folds.test(int(np.argmax(gain)))] = False
-    rest = Folds(np.cumsum([0] + [int(folds.starts[m + 1] - folds.starts[m]) for m in range(folds.n)
-                                  if m != int(np.argmax(gain))]))
+    best = int(np.argmax(gain))
+    keep = ~folds.test(best)
+    rest = Folds(np.cumsum([0] + [int(folds.starts[m + 1] - folds.starts[m]) for m in range(folds.n) if m != best]))
     return not evidence(score(rest, e_null[keep], e_c[keep]))
 
 

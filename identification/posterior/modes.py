@@ -136,11 +136,13 @@ def walkers_in_modes(post: LogPosterior, modes: list[dict], n_walkers: int, rng:
 class ModeJump(emcee.moves.MHMove):
     """Metropolis move from the mode i nearest to x to another mode j drawn uniformly.
 
-    Without shapes: x -> x + (m_j - m_i). With each mode's Laplace covariance C = L L': x ->
-    m_j + L_j L_i^-1 (x - m_i), which carries a point's place in its mode's shape over to the other
-    mode's (log factor log |det L_j| - log |det L_i|, the map's Jacobian). Either way the reverse map
-    is drawn with the same probability when the landing point is nearest to m_j; otherwise it could
-    not be proposed back, and the move is rejected (log factor -inf).
+    Without shapes: x -> x + (c_j - c_i). With a covariance C = L L' per mode (the pilot's, or the
+    Laplace one): x -> c_j + L_j L_i^-1 (x - c_i), which carries a point's place in its mode's shape
+    over to the other mode's (log factor log |det L_j| - log |det L_i|, the map's Jacobian). The
+    centres c are ``centres`` (the pilot's means) or the modes; the modes alone decide which mode a
+    point is nearest to. Either way the reverse map is drawn with the same probability when the
+    landing point is nearest to mode j; otherwise it could not be proposed back, and the move is
+    rejected (log factor -inf).
     """
 
     def __init__(self, post: LogPosterior, modes: np.ndarray, covs: list[np.ndarray] | None = None,
@@ -148,6 +150,7 @@ class ModeJump(emcee.moves.MHMove):
         self.post, self.modes = post, np.asarray(modes, dtype=float)
         self.centres = self.modes if centres is None else np.asarray(centres, dtype=float)
         self.chols = None if covs is None else [np.linalg.cholesky(np.asarray(c, dtype=float)) for c in covs]
+        self.log_dets = None if covs is None else np.array([np.sum(np.log(np.diag(L))) for L in self.chols])
         super().__init__(self._propose)
 
     def _propose(self, coords: np.ndarray, random) -> tuple[np.ndarray, np.ndarray]:
@@ -157,11 +160,9 @@ class ModeJump(emcee.moves.MHMove):
         if self.chols is None:
             q, log_det = coords + self.centres[j] - self.centres[i], np.zeros(len(coords))
         else:
-            q, log_det = np.empty_like(coords), np.empty(len(coords))
-            for n, (a, b) in enumerate(zip(i, j)):
-                La, Lb = self.chols[a], self.chols[b]
-                q[n] = self.centres[b] + Lb @ np.linalg.solve(La, coords[n] - self.centres[a])
-                log_det[n] = np.sum(np.log(np.diag(Lb))) - np.sum(np.log(np.diag(La)))
+            q = np.array([self.centres[b] + self.chols[b] @ np.linalg.solve(self.chols[a], x - self.centres[a])
+                          for x, a, b in zip(coords, i, j)])
+            log_det = self.log_dets[j] - self.log_dets[i]
         back = nearest_mode(self.post, q, self.modes) == j
         return q, np.where(back, log_det, -np.inf)
 
