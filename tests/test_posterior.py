@@ -32,9 +32,8 @@ from hysbench.data.dataset import Dataset, Record, save_dataset
 from hysbench.data.protocol import IDENTIFICATION_WEIGHTS
 from hysbench.identification.errors import IdentificationError
 from hysbench.data.periodic import periodic_proxy, trim_history
-from hysbench.identification.posterior import (Calibration, LogPosterior, autocorr_times, build_segments,
+from hysbench.identification.posterior import (Calibration, calibrate_scale, LogPosterior, autocorr_times, build_segments,
                                                convergence, predictive, sample_posterior, simulated_ar1_dataset)
-from hysbench.identification.posterior.discrepancy import GROWTH_MAX
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel, Parameter
 from misspecified_data import planted_relaxation_dataset, virtual_dea_dataset
@@ -276,38 +275,79 @@ def test_predictive_intervals_are_not_too_wide_when_the_model_is_wrong(misspecif
 
 
 @pytest.mark.parametrize("misspecified_coverage", GENERATORS, indirect=True)
-def test_growth_makes_the_held_out_records_covered_at_90(misspecified_coverage):
-    """Where beta is inside its range, the interpolated held-out records it was set on are covered at 90 %
-    on average (the smallest beta that reaches it: at most a step of the coverage above)."""
+def test_pooled_scale_covers_the_fitted_records_at_90_and_the_end_records_set_the_outside_scale(misspecified_coverage):
+    """The pooled scale is the smallest that covers the fitted records' own residuals at 90 % on average (at
+    most a step of the coverage above), and the end records held out are covered at >= 90 % on average
+    by the scale beyond the fitted range."""
     _, _, calibrations = misspecified_coverage
-    checked = 0
     for cal in calibrations:
-        used = [f["coverage_90_scaled"] for f in cal.folds if f["used"]]
-        assert cal.constant is None and used
-        if 0 < cal.growth < GROWTH_MAX:
-            assert 0.9 <= np.mean(used) <= 0.91
-            checked += 1
-    assert checked >= 3
+        assert cal.constant is None and cal.outside is not None
+        ends = [f for f in cal.folds if f["used"]]
+        assert {f["frequency_hz"] for f in ends} == {min(cal.frequencies), max(cal.frequencies)}
+        assert np.mean([f["coverage_90_scaled"] for f in ends]) >= 0.9
+        assert all(not f["interior"] for f in ends)
+        assert min(cal.in_sample) <= cal.pooled <= max(cal.in_sample)
 
 
-def test_predictive_scale_interpolates_and_grows_with_distance():
-    """c(f) = c_in(f) exp(beta |ln f - ln f_a| |ln f - ln f_b|), against the formula written out."""
-    cal = Calibration(0.9, frequencies=[0.02, 0.1, 0.4, 1.0], in_sample=[0.5, 1.0, 2.0, 0.8], growth=0.3)
-    assert cal.scale_at(0.1) == pytest.approx(1.0)  # a fitted frequency: its own in-sample scale
-    f = 0.05  # between 0.02 and 0.1: ln c linear in ln f; distance ln(0.05/0.02) ln(0.1/0.05)
-    w = math.log(f / 0.02) / math.log(0.1 / 0.02)
-    assert cal.scale_at(f) == pytest.approx(math.exp((1 - w) * math.log(0.5) + w * math.log(1.0))
-                                            * math.exp(0.3 * math.log(2.5) * math.log(2.0)))
-    # beyond the range: the scale held, the distance to the two nearest (0.02 and 0.1)
-    assert cal.scale_at(0.01) == pytest.approx(0.5 * math.exp(0.3 * math.log(2.0) * math.log(10.0)))
-    assert Calibration(0.9, frequencies=[0.4, 0.4], in_sample=[1.0, 1.0], growth=0.3).scale_at(0.8) == pytest.approx(
-        math.exp(0.3 * math.log(2.0) ** 2))  # one distinct fitted frequency: the distance squared
-    assert cal.scale_at(None) == pytest.approx(2.0)  # unknown frequency: the largest (no folds: no growth)
+def test_predictive_scale_is_pooled_inside_the_fitted_range_and_held_out_beyond():
+    """c(f): the pooled scale inside [min f, max f] of the fitted records, max(pooled, outside) beyond it or for
+    an unknown frequency, the constant when there is one."""
+    cal = Calibration(0.9, frequencies=[0.02, 0.1, 0.4, 1.0], in_sample=[0.5, 1.0, 2.0, 0.8], pooled=1.1, outside=2.5)
+    for f in (0.02, 0.05, 0.2, 0.8, 1.0):
+        assert cal.scale_at(f) == 1.1
+    for f in (0.01, 2.0, None):
+        assert cal.scale_at(f) == 2.5
+    assert Calibration(0.9, frequencies=[0.1, 1.0], pooled=1.1, outside=0.7).scale_at(5.0) == 1.1  # never below pooled
+    assert Calibration(0.9, frequencies=[0.1, 1.0], pooled=1.1).scale_at(5.0) == 1.1  # no end fold refitted
     assert Calibration(0.9, constant=1.3).scale_at(0.2) == 1.3
-    # a record whose residuals the fit mostly absorbed (leverage > 0.5) is not a base: 0.8 Hz takes 0.4 Hz's
-    lev = Calibration(0.9, frequencies=[0.1, 0.4, 1.0], in_sample=[1.0, 2.0, 0.1], leverage=[0.1, 0.2, 0.9])
-    assert lev.scale_at(0.8) == pytest.approx(2.0)
-    assert lev.describe()["in_sample"][2]["used"] is False
+    d = cal.describe()
+    assert d["kind"] == "pooled" and d["pooled_in_sample_scale"] == 1.1 and d["outside_range_scale"] == 2.5
+
+
+def test_pooled_scale_against_a_direct_search():
+    """calibrate_scale's pooled scale and outside scale against a plain grid search over c on the same errors."""
+    model = get_model("mrpim", **SMALL)
+    ds = planted_relaxation_dataset(3, model)
+    run = sample_posterior(model, ds, n_walkers=16, max_steps=200, min_ess=10, seed=3, progress=False)
+    nl, sigma, phi = run.median_state()
+    cal = calibrate_scale(run.post, nl, sigma, phi)
+    post = run.post
+    noise_var = sigma**2 / (1 - phi**2)
+    rows = []
+    for s in post.segments:
+        X, y = post.design(s, nl[None])[0], s.y
+        rows.append((X, y))
+
+    def fit(keep):  # the Gaussian conditional of the linear parameters, written out (AR(1) prewhitened)
+        prec = np.diag(post.priors.linear_precision) if np.ndim(post.priors.linear_precision) == 1 else \
+            post.priors.linear_precision
+        A, b = prec.copy(), prec @ post.priors.linear_mean
+        for j in keep:
+            X, y = rows[j]
+            Xw = np.vstack([X[:1] * math.sqrt(1 - phi**2), X[1:] - phi * X[:-1]])
+            yw = np.concatenate([y[:1] * math.sqrt(1 - phi**2), y[1:] - phi * y[:-1]])
+            A += Xw.T @ Xw / sigma**2
+            b += Xw.T @ yw / sigma**2
+        cov = np.linalg.inv(A)
+        return cov @ b, cov
+
+    def cov_at(pairs, c):
+        return np.mean([np.mean(np.abs(e) <= 1.6448536269514722 * c * np.sqrt(v)) for e, v in pairs])
+
+    def ev(i, f):
+        X, y = rows[i]
+        return y - X @ f[0], np.einsum("ij,jk,ik->i", X, f[1], X) + noise_var
+
+    grid = np.exp(np.linspace(np.log(0.05), np.log(20), 4000))
+    full = fit(range(len(rows)))
+    own = [ev(i, full) for i in range(len(rows))]
+    c_pool = grid[np.argmax([cov_at(own, c) >= 0.9 for c in grid])]
+    assert cal.pooled == pytest.approx(c_pool, rel=2e-3)
+    freqs = [s.frequency_hz for s in post.segments]
+    ends = [i for i in range(len(rows)) if freqs[i] in (min(freqs), max(freqs))]
+    out = [ev(i, fit([j for j in range(len(rows)) if j != i])) for i in ends]
+    c_out = grid[np.argmax([cov_at(out, c) >= 0.9 for c in grid])]
+    assert cal.outside == pytest.approx(c_out, rel=2e-3)
 
 
 # --- the command line ----------------------------------------------------------------------

@@ -293,10 +293,8 @@ def predictive_text(s: dict, files: dict) -> list[str]:
             if c is None:
                 L.append(f"- mode {k + 1}: holds no kept state, not calibrated")
             else:
-                ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in c["in_sample"]
-                                if p["frequency_hz"])
                 L.append(f"- mode {k + 1}: " + (f"one scale {c['constant_scale']:.3g}" if c["kind"] == "constant" else
-                                                f"in-sample scales {ins}; beta {c['growth_per_ln_frequency']:.3g}"))
+                                                _pooled_summary(c)))
         L.append("")
     pv = s.get("predictive", {})
     if not pv.get("validation"):
@@ -331,30 +329,44 @@ def predictive_text(s: dict, files: dict) -> list[str]:
     return L
 
 
+def _pooled_summary(c: dict) -> str:
+    ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in c["in_sample"] if p["frequency_hz"])
+    pooled, out = c["pooled_in_sample_scale"], c.get("outside_range_scale")
+    beyond = "-" if out is None else f"{max(out, pooled):.3g}"
+    return f"pooled in-sample scale {pooled:.3g} (records' own: {ins}); beyond the fitted range {beyond}"
+
+
 def calibration_text(cal: dict) -> list[str]:
-    """How the predictive scale was set: in-sample scales, growth with frequency distance, held-out folds."""
+    """How the predictive scale was set: the pooled in-sample scale, the end records held out, every fold."""
     if cal.get("kind") == "constant" or not cal:
         c = cal.get("constant_scale", 1.0) if cal else 1.0
         L = [f"Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
              f"per-sample median multiplied by {c:.3g} for every record ({cal.get('note', 'not calibrated')}).", ""]
     else:
         ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in cal["in_sample"] if p["frequency_hz"])
+        out = cal.get("outside_range_scale")
+        held = ("the scale that covers the end records (lowest and highest frequency), each held out and the "
+                "linear parameters refitted without it, at 90 % on average")
+        if out is None:
+            beyond = "the pooled scale (no end record could be refitted)"
+        elif out > cal["pooled_in_sample_scale"]:
+            beyond = f"{out:.3g}, {held}"
+        else:
+            beyond = f"the pooled scale ({held} is smaller: {out:.3g})"
         L = ["Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
-             "per-sample median multiplied by c(f) = c_in(f) exp(beta d), where c_in is the scale that covers the "
-             f"fitted records' own residuals at 90 % ({ins}), interpolated in ln f, d = |ln f - ln f_a| "
-             "|ln f - ln f_b| (f_a, f_b the fitted frequencies around f; beyond them the two nearest), and "
-             f"beta = {cal['growth_per_ln_frequency']:.3g} makes the identification records held out by "
-             "interpolation covered at 90 % on average (refitted without them).", ""]
+             f"per-sample median multiplied by c = {cal['pooled_in_sample_scale']:.3g} for a record inside the fitted "
+             "frequencies' range: the one scale that covers the fitted records' own residuals at 90 % on average, "
+             f"every record weighted alike (each record's own: {ins}). Beyond that range: {beyond}. The interior "
+             "records held out are reported, not used.", ""]
     folds = cal.get("folds") or []
     if folds:
         key = [k for k in folds[0] if k.endswith("_scaled")][0]
-        L += ["| held out | f (Hz) | d | used | rms error (refit without it) | 90 % coverage, scale 1 | scale | "
-              "90 % coverage with it |", "|---|---|---|---|---|---|---|---|"]
+        L += ["| held out | f (Hz) | used | rms error (refit without it) | 90 % coverage, scale 1 | scale | "
+              "90 % coverage with it |", "|---|---|---|---|---|---|---|"]
         for f in folds:
             fr = f"{f['frequency_hz']:g}" if f["frequency_hz"] else "-"
-            dist = "-" if f.get("distance") is None else f"{f['distance']:.2f}"
-            used = "yes" if f["used"] else ("no (extrapolation)" if not f["interior"] else "no")
-            L.append(f"| {f['held_out']} | {fr} | {dist} | {used} | {_g(f['rms_error'], 3)} | "
+            used = "yes (end record)" if f["used"] and not f["interior"] else ("yes" if f["used"] else "no (interior)")
+            L.append(f"| {f['held_out']} | {fr} | {used} | {_g(f['rms_error'], 3)} | "
                      f"{_pct(f[key.replace('_scaled', '_unscaled')])} | {f['scale']:.3g} | {_pct(f[key])} |")
         L.append("")
     return L
