@@ -433,6 +433,27 @@ def test_cli_writes_outputs_warns_when_not_converged_and_resumes(tiny_dataset, t
     assert len(err.strip().splitlines()) == 1
 
 
+def test_cli_flags_validation_records_outside_the_fitted_frequency_range(tmp_path, capsys):
+    """A validation record beyond the identification records' frequencies is marked extrapolated in the JSON,
+    posterior.md and on stderr; the records inside are not."""
+    model = get_model("mrpim", **SMALL)
+    ds = simulated_ar1_dataset(model, TRUTH, sigma=SIGMA, phi=PHI, seed=7, n_periods=2, dt=0.02, name="edge")
+    for r in ds.records:  # identify on 0.05-0.4 Hz: 0.02, 0.8 and 1 Hz are validation, beyond the range
+        r.role = "identification" if 0.05 <= r.frequency_hz <= 0.4 else "validation"
+    folder = tmp_path / "edge"
+    save_dataset(ds, folder)
+    out = tmp_path / "out"
+    code, _, err = _hysbench(capsys, "posterior", str(folder), "--out", str(out), "--steps", "40", "--fixed-steps",
+                             "--walkers", "8", "--draws", "20", "--quiet", "--no-figures", "--no-chain")
+    assert code == 0, err
+    rows = json.loads((out / "posterior.json").read_text())["predictive"]
+    flags = {p["frequency_hz"]: p["inside_fitted_range"] for p in rows["validation"]}
+    assert flags == {0.02: False, 0.8: False, 1.0: False}
+    assert all(p["inside_fitted_range"] for p in rows["identification"])
+    assert "outside the identification records' frequency range" in err and "f0.8Hz" in err
+    assert "**Outside the fitted frequency range:" in (out / "posterior.md").read_text()
+
+
 def test_api_refuses_models_without_a_linear_part_and_bad_settings():
     ds = simulated_ar1_dataset(get_model("mrpim", **SMALL), TRUTH, sigma=SIGMA, phi=PHI, n_periods=2, dt=0.05,
                                frequencies=(0.4, 1.0))

@@ -156,6 +156,10 @@ def main(args) -> int:
         print(f"validation {p['file']}: {c['90']:.1%} of measured samples inside the 90 % predictive band "
               f"(mean width {c['width_90']:.4g} {dataset.output_unit}), {c['50']:.1%} inside the 50 % band"
               + (f"; {p['nonfinite_draws']} draws with non-finite output left out" if p["nonfinite_draws"] else ""))
+    outside = [p["file"] for p in summary["predictive"]["validation"] if p.get("inside_fitted_range") is False]
+    if outside:
+        print(f"hysbench posterior: WARNING: {', '.join(outside)} outside the identification records' frequency "
+              "range: extrapolated bands, not calibrated (see posterior.md)", file=sys.stderr)
     bad = summary["nonfinite_model_outputs"]["log_posterior_evaluations"]
     if bad:
         print(f"hysbench posterior: WARNING: {bad} log-posterior evaluations had non-finite model outputs "

@@ -63,7 +63,10 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     fall), ``model`` bands only the parameter uncertainty (unscaled).
     ``coverage`` holds the 50 % and 90 % bands' coverage and mean width;
     ``unscaled`` the same with scale 1. Draws whose model output is not finite
-    are left out and counted in ``nonfinite_draws``.
+    are left out and counted in ``nonfinite_draws``. ``inside_fitted_range``:
+    whether the record's frequency lies within the identification records'
+    range (False: extrapolated, where the bands are not calibrated; None:
+    unknown or one frequency only).
     """
     post = run.post
     rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 13]))
@@ -88,7 +91,8 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
         y = s.y
         scales = [run.predictive_scale(s.frequency_hz, k) for k in range(n_modes)]
         row = {"file": s.file, "frequency_hz": s.frequency_hz, "rows": s.n, "draws": int(finite.sum()),
-               "nonfinite_draws": int((~finite).sum()), "predictive_scale": run.predictive_scale(s.frequency_hz)}
+               "nonfinite_draws": int((~finite).sum()), "predictive_scale": run.predictive_scale(s.frequency_hz),
+               "inside_fitted_range": run.inside_fitted_range(s.frequency_hz)}
         if n_modes > 1:
             row["predictive_scale_per_mode"] = scales
         if not finite.any():

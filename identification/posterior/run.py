@@ -150,6 +150,14 @@ class PosteriorRun:
             cal = self.mode_calibrations[mode]
         return 1.0 if cal is None else cal.scale_at(frequency_hz)
 
+    def inside_fitted_range(self, frequency_hz) -> bool | None:
+        """Whether a frequency lies within the identification records' frequency range (None: unknown, or the
+        calibration has no frequency spread)."""
+        cal = self.calibration
+        if cal is None or cal.constant is not None:
+            return None
+        return cal.inside(frequency_hz)
+
     def parameter_table(self) -> dict:
         S = self.samples()
         tau, ess = self.reported_tau()
