@@ -346,7 +346,7 @@ def calibration_text(cal: dict) -> list[str]:
     """How the predictive scale was set: the pooled in-sample scale, the end records held out, every fold."""
     if cal.get("kind") == "constant" or not cal:
         c = cal.get("constant_scale", 1.0) if cal else 1.0
-        L = [f"Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
+        L = [f"Predictive scale: each draw (model output plus its noise path) has its deviation from the "
              f"per-sample median multiplied by {c:.3g} for every record ({cal.get('note', 'not calibrated')}).", ""]
     else:
         ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in cal["in_sample"] if p["frequency_hz"])
@@ -359,7 +359,7 @@ def calibration_text(cal: dict) -> list[str]:
             beyond = f"{out:.3g}, {held}"
         else:
             beyond = f"the pooled scale ({held} is smaller: {out:.3g})"
-        L = ["Predictive scale: each draw (model output plus its AR(1) noise path) has its deviation from the "
+        L = ["Predictive scale: each draw (model output plus its noise path) has its deviation from the "
              f"per-sample median multiplied by c = {cal['pooled_in_sample_scale']:.3g} for a record inside the fitted "
              "frequencies' range: the one scale that covers the fitted records' own residuals at 90 % on average, "
              f"every record weighted alike (each record's own: {ins}). Beyond that range: {beyond}. The interior "
