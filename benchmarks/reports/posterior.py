@@ -335,11 +335,15 @@ def predictive_text(s: dict, files: dict) -> list[str]:
     return L
 
 
+def _own_scales(cal: dict) -> str:
+    """Each fitted record's own in-sample scale, as "c at f Hz, ..."."""
+    return ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in cal["in_sample"] if p["frequency_hz"])
+
+
 def _pooled_summary(c: dict) -> str:
-    ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in c["in_sample"] if p["frequency_hz"])
     pooled, out = c["pooled_in_sample_scale"], c.get("outside_range_scale")
     beyond = "-" if out is None else f"{max(out, pooled):.3g}"
-    return f"pooled in-sample scale {pooled:.3g} (records' own: {ins}); beyond the fitted range {beyond}"
+    return f"pooled in-sample scale {pooled:.3g} (records' own: {_own_scales(c)}); beyond the fitted range {beyond}"
 
 
 def calibration_text(cal: dict) -> list[str]:
@@ -349,7 +353,6 @@ def calibration_text(cal: dict) -> list[str]:
         L = [f"Predictive scale: each draw (model output plus its noise path) has its deviation from the "
              f"per-sample median multiplied by {c:.3g} for every record ({cal.get('note', 'not calibrated')}).", ""]
     else:
-        ins = ", ".join(f"{p['scale']:.3g} at {p['frequency_hz']:g} Hz" for p in cal["in_sample"] if p["frequency_hz"])
         out = cal.get("outside_range_scale")
         held = ("the scale that covers the end records (lowest and highest frequency), each held out and the "
                 "linear parameters refitted without it, at 90 % on average")
@@ -362,7 +365,7 @@ def calibration_text(cal: dict) -> list[str]:
         L = ["Predictive scale: each draw (model output plus its noise path) has its deviation from the "
              f"per-sample median multiplied by c = {cal['pooled_in_sample_scale']:.3g} for a record inside the fitted "
              "frequencies' range: the one scale that covers the fitted records' own residuals at 90 % on average, "
-             f"every record weighted alike (each record's own: {ins}). Beyond that range: {beyond}. The interior "
+             f"every record weighted alike (each record's own: {_own_scales(cal)}). Beyond that range: {beyond}. The interior "
              "records held out are reported, not used.", ""]
     folds = cal.get("folds") or []
     if folds:

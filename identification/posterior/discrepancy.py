@@ -111,13 +111,16 @@ class Calibration:
             return None
         return min(known) <= frequency <= max(known)
 
+    @property
+    def beyond(self) -> float:
+        """The scale beyond the fitted range: max(c_pool, c_out)."""
+        return max(self.pooled, self.outside or 0.0)
+
     def scale_at(self, frequency) -> float:
-        """c_pool inside the fitted range; max(c_pool, c_out) beyond it or for an unknown frequency."""
+        """c_pool inside the fitted range; ``beyond`` outside it or for an unknown frequency."""
         if self.constant is not None:
             return self.constant
-        if self.inside(frequency):
-            return self.pooled
-        return max(self.pooled, self.outside or 0.0)
+        return self.pooled if self.inside(frequency) else self.beyond
 
     def describe(self) -> dict:
         return {"kind": "constant" if self.constant is not None else "pooled",
@@ -143,14 +146,14 @@ def _pieces(post, nl: np.ndarray):
     return out
 
 
-def _solve_increasing(fun, lo: float, hi: float, target: float, log: bool = True) -> float:
-    """Smallest x in [lo, hi] with fun(x) >= target, by bisection (fun non-decreasing)."""
+def _solve_increasing(fun, lo: float, hi: float, target: float) -> float:
+    """Smallest x in [lo, hi] (> 0) with fun(x) >= target, by bisection in ln x (fun non-decreasing)."""
     if fun(lo) >= target:
         return lo
     if fun(hi) < target:
         return hi
     for _ in range(60):
-        mid = math.sqrt(lo * hi) if log else 0.5 * (lo + hi)
+        mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if fun(mid) < target else (lo, mid)
     return hi
 
@@ -217,8 +220,7 @@ def calibrate_scale(post, nl: np.ndarray, sigma: float, phi: float, level: float
         cal.note = "one scale: mean held-out coverage over every held-out piece (no frequency spread)"
     key = f"coverage_{int(round(level * 100))}"
     for h in held:
-        c = cal.constant if cal.constant is not None else (
-            cal.pooled if h["interior"] else max(cal.pooled, cal.outside or 0.0))
+        c = cal.constant if cal.constant is not None else cal.pooled if h["interior"] else cal.beyond
         cal.folds.append({"held_out": h["label"], "frequency_hz": h["frequency_hz"], "used": h["used"],
                           "interior": h["interior"], "rms_error": h["rms_error"],
                           "scale": c, f"{key}_unscaled": coverage(h["err"], h["var"], 1.0),
