@@ -172,6 +172,36 @@ def test_draws_are_scaled_about_their_own_modes_median(k, n, seed):
         assert np.allclose(out[i], centre + scales[mode[i]] * (Y[i] - centre))
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 3), st.integers(5, 40), st.integers(0, 10_000))
+def test_multiplier_for_coverage_against_direct_bands(k, n, seed):
+    """The per-sample needed multipliers reproduce the coverage of bands rebuilt at any multiplier, and
+    the multiplier reported for 80 / 90 / 97 % is the smallest that reaches it."""
+    from hysbench.identification.posterior.predictive import (multiplier_for_coverage, needed_multipliers,
+                                                              scale_about_mode_medians)
+
+    rng = np.random.default_rng(seed)
+    T = 60
+    mode = np.sort(rng.integers(0, k, n))
+    Y = rng.normal(size=(n, T)) + 0.5 * mode[:, None]
+    y = rng.normal(0.2, 1.5, T)
+    scales = rng.uniform(0.5, 2, k)
+
+    def direct(M):  # the band rebuilt from scratch at multiplier M
+        lo, hi = np.quantile(scale_about_mode_medians(Y, mode, M * scales), [0.05, 0.95], axis=0)
+        return np.mean((y >= lo) & (y <= hi))
+
+    m = needed_multipliers(y, Y, mode, scales)
+    for M in (0.3, 0.9, 1.0, 1.7, 4.0):
+        assert abs(np.mean(m <= M) - direct(M)) <= 1.5 / T, (M, np.mean(m <= M), direct(M))
+    for key, M in multiplier_for_coverage(m).items():
+        if M is None:
+            assert direct(100.0) < int(key) / 100
+        elif M > 1.01e-2:
+            assert direct(M * (1 + 1e-4)) >= int(key) / 100 - 1.5 / T
+            assert direct(M * (1 - 1e-3)) < int(key) / 100 + 1e-12
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 50), st.integers(1, 3), st.integers(0, 10_000))
 def test_bound_shares_match_a_loop(n, d, seed):

@@ -42,6 +42,59 @@ def scale_about_mode_medians(Y: np.ndarray, mode: np.ndarray, scales) -> np.ndar
     return out
 
 
+def needed_multipliers(y: np.ndarray, Y: np.ndarray, mode: np.ndarray, scales, level: float = 0.9,
+                       bounds: tuple[float, float] = (1e-2, 1e2), iterations: int = 16) -> np.ndarray:
+    """Per sample: the smallest common multiplier m of the modes' scales at which y lies inside the
+    ``level`` band of ``scale_about_mode_medians(Y, mode, m * scales)`` (inf: not even at the upper bound).
+
+    One mode: the band is the median plus m times the scaled deviations' quantiles, so m follows in
+    closed form. Several modes: bisection in log m, all samples at once.
+    """
+    q = [(1 - level) / 2, 1 - (1 - level) / 2]
+    scales = np.asarray(scales, float)
+    lo_m, hi_m = bounds
+    if np.unique(mode).size == 1:
+        base = scale_about_mode_medians(Y, mode, scales)
+        centre = np.median(base, axis=0)
+        qlo, qhi = np.quantile(base - centre, q, axis=0)
+        d = y - centre
+        with np.errstate(divide="ignore", invalid="ignore"):
+            m = np.where(d > 0, d / qhi, np.where(d < 0, d / qlo, 0.0))
+        m = np.where(np.isfinite(m) & (m >= 0), m, np.inf)
+        return np.where(m > hi_m, np.inf, np.maximum(m, 0.0))
+
+    def inside(m):
+        out = np.empty_like(Y)
+        for k in np.unique(mode):
+            rows = mode == k
+            centre = np.median(Y[rows], axis=0)
+            out[rows] = centre + (m * scales[int(k)]) * (Y[rows] - centre)
+        lo, hi = np.quantile(out, q, axis=0)
+        return (y >= lo) & (y <= hi)
+
+    a, b = np.full(y.shape, math.log(lo_m)), np.full(y.shape, math.log(hi_m))
+    never = ~inside(np.full(y.shape, hi_m))
+    already = inside(np.full(y.shape, lo_m))
+    for _ in range(iterations):
+        mid = 0.5 * (a + b)
+        ok = inside(np.exp(mid))
+        b, a = np.where(ok, mid, b), np.where(ok, a, mid)
+    m = np.exp(b)
+    m[already] = lo_m
+    m[never] = np.inf
+    return m
+
+
+def multiplier_for_coverage(m: np.ndarray, targets=(0.8, 0.9, 0.97)) -> dict:
+    """The smallest multiplier at which the share of samples with needed multiplier <= it reaches each
+    target ({"80": .., "90": .., "97": ..}; None where it is not reached within the bounds)."""
+    out = {}
+    for t in targets:
+        v = float(np.quantile(m, t, method="inverted_cdf"))
+        out[f"{int(round(t * 100))}"] = v if math.isfinite(v) else None
+    return out
+
+
 def _inside(y, lo, hi) -> float:
     return float(np.mean((y >= lo) & (y <= hi)))
 
@@ -62,7 +115,9 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
     ``observation`` bands include the noise (where a new measurement should
     fall), ``model`` bands only the parameter uncertainty (unscaled).
     ``coverage`` holds the 50 % and 90 % bands' coverage and mean width;
-    ``unscaled`` the same with scale 1. Draws whose model output is not finite
+    ``unscaled`` the same with scale 1. ``multiplier_for_coverage``: the factor on the used
+    scale(s) at which the ``level`` band would cover 80 / 90 / 97 % of this record's samples
+    (1: the used scale is what this record needed). Draws whose model output is not finite
     are left out and counted in ``nonfinite_draws``. ``inside_fitted_range``:
     whether the record's frequency lies within the identification records'
     range (False: extrapolated, where the bands are not calibrated; None:
@@ -109,10 +164,11 @@ def predictive(run: PosteriorRun, records: Sequence[Record], n_draws: int = 200,
             key = f"{int(round(lev * 100))}"
             cov[key], cov[f"width_{key}"] = _inside(y, olo, ohi), float(np.mean(ohi - olo))
             raw[key], raw[f"width_{key}"] = _inside(y, rlo, rhi), float(np.mean(rhi - rlo))
+        need = multiplier_for_coverage(needed_multipliers(y, Yraw, in_mode, scales, level))
         mlo, mhi = np.quantile(Y, [lo_q, hi_q], axis=0)
         olo, ohi = np.quantile(Yobs, [lo_q, hi_q], axis=0)
         row.update({
-            "coverage": cov, "unscaled": raw,
+            "coverage": cov, "unscaled": raw, "multiplier_for_coverage": need,
             "fraction_inside_observation_band": _inside(y, olo, ohi),
             "fraction_inside_model_band": _inside(y, mlo, mhi),
             "mean_observation_band_width": float(np.mean(ohi - olo)),
