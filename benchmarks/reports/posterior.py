@@ -240,8 +240,6 @@ def render_markdown(summary: dict, ident: dict, files: dict, command: str, datas
     L += predictive_text(s, files)
     if files:
         L += [f"Chains: ![traces]({files['trace']})", ""]
-    for note in s.get("notes", []):
-        L += [f"Note: {note}", ""]
     return "\n".join(L).rstrip() + "\n"
 
 
@@ -265,7 +263,8 @@ def modes_line(s: dict) -> str:
              + f" (log posterior {m['log_posterior'] - modes[0]['log_posterior']:+.1f}, {m['walkers']} walkers at the "
                f"start, **{m['share_of_kept_states']:.0%} of the kept states**)" for m in modes]
     return (f"- **modes: {len(modes)} separated** (a valley between each pair); the walkers started in every one and "
-            f"mode jumps carried them between: " + "; ".join(parts))
+            f"mode jumps carried them between: " + "; ".join(parts)
+            + "; medians and intervals span every mode, and each mode's predictive draws are scaled by its own scale")
 
 
 def _pct(x) -> str:
