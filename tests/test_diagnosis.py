@@ -359,6 +359,46 @@ def test_a_relaxation_slower_than_every_drive_period_that_creep_predicts_as_well
         assert ("longer than the longest drive period" in v.reason) == (named == "creep"), v.reason
 
 
+def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_than_every_drive_period():
+    """The composite (faster time constants + creep) is built only for a named relaxation of two or more time
+    constants whose slowest is longer than the longest drive period (creep_min / CREEP_PERIODS); it is called
+    as good when it passes and the relaxation does not predict better by z >= Z_SAME."""
+    from hysbench.benchmarks.diagnosis.slow_part import predicts_as_well, slow_part_composite
+
+    screen = SimpleNamespace(creep_min=20.0)  # longest drive period 10 s
+    relax = Candidate("relaxation", "relaxation", get_model("mrpim"), {}, 25, 1.0, 10)
+    one = Candidate("relaxation", "relaxation", get_model("mrpim"), {}, 23, 1.0, 10, estimates={"tau_s": [0.5]})
+    creep = Candidate("creep", "creep", get_model("mrpim"), {}, 23, 1.0, 10)
+    for taus in ([0.5, 9.0], [30.0]):  # too fast, or a single time constant: not applicable (the screen is
+        relax.estimates = {"tau_s": taus}  # a stub, so going on would raise)
+        assert slow_part_composite(screen, None, {}, relax, [creep], [one]) is None, taus
+    rng = np.random.default_rng(2)
+    folds = Folds(np.array([0, 4000, 8000, 12000]))
+    noise = rng.normal(0, 0.01, 12000)
+    drift = 0.3 * np.sin(np.arange(12000) / 900.0) ** 2
+    e_null, e_relax = drift + noise, 0.05 * drift + noise
+    for e_comp, same in ((0.05 * drift + rng.normal(0, 0.01, 12000), True), (0.5 * drift + noise, False)):
+        chosen, comp = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_comp)
+        assert predicts_as_well(folds, {id(chosen): e_relax, id(comp): e_comp}, chosen, comp) is same
+
+
+def test_creep_planted_on_the_virtual_dea_is_reported_as_ambiguous_with_its_slow_relaxation():
+    """A logarithmic creep (not the extension's exponential drift) planted on the virtual DEA's physics, whose own
+    relaxation is named: the fitted slowest time constant (15 s) is longer than every drive period (10 s), and its
+    faster time constant plus creep predicts the held-out records as well, so creep is reported as ambiguous
+    with it, with a suggested experiment; the tested composite is in the JSON either way."""
+    ds, truth = planted_case(("creep",), "virtual-dea", "sines", 10)
+    d = diagnose(ds, seed=0, experiments=True, extend=False)
+    assert d.cause == "relaxation", d.verdict.reason
+    assert max(d.chosen.estimates["tau_s"]) > d.screen.creep_min / 2
+    twin = [c for c in d.verdict.ambiguous_with if c.cause == "creep"]
+    assert twin and "may be creep" in d.verdict.reason, d.verdict.reason
+    assert len(twin[0].estimates) == 2 and twin[0].heldout["refit_per_fold"]
+    assert ["relaxation", "creep"] in [e["causes"] for e in d.experiments]
+    evidence = d.to_json()["evidence"]["slow_part_as_creep"]
+    assert evidence["ambiguous"] and evidence["cause"] == "creep"
+
+
 def test_an_interference_at_a_drive_harmonic_with_one_phase_in_every_record_is_drive_locked():
     rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
     fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2)

@@ -20,6 +20,9 @@
    fitted per record.
 6. Other passing causes are tried on top of the named one (composite
    extension) and kept as "also" if they pass the held-out test against it.
+7. A named relaxation slower than every drive period: its slowest part
+   replaced by creep (``slow_part``); if that predicts as well, creep is
+   reported as ambiguous with it.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
+from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
                         decide, heldout_errors, promising, score)
 
@@ -81,6 +85,7 @@ class Diagnosis:
     structure: dict
     also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
+    slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
     experiments: list[dict] = field(default_factory=list)
     extended_fit: Fit | None = None
     after: list[RecordResidual] = field(default_factory=list)
@@ -137,7 +142,9 @@ class Diagnosis:
                 f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
                 f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
                 f"within z = {Z_SAME:g} of the best is "
-                f"named (creep rather than a relaxation slower than every drive period that creep predicts as well); "
+                f"named (creep rather than a relaxation slower than every drive period that creep predicts as well; "
+                f"a relaxation whose slowest time constant is slower than every drive period is compared with its "
+                f"faster ones plus creep, which is listed as ambiguous if it predicts as well); "
                 f"if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
                 f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, every other cause "
                 f"within z = {Z_SAME:g} removing the same part, held-out improvements with cosine >= {SAME_SLICE:g}: "
@@ -188,6 +195,8 @@ class Diagnosis:
             "candidates": [c.summary() for c in sorted(self.candidates, key=lambda c: -c.heldout_gain)],
             "relaxation_variants": [c.summary() for c in self.relaxation_variants],
             "secondary_tried": [{**c.summary(), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
+            "slow_part_as_creep": None if self.slow_part is None else {
+                **self.slow_part.summary(), "ambiguous": any(c is self.slow_part for c in self.verdict.ambiguous_with)},
             "periodic_structure": self.structure,
             "decision_rule": self.decision_rule,
             "screen_rows": self.screen.n,
@@ -258,6 +267,27 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
             kept, kept_e, reference = part, part_e, e
             if c.cause == "interference":
                 frequency = c.estimates["frequency_hz"]
+
+
+def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callable[[str], None]) -> None:
+    """Creep as ambiguous with the named relaxation's slowest part (``slow_part``), unless creep is
+    already named, ambiguous, or kept on top of the relaxation ("also": then the records show both)."""
+    v = diag.verdict
+    if v.chosen is None or v.chosen.cause != "relaxation":
+        return
+    say("the slowest time constant or creep")
+    comp = slow_part_composite(diag.screen, result["folds"], result["errors"], v.chosen, result["candidates"],
+                               result["relaxation_variants"])
+    diag.slow_part = comp
+    taken = {c.cause for c in (*v.ambiguous_with, *diag.also)}
+    if comp is None or "creep" in taken or not predicts_as_well(result["folds"], result["errors"], v.chosen, comp):
+        return
+    v.ambiguous_with.append(comp)
+    v.reason += (f"; its slowest time constant ({max(v.chosen.estimates['tau_s']):.3g} s) is longer than the longest "
+                 f"drive period, and the faster ones plus a drift since the start predict the held-out records as well "
+                 f"(z < {Z_SAME:g}): that part may be creep")
+    if experiments:
+        diag.experiments.append({"causes": [v.chosen.cause, "creep"], **suggest(diag.screen, v.chosen, comp)})
 
 
 def _confirm_interference(diag: Diagnosis) -> None:
@@ -345,6 +375,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
             diag.experiments.append({"causes": [verdict.chosen.cause, other.cause],
                                      **suggest(screen, verdict.chosen, other)})
     if verdict.chosen is None or not extend:
+        slow_part_twin(diag, result, experiments, say)
         timings["total"] = time.perf_counter() - t0
         return diag
     chosen = verdict.chosen
@@ -367,6 +398,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
     timings["extended_fit"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     secondary_causes(diag, result, say)
+    slow_part_twin(diag, result, experiments, say)
     timings["secondary"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
     return diag

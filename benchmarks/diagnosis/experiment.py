@@ -8,7 +8,10 @@ over the same input range, each from rest for three periods; the root mean
 square of their difference over the last two periods (the first settles) is
 the separation. The probe with the largest separation is the experiment to
 run. Interference is not driven by the input: it is told apart by a record
-with the drive held constant.
+with the drive held constant. Neither is creep: against creep, one more probe
+holds the input at its lowest level (the rest) from the start, as long as the
+multisine, scored over its whole length (a drift there is creep; a
+relaxation of a constant input does not move).
 """
 
 from __future__ import annotations
@@ -60,6 +63,10 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
     probes.append({"drive": f"multisine {freqs[0]:.3g}-{freqs[-1]:.3g} Hz", "frequency_hz": None,
                    "separation": separation(screen, a, b, u, dt, u.size // 3)})
+    if "creep" in (a.cause, b.cause):
+        hold = np.full(u.size, float(lo))
+        probes.append({"drive": f"input held at {lo:.3g} (the rest) for {duration:.3g} s", "frequency_hz": None,
+                       "separation": separation(screen, a, b, hold, dt, 0)})
     finite = [p for p in probes if p["separation"] is not None and math.isfinite(p["separation"])]
     best = max(finite, key=lambda p: p["separation"]) if finite else {"drive": None, "frequency_hz": None,
                                                                        "separation": None}

@@ -26,7 +26,9 @@ from .saturation import fit_saturation, joint_saturation
 from .selection import Folds, at_bound, heldout_errors, heldout_null, jackknife, passes, promising, score
 
 
-def _score(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool = False) -> None:
+def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool = False) -> None:
+    """Held-out score of ``c`` (its out-of-fold residuals stored in ``errors``); with ``refit`` its own
+    nonlinear parameters are refitted per fold, and their spread is its uncertainty."""
     e, fold_est = heldout_errors(screen, folds, c, refit=refit)
     c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "refit_per_fold": refit}
     if fold_est:
@@ -58,7 +60,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
     e_null = heldout_null(screen, folds)
     errors = {id(screen.null): e_null}
     for c in variants + cands:
-        _score(screen, folds, e_null, errors, c)
+        score_candidate(screen, folds, e_null, errors, c)
     # stage 2: the base's nonlinear parameters free as well, for what predicts some of the held-out misfit
     best_of = {}
     for c in variants + cands:  # the best promising candidate of each cause
@@ -68,14 +70,14 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
         say(f"{c.label} (joint)")
         j = joint_saturation(screen, c, joint_nfev) if c.cause == "saturation" else screen.joint(c, joint_nfev)
         if j is not c:
-            _score(screen, folds, e_null, errors, j)
+            score_candidate(screen, folds, e_null, errors, j)
             if j.heldout_gain > c.heldout_gain:
                 pool = variants if c in variants else cands
                 pool[pool.index(c)] = j
     say("held-out scores with each finalist's own parameters refitted per fold")
     for c in variants + cands:
         if passes(c):
-            _score(screen, folds, e_null, errors, c, refit=True)
+            score_candidate(screen, folds, e_null, errors, c, refit=True)
     best_relax = max(variants, key=lambda c: c.heldout_gain)
     return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,
             "folds": folds, "errors": errors}
