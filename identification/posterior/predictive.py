@@ -53,23 +53,18 @@ def needed_multipliers(y: np.ndarray, Y: np.ndarray, mode: np.ndarray, scales, l
     q = [(1 - level) / 2, 1 - (1 - level) / 2]
     scales = np.asarray(scales, float)
     lo_m, hi_m = bounds
+    centres = scale_about_mode_medians(Y, mode, np.zeros_like(scales))  # each row: its mode's median
+    dev = scale_about_mode_medians(Y, mode, scales) - centres  # the band's draws at m: centres + m dev
     if np.unique(mode).size == 1:
-        base = scale_about_mode_medians(Y, mode, scales)
-        centre = np.median(base, axis=0)
-        qlo, qhi = np.quantile(base - centre, q, axis=0)
-        d = y - centre
+        qlo, qhi = np.quantile(dev, q, axis=0)
+        d = y - centres[0]
         with np.errstate(divide="ignore", invalid="ignore"):
             m = np.where(d > 0, d / qhi, np.where(d < 0, d / qlo, 0.0))
         m = np.where(np.isfinite(m) & (m >= 0), m, np.inf)
-        return np.where(m > hi_m, np.inf, np.maximum(m, 0.0))
+        return np.where(m > hi_m, np.inf, m)
 
     def inside(m):
-        out = np.empty_like(Y)
-        for k in np.unique(mode):
-            rows = mode == k
-            centre = np.median(Y[rows], axis=0)
-            out[rows] = centre + (m * scales[int(k)]) * (Y[rows] - centre)
-        lo, hi = np.quantile(out, q, axis=0)
+        lo, hi = np.quantile(centres + m * dev, q, axis=0)
         return (y >= lo) & (y <= hi)
 
     a, b = np.full(y.shape, math.log(lo_m)), np.full(y.shape, math.log(hi_m))
