@@ -9,7 +9,7 @@ import numpy as np
 
 from scipy.optimize import least_squares, minimize_scalar
 
-from .candidates import Candidate, estimates_of
+from .candidates import MAX_CLIPPED_SLOPE, Candidate, estimates_of
 
 
 def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -41,6 +41,16 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
     p = pred[cut] - pred[cut].mean()
     ss = float(p @ p)
     return float(p @ y[cut]) / ss if ss > 0 else math.nan
+
+
+def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
+    """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on three
+    or more samples and the output there is flat against it (slope below ``MAX_CLIPPED_SLOPE``)."""
+    _, theta, _ = censored_fit(screen, A, y, side, level)
+    if theta is None:
+        return False
+    slope = slope_where_clipped(A @ theta, y, side, level)
+    return math.isfinite(slope) and slope < MAX_CLIPPED_SLOPE
 
 
 def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],

@@ -76,7 +76,7 @@ from scipy import stats
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
 from .interference import predict_heldout
-from .saturation import fit_level, unclipped
+from .saturation import fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
@@ -178,7 +178,10 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
 
 def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
     """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
-    with ``refit`` the level too (returns the fold levels)."""
+    with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
+    level (no flat top there, ``shows_clip``) predicts the left-out record unclipped: records that never reach
+    a clip leave its level open above their peaks, and a level placed just under them would cut a record
+    that goes higher."""
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
     base_nl = {k: c.params[k] for k in screen.base_nl_names}
     A = np.concatenate(screen.base_columns(base_nl).rows)
@@ -189,6 +192,8 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False)
         if refit:
             level = fit_level(screen, A[~test], screen.y[~test], side)
             fold_est.append({"saturation_level": level})
+            if not shows_clip(screen, A[~test], screen.y[~test], side, level):
+                level = math.inf if side == "upper" else -math.inf
         train = ~test & unclipped(screen, screen.y, side, level)
         theta, _ = screen.solve(A[train], screen.y[train])
         pred = A[test] @ theta
