@@ -302,6 +302,10 @@ def test_predictive_scale_is_pooled_inside_the_fitted_range_and_held_out_beyond(
     assert Calibration(0.9, constant=1.3).scale_at(0.2) == 1.3
     d = cal.describe()
     assert d["kind"] == "pooled" and d["pooled_in_sample_scale"] == 1.1 and d["outside_range_scale"] == 2.5
+    assert d["beyond_range_scale"] == 2.5
+    low = Calibration(0.9, frequencies=[0.1, 1.0], pooled=1.1, outside=0.7).describe()
+    assert low["beyond_range_scale"] == 1.1 and low["outside_range_scale"] == 0.7
+    assert Calibration(0.9, frequencies=[0.1, 1.0], pooled=1.1).describe()["beyond_range_scale"] is None
 
 
 def test_pooled_scale_against_a_direct_search():

@@ -350,8 +350,8 @@ def _own_scales(cal: dict) -> str:
 
 
 def _pooled_summary(c: dict) -> str:
-    pooled, out = c["pooled_in_sample_scale"], c.get("outside_range_scale")
-    beyond = "-" if out is None else f"{max(out, pooled):.3g}"
+    pooled, beyond = c["pooled_in_sample_scale"], c.get("beyond_range_scale")
+    beyond = "-" if beyond is None else f"{beyond:.3g}"
     return f"pooled in-sample scale {pooled:.3g} (records' own: {_own_scales(c)}); beyond the fitted range {beyond}"
 
 

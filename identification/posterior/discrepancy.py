@@ -126,6 +126,7 @@ class Calibration:
         return {"kind": "constant" if self.constant is not None else "pooled",
                 "level": self.level, "constant_scale": self.constant, "pooled_in_sample_scale": self.pooled,
                 "outside_range_scale": self.outside,
+                "beyond_range_scale": None if self.outside is None else self.beyond,
                 "in_sample": [{"frequency_hz": f, "scale": c, "leverage": h}
                               for f, c, h in zip(self.frequencies, self.in_sample,
                                                  self.leverage or [0.0] * len(self.in_sample))],
