@@ -807,6 +807,22 @@ def test_shows_clip_only_where_the_output_is_flat_at_the_level():
     assert not shows_clip(screen, A, y_free, "upper", 0.8)  # passes the level, but rises with the model
     assert not shows_clip(screen, A, y_free, "upper", 2.0)  # never reaches it
     assert shows_clip(screen, A, -y_clipped, "lower", -0.8)
+    y_against = np.where(clean > 0.8, 0.8 - 1.5 * (clean - 0.8), clean) + rng.normal(0.0, 0.01, t.size)
+    assert not shows_clip(screen, A, y_against, "upper", 0.8)  # moves against the model: not flat either
+
+
+def test_a_clip_must_be_flat_either_way():
+    """Where a fitted clip cuts, an output that moves against the model (slope -1.84 on an AR(1) null of the
+    accuracy plan, seed 0, case 172, which had been named `saturation` as a partial cause) is no clip, as one
+    that still rises with it is not; a flat top is."""
+    for slope, ok in ((-1.84, False), (-0.6, False), (0.03, True), (-0.3, True), (0.81, False)):
+        limit = Screen.limit_of(SimpleNamespace(), "saturation", {"slope_where_clipped": slope})
+        assert (limit == "") == ok, (slope, limit)
+    ds, _ = planted_case(("null-ar1",), "mrpim", "sines", 172)
+    d = diagnose(ds, seed=0, experiments=False)
+    clip = [c for c in d.candidates if c.cause == "saturation"][0]
+    assert clip.estimates["slope_where_clipped"] < -0.5 and "not a clip" in clip.limit
+    assert d.cause == "none"
 
 
 def test_a_clip_is_predicted_only_from_records_that_show_it():

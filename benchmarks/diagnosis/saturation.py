@@ -45,12 +45,12 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
     """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on three
-    or more samples and the output there is flat against it (slope below ``MAX_CLIPPED_SLOPE``)."""
+    or more samples and the output there is flat against it (slope within +-``MAX_CLIPPED_SLOPE``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
     slope = slope_where_clipped(A @ theta, y, side, level)
-    return math.isfinite(slope) and slope < MAX_CLIPPED_SLOPE
+    return math.isfinite(slope) and abs(slope) < MAX_CLIPPED_SLOPE
 
 
 def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],

@@ -291,8 +291,9 @@ class Screen:
                     f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return DRIVE_LOCKED
-        if cause == "saturation" and estimates.get("slope_where_clipped", 0.0) >= MAX_CLIPPED_SLOPE:
-            return (f"where it would clip, the output still rises with the model (slope "
+        if cause == "saturation" and abs(estimates.get("slope_where_clipped", 0.0)) >= MAX_CLIPPED_SLOPE:
+            moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
+            return (f"where it would clip, the output still {moves} the model (slope "
                     f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
