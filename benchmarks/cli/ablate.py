@@ -11,9 +11,9 @@ from hysbench.data.dataset import load_dataset
 
 from hysbench.benchmarks.ablation import N_OPERATORS, ORDERS, AblationError, run_ablation
 from hysbench.benchmarks.reports.ablation import write_outputs
-from hysbench.data.files import check_output_dir, check_output_file, ensure_dir
+from hysbench.data.files import ensure_dir
 
-from .common import add_dataset_argument, add_jobs_argument, add_seed_argument, dataset_paths
+from .common import add_dataset_argument, add_jobs_argument, add_seed_argument, check_outputs, dataset_paths
 
 EXAMPLE = "hysbench ablate data/virtual_dea --orders 1,2,4 --operators 7,13 --no-grid"
 
@@ -52,9 +52,7 @@ def main(args: argparse.Namespace) -> int:
         raise AblationError(f"--orders: the model allows orders up to 12, got {max(orders)}")
     n_ops = _integers(args.operators, "operators", 1)
     dataset = load_dataset(dataset_paths(args.dataset)[0])
-    check_output_dir(args.out)
-    if args.json:
-        check_output_file(args.json)
+    check_outputs(args)
 
     def progress(variant, row):
         if not args.quiet:

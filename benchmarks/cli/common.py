@@ -5,8 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
+from typing import Callable
 
+from hysbench.data.files import check_output_dir, check_output_file
 from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.models.errors import HysbenchError
 
@@ -108,3 +111,21 @@ def comma_list(text: str | None, flag: str) -> list[str] | None:
     if not names:
         raise CommandError(f"{flag} needs at least one name")
     return names
+
+
+def check_outputs(args) -> None:
+    """Refuse an unwritable ``--out`` folder or ``--json`` file before any work."""
+    check_output_dir(args.out)
+    if args.json:
+        check_output_file(args.json)
+
+
+def timed_progress(quiet: bool) -> Callable[[str], None]:
+    """A progress printer to stderr, each line stamped with the seconds since it was made."""
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        if not quiet:
+            print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say

@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import argparse
 import shlex
-import sys
-import time
 
-from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, comma_list, dataset_paths
+from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, comma_list,
+                                            dataset_paths, timed_progress)
 from hysbench.benchmarks.compensation.controllers import PI_BANDWIDTH_HZ
 from hysbench.benchmarks.compensation.report import write_report
 from hysbench.benchmarks.compensation.run import DEFAULT_MODELS, check_models, compensate
-from hysbench.data.files import check_output_dir, check_output_file, shown_path
+from hysbench.data.files import shown_path
 from hysbench.identification.api import list_methods
 from hysbench.identification.errors import IdentificationError
 
@@ -55,14 +54,8 @@ def main(args) -> int:
     if not (args.bandwidth > 0 and args.bandwidth < 100):
         raise IdentificationError(f"--bandwidth must lie in (0, 100) Hz, got {args.bandwidth!r}")
     check_models(names)  # an unknown model fails here, before any work
-    check_output_dir(args.out)
-    if args.json:
-        check_output_file(args.json)
-    t0 = time.perf_counter()
-
-    def say(msg: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+    check_outputs(args)
+    say = timed_progress(args.quiet)
 
     refs = [r.strip() for r in args.references.split(",")] if args.references else None
     result, runs = compensate(dataset, names, method=args.method, seed=args.seed, bandwidth_hz=args.bandwidth,

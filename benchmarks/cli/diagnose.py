@@ -12,14 +12,12 @@ the extended model.
 from __future__ import annotations
 
 import argparse
-import sys
-import time
 
-from hysbench.benchmarks.cli.common import add_dataset_argument, add_seed_argument, dataset_paths, positive_int
+from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, dataset_paths,
+                                            positive_int, timed_progress)
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
 from hysbench.benchmarks.diagnosis.report import verdict_lines, write_report
-from hysbench.data.files import check_output_dir, check_output_file
 from hysbench.models import get_model
 
 EXAMPLE = "hysbench diagnose data/virtual_dea --model mrpim --out results"
@@ -39,14 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args) -> int:
     model = get_model(args.model)  # an unknown name or an unwritable destination fails here, before any work
-    check_output_dir(args.out)
-    if args.json:
-        check_output_file(args.json)
-    t0 = time.perf_counter()
-
-    def say(msg: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+    check_outputs(args)
+    say = timed_progress(args.quiet)
 
     diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS, progress=say)
     say("writing the report")
