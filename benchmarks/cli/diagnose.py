@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, dataset_paths,
-                                            positive_int, timed_progress)
+                                            integer_at_least, positive_int, timed_progress)
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
 from hysbench.benchmarks.diagnosis.report import verdict_lines, write_report
@@ -31,6 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_seed_argument(parser, what="the identifiers and the row subset")
     parser.add_argument("--max-rows", type=positive_int, default=None,
                         help="samples per record in the candidate screen (default 10000)")
+    parser.add_argument("--segments", type=integer_at_least(2), metavar="K",
+                        help="cut each identification record into K consecutive records of whole periods "
+                             "(leave-one-record-out on one long recording)")
     parser.add_argument("--note", default="", help="a line put at the top of diagnosis.md")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -40,7 +43,8 @@ def main(args) -> int:
     check_outputs(args)
     say = timed_progress(args.quiet)
 
-    diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS, progress=say)
+    diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
+                    segments=args.segments, progress=say)
     say("writing the report")
     write_report(diag, args.out, args.json, note=args.note)
     print(verdict(diag))

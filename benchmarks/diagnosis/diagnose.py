@@ -1,5 +1,9 @@
 """``diagnose(dataset, model)``: show where a model departs from the data, name the cause, extend, measure.
 
+0. Records that hold the same samples (one recording listed with an
+   identification and a validation window) are cut to their windows, so no
+   whole-record fit sees another record's samples; with ``segments`` each
+   identification record is cut into that many records (whole periods).
 1. The base model is identified with varpro on the identification records
    (their scored windows, as the benchmark does): the "before" model.
 2. It is simulated over every record, whole; residuals, noise level and
@@ -36,8 +40,9 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.data.dataset import Dataset, DatasetError, load_dataset
 from hysbench.data.files import jsonable
+from hysbench.data.segments import own_samples, split_records
 from hysbench.identification import Fit, data_scale, identify
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
@@ -310,12 +315,14 @@ def _confirm_interference(diag: Diagnosis) -> None:
 
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, min_explained: float | None = None,
-             extend: bool = True, experiments: bool = True,
+             extend: bool = True, experiments: bool = True, segments: int | None = None,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
-    """Diagnose ``model`` on ``dataset``; see the module docstring."""
+    """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
+    record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
+    recording."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
-                         progress)
+                         segments, progress)
 
 
 def _check(dataset: Dataset, base: HysteresisModel) -> None:
@@ -325,16 +332,23 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
         raise DiagnosisError(f"model {base.name!r} has no linear part: the diagnosis needs a model varpro can identify")
     if len(dataset.identification) < 2:
         raise DiagnosisError(f"dataset {dataset.name!r} needs at least two identification records "
-                             "(causes are chosen by leave-one-record-out prediction)")
+                             "(causes are chosen by leave-one-record-out prediction); with one long record, "
+                             "cut it into segments (--segments K, K >= 2)")
     if not dataset.validation:
         raise DiagnosisError(f"dataset {dataset.name!r} has no validation records: the gain cannot be measured")
 
 
 def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
-              progress) -> Diagnosis:
+              segments, progress) -> Diagnosis:
     say = progress or (lambda s: None)
     if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
         dataset = load_dataset(dataset)
+    dataset = own_samples(dataset)
+    if segments is not None:
+        try:
+            dataset = split_records(dataset, segments)
+        except DatasetError as e:
+            raise DiagnosisError(str(e)) from None
     base = get_model(model) if isinstance(model, str) else model
     _check(dataset, base)
     min_explained = MIN_EXPLAINED if min_explained is None else float(min_explained)
@@ -368,7 +382,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": min_explained,
                                "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
-                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min})
+                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments})
     if experiments and verdict.chosen is not None:
         for other in verdict.ambiguous_with:
             say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")

@@ -276,7 +276,13 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         "records' scored windows, simulated over every record whole; candidate causes fitted on the identification "
         "records' whole length and chosen by leave-one-record-out prediction against the base model refitted the "
         "same way; the named extension identified with the identifiers and scored on validation records that took "
-        "part in no fit and no choice.", "", "## Verdict", ""]
+        "part in no fit and no choice.", ""]
+    if d.settings.get("segments"):
+        k = d.settings["segments"]
+        lines += [f"Each identification record was cut into {k} consecutive records of whole periods (`--segments {k}`): "
+                  "the held-out folds are neighbouring stretches of one drive, so the evidence says what holds over "
+                  "that drive, not what holds at other drives.", ""]
+    lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
