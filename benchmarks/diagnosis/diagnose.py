@@ -3,7 +3,8 @@
 0. Records that hold the same samples (one recording listed with an
    identification and a validation window) are cut to their windows, so no
    whole-record fit sees another record's samples; with ``segments`` each
-   identification record is cut into that many records (whole periods).
+   identification record is cut into that many records (whole periods,
+   from input minima: ``hysbench.data.segments``).
 1. The base model is identified with varpro on the identification records
    (their scored windows, as the benchmark does): the "before" model.
 2. It is simulated over every record, whole; residuals, noise level and

@@ -279,7 +279,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         "part in no fit and no choice.", ""]
     if d.settings.get("segments"):
         k = d.settings["segments"]
-        lines += [f"Each identification record was cut into {k} consecutive records of whole periods (`--segments {k}`): "
+        lines += [f"Each identification record was cut into {k} consecutive records of whole periods, each from an input "
+                  f"minimum (`--segments {k}`): "
                   "the held-out folds are neighbouring stretches of one drive, so the evidence says what holds over "
                   "that drive, not what holds at other drives.", ""]
     lines += ["## Verdict", ""]
