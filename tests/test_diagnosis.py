@@ -244,6 +244,25 @@ def test_periodic_structure_tells_a_repeating_misfit_from_coloured_noise():
     assert periodic_structure(repeat)["F"] > 20.0
 
 
+def test_periodic_structure_takes_one_period_records_of_one_drive_together():
+    """Segments of one period each (``--segments`` on one recording): alone, none counts; together, a misfit
+    that repeats in every segment is structure and independent coloured noise is not."""
+    rng = np.random.default_rng(11)
+    f = 1.0
+    repeat = _residual_records(lambda t, f: 0.02 * np.sign(np.sin(2 * np.pi * f * t)) + rng.normal(0, 0.01, t.size),
+                               freqs=(f,) * 4, periods=1)
+    for k, rr in enumerate(repeat):
+        rr.record.file = f"rec~{k + 1}.csv"
+    assert math.isnan(periodic_structure(repeat[:1])["F"]) and periodic_structure(repeat[:1])["records"] == []
+    got = periodic_structure(repeat)
+    assert got["F"] > 20.0 and got["records"] == [rr.file for rr in repeat]
+    ar = _residual_records(lambda t, f: signal.lfilter([1.0], [1.0, -0.9], rng.normal(0, 0.01, t.size)),
+                           freqs=(f,) * 4, periods=1)
+    assert periodic_structure(ar)["F"] < 4.0
+    other = _residual_records(lambda t, f: 0.02 * np.sign(np.sin(2 * np.pi * f * t)), freqs=(f, 2 * f), periods=1)
+    assert periodic_structure(other)["records"] == []  # one period at two frequencies: no two of one drive
+
+
 # --- the independent generators against slow references --------------------------------------
 def test_planted_low_pass_delay_and_mode_against_scipy():
     t = np.arange(3000) * DT
@@ -637,6 +656,7 @@ def test_one_recording_is_diagnosed_in_segments_without_its_validation_window(sh
     scores = data["before"]["hysteresis_v_150_1hz#2.csv"]
     assert scores["e_rms_whole"] == scores["e_rms"]  # the validation record is its window: nothing else scored
     assert max(s["e_rms"] for s in data["before"].values()) < 0.25  # % of p2p; the benchmark's fit: 0.144 %
+    assert data["evidence"]["periodic_structure"]["records"] == ident  # one-period segments taken together
 
 
 @pytest.mark.parametrize("cause", list(STRONG))

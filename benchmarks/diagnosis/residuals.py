@@ -215,26 +215,35 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
 
     Per periodic record with at least two full periods: the residual cut into
     periods and averaged into ``n_bins`` phase bins, X (P periods x bins).
-    F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for
-    noise independent from period to period (white or coloured, if its
-    correlation time is short against the period), large for a misfit that
-    the drive repeats. Returns {"F", "records"} (F nan without such records)."""
+    Records of one period at the same frequency and period length in samples
+    (segments cut from one recording, or repeated drives) are taken
+    together, one period each. F = P mean_p(X)^2 / var_p(X) summed over bins and records (groups):
+    about 1 for noise independent from period to period (white or coloured,
+    if its correlation time is short against the period), large for a misfit
+    that the drive repeats. Returns {"F", "records"} (F nan without such
+    records)."""
     num = den = 0.0
     used = []
+    single: dict[tuple, list[tuple[str, np.ndarray]]] = {}
+    blocks = []
     for rr in residuals:
         r = rr.record
         if not r.frequency_hz:
             continue
         n_p = period_samples(r.frequency_hz, r.dt)
         P = r.t.size // n_p if n_p > 0 else 0
-        if P < 2:
-            continue
+        if P >= 2:
+            blocks.append(([r.file], rr.residual[:P * n_p].reshape(P, n_p)))
+        elif P == 1:
+            single.setdefault((float(r.frequency_hz), n_p), []).append((r.file, rr.residual[:n_p]))
+    blocks += [([f for f, _ in g], np.stack([x for _, x in g])) for g in single.values() if len(g) >= 2]
+    for files, X in blocks:
+        P, n_p = X.shape
         nb = min(n_bins, n_p)
-        X = rr.residual[:P * n_p].reshape(P, n_p)
         X = X[:, : (n_p // nb) * nb].reshape(P, nb, -1).mean(axis=2)
         X = X - X.mean()
         mean = X.mean(axis=0)
         num += P * float(mean @ mean)
         den += float(np.sum((X - mean) ** 2)) / (P - 1)
-        used.append(r.file)
+        used += files
     return {"F": num / den if den > 0 else (math.inf if num > 0 else math.nan), "records": used}
