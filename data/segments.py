@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import Dataset, DatasetError, Record
+from .protocol import period_samples
 
 
 def same_recording(a: Record, b: Record) -> bool:
@@ -36,7 +37,7 @@ def cut(record: Record, start: int, stop: int, key: str | None = None) -> Record
 
 
 def _period(record: Record) -> int:
-    return int(round(1.0 / (record.frequency_hz * record.dt)))
+    return period_samples(record.frequency_hz, record.dt)
 
 
 def input_minimum_from(record: Record, i: int) -> int:

@@ -26,6 +26,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from hysbench.data.dataset import Dataset, Record
+from hysbench.data.segments import cut
 from hysbench.identification import Fit, identify
 from hysbench.models import ExtendedModel, get_model
 from hysbench.models.extended import extended_name, register_extensions
@@ -56,9 +57,7 @@ class SampledRecord(Record):
 
 def whole_record(record: Record) -> Record:
     """The same record with its window covering every sample."""
-    t = record.t
-    return Record(file=record.file, t=t, u=record.u, y=record.y, role=record.role, frequency_hz=record.frequency_hz,
-                  weight=record.weight, window=(float(t[0]), float(t[-1] + record.dt)))
+    return cut(record, 0, record.t.size)
 
 
 def whole_record_dataset(dataset: Dataset, rows: Mapping[str, np.ndarray] | None = None) -> Dataset:

@@ -217,11 +217,11 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
     periods and averaged into ``n_bins`` phase bins, X (P periods x bins).
     Records of one period at the same frequency and period length in samples
     (segments cut from one recording, or repeated drives) are taken
-    together, one period each. F = P mean_p(X)^2 / var_p(X) summed over bins and records (groups):
-    about 1 for noise independent from period to period (white or coloured,
-    if its correlation time is short against the period), large for a misfit
-    that the drive repeats. Returns {"F", "records"} (F nan without such
-    records)."""
+    together, one period each. F = P mean_p(X)^2 / var_p(X) summed over bins
+    and records (groups): about 1 for noise independent from period to period
+    (white or coloured, if its correlation time is short against the period),
+    large for a misfit that the drive repeats. Returns {"F", "records"} (F nan
+    without such records)."""
     num = den = 0.0
     used = []
     single: dict[tuple, list[tuple[str, np.ndarray]]] = {}
