@@ -40,11 +40,31 @@ def column_norms(A: np.ndarray) -> np.ndarray:
     return D
 
 
-def spectrum_from_qr(A_scaled: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(ev, V, V^T A_s^T b) of A_s^T A_s, ev descending, from a QR of [A_s, b] (b 1-D or 2-D)."""
+def qr_triangle(A: np.ndarray, b2: np.ndarray, column_scale: np.ndarray | None = None) -> np.ndarray:
+    """R of a Householder QR of [A / column_scale, b2] (LAPACK geqrf, as scipy.linalg.qr(mode="r")), its
+    first n + m rows: the scaled matrix is written once, in Fortran order, and factored in place."""
+    N, n = A.shape
+    M = np.empty((N, n + b2.shape[1]), order="F")
+    if column_scale is None:
+        M[:, :n] = A
+    else:
+        np.divide(A, column_scale, out=M[:, :n])
+    M[:, n:] = b2
+    geqrf = scipy.linalg.get_lapack_funcs("geqrf", (M,))
+    lwork = int(geqrf(M, lwork=-1, overwrite_a=1)[2][0].real)
+    qr, _, _, info = geqrf(M, lwork=lwork, overwrite_a=1)
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of geqrf")
+    return np.triu(qr[: min(N, n + b2.shape[1])])
+
+
+def spectrum_from_qr(A_scaled: np.ndarray, b: np.ndarray,
+                     column_scale: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ev, V, V^T A_s^T b) of A_s^T A_s, ev descending, from a QR of [A_s, b] (b 1-D or 2-D); with
+    ``column_scale`` the first argument is the unscaled A and A_s = A / column_scale."""
     n = A_scaled.shape[1]
     b2 = b.reshape(b.shape[0], -1)
-    R = scipy.linalg.qr(np.column_stack([A_scaled, b2]), mode="r", check_finite=False)[0][: n + b2.shape[1]]
+    R = qr_triangle(A_scaled, b2, column_scale)
     U, s, Vt = np.linalg.svd(R[:n, :n])  # A_s = Q U S V^T
     qtb = R[:n, n:] if b.ndim == 2 else R[:n, n]
     rhs = (s[:, None] if b.ndim == 2 else s) * (U.T @ qtb)
@@ -101,6 +121,6 @@ def scaled_lstsq(A: np.ndarray, b: np.ndarray, rcond: float = 1e-10, max_conditi
     D = column_norms(A)
     if not (np.all(np.isfinite(D)) and np.all(np.isfinite(b))):
         raise ValueError("least_squares: the design matrix or the right-hand side is not finite")
-    ev, V, rhs = spectrum_from_qr(A / D, b)
+    ev, V, rhs = spectrum_from_qr(A, b, column_scale=D)
     x = solve_spectrum(ev, V, rhs, max_condition, rcond**2).x_scaled
     return x / (D[:, None] if x.ndim == 2 else D)

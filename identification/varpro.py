@@ -179,7 +179,7 @@ class SeparableProblem:
             if not np.all(np.isfinite(D)):
                 self.problem.n_nonfinite += 1
                 return blown_up
-            ev, V, rhs = spectrum_from_qr(A / D, self.b)
+            ev, V, rhs = spectrum_from_qr(A, self.b, column_scale=D)
         else:
             with np.errstate(over="ignore", invalid="ignore"):
                 G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))

@@ -30,6 +30,12 @@ def backward_derivatives(u: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarr
     return du, ddu
 
 
+def backward_second_difference_at(u: np.ndarray, dt: float, rows: np.ndarray) -> np.ndarray:
+    """The second backward difference of ``backward_derivatives`` at the samples ``rows`` only."""
+    u = np.asarray(u, dtype=float)
+    return (u[rows] - 2.0 * u[np.maximum(rows - 1, 0)] + u[np.maximum(rows - 2, 0)]) / (dt * dt)
+
+
 def smoothed_derivatives(u: np.ndarray, dt: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Savitzky-Golay (cubic) first and second derivatives over ``window_s`` seconds."""
     u = np.asarray(u, dtype=float)

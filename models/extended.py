@@ -186,6 +186,8 @@ class ExtendedModel(StepInvertible, HysteresisModel):
     def _relaxation_columns(self, u: np.ndarray, dt: float, taus: Sequence[float]) -> np.ndarray:
         """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order."""
         a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(t), dt) for t in taus)))
+        if tuple(self.relaxation_powers) == (1,):  # the bank's rows are already in the weights' order
+            return lowpass1_bank(np.ascontiguousarray(u, dtype=float), a, b0, b1)
         rows = []
         for p in self.relaxation_powers:
             rows.append(lowpass1_bank(np.ascontiguousarray(u**p), a, b0, b1))  # (K, T)
@@ -202,8 +204,10 @@ class ExtendedModel(StepInvertible, HysteresisModel):
                 for p in self.relaxation_powers]
 
     @staticmethod
-    def _creep_column(n: int, dt: float, creep_time: float, t0: float = 0.0) -> np.ndarray:
-        return -np.expm1(-(t0 + np.arange(n) * dt) / creep_time)
+    def _creep_column(n: int | np.ndarray, dt: float, creep_time: float, t0: float = 0.0) -> np.ndarray:
+        """The creep column over n samples, or at the sample indices ``n`` (an array)."""
+        k = np.arange(n) if np.ndim(n) == 0 else n
+        return -np.expm1(-(t0 + k * dt) / creep_time)
 
     @staticmethod
     def interference_columns(n: int, dt: float, f: float) -> np.ndarray:
@@ -379,7 +383,8 @@ class ExtendedModel(StepInvertible, HysteresisModel):
                     for j, w in enumerate(self._relaxation_weight_names()):
                         cols[w] = R[j, pick]
                 if self.has("creep"):
-                    cols["creep_size"] = self._creep_column(a1, dt, nonlinear["creep_time"], t0)[pick]
+                    k = np.arange(a1)[pick] if isinstance(pick, slice) else pick
+                    cols["creep_size"] = self._creep_column(k, dt, nonlinear["creep_time"], t0)
             for j, name in enumerate(names):
                 if name in cols:
                     out[j, n_rest:] = cols[name]
@@ -429,20 +434,25 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         return {name: float(row[j]) for j, name in enumerate(self.base_model.linear_names)}
 
     def assemble_columns(self, u: np.ndarray, dt: float, base_columns: Mapping[str, np.ndarray],
-                         nonlinear: Mapping[str, float], t0: float = 0.0) -> dict[str, np.ndarray]:
+                         nonlinear: Mapping[str, float], t0: float = 0.0,
+                         rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """The actuator's regressor columns (by linear parameter name) from the base's columns:
         relaxation and creep columns added, all but the offset through the resonance. No delay or
         interference here (see ``regressors``). ``base_columns`` may hold only some of the base's
-        columns (or none); ``t0`` is the actuator's own time at u's first sample."""
+        columns (or none); ``t0`` is the actuator's own time at u's first sample. With ``rows``
+        (sample indices) every column is returned at those samples only."""
         n = u.size
         cols: dict[str, np.ndarray] = dict(base_columns)
+        at_rows = rows is not None and not self.has("resonance")  # the mode's filter needs whole columns
+        if at_rows:
+            cols = {k: v[rows] for k, v in cols.items()}
         if self.has("relaxation"):
             taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
             R = self._relaxation_columns(u, dt, taus)
             for j, w in enumerate(self._relaxation_weight_names()):
-                cols[w] = R[j]
+                cols[w] = R[j][rows] if at_rows else R[j]
         if self.has("creep"):
-            cols["creep_size"] = self._creep_column(n, dt, nonlinear["creep_time"], t0)
+            cols["creep_size"] = self._creep_column(rows if at_rows else n, dt, nonlinear["creep_time"], t0)
         if self.has("resonance"):
             actuator = [name for name in cols if name != "offset"]
             if actuator:
@@ -450,6 +460,8 @@ class ExtendedModel(StepInvertible, HysteresisModel):
                 F = lowpass2_rows(np.ascontiguousarray(np.stack([cols[c] for c in actuator])), phi, g0, g1)
                 for j, c in enumerate(actuator):
                     cols[c] = F[j]
+        if rows is not None and not at_rows:
+            cols = {k: v[rows] for k, v in cols.items()}
         return cols
 
 

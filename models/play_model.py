@@ -19,7 +19,7 @@ from typing import Mapping
 import numpy as np
 
 from .base import DataScale, HysteresisModel, Parameter
-from .derivatives import DERIVATIVE_METHODS, derivatives
+from .derivatives import DERIVATIVE_METHODS, backward_second_difference_at, derivatives
 from .errors import ModelError
 from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
 from .inverse import StepInvertible, StepStructure
@@ -195,7 +195,9 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
         uw = u[start:stop][pick]
         cols = {f"p{j}": uw**j for j in range(1, self.poly_order + 1)}
         if self.q_term:
-            if self.derivative == "backward":  # needs only two samples before the window
+            if self.derivative == "backward" and rows is not None:
+                cols["q"] = backward_second_difference_at(u, dt, rows)
+            elif self.derivative == "backward":  # needs only two samples before the window
                 s0 = max(0, start - 2)
                 _, ddu = derivatives(u[s0:stop], dt, "backward")
                 cols["q"] = ddu[start - s0:][pick]

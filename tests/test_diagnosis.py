@@ -814,6 +814,25 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
     assert (e["extension_cases"], e["extension_cases_right"], e["extension_ceiling_right"]) == (1, 1, 2 + 1 + 1)
 
 
+def test_the_accuracy_report_says_when_the_piezo_recording_is_missing(monkeypatch, tmp_path):
+    """Without ../shared/datasets the plan has no piezo cases: said in the progress, the JSON and the report."""
+    from hysbench.benchmarks.diagnosis import accuracy
+
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
+    monkeypatch.setattr(accuracy, "run_case", lambda case: {
+        "kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
+        "strength_pct": 1.0, "effects": {}, "verdict": "none", "confirmed": None, "also": [], "ambiguous_with": [],
+        "remainder": None, "parameters": {}, "parameter_errors": {}, "parameters_within": False, "right": True,
+        "seconds": 0.1})
+    said = []
+    s = accuracy.run_accuracy(8, 0, tmp_path, progress=said.append)
+    assert "piezo" in s["missing_bases"] and any(m.startswith("no piezo cases") for m in said)
+    text = (tmp_path / "diagnosis_accuracy.md").read_text()
+    assert "**No piezo cases:**" in text and str(accuracy.PIEZO) in text
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
+    assert accuracy.missing_bases(("mrpim", "piezo")) == {}
+
+
 @given(st.integers(0, 10_000), st.sampled_from(["upper", "lower"]), st.floats(-1.0, 2.0))
 def test_slope_where_clipped_is_the_least_squares_slope_on_the_cut_samples(seed, side, true_slope):
     rng = np.random.default_rng(seed)

@@ -81,3 +81,17 @@ def test_non_finite_input_is_refused():
     A[3, 2] = np.nan
     with pytest.raises(ValueError, match="not finite"):
         scaled_lstsq(A, b)
+
+
+@pytest.mark.parametrize("shape", [(400, 6, 1), (300, 4, 3), (5, 8, 1), (7, 3, 2)])
+def test_qr_triangle_is_scipys_triangle_of_the_scaled_matrix(shape):
+    from hysbench.identification.linear import qr_triangle
+    import scipy.linalg
+    N, n, m = shape
+    rng = np.random.default_rng(N + n)
+    A = rng.normal(size=(N, n)) * 10.0 ** rng.uniform(-4, 4, n)
+    b = rng.normal(size=(N, m))
+    D = column_norms(A)
+    reference = scipy.linalg.qr(np.column_stack([A / D, b]), mode="r")[0][: n + m]
+    np.testing.assert_array_equal(qr_triangle(A, b, D), reference)
+    np.testing.assert_array_equal(qr_triangle(A / D, b), reference)

@@ -108,3 +108,21 @@ def test_window_values():
         Window.of(slice(0, 10, 2), N)
     with pytest.raises(ModelError, match="reaching"):
         Window.of(Window(0, N + 1), N)
+
+
+@pytest.mark.parametrize("components", [("relaxation", "creep"), ("relaxation", "creep", "resonance")])
+@settings(max_examples=5, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=rows_strategy)
+def test_assembled_columns_at_rows_are_rows_of_the_whole_columns(components, seed, rows):
+    model = ExtendedModel("mrpim", components, n_relaxation=2)
+    rng = np.random.default_rng(seed)
+    u, rows = _input(seed), np.array(rows, dtype=np.int64)
+    nl = {"tau1": rng.uniform(0.05, 2.0), "tau2": rng.uniform(0.05, 2.0), "creep_time": rng.uniform(0.1, 5.0),
+          "natural_frequency": rng.uniform(5.0, 50.0), "damping_ratio": rng.uniform(0.1, 0.9)}
+    base = model.base_columns(u, DT, {"gamma": 0.01, "lambda": 0.02}, (float(u.min()), float(u.max())))
+    t0 = float(rng.uniform(0.0, 3.0))
+    whole = model.assemble_columns(u, DT, base, nl, t0)
+    at_rows = model.assemble_columns(u, DT, base, nl, t0, rows=rows)
+    assert set(at_rows) == set(whole)
+    for name, column in whole.items():
+        np.testing.assert_array_equal(at_rows[name], column[rows])

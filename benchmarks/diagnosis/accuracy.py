@@ -47,7 +47,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
-from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY, piezo_available, planted_case
+from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, VOCABULARY, piezo_available, planted_case
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -237,6 +237,9 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     lines = ["# Accuracy of `hysbench diagnose` on planted effects", ""]
     if note:
         lines += [note, ""]
+    for base, why in (s.get("missing_bases") or {}).items():
+        lines += [f"**No {base} cases:** {why}; their share of the plan went to the other bases, so this plan "
+                  "differs from one run with it.", ""]
     lines += [
         f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {_plan_seed(rows)}`), "
         "base model MRPIM; generators "
@@ -370,8 +373,16 @@ def _ceiling_lines(s: dict) -> list[str]:
     return lines
 
 
-def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None) -> dict:
-    s = {**summary(rows), "wall_s": wall_s, "machine": machine}
+def missing_bases(bases: tuple[str, ...]) -> dict[str, str]:
+    """Bases asked for whose data are not here, with the reason (the plan gives their cases to the others)."""
+    if "piezo" in bases and not piezo_available():
+        return {"piezo": f"the real piezo recording is not at {PIEZO} (../shared/datasets beside the repository)"}
+    return {}
+
+
+def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None,
+          missing: dict[str, str] | None = None) -> dict:
+    s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {})}
     write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
                                                                      default=lambda o: o.tolist())))
     write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
@@ -392,6 +403,9 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
     rows, t0 = [], time.perf_counter()
     machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
     cases = plan(n_cases, seed, bases)
+    missing = missing_bases(bases)
+    for base, why in missing.items():
+        say(f"no {base} cases: {why}")
     with contextlib.ExitStack() as stack:
         if jobs > 1:
             pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread))
@@ -404,15 +418,17 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
                 f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
             if (i + 1) % write_every == 0:
                 write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
-                      machine={**machine, "load_end": os.getloadavg()[0]})
-    return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]})
+                      machine={**machine, "load_end": os.getloadavg()[0]}, missing=missing)
+    return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]},
+                 missing=missing)
 
 
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
     """Rewrite the report from the JSON of an earlier run (same cases, current report layout)."""
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
     wall = wall_s if wall_s is not None else data["summary"].get("wall_s", data["summary"]["seconds"])
-    return write(data["cases"], Path(folder), wall, machine=data["summary"].get("machine"))
+    return write(data["cases"], Path(folder), wall, machine=data["summary"].get("machine"),
+                 missing=data["summary"].get("missing_bases"))
 
 
 def main(argv=None) -> int:

@@ -47,6 +47,7 @@ from scipy.integrate import solve_ivp
 from hysbench.data.dataset import Dataset, Record, load_dataset, shared_datasets_root
 from hysbench.data.excitations import HIGH_KV, LOW_KV, multisine, triangle
 from hysbench.data.protocol import paper_voltage, period_samples
+from hysbench.data.segments import input_minimum_from
 from hysbench.data.virtual_dea import displacement_mm
 from hysbench.models import get_model
 from hysbench.models.errors import HysbenchError
@@ -198,7 +199,7 @@ def _piezo_records() -> list[tuple[np.ndarray, np.ndarray, np.ndarray, str]]:
     dt = float(t[1] - t[0])
     n_p = period_samples(1.0, dt)
     on = int(np.argmax(np.abs(u) > 1e-6 * np.max(np.abs(u)))) + n_p // 2  # skip the step at onset
-    first = on + int(np.argmin(u[on:on + n_p]))
+    first = input_minimum_from(Record(PIEZO.name, t, u, y, frequency_hz=1.0), on)
     out = []
     for k, role in enumerate(("identification", "identification", "validation")):
         a = first + 2 * k * n_p

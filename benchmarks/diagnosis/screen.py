@@ -200,17 +200,14 @@ class Screen:
         blocks = []
         for m, p in enumerate(self.parts):
             r = p.record
-            if transforms:
-                cols = model.assemble_columns(r.u, r.dt, bc.full[m], nonlinear)
-            else:
-                cols = model.assemble_columns(r.u, r.dt, {}, nonlinear)
+            cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows)
             out = np.empty((p.rows.size, len(names)))
             for j, c in enumerate(names):
                 if c in ("interference_sin", "interference_cos"):  # on the rows only
                     phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
                     out[:, j] = np.sin(phase) if c == "interference_sin" else np.cos(phase)
                 else:
-                    out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c][p.rows]
+                    out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c]
             blocks.append(out)
         return np.concatenate(blocks)
 
