@@ -29,9 +29,13 @@ def fit_resonance(screen) -> Candidate:
     model = screen.extension(("resonance",))
     T = screen.drive_time
     dt = min(p.record.dt for p in screen.parts)
-    f_lo = RESONANCE_HZ_BOUNDS[0] / T
+    f_lo = screen.bounds_of(model, "natural_frequency")[0]
     f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
-    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), 13))
+    # 13 points above the drive's frequencies; as dense below them, down to a broadband drive's band
+    f_drive = RESONANCE_HZ_BOUNDS[0] / T
+    above = math.log(f_hi / (1.2 * f_drive))
+    n_grid = 13 + (math.ceil(12 * math.log(f_drive / f_lo) / above) if f_lo < f_drive and above > 0 else 0)
+    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), n_grid))
     pts = [{**screen.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
            for zeta in (0.07, 0.25, 0.8)]
     vals = np.array([_resonant_null(screen, z)[0] for z in pts])

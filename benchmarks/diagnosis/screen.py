@@ -34,12 +34,12 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from hysbench.data.dataset import Record
-from hysbench.data.excitations import shortest_period
+from hysbench.data.excitations import drive_band, shortest_period
 from hysbench.identification.criteria import effective_sample_size
 from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
-from hysbench.models.extended import CREEP_TIME_BOUNDS
+from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
 from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES, MAX_DAMPING,
                          MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log)
@@ -102,6 +102,11 @@ class Screen:
         # the causes' time scale
         self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
         self.component_scale = replace(scale, time=self.drive_time)
+        # the lowest natural frequency a mode is searched at: 1 / the shortest drive period, or lower, down to
+        # the low end of the band of a record without a nominal frequency (a broadband drive excites a mode
+        # inside its band, where it shows best)
+        bands = [drive_band(p.record.u, p.record.dt) for p in self.parts if not p.record.frequency_hz]
+        self.mode_floor = min([RESONANCE_HZ_BOUNDS[0] / self.drive_time, *(b[0] for b in bands if b is not None)])
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
         self.n_evaluations = 0
@@ -141,7 +146,9 @@ class Screen:
                     return max(float(p.min), self.creep_min), float(p.max)
                 if name == "damping_ratio":  # a resonance is a mode: underdamped
                     return float(p.min), min(float(p.max), MAX_DAMPING)
-                if name in ("natural_frequency", "interference_frequency"):  # the samples show nothing faster
+                if name == "natural_frequency":  # down to a broadband drive's band; nothing above Nyquist
+                    return min(float(p.min), self.mode_floor), min(float(p.max), self.nyquist)
+                if name == "interference_frequency":  # the samples show nothing faster
                     return float(p.min), min(float(p.max), self.nyquist)
                 return float(p.min), float(p.max)
         raise KeyError(name)
