@@ -445,8 +445,9 @@ def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
 
 # --- planted effects (drawn within the detection limits) --------------------------------------------
 # Detection limits (strength: rms of the effect, % of the output's peak-to-peak) measured by the accuracy
-# benchmark, the largest over its plans of seeds 0-3 (200 cases each; results/diagnosis_accuracy.md and
-# README "On fresh plans"); None: not reached on some plan (another cause mimics it).
+# benchmark, the largest over its slot-tied plans of seeds 0-3 (200 cases each, most of them on the Table 2
+# MRPIM's sines, as drawn here; results/diagnosis-accuracy-seed0-slot-tied/ and README "On fresh plans");
+# None: not reached on some plan (another cause mimics it).
 LIMITS = {"relaxation": 1.11, "delay": None, "resonance": None, "creep": None, "interference": 0.195,
           "saturation": 2.42}
 # Causes without a limit there, or with one above what these drives reach on the Table 2 MRPIM (a delay of at
@@ -833,6 +834,28 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
         r["extension_could_show"] = reach
     e = ceiling(rows)["evidence"]
     assert (e["extension_cases"], e["extension_cases_right"], e["extension_ceiling_right"]) == (1, 1, 2 + 1 + 1)
+
+
+def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):
+    from hysbench.benchmarks.diagnosis import accuracy
+
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
+    cases = accuracy.plan(200, 0)
+    every = {("mrpim", d) for d in ("sines", "triangles", "multisines")} | {
+        ("virtual-dea", d) for d in ("sines", "triangles", "multisines")} | {("piezo", "sines")}
+    for cause in CAUSES:
+        assert {(c["base"], c["drive"]) for c in cases if c["kinds"] == (cause,)} == every, cause
+    drives = [c["drive"] for c in cases]
+    assert 0.6 < drives.count("sines") / 200 < 0.72 and drives.count("triangles") > 25 and drives.count("multisines") > 25
+    assert [c["seed"] for c in cases] == list(range(200))
+    # the plans before 2026-11-27: a relaxation was planted on sines only
+    tied = accuracy.plan(200, 0, design="slot-tied")
+    assert {c["drive"] for c in tied if c["kinds"] == ("relaxation",)} == {"sines"}
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
+    without = accuracy.plan(200, 0)
+    assert all(c["base"] != "piezo" for c in without) and len(without) == 200
+    with pytest.raises(ValueError, match="plan design"):
+        accuracy.plan(10, 0, design="random")
 
 
 def test_the_accuracy_report_says_when_the_piezo_recording_is_missing(monkeypatch, tmp_path):

@@ -24,7 +24,8 @@ time constant nearest the planted one; creep: the drift over the longest
 record; saturation: the level's error over the output's peak-to-peak).
 
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``
-(``--jobs N``: cases in N processes, default every core).
+(``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
+2026-11-27, see ``plan``).
 """
 
 from __future__ import annotations
@@ -57,16 +58,44 @@ PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95
 
 
-def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES) -> list[dict]:
-    """A fixed, balanced plan of cases."""
+# (base, drive) in the order the plan visits them: half MRPIM, a quarter each the virtual DEA and the real
+# piezo recording (its one drive: its 1 Hz sine); two thirds of the cases on the protocol's sines; any seven
+# consecutive entries hold every base and every drive
+COMBINATIONS = (("mrpim", "sines"), ("virtual-dea", "triangles"), ("piezo", "sines"), ("mrpim", "multisines"),
+                ("mrpim", "sines"), ("virtual-dea", "sines"), ("mrpim", "triangles"), ("piezo", "sines"),
+                ("mrpim", "sines"), ("virtual-dea", "multisines"), ("mrpim", "sines"), ("piezo", "sines"))
+SLOT_SPREAD = 5  # consecutive slots of one effect start this far apart in COMBINATIONS
+PLAN_DESIGNS = ("balanced", "slot-tied")
+
+
+def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: str = "balanced") -> list[dict]:
+    """A fixed plan of cases: PATTERN's effects in turn. ``balanced`` (since 2026-11-27): the k-th case of
+    PATTERN's slot j takes COMBINATIONS[(k + SLOT_SPREAD j) mod 12], so every effect meets every base and
+    drive. ``slot-tied`` (plans before 2026-11-27; results/diagnosis-accuracy-seed1..17): the drive was fixed
+    by the slot, so relaxation, resonance, interference, the white nulls and three more effects were planted
+    on sines only. A base that is not here (the piezo recording) gives its turns to the next combination."""
+    if design not in PLAN_DESIGNS:
+        raise ValueError(f"unknown plan design {design!r}; choose one of {', '.join(PLAN_DESIGNS)}")
     bases = tuple(b for b in bases if b != "piezo" or piezo_available())
-    cycle = [b for b in ("mrpim", "mrpim", "virtual-dea", "piezo") if b in bases] or list(bases)
     out = []
+    if design == "slot-tied":
+        cycle = [b for b in ("mrpim", "mrpim", "virtual-dea", "piezo") if b in bases] or list(bases)
+        for i in range(n_cases):
+            kinds = PATTERN[i % len(PATTERN)]
+            base = cycle[(i // len(PATTERN) + i) % len(cycle)]
+            drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
+            out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
+        return out
+    here = [c for c in COMBINATIONS if c[0] in bases]
+    if not here:
+        raise ValueError(f"no base of {list(bases)} is available")
     for i in range(n_cases):
-        kinds = PATTERN[i % len(PATTERN)]
-        base = cycle[(i // len(PATTERN) + i) % len(cycle)]
-        drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
-        out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
+        slot, k = i % len(PATTERN), i // len(PATTERN)
+        n = (k + SLOT_SPREAD * slot) % len(COMBINATIONS)
+        while COMBINATIONS[n][0] not in bases:
+            n = (n + 1) % len(COMBINATIONS)
+        base, drive = COMBINATIONS[n]
+        out.append({"kinds": PATTERN[slot], "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
     return out
 
 
@@ -241,7 +270,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         lines += [f"**No {base} cases:** {why}; their share of the plan went to the other bases, so this plan "
                   "differs from one run with it.", ""]
     lines += [
-        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {_plan_seed(rows)}`), "
+        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {_plan_seed(rows)}"
+        f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}`), "
         "base model MRPIM; generators "
         "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
@@ -381,8 +411,9 @@ def missing_bases(bases: tuple[str, ...]) -> dict[str, str]:
 
 
 def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None,
-          missing: dict[str, str] | None = None) -> dict:
-    s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {})}
+          missing: dict[str, str] | None = None, design: str = "balanced") -> dict:
+    s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {}),
+         "plan_design": design}
     write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
                                                                      default=lambda o: o.tolist())))
     write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
@@ -394,15 +425,16 @@ def _one_thread() -> None:
 
 
 def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results", bases: tuple[str, ...] = BASES,
-                 progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1) -> dict:
-    """Run the plan and write the report (also every ``write_every`` cases, so a stopped run leaves its
-    largest honest part). ``jobs`` > 1 runs the cases in that many processes (one numba thread each);
-    the cases are independent and seeded, so the rows are the same. Returns the summary."""
+                 progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1,
+                 design: str = "balanced") -> dict:
+    """Run the plan (``plan``'s ``design``) and write the report (also every ``write_every`` cases, so a
+    stopped run leaves its largest honest part). ``jobs`` > 1 runs the cases in that many processes (one
+    numba thread each); the cases are independent and seeded, so the rows are the same. Returns the summary."""
     out = ensure_dir(out)
     say = progress or (lambda s: None)
     rows, t0 = [], time.perf_counter()
     machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
-    cases = plan(n_cases, seed, bases)
+    cases = plan(n_cases, seed, bases, design)
     missing = missing_bases(bases)
     for base, why in missing.items():
         say(f"no {base} cases: {why}")
@@ -418,9 +450,9 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
                 f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
             if (i + 1) % write_every == 0:
                 write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
-                      machine={**machine, "load_end": os.getloadavg()[0]}, missing=missing)
+                      machine={**machine, "load_end": os.getloadavg()[0]}, missing=missing, design=design)
     return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]},
-                 missing=missing)
+                 missing=missing, design=design)
 
 
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
@@ -428,7 +460,8 @@ def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
     wall = wall_s if wall_s is not None else data["summary"].get("wall_s", data["summary"]["seconds"])
     return write(data["cases"], Path(folder), wall, machine=data["summary"].get("machine"),
-                 missing=data["summary"].get("missing_bases"))
+                 missing=data["summary"].get("missing_bases"),
+                 design=data["summary"].get("plan_design", "slot-tied"))  # runs before 2026-11-27
 
 
 def main(argv=None) -> int:
@@ -438,10 +471,14 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default="results")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="processes running cases at once (default: every core)")
+    parser.add_argument("--plan", choices=PLAN_DESIGNS, default="balanced",
+                        help="balanced: every effect on every base and drive (default); slot-tied: the plans "
+                             "before 2026-11-27, whose drive was fixed by the effect's slot")
     args = parser.parse_args(argv)
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
-    s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs)
+    s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
+                     design=args.plan)
     print(json.dumps({k: v for k, v in s.items() if k != "detection_limits"}, indent=1))
     return 0
 
