@@ -596,6 +596,10 @@ def test_a_mode_inside_a_broadband_drive_is_searched_and_named():
     assert d.cause == "resonance", [(c.cause, c.heldout, c.estimates) for c in d.candidates]
     assert d.parameters["natural_frequency_hz"] == pytest.approx(4.0, rel=0.25)
     assert d.parameters["damping_ratio"] == pytest.approx(0.2, rel=0.25)
+    from hysbench.benchmarks.diagnosis.report import verdict_lines
+
+    named = next(line for line in verdict_lines(d) if line.startswith("parameters: "))
+    assert "natural_frequency_hz = " in named and "damping_ratio = " in named  # both named, not only one
 
 
 # --- the command line ----------------------------------------------------------------------

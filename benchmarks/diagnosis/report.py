@@ -218,10 +218,10 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
     unit = d.dataset.output_unit or "output units"
     lines = [f"cause: {strong(d.cause)} ({d.verdict.reason})"]
-    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "time_scale_s": "s",
-             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit}
-    if d.chosen is not None:
-        lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if k in units else "")
+    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "damping_ratio": "", "time_scale_s": "s",
+             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "side": ""}
+    if d.chosen is not None:  # the named parameters (per-record phases and diagnostics are in the JSON)
+        lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if units[k] else "")
                                                 for k, v in d.parameters.items() if k in units))
         if d.uncertainty:
             lines.append("uncertainty (jackknife over the held-out folds): " + ", ".join(
