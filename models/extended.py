@@ -370,21 +370,14 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         if a1 > 0 and n_rest < out.shape[1]:
             # the window in the actuator's samples
             pick = slice(max(start, k0) - k0, a1) if rows is None else rows[n_rest:] - k0
+            at = np.arange(a1)[pick]
             if self.has("resonance"):  # the filter needs every sample up to the window's end
                 cols = self.assemble_columns(u_a[:a1], dt, self.base_columns(u_a[:a1], dt, base_nl, in_range),
-                                             nonlinear, t0)
-                cols = {k: v[pick] for k, v in cols.items()}
+                                             nonlinear, t0, rows=at)
             else:
                 B = self.base_model.windowed_regressors(u_a, dt, base_nl, pick, input_range=in_range)
                 cols = {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
-                if self.has("relaxation"):
-                    taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
-                    R = self._relaxation_columns(u_a[:a1], dt, taus)
-                    for j, w in enumerate(self._relaxation_weight_names()):
-                        cols[w] = R[j, pick]
-                if self.has("creep"):
-                    k = np.arange(a1)[pick] if isinstance(pick, slice) else pick
-                    cols["creep_size"] = self._creep_column(k, dt, nonlinear["creep_time"], t0)
+                cols.update(self.assemble_columns(u_a[:a1], dt, {}, nonlinear, t0, rows=at))
             for j, name in enumerate(names):
                 if name in cols:
                     out[j, n_rest:] = cols[name]

@@ -577,6 +577,7 @@ def test_a_mode_above_the_drives_is_named_resonance_not_a_delay():
     assert d.parameters["natural_frequency_hz"] == pytest.approx(12.0, rel=0.25)
     assert d.parameters["damping_ratio"] == pytest.approx(0.2, rel=0.25)
 
+
 def test_a_mode_inside_a_broadband_drive_is_searched_and_named():
     """Multisines of 0.5-10 Hz (no nominal frequency: the causes' time scale is 1 / 10 Hz) through the Table 2
     MRPIM and a 4 Hz mode (damping 0.2) integrated by RK45: the mode lies inside the drive's band, below

@@ -86,8 +86,7 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: st
             drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
             out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
         return out
-    here = [c for c in COMBINATIONS if c[0] in bases]
-    if not here:
+    if not any(b in bases for b, _ in COMBINATIONS):
         raise ValueError(f"no base of {list(bases)} is available")
     for i in range(n_cases):
         slot, k = i % len(PATTERN), i // len(PATTERN)
