@@ -58,7 +58,7 @@ from .screen import Screen
 from .search import run_screen
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
-                        decide, heldout_errors, promising, score)
+                        at_bound, decide, evidence, heldout_errors, promising, score)
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -229,50 +229,68 @@ class Diagnosis:
             "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
             "gain": self.gain(), "interference_check": self.interference_check,
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
-            "also": [c.cause for c in self.also], "timings_s": self.timings, "settings": self.settings,
+            "also": [c.cause for c in self.also],
+            "also_as_good": {c.cause: c.heldout.get("as_good", []) for c in self.also if c.heldout.get("as_good")},
+            "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))
 
 
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
-    """Forward selection on top of the named cause: each other passing cause (best held-out gain first)
-    is added to what is kept so far (composite, refined on the screen; an interference as a per-record
-    sinusoid on top) and kept as "also" if that predicts the held-out records better than what was kept
-    before it (same test)."""
+    """Forward selection on top of the named cause: in each round every other cause is added to what is
+    kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
+    interference as a per-record sinusoid on top) and scored on held-out records against what is kept; of
+    those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
+    bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` is kept ("also"; the
+    others in that set are listed with it as as good).
+    On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
+    better than the base alone: a second cause can show only once the first is accounted for. On long ones
+    (cost) only those are tried, from their own fits."""
     screen, chosen = diag.screen, diag.chosen
-    folds, errors = result["folds"], result["errors"]
-    ambiguous = {c.cause for c in diag.verdict.ambiguous_with}
-    others = [c for c in diag.candidates if c.cause not in (chosen.cause, *ambiguous) and not c.limit
-              and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))]
+    folds = result["folds"]
+    taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
+    fresh = screen.small
+    pool = {c.cause: c for c in diag.candidates if c.cause not in taken
+            and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
+            and (fresh or (not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))))}
     # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
     if chosen.cause == "interference":
-        kept, kept_e, frequency = None, errors[id(screen.null)], chosen.estimates["frequency_hz"]
+        kept, kept_e, frequency = None, result["errors"][id(screen.null)], chosen.estimates["frequency_hz"]
     else:
-        kept, kept_e, frequency = chosen, errors[id(chosen)], None
-    reference = errors[id(chosen)]
-    for c in sorted(others, key=lambda c: -c.heldout_gain)[:MAX_SECONDARY]:
-        say(f"trying {' + '.join([chosen.cause, *(a.cause for a in diag.also), c.cause])}")
-        if c.cause == "interference":
-            if frequency is not None:
-                continue
-            comp, part, part_e = copy.copy(c), kept, kept_e
-            e = on_top(screen, folds, kept_e, c.estimates["frequency_hz"])
-        else:
-            comp = copy.copy(c) if kept is None else screen.composite(kept, c)
-            if comp is None:
-                continue
-            part = comp
-            part_e = errors[id(c)] if kept is None else heldout_errors(screen, folds, comp)[0]
-            e = on_top(screen, folds, part_e, frequency) if frequency else part_e
-        comp.heldout = score(folds, reference, e)
-        diag.secondary_tried.append(comp)
-        h = comp.heldout
-        if (h["gain"] >= diag.settings["min_explained"] and h["z"] >= Z_PASS and 2 * h["folds_improved"] > h["n_folds"]
-                and not comp.limit):
-            diag.also.append(comp)
-            kept, kept_e, reference = part, part_e, e
-            if c.cause == "interference":
-                frequency = c.estimates["frequency_hz"]
+        kept, kept_e, frequency = chosen, result["errors"][id(chosen)], None
+    reference = result["errors"][id(chosen)]
+    while pool and len(diag.also) < MAX_SECONDARY:
+        say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
+        tried = []  # (composite, separable part, its errors, errors with the interference)
+        for cause, c in pool.items():
+            if cause == "interference":
+                if frequency is not None:
+                    continue
+                comp, part, part_e = copy.copy(c), kept, kept_e
+                e = on_top(screen, folds, kept_e, c.estimates["frequency_hz"])
+            else:
+                comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
+                if comp is None:
+                    continue
+                part = comp
+                part_e = result["errors"][id(c)] if kept is None else heldout_errors(screen, folds, comp)[0]
+                e = on_top(screen, folds, part_e, frequency) if frequency else part_e
+            comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else []}
+            diag.secondary_tried.append(comp)
+            tried.append((comp, part, part_e, e))
+        ok = [t for t in tried if evidence(t[0].heldout, diag.settings["min_explained"]) and not t[0].limit
+              and not t[0].heldout["at_bound"]]
+        if not ok:
+            return
+        best = max(ok, key=lambda t: t[0].heldout["gain"])
+        same = [t for t in ok if t is best or score(folds, t[3], best[3])["z"] < Z_SAME]
+        comp, part, part_e, e = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
+        comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
+        diag.also.append(comp)
+        pool.pop(comp.cause)
+        kept, kept_e, reference = part, part_e, e
+        if comp.cause == "interference":
+            frequency = comp.estimates["frequency_hz"]
 
 
 def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callable[[str], None]) -> None:

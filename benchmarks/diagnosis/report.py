@@ -248,7 +248,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                          + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
-    lines.append(f"also: {', '.join(c.cause for c in d.also) if d.also else 'none'}")
+    also = [c.cause + (f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
+                       if c.heldout.get("as_good") else "") for c in d.also]
+    lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
                  f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
     g = d.gain()

@@ -46,6 +46,7 @@ from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTER
 from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
+COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of another (``composite``)
 LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
 
 
@@ -431,15 +432,26 @@ class Screen:
         return out if out.rss <= c.rss else c
 
     # --- composite (secondary causes) ---------------------------------------------
-    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10) -> Candidate | None:
+    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10,
+                  search: bool = False) -> Candidate | None:
         """The primary's extension (itself possibly a composite) plus another cause, refined from both fits
-        (separable causes only)."""
+        (separable causes only). With ``search`` the other cause's own parameters are also started from a
+        coarse grid over their search bounds (the primary held): its fit against the base alone can be far
+        off when the base misses something larger; the best start is refined only if it removes at least
+        ``MIN_EXPLAINED`` of the primary's sum of squares (else None: nothing to add, and a refinement with
+        every nonlinear parameter free is the costly part)."""
         parts = tuple(getattr(primary.model, "components", (primary.cause,)))
         if {"saturation", "interference"} & {*parts, other.cause} or other.cause in parts:
             return None
         hyper = {**primary.hyperparameters, **other.hyperparameters}
         model = self.extension((*parts, other.cause), **hyper)
         start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
+        if search:
+            starts = self._starts(model, start, [n for n in model.nonlinear_names if n not in primary.params])
+            rss = [self.evaluate(model, z)[0] for z in starts]
+            if min(rss) > (1.0 - MIN_EXPLAINED) * primary.rss:
+                return None
+            start = starts[int(np.argmin(rss))]
         free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]
         z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
         c = self.candidate(other.cause, f"{primary.label} + {other.label}", model, z, hyper, stage="joint")
@@ -449,4 +461,20 @@ class Screen:
         c.limit = self.limit_of(other.cause, c.estimates)
         return c
 
-
+    def _starts(self, model: HysteresisModel, start: Mapping[str, float], names: Sequence[str]) -> list[dict]:
+        """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
+        ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
+        frequency and damping); a relaxation of several time constants keeps its own start."""
+        if not names or (len(names) > 1 and any(n.startswith("tau") for n in names)):  # several time constants
+            return [dict(start)]
+        k = max(3, COMPOSITE_GRID // len(names))
+        axes = []
+        for n in names:
+            lo, hi = self.bounds_of(model, n)
+            if n == "delay":
+                lo = min(p.record.dt for p in self.parts)
+            # inside the bounds (a start at a bound is a bound estimate if nothing moves it)
+            spaced = np.geomspace if is_log(n) or n == "delay" else np.linspace
+            axes.append(spaced(lo, hi, k + 2)[1:-1])
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(names))
+        return [dict(start)] + [{**start, **dict(zip(names, map(float, g)))} for g in grid]

@@ -269,10 +269,10 @@ def significant(c: Candidate) -> bool:
     return evidence(c.heldout)
 
 
-def evidence(h: dict) -> bool:
-    """A held-out score (``score``) is evidence: gain >= MIN_EXPLAINED in a majority of folds, and z >= Z_PASS
+def evidence(h: dict, min_gain: float = MIN_EXPLAINED) -> bool:
+    """A held-out score (``score``) is evidence: gain >= ``min_gain`` in a majority of folds, and z >= Z_PASS
     or a gain >= STRONG_GAIN in every fold."""
-    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
+    return bool(h) and h["gain"] >= min_gain and h["folds_improved"] * 2 > h["n_folds"] and (
         h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
 
 
