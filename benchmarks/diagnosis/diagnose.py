@@ -241,8 +241,9 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top) and scored on held-out records against what is kept; of
     those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
-    bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` is kept ("also"; the
-    others in that set are listed with it as as good).
+    bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
+    least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as in ``selection.decide``) is kept
+    ("also"; the others in that set are listed with it as as good).
     On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
     better than the base alone: a second cause can show only once the first is accounted for. On long ones
     (cost) only those are tried, from their own fits."""
@@ -250,9 +251,12 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     folds = result["folds"]
     taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
     fresh = screen.small
+    def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
+        return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
+
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
             and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
-            and (fresh or (not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))))}
+            and (fresh or near_pass(c))}
     # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
     if chosen.cause == "interference":
         kept, kept_e, frequency = None, result["errors"][id(screen.null)], chosen.estimates["frequency_hz"]
@@ -283,7 +287,13 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         if not ok:
             return
         best = max(ok, key=lambda t: t[0].heldout["gain"])
-        same = [t for t in ok if t is best or score(folds, t[3], best[3])["z"] < Z_SAME]
+        excess = float(reference @ reference) - screen.n * screen.noise_sd**2  # what is kept leaves beyond noise
+        for t in ok:
+            t[0].heldout["share_of_misfit"] = (t[0].heldout["gain"] * float(reference @ reference) / excess
+                                               if excess > 0 else 1.0)
+        # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
+        same = [t for t in ok if t is best or (score(folds, t[3], best[3])["z"] < Z_SAME
+                                               and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
         comp, part, part_e, e = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
         comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
         diag.also.append(comp)
