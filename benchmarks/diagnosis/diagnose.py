@@ -282,7 +282,7 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
             comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else []}
             diag.secondary_tried.append(comp)
             tried.append((comp, part, part_e, e))
-        ok = [t for t in tried if evidence(t[0].heldout, diag.settings["min_explained"]) and not t[0].limit
+        ok = [t for t in tried if evidence(t[0].heldout) and not t[0].limit
               and not t[0].heldout["at_bound"]]
         if not ok:
             return
@@ -343,14 +343,14 @@ def _confirm_interference(diag: Diagnosis) -> None:
 
 
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
-             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION, min_explained: float | None = None,
+             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
              extend: bool = True, experiments: bool = True, segments: int | None = None,
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
     record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
     recording."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
-        return _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
+        return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
                          segments, progress)
 
 
@@ -367,7 +367,7 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
         raise DiagnosisError(f"dataset {dataset.name!r} has no validation records: the gain cannot be measured")
 
 
-def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, extend, experiments,
+def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
               segments, progress) -> Diagnosis:
     say = progress or (lambda s: None)
     if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
@@ -380,7 +380,6 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
             raise DiagnosisError(str(e)) from None
     base = get_model(model) if isinstance(model, str) else model
     _check(dataset, base)
-    min_explained = MIN_EXPLAINED if min_explained is None else float(min_explained)
     timings = {}
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")
@@ -408,7 +407,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, min_explained, ext
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
-                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": min_explained,
+                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": MIN_EXPLAINED,
                                "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments})
