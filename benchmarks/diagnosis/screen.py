@@ -473,6 +473,8 @@ class Screen:
             lo, hi = self.bounds_of(model, n)
             if n == "delay":
                 lo = min(p.record.dt for p in self.parts)
+            if not hi > lo:  # nothing to search
+                return [dict(start)]
             # inside the bounds (a start at a bound is a bound estimate if nothing moves it)
             spaced = np.geomspace if is_log(n) or n == "delay" else np.linspace
             axes.append(spaced(lo, hi, k + 2)[1:-1])
