@@ -16,15 +16,17 @@
 4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
    two causes that predict equally well are reported as ambiguous, with the
    drive that separates them (``experiment``).
-5. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
+5. Other passing causes are tried on top of the named one (composite
+   extension) and kept as "also" if they pass the held-out test against it;
+   if those alone then predict as well without the named cause, it is
+   dropped and the first of them named (``drop_redundant_primary``).
+6. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
    identified on the identification records' whole length, every parameter
    free; the base model is refitted the same way; the validation records --
    untouched so far -- measure the gain of the one over the other
    (confirmed if it lowers their residual). An interference is confirmed by
    the same frequency and amplitude on the validation records, its phase
    fitted per record.
-6. Other passing causes are tried on top of the named one (composite
-   extension) and kept as "also" if they pass the held-out test against it.
 7. A named relaxation slower than every drive period: its slowest part
    replaced by creep (``slow_part``); if that predicts as well, creep is
    reported as ambiguous with it.
@@ -92,6 +94,7 @@ class Diagnosis:
     also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
+    dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
     experiments: list[dict] = field(default_factory=list)
     extended_fit: Fit | None = None
     after: list[RecordResidual] = field(default_factory=list)
@@ -230,6 +233,8 @@ class Diagnosis:
             "gain": self.gain(), "interference_check": self.interference_check,
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
             "also": [c.cause for c in self.also],
+            "dropped_as_redundant": None if self.dropped is None else {
+                "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
             "also_as_good": {c.cause: c.heldout.get("as_good", []) for c in self.also if c.heldout.get("as_good")},
             "timings_s": self.timings, "settings": self.settings,
         }
@@ -301,6 +306,46 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         kept, kept_e, reference = part, part_e, e
         if comp.cause == "interference":
             frequency = comp.estimates["frequency_hz"]
+
+
+def drop_redundant_primary(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
+    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the
+    secondary causes alone (a composite in the order kept, each searched on top of the ones before) predict
+    the held-out records as well as all of them together (together not better by z >= ``Z_SAME``) and show
+    held-out evidence against the base: the first of them is named, the others stay under "also". Only for a
+    clean verdict (no ambiguity, no unexplained remainder) of causes that compose (not interference or
+    saturation)."""
+    v, screen, folds = diag.verdict, diag.screen, result["folds"]
+    causes = [c.cause for c in diag.also]
+    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
+            or {"interference", "saturation"} & {v.chosen.cause, *causes}):
+        return
+    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
+    own = {c.cause: c for c in diag.candidates}
+    kept, chain = own[causes[0]], [own[causes[0]]]
+    for cause in causes[1:]:
+        kept = screen.composite(kept, own[cause], search=screen.small)
+        if kept is None:
+            return
+        chain.append(kept)
+    errors = [result["errors"][id(chain[0])], *(heldout_errors(screen, folds, c)[0] for c in chain[1:])]
+    together = heldout_errors(screen, folds, diag.also[-1])[0]
+    without = score(folds, errors[-1], together)  # how much better all together predict
+    if without["z"] >= Z_SAME or not evidence(score(folds, result["errors"][id(screen.null)], errors[-1])):
+        return
+    old, first = v.chosen, copy.copy(chain[0])
+    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
+    also = []
+    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
+        c.heldout = {**score(folds, errors[i - 1], errors[i]), "at_bound": at_bound(screen, c)}
+        also.append(c)
+    diag.dropped = old
+    diag.also = also
+    v.chosen, v.cause = first, first.cause
+    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}, predict the held-out records as well without it "
+                f"(with it better by z = {without['z']:.1f} < {Z_SAME:g}): {old.cause} is not needed, and "
+                f"{first.cause} is named with {', '.join(causes[1:]) or 'nothing'} also (first named: {old.label}, "
+                f"held-out gain {100 * old.heldout_gain:.2f} %)")
 
 
 def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callable[[str], None]) -> None:
@@ -420,7 +465,6 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
         slow_part_twin(diag, result, experiments, say)
         timings["total"] = time.perf_counter() - t0
         return diag
-    chosen = verdict.chosen
     fit_on = [r.file for r in dataset.identification]
     rows = {p.record.file: p.rows for p in screen.parts}
     t1 = time.perf_counter()
@@ -428,6 +472,12 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     diag.base_whole_fit = identify_whole(base, dataset, base_fit.params, seed, fit_on, rows=rows)
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, dataset)
     timings["base_refit"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    secondary_causes(diag, result, say)
+    drop_redundant_primary(diag, result, say)
+    slow_part_twin(diag, result, experiments, say)
+    timings["secondary"] = time.perf_counter() - t1
+    chosen = diag.chosen
     t1 = time.perf_counter()
     if chosen.cause == "interference":
         _confirm_interference(diag)
@@ -438,9 +488,5 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
         diag.extended_fit = identify_whole(ext, dataset, chosen.params, seed, fit_on, bounds, rows)
         diag.after = residuals_of_fit(diag.extended_fit, dataset)
     timings["extended_fit"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    secondary_causes(diag, result, say)
-    slow_part_twin(diag, result, experiments, say)
-    timings["secondary"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
     return diag
