@@ -16,20 +16,21 @@
 4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
    two causes that predict equally well are reported as ambiguous, with the
    drive that separates them (``experiment``).
-5. Other passing causes are tried on top of the named one (composite
-   extension) and kept as "also" if they pass the held-out test against it;
-   if those alone then predict as well without the named cause, it is
-   dropped and the first of them named (``drop_redundant_primary``).
-6. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
+5. Other causes are tried on top of the named one (composite extension)
+   and kept as "also" if they pass the held-out test against what is kept
+   (``secondary_causes``); if those alone then predict as well without the
+   named cause, it is dropped and the first of them named
+   (``drop_redundant_primary``).
+6. A named relaxation slower than every drive period: its slowest part
+   replaced by creep (``slow_part``); if that predicts as well, creep is
+   reported as ambiguous with it.
+7. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
    identified on the identification records' whole length, every parameter
    free; the base model is refitted the same way; the validation records --
    untouched so far -- measure the gain of the one over the other
    (confirmed if it lowers their residual). An interference is confirmed by
    the same frequency and amplitude on the validation records, its phase
    fitted per record.
-7. A named relaxation slower than every drive period: its slowest part
-   replaced by creep (``slow_part``); if that predicts as well, creep is
-   reported as ambiguous with it.
 """
 
 from __future__ import annotations
