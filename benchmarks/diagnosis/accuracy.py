@@ -150,7 +150,7 @@ def run_case(case: dict) -> dict:
             "confirmed": d.confirmed, "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder,
             "parameters": d.parameters, "parameter_errors": errors,
-            "parameters_within": bool(errors) and all(v <= TOLERANCE for v in errors.values()),
+            "parameters_within": _within(errors),
             "also_parameter_errors": also_errors,
             "right": judge(truth, d.cause, also), "seconds": seconds,
             "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect),
@@ -251,9 +251,14 @@ def _via_also(r: dict) -> bool:
         k in r["also"] for k in r["kinds"])
 
 
+def _within(errors: dict) -> bool:
+    """Parameter errors (``parameter_errors``), every one within 25 % (none: not within)."""
+    return bool(errors) and all(v <= TOLERANCE for v in errors.values())
+
+
 def _also_within(r: dict) -> bool:
     """A planted cause under "also" with every parameter within 25 %."""
-    return any(e and all(v <= TOLERANCE for v in e.values()) for e in r.get("also_parameter_errors", {}).values())
+    return any(_within(e) for e in r.get("also_parameter_errors", {}).values())
 
 
 def _recovered(r: dict) -> bool:
@@ -261,8 +266,7 @@ def _recovered(r: dict) -> bool:
     25 % of its value."""
     if r["kinds"] == ["relaxation"]:
         return r["parameters_within"]
-    return _also_within({**r, "also_parameter_errors": {k: v for k, v in r.get("also_parameter_errors", {}).items()
-                                                        if k == "delay"}})
+    return _within(r.get("also_parameter_errors", {}).get("delay", {}))
 
 
 def _label(r: dict) -> str:

@@ -61,7 +61,7 @@ from .screen import Screen
 from .search import run_screen
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
-                        at_bound, decide, evidence, heldout_errors, promising, score)
+                        at_bound, decide, evidence, heldout_errors, promising, score, share_of_misfit)
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
@@ -257,6 +257,7 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     folds = result["folds"]
     taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
     fresh = screen.small
+
     def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
         return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
 
@@ -293,10 +294,8 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         if not ok:
             return
         best = max(ok, key=lambda t: t[0].heldout["gain"])
-        excess = float(reference @ reference) - screen.n * screen.noise_sd**2  # what is kept leaves beyond noise
-        for t in ok:
-            t[0].heldout["share_of_misfit"] = (t[0].heldout["gain"] * float(reference @ reference) / excess
-                                               if excess > 0 else 1.0)
+        for t in ok:  # of what is kept leaves beyond noise
+            t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
         # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
         same = [t for t in ok if t is best or (score(folds, t[3], best[3])["z"] < Z_SAME
                                                and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]

@@ -269,10 +269,10 @@ def significant(c: Candidate) -> bool:
     return evidence(c.heldout)
 
 
-def evidence(h: dict, min_gain: float = MIN_EXPLAINED) -> bool:
-    """A held-out score (``score``) is evidence: gain >= ``min_gain`` in a majority of folds, and z >= Z_PASS
+def evidence(h: dict) -> bool:
+    """A held-out score (``score``) is evidence: gain >= MIN_EXPLAINED in a majority of folds, and z >= Z_PASS
     or a gain >= STRONG_GAIN in every fold."""
-    return bool(h) and h["gain"] >= min_gain and h["folds_improved"] * 2 > h["n_folds"] and (
+    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
         h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
 
 
@@ -337,10 +337,9 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                            not_identified=not_identified, partial=partial)
         return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
                        not_identified=not_identified)
-    excess = null_sse - screen.n * screen.noise_sd**2
 
-    def record_share(c: Candidate) -> None:  # the share of the held-out misfit beyond white noise it removes
-        c.heldout["share_of_misfit"] = float((null_sse - c.heldout["sse"]) / excess) if excess > 0 else 1.0
+    def record_share(c: Candidate) -> None:
+        c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
 
     for c in ok:
         record_share(c)
@@ -386,6 +385,13 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
         reason += (f"; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
                    f"the other {100 * remainder:.0f} % is unexplained")
     return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified, remainder=remainder)
+
+
+def share_of_misfit(screen, reference_sse: float, sse: float) -> float:
+    """The share of a reference's held-out misfit beyond white noise (n sd^2) that a candidate removes (1 if the
+    reference leaves nothing beyond noise)."""
+    excess = reference_sse - screen.n * screen.noise_sd**2
+    return float((reference_sse - sse) / excess) if excess > 0 else 1.0
 
 
 def carried_by_one_record(folds: Folds, e_null: np.ndarray, e_c: np.ndarray) -> bool:
