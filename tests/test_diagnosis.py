@@ -614,6 +614,34 @@ def test_a_second_cause_is_searched_afresh_on_top_of_the_named_one():
     assert parameter_errors(truth, "creep", d.also[0].estimates)["drift"] <= 0.25
 
 
+def test_a_specific_cause_is_named_when_the_best_predicting_one_is_unstable():
+    """A 12.6 Hz interference (0.85 % of p2p) planted on the virtual DEA under triangles (balanced plan of
+    seed 22, case 104): a one-time-constant relaxation predicts more of the held-out misfit (the physics' own,
+    MRPIM fitted on two triangle records extrapolating to the third) but its time constant differs between the
+    folds; the interference removes a small part of its own, at one frequency and amplitude in every fold.
+    It is named, with the rest unexplained (before 2026-11-27: `unexplained`)."""
+    ds, truth = planted_case(("interference",), "virtual-dea", "triangles", 2200104)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause == "interference", (d.verdict.reason, [(c.cause, c.heldout, c.uncertainty) for c in d.candidates])
+    assert d.verdict.remainder is not None and d.verdict.remainder > 0.5  # said, not hidden
+    assert "differ between the folds" in d.verdict.reason
+    errors = parameter_errors(truth, "interference", d.parameters)
+    assert errors["frequency_hz"] < 0.01 and errors["amplitude"] < 0.25
+
+
+def test_with_two_records_only_the_best_predicting_cause_can_be_named_partly():
+    """A quadratic sensor nonlinearity (out of vocabulary) on the real piezo recordings, two identification
+    records (balanced plan of seed 0, case 84): a relaxation predicts most but is unstable; a delay removes
+    another, smaller part with its two fold estimates agreeing. Two agreeing estimates are too weak a check to
+    name a cause that does not predict best: no vocabulary cause is named (it was, a confirmed delay, when the
+    rule above had no such limit)."""
+    if not piezo_available():
+        pytest.skip("the accuracy benchmark's piezo recording is not present")
+    ds, _ = planted_case(("sensor-nonlinearity",), "piezo", "sines", 84)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause in ("unexplained", "none"), d.verdict.reason
+
+
 def test_a_mode_above_the_drives_is_named_resonance_not_a_delay():
     """A 12 Hz mode (damping 0.2) under the 0.1-1 Hz sines, integrated by RK45 from equilibrium with the
     plant's first output: mostly a phase lag on these drives (0.57 % of p2p). The extension's mode must start

@@ -158,7 +158,8 @@ class Diagnosis:
                 f"if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
                 f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, every other cause "
                 f"within z = {Z_SAME:g} removing the same part, held-out improvements with cosine >= {SAME_SLICE:g}: "
-                f"those are ambiguous with it) with the rest reported as unexplained remainder, else unexplained; "
+                f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
+                f"cause predicting most among those that are specific (three or more records), else unexplained; "
                 f"nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
                 "records take no part")

@@ -55,6 +55,9 @@ Decision rule (``decide``):
    whose fold estimates disagree is no explanation either. So does a
    sinusoid at a drive harmonic with the same phase in every record (no
    interference: misfit locked to the drive) that has held-out evidence.
+   If the best-predicting partial cause is not specific, another passing
+   cause that is (by the same test, with three or more records) is named
+   with the rest as unexplained remainder (``specific_part``).
    Otherwise the verdict is ``unexplained``; so it is if nothing passes
    while the residual is structured (a candidate has held-out evidence but
    fails the rest, or removes >= ``STRONG_GAIN`` of the held-out
@@ -378,6 +381,15 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     if share < EXPLAIN_SHARE:
         why_not = not_specific(folds, errors, chosen, candidates, best, e_null)
         if why_not:
+            other = specific_part(screen, folds, errors, ok, chosen, candidates, e_null, null_sse)
+            if other is not None:
+                share = other.heldout["share_of_misfit"]
+                return Verdict(other.cause, other, [], (
+                    f"predicts the held-out identification records better than the base model refitted the same "
+                    f"way (gain {100 * other.heldout_gain:.2f} %, z = {other.heldout['z']:.1f}); it removes "
+                    f"{100 * share:.0f} % of the base model's held-out misfit beyond white noise: the other "
+                    f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"),
+                    not_identified, remainder=1.0 - share)
             return Verdict("unexplained", None, reason=(
                 f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
                 f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen)
@@ -453,6 +465,26 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
         names = sorted({"a misfit locked to the drive" if c.limit == DRIVE_LOCKED else c.cause for c in close})
         return f"{', '.join(names)} predicts the held-out records about as well, removing another part"
     return ""
+
+
+def specific_part(screen, folds: Folds, errors: dict, ok: Sequence[Candidate], partial: Candidate,
+                  candidates: Sequence[Candidate], e_null: np.ndarray, null_sse: float) -> Candidate | None:
+    """When the best-predicting partial explanation is not specific (``not_specific``), another passing cause
+    that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
+    rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
+    e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
+    most among those; None if there is none, or with fewer than three records (two fold estimates that agree
+    are too weak a check to name a cause that does not predict best)."""
+    if folds.n < 3:
+        return None
+    for c in sorted(ok, key=lambda c: -c.heldout_gain):
+        if c is partial or c.cause == partial.cause:
+            continue
+        if "share_of_misfit" not in c.heldout:
+            c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
+        if not not_specific(folds, errors, c, candidates, c, e_null):
+            return c
+    return None
 
 
 def slow_relaxation_twin(screen, folds: Folds, errors: dict, chosen: Candidate,
