@@ -629,6 +629,32 @@ def test_a_specific_cause_is_named_when_the_best_predicting_one_is_unstable():
     assert errors["frequency_hz"] < 0.01 and errors["amplitude"] < 0.25
 
 
+def test_a_clip_is_searched_on_top_of_the_named_cause():
+    """A clip 2-10 % below the top (0.55 % of p2p) planted on the virtual DEA under multisines (balanced plan
+    of seed 22, case 46): against the base alone it shows nothing (the physics' relaxation dominates); on top of
+    the named relaxation a clip of its prediction is kept, flat where it cuts, at the planted level (before
+    2026-11-27 a clip could not be composed, and a delay was kept there)."""
+    ds, truth = planted_case(("saturation",), "virtual-dea", "multisines", 2200046)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause == "relaxation", d.verdict.reason
+    clips = [c for c in d.also if c.cause == "saturation"]
+    assert clips, [(c.label, c.heldout, c.limit) for c in d.secondary_tried]
+    assert abs(clips[0].estimates["slope_where_clipped"]) < 0.5
+    assert parameter_errors(truth, "saturation", clips[0].estimates)["level_over_p2p"] < 0.01
+
+
+def test_a_level_that_cuts_nothing_is_no_clip_on_top():
+    """A logarithmic creep on the Table 2 MRPIM under sines (seed 22, case 39): on top of the named creep, a
+    'clip' above the prediction's peaks gains on held-out records only by leaving the output's top samples out
+    of the linear fit. It cuts no sample of the prediction, so it is not kept (it was, before that check)."""
+    ds, _ = planted_case(("creep",), "mrpim", "sines", 2200039)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause == "creep", d.verdict.reason
+    assert "saturation" not in [c.cause for c in d.also]
+    tried = [c for c in d.secondary_tried if c.cause == "saturation"]
+    assert tried and all(c.limit for c in tried)
+
+
 def test_with_two_records_only_the_best_predicting_cause_can_be_named_partly():
     """A quadratic sensor nonlinearity (out of vocabulary) on the real piezo recordings, two identification
     records (balanced plan of seed 0, case 84): a relaxation predicts most but is unstable; a delay removes

@@ -57,6 +57,7 @@ from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
 from .interference import amplitude_at, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
+from .saturation import clip_on_top
 from .screen import Screen
 from .search import run_screen
 from .slow_part import predicts_as_well, slow_part_composite
@@ -246,7 +247,8 @@ class Diagnosis:
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top) and scored on held-out records against what is kept; of
+    interference as a per-record sinusoid on top; a clip as a clip of what is kept, ``saturation.clip_on_top``,
+    after which only an interference composes) and scored on held-out records against what is kept; of
     those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
     bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
     least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as in ``selection.decide``) is kept
@@ -280,6 +282,12 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
                     continue
                 comp, part, part_e = copy.copy(c), kept, kept_e
                 e = on_top(screen, folds, kept_e, c.estimates["frequency_hz"])
+            elif cause == "saturation" and kept is not None:  # a clip of what is kept
+                comp = clip_on_top(screen, kept)
+                if comp is None:
+                    continue
+                part, part_e = comp, heldout_errors(screen, folds, comp)[0]
+                e = on_top(screen, folds, part_e, frequency) if frequency else part_e
             else:
                 comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
                 if comp is None:
@@ -307,6 +315,8 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         kept, kept_e, reference = part, part_e, e
         if comp.cause == "interference":
             frequency = comp.estimates["frequency_hz"]
+        if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
+            pool = {k: v for k, v in pool.items() if k == "interference"}
 
 
 def drop_redundant_primary(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:

@@ -125,3 +125,35 @@ def joint_saturation(screen, c: Candidate, max_nfev: int = 15) -> Candidate:
     res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=hi - lo, max_nfev=max_nfev)
     out = _saturation_candidate(screen, side, level, dict(zip(names, res.x)), "joint")
     return out if out is not None and out.rss < c.rss else c
+
+
+NO_CUT = ("the level cuts fewer than three samples of the prediction: not a clip (what it gains comes from "
+          "leaving the output's extreme samples out of the fit)")
+
+
+def clip_on_top(screen, kept: Candidate) -> Candidate | None:
+    """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
+    nonlinear parameters, the level fitted on each side as for the base, the better side kept. It must cut
+    the prediction (three or more samples, ``NO_CUT``) and leave the output flat there (``limit_of``)."""
+    A = screen.design(kept.model, {n: kept.params[n] for n in kept.model.nonlinear_names})
+    out = None
+    for side in ("upper", "lower"):
+        level = fit_level(screen, A, screen.y, side)
+        rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
+        if theta is None:
+            continue
+        params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
+        estimates = {"level": float(level), "side": side}
+        slope = slope_where_clipped(A @ theta, screen.y, side, level)
+        if math.isfinite(slope):
+            estimates["slope_where_clipped"] = slope
+        c = Candidate("saturation", f"{kept.label} + clipped from {'above' if side == 'upper' else 'below'}",
+                      kept.model, params, kept.k + 1, rss, screen.n, estimates, n_effective=screen.n_effective,
+                      hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
+        c.stage = "joint"
+        c.delta_bic = c.bic - kept.bic
+        c.explained = 1.0 - c.rss / kept.rss
+        c.limit = screen.limit_of("saturation", estimates) if math.isfinite(slope) else NO_CUT
+        if out is None or c.rss < out.rss:
+            out = c
+    return out

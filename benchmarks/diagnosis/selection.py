@@ -179,6 +179,13 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
     return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m])), fold_est
 
 
+def clipped_columns(screen, c: Candidate) -> np.ndarray:
+    """The regressors a clipping candidate clips: the base's, or those of the kept part it sits on."""
+    if c.clips is not None:
+        return screen.design(c.clips.model, {n: c.clips.params[n] for n in c.clips.model.nonlinear_names})
+    return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
+
+
 def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
     """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
     with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
@@ -186,8 +193,7 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False)
     a clip leave its level open above their peaks, and a level placed just under them would cut a record
     that goes higher."""
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
-    base_nl = {k: c.params[k] for k in screen.base_nl_names}
-    A = np.concatenate(screen.base_columns(base_nl).rows)
+    A = clipped_columns(screen, c)
     e = np.empty(screen.n)
     fold_est = []
     for m in range(folds.n):
