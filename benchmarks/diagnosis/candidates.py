@@ -66,7 +66,8 @@ class Candidate:
         return float(self.heldout.get("gain", math.nan))
 
     def summary(self) -> dict:
-        return {"cause": self.cause, "label": self.label, "model": self.model.name, "stage": self.stage,
+        model = self.model.name + ("+saturation" if self.clips is not None else "")  # a clip: of that model
+        return {"cause": self.cause, "label": self.label, "model": model, "stage": self.stage,
                 "admissible": not self.limit, "limit": self.limit, "k": self.k,
                 "bic_effective": self.bic, "delta_bic_effective": self.delta_bic, "rss": self.rss, "n_rows": self.n,
                 "n_effective": self.n_effective, "explained_identification": self.explained, "heldout": self.heldout,

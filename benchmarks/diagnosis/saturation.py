@@ -127,6 +127,11 @@ def joint_saturation(screen, c: Candidate, max_nfev: int = 15) -> Candidate:
     return out if out is not None and out.rss < c.rss else c
 
 
+def columns_of(screen, part: Candidate) -> np.ndarray:
+    """A separable candidate's regressors on the screen's rows, at its own nonlinear parameters."""
+    return screen.design(part.model, {n: part.params[n] for n in part.model.nonlinear_names})
+
+
 NO_CUT = ("the level cuts fewer than three samples of the prediction: not a clip (what it gains comes from "
           "leaving the output's extreme samples out of the fit)")
 
@@ -135,7 +140,7 @@ def clip_on_top(screen, kept: Candidate) -> Candidate | None:
     """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
     nonlinear parameters, the level fitted on each side as for the base, the better side kept. It must cut
     the prediction (three or more samples, ``NO_CUT``) and leave the output flat there (``limit_of``)."""
-    A = screen.design(kept.model, {n: kept.params[n] for n in kept.model.nonlinear_names})
+    A = columns_of(screen, kept)
     out = None
     for side in ("upper", "lower"):
         level = fit_level(screen, A, screen.y, side)

@@ -79,7 +79,7 @@ from scipy import stats
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
 from .interference import predict_heldout
-from .saturation import fit_level, shows_clip, unclipped
+from .saturation import columns_of, fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
 Z_PASS = 3.0
@@ -182,7 +182,7 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
 def clipped_columns(screen, c: Candidate) -> np.ndarray:
     """The regressors a clipping candidate clips: the base's, or those of the kept part it sits on."""
     if c.clips is not None:
-        return screen.design(c.clips.model, {n: c.clips.params[n] for n in c.clips.model.nonlinear_names})
+        return columns_of(screen, c.clips)
     return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
 
 
@@ -387,7 +387,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     if share < EXPLAIN_SHARE:
         why_not = not_specific(folds, errors, chosen, candidates, best, e_null)
         if why_not:
-            other = specific_part(screen, folds, errors, ok, chosen, candidates, e_null, null_sse)
+            other = specific_part(folds, errors, ok, chosen, candidates, e_null)  # their shares recorded above
             if other is not None:
                 share = other.heldout["share_of_misfit"]
                 return Verdict(other.cause, other, [], (
@@ -473,8 +473,8 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
     return ""
 
 
-def specific_part(screen, folds: Folds, errors: dict, ok: Sequence[Candidate], partial: Candidate,
-                  candidates: Sequence[Candidate], e_null: np.ndarray, null_sse: float) -> Candidate | None:
+def specific_part(folds: Folds, errors: dict, ok: Sequence[Candidate], partial: Candidate,
+                  candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
     """When the best-predicting partial explanation is not specific (``not_specific``), another passing cause
     that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
     rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
@@ -484,11 +484,7 @@ def specific_part(screen, folds: Folds, errors: dict, ok: Sequence[Candidate], p
     if folds.n < 3:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):
-        if c is partial or c.cause == partial.cause:
-            continue
-        if "share_of_misfit" not in c.heldout:
-            c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
-        if not not_specific(folds, errors, c, candidates, c, e_null):
+        if c is not partial and c.cause != partial.cause and not not_specific(folds, errors, c, candidates, c, e_null):
             return c
     return None
 
