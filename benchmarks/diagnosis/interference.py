@@ -7,7 +7,10 @@ the most prominent peaks of the pooled incoherent spectrum of the null's
 residual (records' powers added), harmonics common to every drive left out,
 each refined by a line search. On a held-out record the frequency and the
 amplitude come from the other records and only the phase is fitted there
-(``predict_heldout``); the validation records confirm it the same way.
+(``predict_heldout``); scored with its own parameters refitted per fold, the
+frequency too is searched afresh on the other records (``fold_frequency``), so
+a held-out record takes no part in choosing the frequency it is scored at. The
+validation records confirm it the same way.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from scipy.optimize import minimize_scalar
 
 from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
+
+LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
 
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
@@ -63,26 +68,72 @@ def _search(rss_of, f0: float, step: float, lo: float, hi: float) -> tuple[float
     return best
 
 
-def candidate_frequencies(screen, n_peaks: int = 5) -> list[float]:
+def candidate_frequencies(screen, n_peaks: int = 5, parts: Sequence[int] | None = None) -> list[float]:
+    """The most prominent peaks of the pooled spectrum of the null's residual on ``parts`` (default: every
+    identification record), drive harmonics left out."""
     model = screen.extension(("interference",))
     lo, hi = screen.bounds_of(model, "interference_frequency")
     hi = min(hi, 0.45 / max(p.record.dt for p in screen.parts))  # below every record's Nyquist frequency
-    f, amp = coherent_spectrum(screen.null_residuals(), lo, hi, coherent=False)
+    residuals = screen.null_residuals()
+    if parts is not None:
+        residuals = [residuals[m] for m in parts]
+    f, amp = coherent_spectrum(residuals, lo, hi, coherent=False)
     prom = prominence(amp)
     prom[screen.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
     return [f0 for f0, _ in spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))]
 
 
+def resolution_hz(screen) -> float:
+    """The longest identification record's spectral resolution (one cycle over its duration)."""
+    return 1.0 / max(p.record.t.size * p.record.dt for p in screen.parts)
+
+
 def fit_interference(screen, n_peaks: int = 5) -> Candidate:
     model = screen.extension(("interference",))
     lo, hi = screen.bounds_of(model, "interference_frequency")
-    step = 1.0 / max(p.record.t.size * p.record.dt for p in screen.parts)  # the longest record's resolution
+    step = resolution_hz(screen)
     best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
     for f0 in candidate_frequencies(screen, n_peaks):
         f1, rss = _search(lambda g: interference_rss(screen, g), f0, step, lo, hi)
         if rss < best_rss:
             best_f, best_rss = f1, rss
     return interference_candidate(screen, best_f)
+
+
+def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: np.ndarray,
+                   n_peaks: int = 5) -> float:
+    """The frequency fitted on the records ``parts`` alone (``train``: their rows): their spectral peaks
+    (``candidate_frequencies``), each refined by a line search on per-record sinusoids regressed, with the
+    base's columns, on their rows."""
+    model = screen.extension(("interference",))
+    lo, hi = screen.bounds_of(model, "interference_frequency")
+    u_, s_, _ = np.linalg.svd(base_rows[train], full_matrices=False)
+    q = u_[:, s_ > 1e-10 * s_[0]]  # basis of the base's columns on the training rows
+    y = screen.y[train] - q @ (q.T @ screen.y[train])
+
+    def rss(g: float) -> float:
+        E = block_columns(screen, g, parts)[train]
+        E = E - q @ (q.T @ E)
+        r = y - E @ np.linalg.lstsq(E, y, rcond=None)[0]
+        return float(r @ r)
+
+    best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
+    for f0 in candidate_frequencies(screen, n_peaks, parts):
+        f1, r = _search(rss, f0, resolution_hz(screen), lo, hi)
+        if r < best_rss:
+            best_f, best_rss = f1, r
+    return best_f
+
+
+def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
+    """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
+    within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
+    amplitudes within ``LINE_AMPLITUDE`` (relative to their mean)."""
+    f = np.array([e["interference_frequency"] for e in fold_estimates])
+    a = np.array([e["amplitude"] for e in fold_estimates])
+    spans = [p.record.t.size * p.record.dt for p in screen.parts]
+    tolerance = max(1.0 / max(s for k, s in enumerate(spans) if k != m) for m in range(len(spans)))
+    return bool(f.size > 1 and np.ptp(f) <= tolerance and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
 
 
 def interference_candidate(screen, frequency_hz: float) -> Candidate:

@@ -17,13 +17,14 @@ import numpy as np
 from .candidates import MAX_RELAXATION, Candidate
 from .creep import fit_creep
 from .delay import fit_delay
-from .interference import fit_interference
+from .interference import fit_interference, same_line
 from .library_screen import library_screen
 from .relaxation import fit_relaxation
 from .residuals import RecordResidual
 from .resonance import fit_resonance
 from .saturation import fit_saturation, joint_saturation
-from .selection import Folds, at_bound, heldout_errors, heldout_null, jackknife, passes, promising, score
+from .selection import (Folds, at_bound, heldout_errors, heldout_null, jackknife, line_worth_refit, passes,
+                        promising, score)
 
 
 def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool = False) -> None:
@@ -31,6 +32,8 @@ def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, re
     nonlinear parameters are refitted per fold, and their spread is its uncertainty."""
     e, fold_est = heldout_errors(screen, folds, c, refit=refit)
     c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "refit_per_fold": refit}
+    if refit and c.cause == "interference":
+        c.heldout["same_line"] = same_line(screen, fold_est)
     if fold_est:
         c.uncertainty = jackknife(fold_est)
         if "saturation_level" in c.uncertainty:  # a level has no natural zero: its spread over the output's range
@@ -76,7 +79,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
                 pool[pool.index(c)] = j
     say("held-out scores with each finalist's own parameters refitted per fold")
     for c in variants + cands:
-        if passes(c):
+        if passes(c) or line_worth_refit(c):
             score_candidate(screen, folds, e_null, errors, c, refit=True)
     best_relax = max(variants, key=lambda c: c.heldout_gain)
     return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,

@@ -6,9 +6,10 @@ the extension's gains) are solved on the other identification records and
 the left-out record is predicted; the base model alone is refitted the
 SAME way on the SAME rows. The finalists (every candidate that passes the
 test below on this quick score) are scored again with their own nonlinear
-parameters (time constants, delay, mode, creep time) also refitted on each
-fold's training records; the spread of those fold estimates is the
-parameter's uncertainty (jackknife). The validation records are not touched.
+parameters (time constants, delay, mode, creep time; an interference's
+frequency searched afresh) also refitted on each fold's training records;
+the spread of those fold estimates is the parameter's uncertainty
+(jackknife). The validation records are not touched.
 
 Held-out score per candidate, from the out-of-fold residuals e (every row
 predicted by a fit that did not see its record):
@@ -27,7 +28,10 @@ Decision rule (``decide``):
    of the folds, z >= ``Z_PASS`` (or G >= ``STRONG_GAIN`` with every fold
    improved: a transient misfit concentrates in few blocks), its parameters
    are within the cause's meaning and none is at its search bound (else:
-   "not identified (at bound)").
+   "not identified (at bound)"). An interference whose frequency, searched
+   on each fold's training records alone, and amplitude agree across the
+   folds (one line) passes with any G > 0 if it improves every fold with
+   z >= ``Z_PASS`` (``line_evidence``).
 2. Parsimony: among the passing candidates that the best (highest G) does not
    beat by z >= ``Z_SAME`` and that would be a verdict themselves (rule 3),
    the one with fewest parameters is named. Another cause in that set is
@@ -78,7 +82,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
-from .interference import predict_heldout
+from .interference import fold_frequency, predict_heldout
 from .saturation import columns_of, fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
@@ -144,15 +148,18 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
     """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters are refitted on
     each fold's training rows (returns the fold estimates too)."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":
+    if c.cause == "interference":  # with refit the frequency too comes from the other records alone
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
         e = np.empty(screen.n)
         fold_est = []
         for m in range(folds.n):
             test = folds.test(m)
-            pred, amp = predict_heldout(screen, nl["interference_frequency"], m, base_rows, ~test)
+            f = nl["interference_frequency"]
+            if refit:
+                f = fold_frequency(screen, [k for k in range(folds.n) if k != m], ~test, base_rows)
+            pred, amp = predict_heldout(screen, f, m, base_rows, ~test)
             e[test] = screen.y[test] - pred
-            fold_est.append({"amplitude": amp})
+            fold_est.append({"interference_frequency": f, "amplitude": amp} if refit else {"amplitude": amp})
         return e, fold_est
     if c.cause == "saturation":
         return _heldout_saturation(screen, folds, c, refit)
@@ -280,9 +287,25 @@ def significant(c: Candidate) -> bool:
 
 def evidence(h: dict) -> bool:
     """A held-out score (``score``) is evidence: gain >= MIN_EXPLAINED in a majority of folds, and z >= Z_PASS
-    or a gain >= STRONG_GAIN in every fold."""
-    return bool(h) and h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
-        h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))
+    or a gain >= STRONG_GAIN in every fold; or, for one line (``line_evidence``), any gain."""
+    return bool(h) and (line_evidence(h) or (
+        h["gain"] >= MIN_EXPLAINED and h["folds_improved"] * 2 > h["n_folds"] and (
+            h["z"] >= Z_PASS or (h["gain"] >= STRONG_GAIN and h["folds_improved"] == h["n_folds"]))))
+
+
+def line_evidence(h: dict) -> bool:
+    """An interference found on each fold's other records at one frequency and amplitude (``same_line``)
+    that improves every held-out record with z >= Z_PASS is evidence however small its share: the gain
+    floor guards against a flexible extension shaving a little off a large misfit, but a line whose
+    frequency records chose independently is specific by itself."""
+    return bool(h.get("same_line")) and h["gain"] > 0 and h["z"] >= Z_PASS and h["folds_improved"] == h["n_folds"]
+
+
+def line_worth_refit(c: Candidate) -> bool:
+    """An interference whose quick score (frequency from every record) could become ``line_evidence``."""
+    h = c.heldout
+    return (c.cause == "interference" and not c.limit and bool(h) and h["gain"] > 0 and h["z"] >= Z_PASS
+            and h["folds_improved"] == h["n_folds"])
 
 
 def promising(c: Candidate) -> bool:
