@@ -150,7 +150,9 @@ class Diagnosis:
     def decision_rule(self) -> str:
         return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
                 f"a cause passes with held-out gain >= {self.settings['min_explained']:.0%} in a majority of folds "
-                f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold, "
+                f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold "
+                f"(an interference found at one frequency and amplitude on each fold's other records: any gain, "
+                f"every fold improved, z >= {Z_PASS:g}), "
                 f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
                 f"within z = {Z_SAME:g} of the best is "
                 f"named (creep rather than a relaxation slower than every drive period that creep predicts as well; "
@@ -268,11 +270,12 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
             and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
     # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
-    if chosen.cause == "interference":
+    if chosen.cause == "interference":  # composites on top take its frequency from every record: so does this
         kept, kept_e, frequency = None, result["errors"][id(screen.null)], chosen.estimates["frequency_hz"]
+        reference = heldout_errors(screen, folds, chosen)[0]
     else:
         kept, kept_e, frequency = chosen, result["errors"][id(chosen)], None
-    reference = result["errors"][id(chosen)]
+        reference = kept_e
     while pool and len(diag.also) < MAX_SECONDARY:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
         tried = []  # (composite, separable part, its errors, errors with the interference)
