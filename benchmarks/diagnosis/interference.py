@@ -16,13 +16,14 @@ validation records confirm it the same way.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
+from .screen import column_basis
 
 LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
 
@@ -83,32 +84,35 @@ def candidate_frequencies(screen, n_peaks: int = 5, parts: Sequence[int] | None 
     return [f0 for f0, _ in spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))]
 
 
-def resolution_hz(screen) -> float:
-    """The longest identification record's spectral resolution (one cycle over its duration)."""
-    return 1.0 / max(p.record.t.size * p.record.dt for p in screen.parts)
+def resolution_hz(screen, parts: Sequence[int] | None = None) -> float:
+    """The spectral resolution of the longest of ``parts`` (default: every identification record): one cycle
+    over its duration."""
+    parts = range(len(screen.parts)) if parts is None else parts
+    return 1.0 / max(screen.parts[m].record.t.size * screen.parts[m].record.dt for m in parts)
+
+
+def best_frequency(screen, rss_of: Callable[[float], float], n_peaks: int = 5,
+                   parts: Sequence[int] | None = None) -> float:
+    """The spectral peaks of ``parts`` (``candidate_frequencies``), each refined by a line search of
+    ``rss_of``; the best."""
+    lo, hi = screen.bounds_of(screen.extension(("interference",)), "interference_frequency")
+    best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
+    for f0 in candidate_frequencies(screen, n_peaks, parts):
+        f1, rss = _search(rss_of, f0, resolution_hz(screen), lo, hi)
+        if rss < best_rss:
+            best_f, best_rss = f1, rss
+    return best_f
 
 
 def fit_interference(screen, n_peaks: int = 5) -> Candidate:
-    model = screen.extension(("interference",))
-    lo, hi = screen.bounds_of(model, "interference_frequency")
-    step = resolution_hz(screen)
-    best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
-    for f0 in candidate_frequencies(screen, n_peaks):
-        f1, rss = _search(lambda g: interference_rss(screen, g), f0, step, lo, hi)
-        if rss < best_rss:
-            best_f, best_rss = f1, rss
-    return interference_candidate(screen, best_f)
+    return interference_candidate(screen, best_frequency(screen, lambda g: interference_rss(screen, g), n_peaks))
 
 
 def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: np.ndarray,
                    n_peaks: int = 5) -> float:
-    """The frequency fitted on the records ``parts`` alone (``train``: their rows): their spectral peaks
-    (``candidate_frequencies``), each refined by a line search on per-record sinusoids regressed, with the
-    base's columns, on their rows."""
-    model = screen.extension(("interference",))
-    lo, hi = screen.bounds_of(model, "interference_frequency")
-    u_, s_, _ = np.linalg.svd(base_rows[train], full_matrices=False)
-    q = u_[:, s_ > 1e-10 * s_[0]]  # basis of the base's columns on the training rows
+    """The frequency fitted on the records ``parts`` alone (``train``: their rows): per-record sinusoids
+    regressed, with the base's columns, on their rows (``best_frequency`` over their spectral peaks)."""
+    q = column_basis(base_rows[train])
     y = screen.y[train] - q @ (q.T @ screen.y[train])
 
     def rss(g: float) -> float:
@@ -117,12 +121,7 @@ def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: n
         r = y - E @ np.linalg.lstsq(E, y, rcond=None)[0]
         return float(r @ r)
 
-    best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
-    for f0 in candidate_frequencies(screen, n_peaks, parts):
-        f1, r = _search(rss, f0, resolution_hz(screen), lo, hi)
-        if r < best_rss:
-            best_f, best_rss = f1, r
-    return best_f
+    return best_frequency(screen, rss, n_peaks, parts)
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -131,8 +130,8 @@ def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
     amplitudes within ``LINE_AMPLITUDE`` (relative to their mean)."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
-    spans = [p.record.t.size * p.record.dt for p in screen.parts]
-    tolerance = max(1.0 / max(s for k, s in enumerate(spans) if k != m) for m in range(len(spans)))
+    n = len(screen.parts)
+    tolerance = max(resolution_hz(screen, [k for k in range(n) if k != m]) for m in range(n))
     return bool(f.size > 1 and np.ptp(f) <= tolerance and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
 
 

@@ -73,6 +73,15 @@ def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return theta, y - A @ theta
 
 
+def column_basis(A: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of A's column space (columns scaled to unit norm; singular values below 1e-10 of
+    the largest dropped)."""
+    d = np.sqrt(np.einsum("ij,ij->j", A, A))
+    d[~(d > 0)] = 1.0
+    u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
+    return np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])
+
+
 class Screen:
     """The candidate fits on a fixed row subset of the identification records.
 
@@ -250,11 +259,7 @@ class Screen:
         c = Candidate("none", "base model alone", self.base, params, len(self.base.param_names), rss, self.n,
                       n_effective=self.n_effective)
         c.delta_bic, c.explained = 0.0, 0.0
-        A = np.concatenate(self.base_columns(z).rows)
-        d = np.sqrt(np.einsum("ij,ij->j", A, A))
-        d[~(d > 0)] = 1.0
-        u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
-        self._q0 = np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])  # basis of the base's columns on these rows
+        self._q0 = column_basis(np.concatenate(self.base_columns(z).rows))  # the base's columns on these rows
         self.null_residual = res
         full = self.base_columns(z, full=True).full
         self._null_prediction = [sum(theta[j] * f[name] for j, name in enumerate(self.base_lin)) for f in full]

@@ -298,14 +298,16 @@ def line_evidence(h: dict) -> bool:
     that improves every held-out record with z >= Z_PASS is evidence however small its share: the gain
     floor guards against a flexible extension shaving a little off a large misfit, but a line whose
     frequency records chose independently is specific by itself."""
-    return bool(h.get("same_line")) and h["gain"] > 0 and h["z"] >= Z_PASS and h["folds_improved"] == h["n_folds"]
+    return bool(h.get("same_line")) and _improves_every_fold(h)
 
 
 def line_worth_refit(c: Candidate) -> bool:
     """An interference whose quick score (frequency from every record) could become ``line_evidence``."""
-    h = c.heldout
-    return (c.cause == "interference" and not c.limit and bool(h) and h["gain"] > 0 and h["z"] >= Z_PASS
-            and h["folds_improved"] == h["n_folds"])
+    return c.cause == "interference" and not c.limit and bool(c.heldout) and _improves_every_fold(c.heldout)
+
+
+def _improves_every_fold(h: dict) -> bool:
+    return h["gain"] > 0 and h["z"] >= Z_PASS and h["folds_improved"] == h["n_folds"]
 
 
 def promising(c: Candidate) -> bool:
