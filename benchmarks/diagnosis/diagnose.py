@@ -55,7 +55,7 @@ from hysbench.models.errors import HysbenchError
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
 from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .interference import amplitude_at, on_top, phase_fitted
+from .interference import amplitude_at, fold_frequencies, on_top, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .saturation import clip_on_top
 from .screen import Screen
@@ -249,7 +249,8 @@ class Diagnosis:
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top; a clip as a clip of what is kept, ``saturation.clip_on_top``,
+    interference as a per-record sinusoid on top, its frequency chosen per fold on the other records,
+    ``interference.fold_frequencies``; a clip as a clip of what is kept, ``saturation.clip_on_top``,
     after which only an interference composes) and scored on held-out records against what is kept; of
     those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
     bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
@@ -284,21 +285,24 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
                 if frequency is not None:
                     continue
                 comp, part, part_e = copy.copy(c), kept, kept_e
-                e = on_top(screen, folds, kept_e, c.estimates["frequency_hz"])
+                fold_f = fold_frequencies(screen, folds, kept_e)  # each fold's without its held-out record
+                e = on_top(screen, folds, kept_e, fold_f)
             elif cause == "saturation" and kept is not None:  # a clip of what is kept
                 comp = clip_on_top(screen, kept)
                 if comp is None:
                     continue
                 part, part_e = comp, heldout_errors(screen, folds, comp)[0]
-                e = on_top(screen, folds, part_e, frequency) if frequency else part_e
+                e = on_top(screen, folds, part_e, frequency) if frequency is not None else part_e
             else:
                 comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
                 if comp is None:
                     continue
                 part = comp
                 part_e = result["errors"][id(c)] if kept is None else heldout_errors(screen, folds, comp)[0]
-                e = on_top(screen, folds, part_e, frequency) if frequency else part_e
+                e = on_top(screen, folds, part_e, frequency) if frequency is not None else part_e
             comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else []}
+            if cause == "interference":
+                comp.heldout["fold_frequencies_hz"] = fold_f
             diag.secondary_tried.append(comp)
             tried.append((comp, part, part_e, e))
         ok = [t for t in tried if evidence(t[0].heldout) and not t[0].limit
@@ -317,7 +321,7 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         pool.pop(comp.cause)
         kept, kept_e, reference = part, part_e, e
         if comp.cause == "interference":
-            frequency = comp.estimates["frequency_hz"]
+            frequency = comp.heldout["fold_frequencies_hz"]
         if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
             pool = {k: v for k, v in pool.items() if k == "interference"}
 

@@ -9,8 +9,12 @@ each refined by a line search. On a held-out record the frequency and the
 amplitude come from the other records and only the phase is fitted there
 (``predict_heldout``); scored with its own parameters refitted per fold, the
 frequency too is searched afresh on the other records (``fold_frequency``), so
-a held-out record takes no part in choosing the frequency it is scored at. The
-validation records confirm it the same way.
+a held-out record takes no part in choosing the frequency it is scored at; so
+too on top of another named cause (``fold_frequencies``, ``on_top``). A fold
+chooses its frequency the way it is scored: each of its records predicted with
+the amplitude of the others, only the phase its own (``loo_rss``), so a misfit
+at a harmonic of some drives, strong in one record and weak in another, loses
+to a line of one amplitude. The validation records confirm it the same way.
 """
 
 from __future__ import annotations
@@ -110,18 +114,14 @@ def fit_interference(screen, n_peaks: int = 5) -> Candidate:
 
 def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: np.ndarray,
                    n_peaks: int = 5) -> float:
-    """The frequency fitted on the records ``parts`` alone (``train``: their rows): per-record sinusoids
-    regressed, with the base's columns, on their rows (``best_frequency`` over their spectral peaks)."""
+    """The frequency fitted on the records ``parts`` alone (``train``: their rows), the way it is then scored
+    (``predict_heldout``): their spectral peaks, each refined by a line search of ``loo_rss`` on their
+    residual with the base's columns projected off (``best_frequency``)."""
     q = column_basis(base_rows[train])
-    y = screen.y[train] - q @ (q.T @ screen.y[train])
-
-    def rss(g: float) -> float:
-        E = block_columns(screen, g, parts)[train]
-        E = E - q @ (q.T @ E)
-        r = y - E @ np.linalg.lstsq(E, y, rcond=None)[0]
-        return float(r @ r)
-
-    return best_frequency(screen, rss, n_peaks, parts)
+    r = screen.y[train] - q @ (q.T @ screen.y[train])
+    residuals = np.split(r, np.cumsum([screen.parts[m].rows.size for m in parts])[:-1])
+    times = [screen.parts[m].rows * screen.parts[m].record.dt for m in parts]
+    return best_frequency(screen, lambda g: loo_rss(residuals, times, g), n_peaks, parts)
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -151,8 +151,25 @@ def interference_candidate(screen, frequency_hz: float) -> Candidate:
                   screen.n, n_effective=screen.n_effective)
     c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
                    "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
+    detuned = detuning_z(screen, frequency_hz)
+    if detuned is not None:
+        c.estimates["detuning_z"] = detuned
     c.stage = "fixed base"
     return screen._finish(c)
+
+
+def detuning_z(screen, frequency_hz: float) -> float | None:
+    """Near a harmonic of every drive (``Screen.near_drive_harmonic``): how far the fitted frequency sits from
+    that harmonic, as a likelihood-ratio z: sqrt of (the null residual's sum of squares with per-record
+    sinusoids at the harmonic minus at the fit) over its variance per effective sample (``n_effective``, the
+    residual's correlation counted). None elsewhere."""
+    drive = screen.parts[0].record.frequency_hz
+    if not drive or not screen.near_drive_harmonic(frequency_hz):
+        return None
+    harmonic = max(round(frequency_hz / drive), 1) * drive
+    rss = interference_rss(screen, frequency_hz)
+    gain = interference_rss(screen, harmonic) - rss
+    return float(math.sqrt(max(gain, 0.0) / (rss / screen.n_effective))) if rss > 0 else math.inf
 
 
 def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:
@@ -188,16 +205,45 @@ def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarra
     return base_pred + sine, amplitude
 
 
-def on_top(screen, folds, e_primary: np.ndarray, frequency_hz: float) -> np.ndarray:
+def fold_frequencies(screen, folds, e_primary: np.ndarray, n_peaks: int = 5) -> list[float]:
+    """A sinusoid's frequency on top of a primary cause, one per leave-one-record-out fold, each chosen on the
+    other records alone, the way it is then scored (``on_top``): their null residuals' spectral peaks, each
+    refined by a line search of ``loo_rss`` on the primary's out-of-fold residuals ``e_primary``."""
+    n = len(screen.parts)
+    times = [p.rows * p.record.dt for p in screen.parts]
+    residuals = [e_primary[folds.test(k)] for k in range(n)]
+    out = []
+    for m in range(n):
+        others = [k for k in range(n) if k != m]
+        rss = lambda g, o=others: loo_rss([residuals[k] for k in o], [times[k] for k in o], g)  # noqa: E731
+        out.append(best_frequency(screen, rss, n_peaks, others))
+    return out
+
+
+def loo_rss(residuals: Sequence[np.ndarray], times: Sequence[np.ndarray], frequency_hz: float) -> float:
+    """What a sinusoid of this frequency leaves of the residuals when each record takes the amplitude of the
+    others (rms) and fits only its phase, as a held-out record does; with one record, amplitude and phase its
+    own."""
+    amp = [amplitude_at(r, t, frequency_hz) for r, t in zip(residuals, times)]
+    total = 0.0
+    for k, (r, t) in enumerate(zip(residuals, times)):
+        rest = [a for j, a in enumerate(amp) if j != k] or [amp[k]]
+        left = r - phase_fitted(r, t, frequency_hz, float(np.sqrt(np.mean(np.square(rest)))))
+        total += float(left @ left)
+    return total
+
+
+def on_top(screen, folds, e_primary: np.ndarray, frequency_hz: float | Sequence[float]) -> np.ndarray:
     """Out-of-fold residuals of a primary cause with a per-record sinusoid added: on each left-out record,
-    the amplitude from the other records' residuals at ``frequency_hz``, the phase fitted there."""
-    amp = []
-    for m, p in enumerate(screen.parts):
-        rows = folds.test(m)
-        amp.append(amplitude_at(e_primary[rows], p.rows * p.record.dt, frequency_hz))
+    the amplitude from the other records' residuals at the frequency, the phase fitted there. The frequency:
+    one for every fold, or one per fold (``fold_frequencies``: chosen without that fold's record)."""
+    n = len(screen.parts)
+    f = np.broadcast_to(np.asarray(frequency_hz, dtype=float), (n,))
+    times = [p.rows * p.record.dt for p in screen.parts]
     e = e_primary.copy()
-    for m, p in enumerate(screen.parts):
+    for m in range(n):
+        amp = [amplitude_at(e_primary[folds.test(k)], times[k], f[m]) for k in range(n) if k != m]
+        a = float(np.sqrt(np.mean(np.square(amp))))
         rows = folds.test(m)
-        a = float(np.sqrt(np.mean(np.square([x for k, x in enumerate(amp) if k != m]))))
-        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], p.rows * p.record.dt, frequency_hz, a)
+        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m], f[m], a)
     return e
