@@ -43,7 +43,7 @@ from hysbench.benchmarks.diagnosis.residuals import (
     periodic_structure,
     spectral_peaks,
 )
-from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, MIN_EXPLAINED, Candidate
+from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, MIN_EXPLAINED, NO_CUT, Candidate
 from hysbench.benchmarks.diagnosis.screen import Screen
 from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, score
 from hysbench.benchmarks.diagnosis.interference import fold_frequencies, fold_frequency, same_line
@@ -754,6 +754,17 @@ def test_a_level_that_cuts_nothing_is_no_clip_on_top():
     assert "saturation" not in [c.cause for c in d.also]
     tried = [c for c in d.secondary_tried if c.cause == "saturation"]
     assert tried and all(c.limit for c in tried)
+
+
+def test_a_named_level_must_cut_the_prediction_as_a_clip_on_top_must():
+    """The base's own saturation candidate answers to the same meaning as a clip on top: a level that cuts
+    fewer than three samples of the prediction (no slope where clipped can be measured) is no clip; before
+    2026-11-27 only the clip on top was checked."""
+    fake = SimpleNamespace()
+    assert Screen.limit_of(fake, "saturation", {"level": 1.0, "side": "upper"}) == NO_CUT
+    assert Screen.limit_of(fake, "saturation", {"level": 1.0, "side": "upper", "slope_where_clipped": 0.02}) == ""
+    assert "not a clip" in Screen.limit_of(fake, "saturation",
+                                           {"level": 1.0, "side": "upper", "slope_where_clipped": 0.8})
 
 
 def test_with_two_records_only_the_best_predicting_cause_can_be_named_partly():

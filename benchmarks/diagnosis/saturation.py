@@ -132,14 +132,10 @@ def columns_of(screen, part: Candidate) -> np.ndarray:
     return screen.design(part.model, {n: part.params[n] for n in part.model.nonlinear_names})
 
 
-NO_CUT = ("the level cuts fewer than three samples of the prediction: not a clip (what it gains comes from "
-          "leaving the output's extreme samples out of the fit)")
-
-
 def clip_on_top(screen, kept: Candidate) -> Candidate | None:
     """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
     nonlinear parameters, the level fitted on each side as for the base, the better side kept. It must cut
-    the prediction (three or more samples, ``NO_CUT``) and leave the output flat there (``limit_of``)."""
+    the prediction (three or more samples, ``candidates.NO_CUT``) and leave the output flat there (``limit_of``)."""
     A = columns_of(screen, kept)
     out = None
     for side in ("upper", "lower"):
@@ -158,7 +154,7 @@ def clip_on_top(screen, kept: Candidate) -> Candidate | None:
         c.stage = "joint"
         c.delta_bic = c.bic - kept.bic
         c.explained = 1.0 - c.rss / kept.rss
-        c.limit = screen.limit_of("saturation", estimates) if math.isfinite(slope) else NO_CUT
+        c.limit = screen.limit_of("saturation", estimates)
         if out is None or c.rss < out.rss:
             out = c
     return out

@@ -42,7 +42,8 @@ from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
 from .candidates import (CREEP_PERIODS, DETUNED_Z, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES,
-                         MAX_DAMPING, MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, Candidate, estimates_of, is_log)
+                         MAX_DAMPING, MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, NO_CUT, Candidate, estimates_of,
+                         is_log)
 from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
@@ -301,7 +302,9 @@ class Screen:
                     f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return DRIVE_LOCKED
-        if cause == "saturation" and abs(estimates.get("slope_where_clipped", 0.0)) >= MAX_CLIPPED_SLOPE:
+        if cause == "saturation" and "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
+            return NO_CUT
+        if cause == "saturation" and abs(estimates["slope_where_clipped"]) >= MAX_CLIPPED_SLOPE:
             moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
             return (f"where it would clip, the output still {moves} the model (slope "
                     f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
