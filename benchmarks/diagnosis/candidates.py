@@ -32,9 +32,8 @@ DUPLICATE_TAU_RATIO = 1.25  # relaxation time constants closer than this factor 
 LOG_SCALE = ("tau", "creep_time", "natural_frequency", "damping_ratio")
 NO_CUT = ("the level cuts fewer than three samples of the prediction: not a clip (what it gains comes from "
           "leaving the output's extreme samples out of the fit)")  # a saturation's limit (``Screen.limit_of``)
-DETUNED_Z = 3.0  # a sinusoid fitted this many standard errors off a drive harmonic is not locked to it
-DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record and not detectably off it: a misfit "
-                "locked to the drive, not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)
+DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
+                "not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)
 
 
 @dataclass

@@ -151,25 +151,8 @@ def interference_candidate(screen, frequency_hz: float) -> Candidate:
                   screen.n, n_effective=screen.n_effective)
     c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
                    "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
-    detuned = detuning_z(screen, frequency_hz)
-    if detuned is not None:
-        c.estimates["detuning_z"] = detuned
     c.stage = "fixed base"
     return screen._finish(c)
-
-
-def detuning_z(screen, frequency_hz: float) -> float | None:
-    """Near a harmonic of every drive (``Screen.near_drive_harmonic``): how far the fitted frequency sits from
-    that harmonic, as a likelihood-ratio z: sqrt of (the null residual's sum of squares with per-record
-    sinusoids at the harmonic minus at the fit) over its variance per effective sample (``n_effective``, the
-    residual's correlation counted). None elsewhere."""
-    drive = screen.parts[0].record.frequency_hz
-    if not drive or not screen.near_drive_harmonic(frequency_hz):
-        return None
-    harmonic = max(round(frequency_hz / drive), 1) * drive
-    rss = interference_rss(screen, frequency_hz)
-    gain = interference_rss(screen, harmonic) - rss
-    return float(math.sqrt(max(gain, 0.0) / (rss / screen.n_effective))) if rss > 0 else math.inf
 
 
 def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:

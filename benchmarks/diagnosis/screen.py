@@ -41,7 +41,7 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
-from .candidates import (CREEP_PERIODS, DETUNED_Z, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES,
+from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES,
                          MAX_DAMPING, MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, NO_CUT, Candidate, estimates_of,
                          is_log)
 from .residuals import RecordResidual
@@ -402,21 +402,13 @@ class Screen:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
 
-    def near_drive_harmonic(self, frequency_hz: float) -> bool:
-        """Within the spectral resolution (half a cycle over the longest record) of a harmonic of every record's
-        drive."""
-        longest = max(p.record.t.size * p.record.dt for p in self.parts)
-        return bool(self.drive_harmonic(np.array([frequency_hz]), 0.5 / longest)[0])
-
     def drive_locked(self, estimates: Mapping) -> bool:
-        """A sinusoid near a harmonic of every record's drive (``near_drive_harmonic``) whose phases in the
-        records (each from its own start) agree within ``LOCKED_PHASE`` rad, unless its fit puts it at least
-        ``DETUNED_Z`` standard errors off the harmonic (``estimates["detuning_z"]``,
-        ``interference.detuning_z``): a misfit locked to the drive sits on the harmonic itself."""
+        """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
+        every record's drive whose phases in the records (each from its own start) agree within
+        ``LOCKED_PHASE`` rad."""
         phases = estimates.get("phase_rad_per_record") or []
-        if len(phases) < 2 or not self.near_drive_harmonic(estimates["frequency_hz"]):
-            return False
-        if estimates.get("detuning_z", 0.0) >= DETUNED_Z:
+        longest = max(p.record.t.size * p.record.dt for p in self.parts)
+        if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
             return False
         spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
         return spread < LOCKED_PHASE
