@@ -12,6 +12,7 @@ out-of-vocabulary effects must not get a vocabulary cause.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import subprocess
@@ -46,7 +47,7 @@ from hysbench.benchmarks.diagnosis.residuals import (
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, MIN_EXPLAINED, NO_CUT, Candidate
 from hysbench.benchmarks.diagnosis.screen import Screen
 from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, score
-from hysbench.benchmarks.diagnosis.interference import fold_frequencies, fold_frequency, same_line
+from hysbench.benchmarks.diagnosis.interference import fold_frequencies, fold_frequency, on_top, same_line
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.identification import Fit, identify
@@ -588,7 +589,35 @@ def test_a_fold_chooses_the_line_of_one_amplitude_over_a_stronger_line_in_one_re
 
     assert free_rss(41.0) < free_rss(27.0)
     assert fold_frequency(s, [1, 2], train, base_rows) == pytest.approx(27.0, abs=0.02)
-    assert fold_frequencies(s, folds, heldout_null(s, folds))[0] == pytest.approx(27.0, abs=0.02)
+    null_train = []
+    heldout_null(s, folds, null_train)
+    assert fold_frequencies(s, null_train)[0] == pytest.approx(27.0, abs=0.02)
+
+
+def test_an_interference_on_top_of_a_kept_cause_is_chosen_without_the_left_out_record():
+    """The frequency and amplitude of an interference tried on top of a kept cause come, in each fold, from
+    what is kept fitted on the other records alone (``train_residuals``): a strong 41 Hz line added to
+    record 0 of the virtual DEA alone leaves fold 0's inputs, and so its frequency, exactly as they were. The
+    kept cause's out-of-fold residuals on records 1 and 2 (used before 2026-11-28) come from fits that
+    included record 0's rows, and they change."""
+    ds, _ = planted_case(("interference",), "virtual-dea", "sines", 4,
+                         effects={"interference": {"frequency_hz": 13.7, "amplitude": 0.08}})
+    d = diagnose(ds, seed=0, experiments=False, extend=False)
+    s, folds, c = d.screen, Folds.of(d.screen), d.chosen
+    assert c.cause == "relaxation" and c.heldout["refit_per_fold"]
+    loud = copy.copy(s)
+    rows = folds.test(0)
+    part = s.parts[0]
+    loud.y = s.y.copy()
+    loud.y[rows] += 0.3 * np.sin(2 * np.pi * 41.0 * part.rows * part.record.dt)
+    quiet_train, loud_train = [], []
+    quiet_e, _ = heldout_errors(s, folds, c, refit=True, train_residuals=quiet_train)
+    loud_e, _ = heldout_errors(loud, folds, c, refit=True, train_residuals=loud_train)
+    assert np.allclose(quiet_train[0], loud_train[0], rtol=0, atol=1e-9 * np.abs(quiet_train[0]).max())
+    assert not np.allclose(quiet_train[1], loud_train[1])
+    assert not np.allclose(quiet_e[~rows], loud_e[~rows])  # the out-of-fold residuals of records 1, 2 do change
+    assert fold_frequencies(s, quiet_train)[0] == fold_frequencies(loud, loud_train)[0]
+    assert np.allclose(on_top(s, folds, quiet_e, quiet_train, 13.7)[rows], on_top(loud, folds, quiet_e, loud_train, 13.7)[rows])
 
 
 def test_one_line_means_frequencies_within_the_coarsest_folds_resolution_and_amplitudes_within_a_quarter():

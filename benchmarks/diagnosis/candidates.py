@@ -59,6 +59,7 @@ class Candidate:
     heldout: dict = field(default_factory=dict)  # leave-one-record-out prediction (``selection``)
     uncertainty: dict = field(default_factory=dict)  # spread of each estimate over the folds
     clips: "Candidate | None" = None  # saturation on top of a kept part: that part (None: the base)
+    train_residuals: list | None = field(default=None, repr=False)  # per fold: the residual on its training rows
 
     def __post_init__(self):
         self.bic = bic(self.rss, self.n, self.k, self.n_effective) if self.rss > 0 else -math.inf

@@ -249,9 +249,9 @@ class Diagnosis:
 def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top, its frequency chosen per fold on the other records,
-    ``interference.fold_frequencies``; a clip as a clip of what is kept, ``saturation.clip_on_top``,
-    after which only an interference composes) and scored on held-out records against what is kept; of
+    interference as a per-record sinusoid on top, its frequency and amplitude chosen per fold on the other
+    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``; a clip
+    as a clip of what is kept, ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records against what is kept; of
     those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
     bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
     least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as in ``selection.decide``) is kept
@@ -271,40 +271,48 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
             and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
     # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
+    # (and per fold its residual on the training rows, fitted on them alone)
     if chosen.cause == "interference":  # composites on top take its frequency from every record: so does this
         kept, kept_e, frequency = None, result["errors"][id(screen.null)], chosen.estimates["frequency_hz"]
+        kept_train = screen.null.train_residuals
         reference = heldout_errors(screen, folds, chosen)[0]
     else:
         kept, kept_e, frequency = chosen, result["errors"][id(chosen)], None
+        kept_train = chosen.train_residuals
+        if kept_train is None:  # not scored by ``search.score_candidate``: its training fits afresh
+            kept_train = []
+            heldout_errors(screen, folds, chosen, refit=chosen.heldout.get("refit_per_fold", False),
+                           train_residuals=kept_train)
         reference = kept_e
     while pool and len(diag.also) < MAX_SECONDARY:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
-        tried = []  # (composite, separable part, its errors, errors with the interference)
+        tried = []  # (composite, separable part, its errors, its training residuals, errors with the interference)
         for cause, c in pool.items():
             if cause == "interference":
                 if frequency is not None:
                     continue
-                comp, part, part_e = copy.copy(c), kept, kept_e
-                fold_f = fold_frequencies(screen, folds, kept_e)  # each fold's without its held-out record
-                e = on_top(screen, folds, kept_e, fold_f)
-            elif cause == "saturation" and kept is not None:  # a clip of what is kept
-                comp = clip_on_top(screen, kept)
-                if comp is None:
-                    continue
-                part, part_e = comp, heldout_errors(screen, folds, comp)[0]
-                e = on_top(screen, folds, part_e, frequency) if frequency is not None else part_e
+                comp, part, part_e, part_train = copy.copy(c), kept, kept_e, kept_train
+                fold_f = fold_frequencies(screen, kept_train)  # each fold's without its held-out record
+                e = on_top(screen, folds, kept_e, kept_train, fold_f)
             else:
-                comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
+                if cause == "saturation" and kept is not None:  # a clip of what is kept
+                    comp = clip_on_top(screen, kept)
+                else:
+                    comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
                 if comp is None:
                     continue
                 part = comp
-                part_e = result["errors"][id(c)] if kept is None else heldout_errors(screen, folds, comp)[0]
-                e = on_top(screen, folds, part_e, frequency) if frequency is not None else part_e
+                if kept is None:
+                    part_e, part_train = result["errors"][id(c)], c.train_residuals
+                else:
+                    part_train = []
+                    part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
+                e = on_top(screen, folds, part_e, part_train, frequency) if frequency is not None else part_e
             comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else []}
             if cause == "interference":
                 comp.heldout["fold_frequencies_hz"] = fold_f
             diag.secondary_tried.append(comp)
-            tried.append((comp, part, part_e, e))
+            tried.append((comp, part, part_e, part_train, e))
         ok = [t for t in tried if evidence(t[0].heldout) and not t[0].limit
               and not t[0].heldout["at_bound"]]
         if not ok:
@@ -313,13 +321,13 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         for t in ok:  # of what is kept leaves beyond noise
             t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
         # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
-        same = [t for t in ok if t is best or (score(folds, t[3], best[3])["z"] < Z_SAME
+        same = [t for t in ok if t is best or (score(folds, t[4], best[4])["z"] < Z_SAME
                                                and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
-        comp, part, part_e, e = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
+        comp, part, part_e, part_train, e = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
         comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
         diag.also.append(comp)
         pool.pop(comp.cause)
-        kept, kept_e, reference = part, part_e, e
+        kept, kept_e, kept_train, reference = part, part_e, part_train, e
         if comp.cause == "interference":
             frequency = comp.heldout["fold_frequencies_hz"]
         if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds

@@ -10,7 +10,8 @@ amplitude come from the other records and only the phase is fitted there
 (``predict_heldout``); scored with its own parameters refitted per fold, the
 frequency too is searched afresh on the other records (``fold_frequency``), so
 a held-out record takes no part in choosing the frequency it is scored at; so
-too on top of another named cause (``fold_frequencies``, ``on_top``). A fold
+too on top of another named cause (``fold_frequencies``, ``on_top``), whose
+residual on the other records then comes from its fit on them alone. A fold
 chooses its frequency the way it is scored: each of its records predicted with
 the amplitude of the others, only the phase its own (``loo_rss``), so a misfit
 at a harmonic of some drives, strong in one record and weak in another, loses
@@ -173,11 +174,11 @@ def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> fl
 def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarray, train: np.ndarray) -> tuple:
     """Fold ``test`` left out: base + per-record sinusoids solved on the other records; on the test record the
     base's prediction plus a sinusoid of the training frequency and amplitude, phase fitted there.
-    Returns (prediction on the test rows, training amplitude)."""
+    Returns (prediction on the test rows, training amplitude, residual on the training rows)."""
     others = [m for m in range(len(screen.parts)) if m != test]
     E = block_columns(screen, frequency_hz, others)
     A = np.column_stack([base_rows, E])
-    theta, _ = screen.solve(A[train], screen.y[train])
+    theta, train_residual = screen.solve(A[train], screen.y[train])
     nb = base_rows.shape[1]
     amps = np.hypot(*theta[nb:].reshape(-1, 2).T)
     amplitude = float(np.sqrt(np.mean(amps**2)))
@@ -185,20 +186,27 @@ def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarra
     base_pred = base_rows[test_rows] @ theta[:nb]
     p = screen.parts[test]
     sine = phase_fitted(screen.y[test_rows] - base_pred, p.rows * p.record.dt, frequency_hz, amplitude)
-    return base_pred + sine, amplitude
+    return base_pred + sine, amplitude, train_residual
 
 
-def fold_frequencies(screen, folds, e_primary: np.ndarray, n_peaks: int = 5) -> list[float]:
+def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:
+    """Fold ``m``'s residual on its training rows cut into its records (every record but ``m``, in order)."""
+    sizes = [p.rows.size for k, p in enumerate(screen.parts) if k != m]
+    return np.split(train_residual, np.cumsum(sizes)[:-1])
+
+
+def fold_frequencies(screen, train_residuals: Sequence[np.ndarray], n_peaks: int = 5) -> list[float]:
     """A sinusoid's frequency on top of a primary cause, one per leave-one-record-out fold, each chosen on the
     other records alone, the way it is then scored (``on_top``): their null residuals' spectral peaks, each
-    refined by a line search of ``loo_rss`` on the primary's out-of-fold residuals ``e_primary``."""
+    refined by a line search of ``loo_rss`` on the primary's residual on those records when fitted on them
+    alone (``train_residuals``: one per fold, on its training rows, from ``selection.heldout_errors``)."""
     n = len(screen.parts)
     times = [p.rows * p.record.dt for p in screen.parts]
-    residuals = [e_primary[folds.test(k)] for k in range(n)]
     out = []
     for m in range(n):
         others = [k for k in range(n) if k != m]
-        rss = lambda g, o=others: loo_rss([residuals[k] for k in o], [times[k] for k in o], g)  # noqa: E731
+        residuals = training_parts(screen, m, train_residuals[m])
+        rss = lambda g, o=others, r=residuals: loo_rss(r, [times[k] for k in o], g)  # noqa: E731
         out.append(best_frequency(screen, rss, n_peaks, others))
     return out
 
@@ -216,16 +224,19 @@ def loo_rss(residuals: Sequence[np.ndarray], times: Sequence[np.ndarray], freque
     return total
 
 
-def on_top(screen, folds, e_primary: np.ndarray, frequency_hz: float | Sequence[float]) -> np.ndarray:
-    """Out-of-fold residuals of a primary cause with a per-record sinusoid added: on each left-out record,
-    the amplitude from the other records' residuals at the frequency, the phase fitted there. The frequency:
-    one for every fold, or one per fold (``fold_frequencies``: chosen without that fold's record)."""
+def on_top(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.ndarray],
+           frequency_hz: float | Sequence[float]) -> np.ndarray:
+    """Out-of-fold residuals ``e_primary`` of a primary cause with a per-record sinusoid added: on each
+    left-out record, the amplitude (rms over the other records) from the primary's residual on the other
+    records when fitted on them alone (``train_residuals``, one per fold), the phase fitted there. The
+    frequency: one for every fold, or one per fold (``fold_frequencies``: chosen without that fold's record)."""
     n = len(screen.parts)
     f = np.broadcast_to(np.asarray(frequency_hz, dtype=float), (n,))
     times = [p.rows * p.record.dt for p in screen.parts]
     e = e_primary.copy()
     for m in range(n):
-        amp = [amplitude_at(e_primary[folds.test(k)], times[k], f[m]) for k in range(n) if k != m]
+        others = [k for k in range(n) if k != m]
+        amp = [amplitude_at(r, times[k], f[m]) for k, r in zip(others, training_parts(screen, m, train_residuals[m]))]
         a = float(np.sqrt(np.mean(np.square(amp))))
         rows = folds.test(m)
         e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m], f[m], a)

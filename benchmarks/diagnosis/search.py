@@ -30,7 +30,8 @@ from .selection import (Folds, at_bound, heldout_errors, heldout_null, jackknife
 def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, refit: bool = False) -> None:
     """Held-out score of ``c`` (its out-of-fold residuals stored in ``errors``); with ``refit`` its own
     nonlinear parameters are refitted per fold, and their spread is its uncertainty."""
-    e, fold_est = heldout_errors(screen, folds, c, refit=refit)
+    c.train_residuals = []
+    e, fold_est = heldout_errors(screen, folds, c, refit=refit, train_residuals=c.train_residuals)
     c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "refit_per_fold": refit}
     if refit and c.cause == "interference":
         c.heldout["same_line"] = same_line(screen, fold_est)
@@ -60,7 +61,8 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             cands.append(c)
     say("held-out scores (leave one identification record out)")
     folds = Folds.of(screen)
-    e_null = heldout_null(screen, folds)
+    screen.null.train_residuals = []
+    e_null = heldout_null(screen, folds, screen.null.train_residuals)
     errors = {id(screen.null): e_null}
     for c in variants + cands:
         score_candidate(screen, folds, e_null, errors, c)

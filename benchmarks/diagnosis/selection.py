@@ -123,30 +123,37 @@ class Folds:
         return out
 
 
-def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray]) -> np.ndarray:
+def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
+                train_residuals: list | None = None) -> np.ndarray:
     """Every row's residual from a linear solve on the other records; ``design(m)`` gives fold m's
-    stacked design (all rows)."""
+    stacked design (all rows). ``train_residuals``: a list that receives, per fold, the residual on its
+    training rows (the other records) of that same solve."""
     e = np.empty(screen.n)
     for m in range(folds.n):
         test = folds.test(m)
         A = design(m)
-        theta, _ = screen.solve(A[~test], screen.y[~test])
+        theta, res = screen.solve(A[~test], screen.y[~test])
         e[test] = screen.y[test] - A[test] @ theta
+        if train_residuals is not None:
+            train_residuals.append(res)
     return e
 
 
-def heldout_null(screen, folds: Folds) -> np.ndarray:
+def heldout_null(screen, folds: Folds, train_residuals: list | None = None) -> np.ndarray:
     A = screen.design(screen.base, screen.base_nl)
-    return out_of_fold(screen, folds, lambda m: A)
+    return out_of_fold(screen, folds, lambda m: A, train_residuals)
+
 
 
 def own_nonlinear(screen, c: Candidate) -> list[str]:
     return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
 
 
-def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
+def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
+                   train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
     """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters are refitted on
-    each fold's training rows (returns the fold estimates too)."""
+    each fold's training rows (returns the fold estimates too). ``train_residuals``: a list that receives,
+    per fold, the fit's residual on its training rows."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
     if c.cause == "interference":  # with refit the frequency too comes from the other records alone
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
@@ -157,12 +164,14 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
             f = nl["interference_frequency"]
             if refit:
                 f = fold_frequency(screen, [k for k in range(folds.n) if k != m], ~test, base_rows)
-            pred, amp = predict_heldout(screen, f, m, base_rows, ~test)
+            pred, amp, train_res = predict_heldout(screen, f, m, base_rows, ~test)
             e[test] = screen.y[test] - pred
             fold_est.append({"interference_frequency": f, "amplitude": amp} if refit else {"amplitude": amp})
+            if train_residuals is not None:
+                train_residuals.append(train_res)
         return e, fold_est
     if c.cause == "saturation":
-        return _heldout_saturation(screen, folds, c, refit)
+        return _heldout_saturation(screen, folds, c, refit, train_residuals)
     names = own_nonlinear(screen, c) if refit else []
     fold_est, designs = [], []
     for m in range(folds.n):
@@ -182,8 +191,8 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False) -> t
         designs.append(z)
     if not names:
         A = screen.design(c.model, nl)
-        return out_of_fold(screen, folds, lambda m: A), fold_est
-    return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m])), fold_est
+        return out_of_fold(screen, folds, lambda m: A, train_residuals), fold_est
+    return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m]), train_residuals), fold_est
 
 
 def clipped_columns(screen, c: Candidate) -> np.ndarray:
@@ -193,7 +202,8 @@ def clipped_columns(screen, c: Candidate) -> np.ndarray:
     return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
 
 
-def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False) -> tuple[np.ndarray, list[dict]]:
+def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
+                        train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
     """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
     with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
     level (no flat top there, ``shows_clip``) predicts the left-out record unclipped: records that never reach
@@ -212,9 +222,10 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False)
                 level = math.inf if side == "upper" else -math.inf
         train = ~test & unclipped(screen, screen.y, side, level)
         theta, _ = screen.solve(A[train], screen.y[train])
-        pred = A[test] @ theta
-        pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
-        e[test] = screen.y[test] - pred
+        clip = np.minimum if side == "upper" else np.maximum
+        e[test] = screen.y[test] - clip(A[test] @ theta, level)
+        if train_residuals is not None:
+            train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
     return e, fold_est
 
 
