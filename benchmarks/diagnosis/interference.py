@@ -15,7 +15,9 @@ residual on the other records then comes from its fit on them alone. A fold
 chooses its frequency the way it is scored: each of its records predicted with
 the amplitude of the others, only the phase its own (``loo_rss``), so a misfit
 at a harmonic of some drives, strong in one record and weak in another, loses
-to a line of one amplitude. The validation records confirm it the same way.
+to a line of one amplitude. So does the fit on every identification record,
+whose frequency is the one reported. The validation records confirm it the
+same way.
 """
 
 from __future__ import annotations
@@ -48,15 +50,6 @@ def block_columns(screen, frequency_hz: float, parts: Sequence[int] | None = Non
         p = screen.parts[m]
         E[starts[m]:starts[m + 1], 2 * j:2 * j + 2] = sinusoid_columns(p.rows * p.record.dt, frequency_hz)
     return E
-
-
-def interference_rss(screen, frequency_hz: float) -> float:
-    """The null's residual regressed on per-record sinusoids (projected off the base's columns)."""
-    E = block_columns(screen, frequency_hz)
-    E = E - screen._q0 @ (screen._q0.T @ E)
-    _, res = screen.solve(E, screen.null_residual)
-    screen.n_evaluations += 1
-    return float(res @ res)
 
 
 def _search(rss_of, f0: float, step: float, lo: float, hi: float) -> tuple[float, float]:
@@ -110,7 +103,12 @@ def best_frequency(screen, rss_of: Callable[[float], float], n_peaks: int = 5,
 
 
 def fit_interference(screen, n_peaks: int = 5) -> Candidate:
-    return interference_candidate(screen, best_frequency(screen, lambda g: interference_rss(screen, g), n_peaks))
+    """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
+    peaks, each refined by a line search of ``loo_rss`` on the null's residual (one amplitude for every
+    record, the phase per record)."""
+    residuals = np.split(screen.null_residual, np.cumsum([p.rows.size for p in screen.parts])[:-1])
+    times = [p.rows * p.record.dt for p in screen.parts]
+    return interference_candidate(screen, best_frequency(screen, lambda g: loo_rss(residuals, times, g), n_peaks))
 
 
 def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: np.ndarray,
