@@ -625,6 +625,26 @@ def test_an_interference_on_top_of_a_kept_cause_is_chosen_without_the_left_out_r
     assert np.allclose(on_top(s, folds, quiet_e, quiet_train, 13.7)[rows], on_top(loud, folds, quiet_e, loud_train, 13.7)[rows])
 
 
+def test_an_interference_on_top_reports_and_checks_the_frequencies_it_was_scored_at():
+    """A mode planted on the real piezo recording (balanced plan of seed 28, case 156; two 2 s records of the
+    1 Hz drive). The interference tried on top of the named resonance is scored at the frequency each fold
+    chose (3.92 Hz, within the resolution of the drive's 4th harmonic), not at the one fitted on every record
+    against the base alone (2.56 Hz): its estimates are the folds', and with the records' phases there within
+    pi/4 it is a misfit locked to the drive, not kept under `also` (before 2026-11-28 the meaning check saw
+    the 2.56 Hz fit, and such a line was listed)."""
+    ds, _ = planted_case(("resonance",), "piezo", "sines", 2800156)
+    d = diagnose(ds, seed=0, experiments=False)
+    assert d.cause == "resonance", d.verdict.reason
+    tried = next(c for c in d.secondary_tried if c.cause == "interference")
+    whole = next(c for c in d.candidates if c.cause == "interference")
+    folds_f = tried.heldout["fold_frequencies_hz"]
+    assert tried.estimates["frequency_hz"] == pytest.approx(np.mean(folds_f))
+    assert abs(tried.estimates["frequency_hz"] - whole.estimates["frequency_hz"]) > 0.5
+    assert abs(tried.estimates["frequency_hz"] - 4.0) < 0.25
+    assert tried.limit == DRIVE_LOCKED
+    assert "interference" not in [c.cause for c in d.also]
+
+
 def test_one_line_means_frequencies_within_the_coarsest_folds_resolution_and_amplitudes_within_a_quarter():
     spans = [(20.0, 0.01), (5.0, 0.01), (2.0, 0.01)]  # (duration s, dt): fold 0 trains on 5 s at most
     parts = [SimpleNamespace(record=SimpleNamespace(t=np.zeros(int(T / dt)), dt=dt)) for T, dt in spans]

@@ -55,7 +55,7 @@ from hysbench.models.errors import HysbenchError
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
 from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .interference import amplitude_at, fold_frequencies, on_top, phase_fitted
+from .interference import amplitude_at, fold_frequencies, on_top, on_top_estimates, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .saturation import clip_on_top
 from .screen import Screen
@@ -294,6 +294,8 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
                 comp, part, part_e, part_train = copy.copy(c), kept, kept_e, kept_train
                 fold_f = fold_frequencies(screen, kept_train)  # each fold's without its held-out record
                 e = on_top(screen, folds, kept_e, kept_train, fold_f)
+                comp.estimates = on_top_estimates(screen, folds, kept_e, kept_train, fold_f)  # what was scored
+                comp.limit = screen.limit_of("interference", comp.estimates)
             else:
                 if cause == "saturation" and kept is not None:  # a clip of what is kept
                     comp = clip_on_top(screen, kept)

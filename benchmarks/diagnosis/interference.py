@@ -233,9 +233,31 @@ def on_top(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.nd
     times = [p.rows * p.record.dt for p in screen.parts]
     e = e_primary.copy()
     for m in range(n):
-        others = [k for k in range(n) if k != m]
-        amp = [amplitude_at(r, times[k], f[m]) for k, r in zip(others, training_parts(screen, m, train_residuals[m]))]
-        a = float(np.sqrt(np.mean(np.square(amp))))
         rows = folds.test(m)
+        a = fold_amplitude(screen, m, train_residuals[m], f[m])
         e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m], f[m], a)
     return e
+
+
+def fold_amplitude(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> float:
+    """The amplitude fold ``m`` predicts its left-out record with: rms over its training records of the
+    amplitude at the frequency in their residual (``train_residual``, on its training rows)."""
+    others = [k for k in range(len(screen.parts)) if k != m]
+    amp = [amplitude_at(r, screen.parts[k].rows * screen.parts[k].record.dt, frequency_hz)
+           for k, r in zip(others, training_parts(screen, m, train_residual))]
+    return float(np.sqrt(np.mean(np.square(amp))))
+
+
+def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.ndarray],
+                     frequencies_hz: Sequence[float]) -> dict:
+    """What a sinusoid scored by ``on_top`` with one frequency per fold stands for: the folds' mean frequency,
+    the rms of their amplitudes, and each record's phase (from its own start) where it is left out, for the
+    meaning checks (``Screen.limit_of``: cycles, drive lock)."""
+    phases = []
+    for m, f in enumerate(frequencies_hz):
+        p = screen.parts[m]
+        a, b = np.linalg.lstsq(sinusoid_columns(p.rows * p.record.dt, f), e_primary[folds.test(m)], rcond=None)[0]
+        phases.append(float(math.atan2(b, a)))
+    amps = [fold_amplitude(screen, m, r, f) for m, (r, f) in enumerate(zip(train_residuals, frequencies_hz))]
+    return {"frequency_hz": float(np.mean(frequencies_hz)), "amplitude": float(np.sqrt(np.mean(np.square(amps)))),
+            "phase_rad_per_record": phases, "fold_frequencies_hz": [float(f) for f in frequencies_hz]}
