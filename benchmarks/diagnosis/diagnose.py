@@ -250,9 +250,10 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top, its frequency and amplitude chosen per fold on the other
-    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``; a clip
-    as a clip of what is kept, ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records against what is kept; of
-    those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
+    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``, and
+    checked at the frequencies scored, ``on_top_estimates``; a clip as a clip of what is kept,
+    ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
+    against what is kept; of those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
     bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
     least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as in ``selection.decide``) is kept
     ("also"; the others in that set are listed with it as as good).
