@@ -253,10 +253,10 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
     records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``, and
     checked at the frequencies scored, ``on_top_estimates``; a clip as a clip of what is kept,
     ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
-    against what is kept; of those with held-out evidence (``selection.evidence``), within the cause's meaning and off their search
-    bounds, the one with fewest parameters that the best does not beat by z >= ``Z_SAME`` and that removes at
-    least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as in ``selection.decide``) is kept
-    ("also"; the others in that set are listed with it as as good).
+    against what is kept; of those with held-out evidence (``selection.evidence``), within the cause's
+    meaning and off their search bounds, the one with fewest parameters that the best does not beat by
+    z >= ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as
+    in ``selection.decide``) is kept ("also"; the others in that set are listed with it as as good).
     On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
     better than the base alone: a second cause can show only once the first is accounted for. On long ones
     (cost) only those are tried, from their own fits."""
