@@ -279,11 +279,7 @@ def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) 
         reference = heldout_errors(screen, folds, chosen)[0]
     else:
         kept, kept_e, frequency = chosen, result["errors"][id(chosen)], None
-        kept_train = chosen.train_residuals
-        if kept_train is None:  # not scored by ``search.score_candidate``: its training fits afresh
-            kept_train = []
-            heldout_errors(screen, folds, chosen, refit=chosen.heldout.get("refit_per_fold", False),
-                           train_residuals=kept_train)
+        kept_train = chosen.train_residuals  # set with its errors by ``search.score_candidate``
         reference = kept_e
     while pool and len(diag.also) < MAX_SECONDARY:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")

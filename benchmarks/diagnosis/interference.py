@@ -163,10 +163,14 @@ def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, ampli
     return S @ (amplitude * direction)
 
 
+def sinusoid_fit(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Least-squares (sin, cos) coefficients of a sinusoid of this frequency in ``residual``."""
+    return np.linalg.lstsq(sinusoid_columns(t, frequency_hz), residual, rcond=None)[0]
+
+
 def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:
     """Least-squares amplitude of a sinusoid of this frequency in ``residual`` (phase free)."""
-    ab = np.linalg.lstsq(sinusoid_columns(t, frequency_hz), residual, rcond=None)[0]
-    return float(math.hypot(*ab))
+    return float(math.hypot(*sinusoid_fit(residual, t, frequency_hz)))
 
 
 def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarray, train: np.ndarray) -> tuple:
@@ -256,7 +260,7 @@ def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequ
     phases = []
     for m, f in enumerate(frequencies_hz):
         p = screen.parts[m]
-        a, b = np.linalg.lstsq(sinusoid_columns(p.rows * p.record.dt, f), e_primary[folds.test(m)], rcond=None)[0]
+        a, b = sinusoid_fit(e_primary[folds.test(m)], p.rows * p.record.dt, f)
         phases.append(float(math.atan2(b, a)))
     amps = [fold_amplitude(screen, m, r, f) for m, (r, f) in enumerate(zip(train_residuals, frequencies_hz))]
     return {"frequency_hz": float(np.mean(frequencies_hz)), "amplitude": float(np.sqrt(np.mean(np.square(amps)))),

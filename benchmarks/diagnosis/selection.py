@@ -144,7 +144,6 @@ def heldout_null(screen, folds: Folds, train_residuals: list | None = None) -> n
     return out_of_fold(screen, folds, lambda m: A, train_residuals)
 
 
-
 def own_nonlinear(screen, c: Candidate) -> list[str]:
     return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
 
