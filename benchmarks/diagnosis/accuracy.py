@@ -148,7 +148,7 @@ def run_case(case: dict) -> dict:
     return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
             "strength_pct": truth["strength_pct"], "effects": truth["effects"], "verdict": d.cause,
             "confirmed": d.confirmed, "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
-            "remainder": d.verdict.remainder,
+            "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": _within(errors),
             "also_parameter_errors": also_errors,

@@ -17,10 +17,10 @@
    two causes that predict equally well are reported as ambiguous, with the
    drive that separates them (``experiment``).
 5. Other causes are tried on top of the named one (composite extension)
-   and kept as "also" if they pass the held-out test against what is kept
-   (``secondary_causes``); if those alone then predict as well without the
-   named cause, it is dropped and the first of them named
-   (``drop_redundant_primary``).
+   and kept as "also" if they pass the held-out test against what is kept,
+   their own parameters refitted per fold (``secondary.secondary_causes``);
+   if those alone then predict as well without the named cause, it is
+   dropped and the first of them named (``secondary.drop_redundant_primary``).
 6. A named relaxation slower than every drive period: its slowest part
    replaced by creep (``slow_part``); if that predicts as well, creep is
    reported as ambiguous with it.
@@ -35,7 +35,6 @@
 
 from __future__ import annotations
 
-import copy
 import json
 import time
 from dataclasses import dataclass, field
@@ -55,18 +54,17 @@ from hysbench.models.errors import HysbenchError
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
 from .experiment import suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .interference import amplitude_at, fold_frequencies, on_top, on_top_estimates, phase_fitted
+from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
-from .saturation import clip_on_top
 from .screen import Screen
 from .search import run_screen
+from .secondary import drop_redundant_primary, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
-                        at_bound, decide, evidence, heldout_errors, promising, score, share_of_misfit)
+                        decide)
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
-MAX_SECONDARY = 4  # other causes tried on top of the named one
 
 
 class DiagnosisError(HysbenchError):
@@ -244,133 +242,6 @@ class Diagnosis:
             "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))
-
-
-def secondary_causes(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
-    """Forward selection on top of the named cause: in each round every other cause is added to what is
-    kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top, its frequency and amplitude chosen per fold on the other
-    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``, and
-    checked at the frequencies scored, ``on_top_estimates``; a clip as a clip of what is kept,
-    ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
-    against what is kept; of those with held-out evidence (``selection.evidence``), within the cause's
-    meaning and off their search bounds, the one with fewest parameters that the best does not beat by
-    z >= ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond white noise (as
-    in ``selection.decide``) is kept ("also"; the others in that set are listed with it as as good).
-    On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
-    better than the base alone: a second cause can show only once the first is accounted for. On long ones
-    (cost) only those are tried, from their own fits."""
-    screen, chosen = diag.screen, diag.chosen
-    folds = result["folds"]
-    taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
-    fresh = screen.small
-
-    def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
-        return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
-
-    pool = {c.cause: c for c in diag.candidates if c.cause not in taken
-            and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
-            and (fresh or near_pass(c))}
-    # kept so far: the separable part (None: the base alone), its held-out errors, an interference frequency
-    # (and per fold its residual on the training rows, fitted on them alone)
-    if chosen.cause == "interference":  # composites on top take its frequency from every record: so does this
-        kept, kept_e, frequency = None, result["errors"][id(screen.null)], chosen.estimates["frequency_hz"]
-        kept_train = screen.null.train_residuals
-        reference = heldout_errors(screen, folds, chosen)[0]
-    else:
-        kept, kept_e, frequency = chosen, result["errors"][id(chosen)], None
-        kept_train = chosen.train_residuals  # set with its errors by ``search.score_candidate``
-        reference = kept_e
-    while pool and len(diag.also) < MAX_SECONDARY:
-        say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
-        tried = []  # (composite, separable part, its errors, its training residuals, errors with the interference)
-        for cause, c in pool.items():
-            if cause == "interference":
-                if frequency is not None:
-                    continue
-                comp, part, part_e, part_train = copy.copy(c), kept, kept_e, kept_train
-                fold_f = fold_frequencies(screen, kept_train)  # each fold's without its held-out record
-                e = on_top(screen, folds, kept_e, kept_train, fold_f)
-                comp.estimates = on_top_estimates(screen, folds, kept_e, kept_train, fold_f)  # what was scored
-                comp.limit = screen.limit_of("interference", comp.estimates)
-            else:
-                if cause == "saturation" and kept is not None:  # a clip of what is kept
-                    comp = clip_on_top(screen, kept)
-                else:
-                    comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
-                if comp is None:
-                    continue
-                part = comp
-                if kept is None:
-                    part_e, part_train = result["errors"][id(c)], c.train_residuals
-                else:
-                    part_train = []
-                    part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
-                e = on_top(screen, folds, part_e, part_train, frequency) if frequency is not None else part_e
-            comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else []}
-            if cause == "interference":
-                comp.heldout["fold_frequencies_hz"] = fold_f
-            diag.secondary_tried.append(comp)
-            tried.append((comp, part, part_e, part_train, e))
-        ok = [t for t in tried if evidence(t[0].heldout) and not t[0].limit
-              and not t[0].heldout["at_bound"]]
-        if not ok:
-            return
-        best = max(ok, key=lambda t: t[0].heldout["gain"])
-        for t in ok:  # of what is kept leaves beyond noise
-            t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
-        # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
-        same = [t for t in ok if t is best or (score(folds, t[4], best[4])["z"] < Z_SAME
-                                               and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
-        comp, part, part_e, part_train, e = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
-        comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
-        diag.also.append(comp)
-        pool.pop(comp.cause)
-        kept, kept_e, kept_train, reference = part, part_e, part_train, e
-        if comp.cause == "interference":
-            frequency = comp.heldout["fold_frequencies_hz"]
-        if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
-            pool = {k: v for k, v in pool.items() if k == "interference"}
-
-
-def drop_redundant_primary(diag: Diagnosis, result: dict, say: Callable[[str], None]) -> None:
-    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the
-    secondary causes alone (a composite in the order kept, each searched on top of the ones before) predict
-    the held-out records as well as all of them together (together not better by z >= ``Z_SAME``) and show
-    held-out evidence against the base: the first of them is named, the others stay under "also". Only for a
-    clean verdict (no ambiguity, no unexplained remainder) of causes that compose (not interference or
-    saturation)."""
-    v, screen, folds = diag.verdict, diag.screen, result["folds"]
-    causes = [c.cause for c in diag.also]
-    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
-            or {"interference", "saturation"} & {v.chosen.cause, *causes}):
-        return
-    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
-    own = {c.cause: c for c in diag.candidates}
-    kept, chain = own[causes[0]], [own[causes[0]]]
-    for cause in causes[1:]:
-        kept = screen.composite(kept, own[cause], search=screen.small)
-        if kept is None:
-            return
-        chain.append(kept)
-    errors = [result["errors"][id(chain[0])], *(heldout_errors(screen, folds, c)[0] for c in chain[1:])]
-    together = heldout_errors(screen, folds, diag.also[-1])[0]
-    without = score(folds, errors[-1], together)  # how much better all together predict
-    if without["z"] >= Z_SAME or not evidence(score(folds, result["errors"][id(screen.null)], errors[-1])):
-        return
-    old, first = v.chosen, copy.copy(chain[0])
-    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
-    also = []
-    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
-        c.heldout = {**score(folds, errors[i - 1], errors[i]), "at_bound": at_bound(screen, c)}
-        also.append(c)
-    diag.dropped = old
-    diag.also = also
-    v.chosen, v.cause = first, first.cause
-    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}, predict the held-out records as well without it "
-                f"(with it better by z = {without['z']:.1f} < {Z_SAME:g}): {old.cause} is not needed, and "
-                f"{first.cause} is named with {', '.join(causes[1:]) or 'nothing'} also (first named: {old.label}, "
-                f"held-out gain {100 * old.heldout_gain:.2f} %)")
 
 
 def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callable[[str], None]) -> None:

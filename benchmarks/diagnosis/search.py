@@ -12,8 +12,6 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
-import numpy as np
-
 from .candidates import MAX_RELAXATION, Candidate
 from .creep import fit_creep
 from .delay import fit_delay
@@ -23,7 +21,7 @@ from .relaxation import fit_relaxation
 from .residuals import RecordResidual
 from .resonance import fit_resonance
 from .saturation import fit_saturation, joint_saturation
-from .selection import (Folds, at_bound, heldout_errors, heldout_null, jackknife, line_worth_refit, passes,
+from .selection import (Folds, at_bound, fold_uncertainty, heldout_errors, heldout_null, line_worth_refit, passes,
                         promising, score)
 
 
@@ -36,10 +34,7 @@ def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, re
     if refit and c.cause == "interference":
         c.heldout["same_line"] = same_line(screen, fold_est)
     if fold_est:
-        c.uncertainty = jackknife(fold_est)
-        if "saturation_level" in c.uncertainty:  # a level has no natural zero: its spread over the output's range
-            u = c.uncertainty["saturation_level"]
-            u["se_over_range"] = u["se"] / max(float(np.ptp(screen.y)), 1e-300)
+        c.uncertainty = fold_uncertainty(screen, fold_est)
     errors[id(c)] = e
 
 

@@ -149,10 +149,11 @@ def own_nonlinear(screen, c: Candidate) -> list[str]:
 
 
 def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
-                   train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
-    """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters are refitted on
-    each fold's training rows (returns the fold estimates too). ``train_residuals``: a list that receives,
-    per fold, the fit's residual on its training rows."""
+                   train_residuals: list | None = None, only: Sequence[str] | None = None
+                   ) -> tuple[np.ndarray, list[dict]]:
+    """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters (``only`` these, if
+    given) are refitted on each fold's training rows (returns the fold estimates too). ``train_residuals``: a
+    list that receives, per fold, the fit's residual on its training rows."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
     if c.cause == "interference":  # with refit the frequency too comes from the other records alone
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
@@ -171,7 +172,7 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
         return e, fold_est
     if c.cause == "saturation":
         return _heldout_saturation(screen, folds, c, refit, train_residuals)
-    names = own_nonlinear(screen, c) if refit else []
+    names = [n for n in own_nonlinear(screen, c) if only is None or n in only] if refit else []
     fold_est, designs = [], []
     for m in range(folds.n):
         z = dict(nl)
@@ -263,6 +264,16 @@ def jackknife(fold_estimates: list[dict]) -> dict:
         se = float(math.sqrt((m - 1) / m * np.sum((x - x.mean()) ** 2)))
         out[name] = {"relative_se": se} if log else {"se": se}
         out[name]["folds"] = [float(a) for a in v]
+    return out
+
+
+def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
+    """The jackknife uncertainty of fold-refitted parameters; a clipping level, which has no natural zero,
+    also as its spread over the output's range."""
+    out = jackknife(fold_estimates)
+    if "saturation_level" in out:
+        u = out["saturation_level"]
+        u["se_over_range"] = u["se"] / max(float(np.ptp(screen.y)), 1e-300)
     return out
 
 

@@ -1,0 +1,209 @@
+"""Secondary causes ("also"): forward selection on top of the named cause, then a backward step.
+
+Every cause tried on top of what is kept is scored on held-out records
+against what is kept, the kept part's parameters held as fitted on every
+record on both sides. One that shows evidence there is scored again with
+the parameters it adds (a time constant, a delay, a mode, a clip's level, a
+line's frequency) refitted on each fold's training records, and judged on
+that score: a secondary cause too is named only on records that took no
+part in choosing its parameters, and the spread of its fold estimates is
+their uncertainty. An interference on top takes its frequency per fold from
+the other records (``interference.fold_frequencies``); so do the causes
+tried on top of a named interference. The backward step names a new cause,
+so it scores as the named cause's finalists are (``search.run_screen``):
+every own nonlinear parameter refitted per fold.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Callable
+
+from .candidates import CREEP_PERIODS, Candidate
+from .interference import fold_frequencies, on_top, on_top_estimates
+from .saturation import clip_on_top
+from .selection import (EXPLAIN_SHARE, Z_PASS, Z_SAME, at_bound, evidence, fold_uncertainty, heldout_errors,
+                        heldout_null, own_nonlinear, promising, score, share_of_misfit)
+
+MAX_SECONDARY = 4  # other causes tried on top of the named one
+
+
+def refit_errors(screen, folds, result: dict, c: Candidate):
+    """A candidate's out-of-fold residuals with its own nonlinear parameters refitted per fold (those of
+    ``search.run_screen`` when it was scored so there)."""
+    if c.heldout.get("refit_per_fold") and id(c) in result["errors"]:
+        return result["errors"][id(c)]
+    return heldout_errors(screen, folds, c, refit=True)[0]
+
+
+def _admissible(comp: Candidate) -> bool:
+    return evidence(comp.heldout) and not comp.limit and not comp.heldout["at_bound"]
+
+
+def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
+    """The nonlinear parameters a cause tried on top brings: the composite's own but not the kept part's."""
+    held = set(kept.model.nonlinear_names) if kept is not None else set()
+    return [n for n in own_nonlinear(screen, comp) if n not in held]
+
+
+def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
+    """Forward selection on top of the named cause: in each round every other cause is added to what is
+    kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
+    interference as a per-record sinusoid on top, its frequency and amplitude chosen per fold on the other
+    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``, and
+    checked at the frequencies scored, ``on_top_estimates``; a clip as a clip of what is kept,
+    ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
+    against what is kept, the parameters of what is kept held on both sides as fitted on every record.
+    Those with held-out evidence are scored again with the added cause's own nonlinear parameters (a
+    clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
+    parameters are then chosen without the record they predict. Of those that still show evidence, within
+    the cause's meaning and off their search bounds, the one with fewest parameters that the best does not
+    beat by z >= ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond white
+    noise (as in ``selection.decide``) is kept ("also"; the others in that set are listed with it as as good).
+    On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
+    better than the base alone: a second cause can show only once the first is accounted for. On long ones
+    (cost) only those are tried, from their own fits."""
+    screen, chosen = diag.screen, diag.chosen
+    folds = result["folds"]
+    taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
+    fresh = screen.small
+
+    def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
+        return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
+
+    pool = {c.cause: c for c in diag.candidates if c.cause not in taken
+            and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
+            and (fresh or near_pass(c))}
+    # kept so far: the separable part (None: the base alone) and its held-out errors with its parameters held
+    # (per fold also its residual on the training rows, fitted on them alone); an interference's frequency
+    # per fold; the reference: what is kept predicts, the interference included
+    kept_train = []
+    if chosen.cause == "interference":  # its frequency per fold, chosen on the other records as it was scored
+        kept = None
+        kept_e = heldout_null(screen, folds, kept_train)
+        frequency = fold_frequencies(screen, kept_train)
+        reference = on_top(screen, folds, kept_e, kept_train, frequency)
+    else:
+        kept, frequency = chosen, None
+        kept_e = heldout_errors(screen, folds, chosen, train_residuals=kept_train)[0]
+        reference = kept_e
+
+    def with_line(part_e, part_train):
+        return on_top(screen, folds, part_e, part_train, frequency) if frequency is not None else part_e
+
+    while pool and len(diag.also) < MAX_SECONDARY:
+        say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
+        tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
+        for cause, c in pool.items():
+            if cause == "interference":
+                if frequency is not None:
+                    continue
+                comp, part, part_e, part_train = copy.copy(c), kept, kept_e, kept_train
+                fold_f = fold_frequencies(screen, kept_train)  # each fold's without its held-out record
+                e = on_top(screen, folds, kept_e, kept_train, fold_f)
+                comp.estimates = on_top_estimates(screen, folds, kept_e, kept_train, fold_f)  # what was scored
+                comp.limit = screen.limit_of("interference", comp.estimates)
+                comp.heldout = {**score(folds, reference, e), "at_bound": [], "refit_per_fold": True,
+                                "fold_frequencies_hz": fold_f}
+                judged = e
+            else:
+                if cause == "saturation" and kept is not None:  # a clip of what is kept
+                    comp = clip_on_top(screen, kept)
+                else:
+                    comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
+                if comp is None:
+                    continue
+                part, part_train = comp, []
+                part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
+                e = judged = with_line(part_e, part_train)
+                comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else [],
+                                "refit_per_fold": False}
+                if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
+                    refit_train = []
+                    refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
+                                                       only=added_names(screen, kept, comp))
+                    judged = with_line(refit_e, refit_train)
+                    comp.heldout = {**score(folds, reference, judged), "at_bound": comp.heldout["at_bound"],
+                                    "refit_per_fold": True}
+                    comp.uncertainty = fold_uncertainty(screen, fold_est)
+            diag.secondary_tried.append(comp)
+            tried.append((comp, part, part_e, part_train, e, judged))
+        ok = [t for t in tried if _admissible(t[0])]
+        if not ok:
+            return
+        best = max(ok, key=lambda t: t[0].heldout["gain"])
+        for t in ok:  # of what is kept leaves beyond noise
+            t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
+        # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
+        same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < Z_SAME
+                                               and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
+        comp, part, part_e, part_train, e, _ = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
+        comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
+        diag.also.append(comp)
+        pool.pop(comp.cause)
+        kept, kept_e, kept_train, reference = part, part_e, part_train, e
+        if comp.cause == "interference":
+            frequency = comp.heldout["fold_frequencies_hz"]
+        if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
+            pool = {k: v for k, v in pool.items() if k == "interference"}
+
+
+def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
+    """The causes composed in order, each searched on top of the ones before (None if one does not compose)."""
+    kept, chain = own[causes[0]], [own[causes[0]]]
+    for cause in causes[1:]:
+        kept = screen.composite(kept, own[cause], search=screen.small)
+        if kept is None:
+            return None
+        chain.append(kept)
+    return chain
+
+
+def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
+    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the
+    secondary causes alone (a composite in the order kept, each searched on top of the ones before) predict
+    the held-out records as well as all of them together (together not better by z >= ``Z_SAME``), show
+    held-out evidence against the base, and are within their meaning and off their search bounds: the first
+    of them is named, the others stay under "also". A named relaxation whose slowest time constant is longer
+    than the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary
+    causes alone do not do, they are tried with creep after them, creep standing for that slow part (the
+    weaker claim, as in ``selection.decide``). Every score here with the nonlinear parameters refitted per
+    fold, since it names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of
+    causes that compose (not interference or saturation)."""
+    v, screen, folds = diag.verdict, diag.screen, result["folds"]
+    causes = [c.cause for c in diag.also]
+    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
+            or {"interference", "saturation"} & {v.chosen.cause, *causes}):
+        return
+    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
+    own = {c.cause: c for c in diag.candidates}
+    options = [causes]
+    if (v.chosen.cause == "relaxation" and "creep" in own and "creep" not in causes
+            and max(v.chosen.estimates["tau_s"]) >= screen.creep_min / CREEP_PERIODS):
+        options.append([*causes, "creep"])
+    together = refit_errors(screen, folds, result, diag.also[-1])
+    for replacement in options:
+        chain = _chain(screen, own, replacement)
+        if chain is None or any(c.limit or at_bound(screen, c) for c in chain):
+            continue
+        errors = [refit_errors(screen, folds, result, c) for c in chain]
+        without = score(folds, errors[-1], together)  # how much better all together predict
+        if without["z"] < Z_SAME and evidence(score(folds, result["errors"][id(screen.null)], errors[-1])):
+            break
+    else:
+        return
+    old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
+    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
+    also = []
+    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
+        c.heldout = {**score(folds, errors[i - 1], errors[i]), "at_bound": at_bound(screen, c), "refit_per_fold": True}
+        also.append(c)
+    diag.dropped = old
+    diag.also = also
+    v.chosen, v.cause = first, first.cause
+    slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
+            "every drive period)," if len(replacement) > len(causes) else "")
+    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records as well "
+                f"without it (with it better by z = {without['z']:.1f} < {Z_SAME:g}): {old.cause} is not needed, and "
+                f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "
+                f"{old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")
