@@ -289,7 +289,8 @@ class Screen:
 
     def limit_of(self, cause: str, estimates: Mapping) -> str:
         """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
-        creep slower than the drive; a fit pinned at those limits is not named."""
+        creep slower than the drive, a delay at least one sample long; a fit pinned at those limits is not
+        named."""
         if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
             return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
         if cause == "relaxation":
@@ -308,6 +309,9 @@ class Screen:
             moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
             return (f"where it would clip, the output still {moves} the model (slope "
                     f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
+        if cause == "delay" and estimates["delay_s"] < max(p.record.dt for p in self.parts):
+            return (f"shorter than one sample ({1e3 * max(p.record.dt for p in self.parts):.3g} ms): an input late by "
+                    "less than a sample is the input plus a first difference of it (a rate term), not a resolved delay")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""
