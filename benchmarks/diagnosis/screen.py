@@ -309,9 +309,9 @@ class Screen:
             moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
             return (f"where it would clip, the output still {moves} the model (slope "
                     f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
-        if cause == "delay" and estimates["delay_s"] < max(p.record.dt for p in self.parts):
-            return (f"shorter than one sample ({1e3 * max(p.record.dt for p in self.parts):.3g} ms): an input late by "
-                    "less than a sample is the input plus a first difference of it (a rate term), not a resolved delay")
+        if cause == "delay" and estimates["delay_s"] < (dt := max(p.record.dt for p in self.parts)):
+            return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
+                    "plus a first difference of it (a rate term), not a resolved delay")
         if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
             return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
         return ""

@@ -181,11 +181,13 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     if (v.chosen.cause == "relaxation" and "creep" in own and "creep" not in causes
             and max(v.chosen.estimates["tau_s"]) >= screen.creep_min / CREEP_PERIODS):
         options.append([*causes, "creep"])
-    together = refit_errors(screen, folds, result, diag.also[-1])
+    together = None  # all of them, scored once a replacement is worth comparing
     for replacement in options:
         chain = _chain(screen, own, replacement)
         if chain is None or any(c.limit or at_bound(screen, c) for c in chain):
             continue
+        if together is None:
+            together = refit_errors(screen, folds, result, diag.also[-1])
         errors = [refit_errors(screen, folds, result, c) for c in chain]
         without = score(folds, errors[-1], together)  # how much better all together predict
         if without["z"] < Z_SAME and evidence(score(folds, result["errors"][id(screen.null)], errors[-1])):
