@@ -247,3 +247,38 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
         den += float(np.sum((X - mean) ** 2)) / (P - 1)
         used += files
     return {"F": num / den if den > 0 else (math.inf if num > 0 else math.nan), "records": used}
+
+
+def harmonic_phase_turn(residuals: list[RecordResidual], frequency_hz: float) -> tuple[float, float] | None:
+    """How far a sinusoid near a drive harmonic turns in phase from one drive period to the next.
+
+    Per periodic record, the residual's complex amplitude c_j at the drive harmonic nearest
+    ``frequency_hz``, in each whole period j (its mean removed). A misfit locked to the drive repeats every
+    period: c_j stays put. A sinusoid off the harmonic by df turns by 2 pi df T per period T. Returns
+    (turn, its standard error) in rad per period: the turn is the angle of sum c_(j+1) conj(c_j) over
+    consecutive periods within records; its error is the rms of c_(j+1) - c_j e^(i turn) over the rms
+    amplitude and the square root of the number of pairs. None with fewer than two pairs."""
+    products = []
+    for rr in residuals:
+        r = rr.record
+        if not r.frequency_hz:
+            continue
+        n_p = period_samples(r.frequency_hz, r.dt)
+        P = r.t.size // n_p if n_p > 0 else 0
+        if P < 2:
+            continue
+        harmonic = max(round(frequency_hz / r.frequency_hz), 1) * r.frequency_hz
+        X = rr.residual[:P * n_p].reshape(P, n_p)
+        X = X - X.mean(axis=1, keepdims=True)
+        c = 2.0 * X @ np.exp(-2j * np.pi * harmonic * np.arange(n_p) * r.dt) / n_p
+        products.append(np.column_stack([c[:-1], c[1:]]))
+    if not products:
+        return None
+    pairs = np.concatenate(products)
+    if len(pairs) < 2:
+        return None
+    turn = float(np.angle(np.sum(pairs[:, 1] * np.conj(pairs[:, 0]))))
+    misfit = np.sqrt(np.mean(np.abs(pairs[:, 1] - pairs[:, 0] * np.exp(1j * turn)) ** 2))
+    amplitude = np.sqrt(np.mean(np.abs(pairs) ** 2))
+    se = float(misfit / amplitude / math.sqrt(len(pairs))) if amplitude > 0 else math.inf
+    return turn, se

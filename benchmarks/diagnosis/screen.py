@@ -44,11 +44,13 @@ from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES,
                          MAX_DAMPING, MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, NO_CUT, Candidate, estimates_of,
                          is_log)
-from .residuals import RecordResidual
+from .residuals import RecordResidual, harmonic_phase_turn
 
 EXACT_GRID_SAMPLES = 300_000
 COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of another (``composite``)
 LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
+LOCKED_TURN = math.pi / 16  # ... or turn in phase from drive period to period by more than this (rad per period)
+LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
 
 
 @dataclass
@@ -409,13 +411,19 @@ class Screen:
     def drive_locked(self, estimates: Mapping) -> bool:
         """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
         every record's drive whose phases in the records (each from its own start) agree within
-        ``LOCKED_PHASE`` rad."""
+        ``LOCKED_PHASE`` rad, and which does not turn in phase from one drive period to the next (in the base
+        model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
+        ``LOCKED_TURN`` rad per period and ``LOCKED_TURN_Z`` standard errors is a line off the harmonic, closer
+        to it than the records resolve, not a misfit that the drive repeats."""
         phases = estimates.get("phase_rad_per_record") or []
         longest = max(p.record.t.size * p.record.dt for p in self.parts)
         if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
             return False
         spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
-        return spread < LOCKED_PHASE
+        if spread >= LOCKED_PHASE:
+            return False
+        turn = harmonic_phase_turn(self.null_residuals(), estimates["frequency_hz"])
+        return turn is None or not (abs(turn[0]) > LOCKED_TURN and abs(turn[0]) > LOCKED_TURN_Z * turn[1])
 
     def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
         """Whether each frequency is a harmonic of every identification record's drive (within tolerance):

@@ -348,6 +348,20 @@ class Verdict:
     remainder: float | None = None  # share of the held-out misfit (beyond noise) the named cause leaves
 
 
+def none_reason(candidates: Sequence[Candidate]) -> str:
+    """Why nothing is named: no candidate predicts the held-out records better, or the best that does falls
+    short of evidence (or only one record shows it), or outside its cause's meaning (said with its score)."""
+    best = max(candidates, key=lambda c: c.heldout_gain, default=None)
+    if best is None or not best.heldout_gain > 0:
+        return "no candidate predicts the held-out records better than the base model"
+    h = best.heldout
+    why = (f"outside its meaning ({best.limit})" if best.limit else
+           "carried by one held-out record" if significant(best) else
+           f"not evidence (z = {h['z']:.1f}, better in {h['folds_improved']} of {h['n_folds']} held-out records)")
+    return (f"no candidate predicts the held-out records better than the base model with evidence and within its "
+            f"meaning; the best, {best.label} (held-out gain {100 * best.heldout_gain:.2f} %), is {why}")
+
+
 def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds: Folds, errors: dict) -> Candidate:
     """A relaxation variant with two time constants closer than their uncertainty (or a factor 1.25)
     gives way to the variant with one fewer, if that passes and does not predict worse (z < ``Z_SAME``)."""
@@ -390,8 +404,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                    "or not within its meaning")
             return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
                            not_identified=not_identified, partial=partial)
-        return Verdict("none", None, reason="no candidate predicts the held-out records better than the base model",
-                       not_identified=not_identified)
+        return Verdict("none", None, reason=none_reason(candidates), not_identified=not_identified)
 
     def record_share(c: Candidate) -> None:
         c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
