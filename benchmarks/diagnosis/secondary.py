@@ -17,6 +17,7 @@ every own nonlinear parameter refitted per fold.
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 from typing import Callable
 
 from .candidates import CREEP_PERIODS, Candidate
@@ -46,23 +47,104 @@ def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
     return [n for n in own_nonlinear(screen, comp) if n not in held]
 
 
+@dataclass
+class _Kept:
+    """What is kept so far: the separable part (None: the base alone), its held-out errors with its
+    parameters held (per fold also its residual on the training rows, fitted on them alone), an
+    interference's frequency per fold (None: no line kept), and the reference the next cause is scored
+    against (what is kept predicts, the line included)."""
+
+    part: Candidate | None
+    errors: object
+    train: list
+    reference: object
+    frequency: list | None = None
+
+    def with_line(self, screen, folds, part_e, part_train):
+        """A part's held-out errors with the kept line on top of it (if one is kept)."""
+        return on_top(screen, folds, part_e, part_train, self.frequency) if self.frequency is not None else part_e
+
+
+def _start(screen, folds, chosen: Candidate) -> _Kept:
+    """The named cause as what is kept; a named interference as the base with its line on top, its frequency
+    per fold chosen on the other records as it was scored."""
+    train = []
+    if chosen.cause == "interference":
+        e = heldout_null(screen, folds, train)
+        frequency = fold_frequencies(screen, train)
+        return _Kept(None, e, train, on_top(screen, folds, e, train, frequency), frequency)
+    e = heldout_errors(screen, folds, chosen, train_residuals=train)[0]
+    return _Kept(chosen, e, train, e)
+
+
+def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
+    """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
+    records, from what is kept fitted on them alone, and checked at the frequencies scored."""
+    comp = copy.copy(c)
+    fold_f = fold_frequencies(screen, kept.train)  # each fold's without its held-out record
+    e = on_top(screen, folds, kept.errors, kept.train, fold_f)
+    comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)  # what was scored
+    comp.limit = screen.limit_of("interference", comp.estimates)
+    comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
+                    "fold_frequencies_hz": fold_f}
+    return comp, kept.part, kept.errors, kept.train, e, e
+
+
+def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
+    """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
+    admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
+    if c.cause == "saturation" and kept.part is not None:
+        comp = clip_on_top(screen, kept.part)
+    else:
+        comp = copy.copy(c) if kept.part is None else screen.composite(kept.part, c, search=fresh)
+    if comp is None:
+        return None
+    part_train = []
+    part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
+    e = judged = kept.with_line(screen, folds, part_e, part_train)
+    comp.heldout = {**score(folds, kept.reference, e),
+                    "at_bound": at_bound(screen, comp) if kept.part is not None else [], "refit_per_fold": False}
+    if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
+        refit_train = []
+        refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
+                                           only=added_names(screen, kept.part, comp))
+        judged = kept.with_line(screen, folds, refit_e, refit_train)
+        comp.heldout = {**score(folds, kept.reference, judged), "at_bound": comp.heldout["at_bound"],
+                        "refit_per_fold": True}
+        comp.uncertainty = fold_uncertainty(screen, fold_est)
+    return comp, comp, part_e, part_train, e, judged
+
+
+def _choose(screen, folds, tried: list, reference) -> tuple | None:
+    """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
+    ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond noise (as in
+    ``selection.decide``); the others as good are listed with it."""
+    ok = [t for t in tried if _admissible(t[0])]
+    if not ok:
+        return None
+    best = max(ok, key=lambda t: t[0].heldout["gain"])
+    for t in ok:  # of what is kept leaves beyond noise
+        t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
+    same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < Z_SAME
+                                           and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
+    chosen = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
+    chosen[0].heldout["as_good"] = [t[0].cause for t in same if t[0] is not chosen[0]]  # not told apart here
+    return chosen
+
+
 def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top, its frequency and amplitude chosen per fold on the other
-    records, from what is kept fitted on them alone, ``interference.fold_frequencies``, ``on_top``, and
-    checked at the frequencies scored, ``on_top_estimates``; a clip as a clip of what is kept,
+    interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
     ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
     against what is kept, the parameters of what is kept held on both sides as fitted on every record.
     Those with held-out evidence are scored again with the added cause's own nonlinear parameters (a
     clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
     parameters are then chosen without the record they predict. Of those that still show evidence, within
-    the cause's meaning and off their search bounds, the one with fewest parameters that the best does not
-    beat by z >= ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond white
-    noise (as in ``selection.decide``) is kept ("also"; the others in that set are listed with it as as good).
-    On short records (``Screen.small``) every cause is tried and searched afresh, not only those that predict
-    better than the base alone: a second cause can show only once the first is accounted for. On long ones
-    (cost) only those are tried, from their own fits."""
+    the cause's meaning and off their search bounds, one is kept ("also"; ``_choose``). On short records
+    (``Screen.small``) every cause is tried and searched afresh, not only those that predict better than the
+    base alone: a second cause can show only once the first is accounted for. On long ones (cost) only
+    those are tried, from their own fits."""
     screen, chosen = diag.screen, diag.chosen
     folds = result["folds"]
     taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
@@ -74,76 +156,26 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
             and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
-    # kept so far: the separable part (None: the base alone) and its held-out errors with its parameters held
-    # (per fold also its residual on the training rows, fitted on them alone); an interference's frequency
-    # per fold; the reference: what is kept predicts, the interference included
-    kept_train = []
-    if chosen.cause == "interference":  # its frequency per fold, chosen on the other records as it was scored
-        kept = None
-        kept_e = heldout_null(screen, folds, kept_train)
-        frequency = fold_frequencies(screen, kept_train)
-        reference = on_top(screen, folds, kept_e, kept_train, frequency)
-    else:
-        kept, frequency = chosen, None
-        kept_e = heldout_errors(screen, folds, chosen, train_residuals=kept_train)[0]
-        reference = kept_e
-
-    def with_line(part_e, part_train):
-        return on_top(screen, folds, part_e, part_train, frequency) if frequency is not None else part_e
-
+    kept = _start(screen, folds, chosen)
     while pool and len(diag.also) < MAX_SECONDARY:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
         tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
         for cause, c in pool.items():
             if cause == "interference":
-                if frequency is not None:
-                    continue
-                comp, part, part_e, part_train = copy.copy(c), kept, kept_e, kept_train
-                fold_f = fold_frequencies(screen, kept_train)  # each fold's without its held-out record
-                e = on_top(screen, folds, kept_e, kept_train, fold_f)
-                comp.estimates = on_top_estimates(screen, folds, kept_e, kept_train, fold_f)  # what was scored
-                comp.limit = screen.limit_of("interference", comp.estimates)
-                comp.heldout = {**score(folds, reference, e), "at_bound": [], "refit_per_fold": True,
-                                "fold_frequencies_hz": fold_f}
-                judged = e
+                t = _line_on_top(screen, folds, c, kept) if kept.frequency is None else None
             else:
-                if cause == "saturation" and kept is not None:  # a clip of what is kept
-                    comp = clip_on_top(screen, kept)
-                else:
-                    comp = copy.copy(c) if kept is None else screen.composite(kept, c, search=fresh)
-                if comp is None:
-                    continue
-                part, part_train = comp, []
-                part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
-                e = judged = with_line(part_e, part_train)
-                comp.heldout = {**score(folds, reference, e), "at_bound": at_bound(screen, comp) if kept else [],
-                                "refit_per_fold": False}
-                if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
-                    refit_train = []
-                    refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
-                                                       only=added_names(screen, kept, comp))
-                    judged = with_line(refit_e, refit_train)
-                    comp.heldout = {**score(folds, reference, judged), "at_bound": comp.heldout["at_bound"],
-                                    "refit_per_fold": True}
-                    comp.uncertainty = fold_uncertainty(screen, fold_est)
-            diag.secondary_tried.append(comp)
-            tried.append((comp, part, part_e, part_train, e, judged))
-        ok = [t for t in tried if _admissible(t[0])]
-        if not ok:
+                t = _cause_on_top(screen, folds, c, kept, fresh)
+            if t is not None:
+                diag.secondary_tried.append(t[0])
+                tried.append(t)
+        pick = _choose(screen, folds, tried, kept.reference)
+        if pick is None:
             return
-        best = max(ok, key=lambda t: t[0].heldout["gain"])
-        for t in ok:  # of what is kept leaves beyond noise
-            t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
-        # as good as the best: not worse by z >= Z_SAME and removing at least half of that misfit (as in decide)
-        same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < Z_SAME
-                                               and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
-        comp, part, part_e, part_train, e, _ = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
-        comp.heldout["as_good"] = [t[0].cause for t in same if t[0] is not comp]  # not told apart on these records
+        comp, part, part_e, part_train, e, _ = pick
         diag.also.append(comp)
         pool.pop(comp.cause)
-        kept, kept_e, kept_train, reference = part, part_e, part_train, e
-        if comp.cause == "interference":
-            frequency = comp.heldout["fold_frequencies_hz"]
+        kept = _Kept(part, part_e, part_train, e,
+                     comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency)
         if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
             pool = {k: v for k, v in pool.items() if k == "interference"}
 
