@@ -210,6 +210,14 @@ def phase_of(record: Record) -> np.ndarray | None:
     return np.mod((record.t - record.t[0]) * record.frequency_hz, 1.0)
 
 
+def whole_periods(record: Record) -> tuple[int, int]:
+    """Samples per drive period and the number of whole periods in the record ((0, 0) if not periodic)."""
+    if not record.frequency_hz:
+        return 0, 0
+    n_p = period_samples(record.frequency_hz, record.dt)
+    return n_p, (record.t.size // n_p if n_p > 0 else 0)
+
+
 def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> dict:
     """Whether a residual repeats from one drive period to the next.
 
@@ -228,10 +236,7 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
     blocks = []
     for rr in residuals:
         r = rr.record
-        if not r.frequency_hz:
-            continue
-        n_p = period_samples(r.frequency_hz, r.dt)
-        P = r.t.size // n_p if n_p > 0 else 0
+        n_p, P = whole_periods(r)
         if P >= 2:
             blocks.append(([r.file], rr.residual[:P * n_p].reshape(P, n_p)))
         elif P == 1:
@@ -261,10 +266,7 @@ def harmonic_phase_turn(residuals: list[RecordResidual], frequency_hz: float) ->
     products = []
     for rr in residuals:
         r = rr.record
-        if not r.frequency_hz:
-            continue
-        n_p = period_samples(r.frequency_hz, r.dt)
-        P = r.t.size // n_p if n_p > 0 else 0
+        n_p, P = whole_periods(r)
         if P < 2:
             continue
         harmonic = max(round(frequency_hz / r.frequency_hz), 1) * r.frequency_hz
