@@ -129,9 +129,20 @@ def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
     amplitudes within ``LINE_AMPLITUDE`` (relative to their mean)."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
+    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
+
+
+def fold_tolerance_hz(screen) -> float:
+    """How far the frequencies of one line fitted on different folds may differ: the coarsest fold's spectral
+    resolution (one cycle over its longest training record)."""
     n = len(screen.parts)
-    tolerance = max(resolution_hz(screen, [k for k in range(n) if k != m]) for m in range(n))
-    return bool(f.size > 1 and np.ptp(f) <= tolerance and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
+    return max(resolution_hz(screen, [k for k in range(n) if k != m]) for m in range(n))
+
+
+def frequencies_agree(screen, fold_frequencies_hz: Sequence[float]) -> bool:
+    """Whether the folds' frequencies (each fitted without its held-out record) are one line's."""
+    f = np.asarray(fold_frequencies_hz, dtype=float)
+    return bool(f.size > 1 and np.ptp(f) <= fold_tolerance_hz(screen))
 
 
 def interference_candidate(screen, frequency_hz: float) -> Candidate:

@@ -12,7 +12,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
 
-MAX_PLOT_POINTS = 20_000  # per record and curve
+MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
 
 
 def _fmt(v, digits: int = 4) -> str:
@@ -29,6 +29,21 @@ def _stride(n: int) -> int:
     return max(1, int(math.ceil(n / MAX_PLOT_POINTS)))
 
 
+def extremes_kept(key: np.ndarray, y: np.ndarray, bins: int = MAX_PLOT_POINTS // 2, low: bool = True) -> np.ndarray:
+    """Sorted indices of each bin's largest (and, if ``low``, smallest) ``y``, the bins equal in the
+    ascending ``key``: a long curve thinned for plotting without losing its peaks."""
+    if y.size <= 2 * bins:
+        return np.arange(y.size)
+    bounds = np.unique(np.searchsorted(key, np.linspace(key[0], key[-1], bins + 1)[1:-1]))
+    kept = []
+    for lo, hi in zip(np.concatenate(([0], bounds)), np.concatenate((bounds, [y.size]))):
+        if hi > lo:
+            kept.append(lo + np.argmax(y[lo:hi]))
+            if low:
+                kept.append(lo + np.argmin(y[lo:hi]))
+    return np.unique(np.array(kept))
+
+
 def _label(rec) -> str:
     return f"{rec.label} ({'id' if rec.role == 'identification' else 'val'})"
 
@@ -41,10 +56,11 @@ def figure_residual_time(diag, path: Path) -> None:
     after = {rr.file: rr for rr in diag.after}
     for ax, rr in zip(axes[:, 0], recs):
         r = rr.record
-        k = _stride(r.t.size)
-        ax.plot(r.t[::k], rr.residual[::k], lw=0.6, color="0.35", label=f"{diag.model} (before)")
+        k = extremes_kept(r.t, rr.residual)
+        ax.plot(r.t[k], rr.residual[k], lw=0.6, color="0.35", label=f"{diag.model} (before)")
         if rr.file in after:
-            ax.plot(r.t[::k], after[rr.file].residual[::k], lw=0.6, color="C3", label=f"{diag.extended_model} (after)")
+            k = extremes_kept(r.t, after[rr.file].residual)
+            ax.plot(r.t[k], after[rr.file].residual[k], lw=0.6, color="C3", label=f"{diag.extended_model} (after)")
         ax.axvspan(r.t[r.start], r.t[r.stop - 1], color="C0", alpha=0.12, lw=0)
         ax.axhline(0, color="k", lw=0.4)
         ax.set_ylabel(_label(r), fontsize=8)
@@ -115,7 +131,8 @@ def figure_spectrum(diag, path: Path) -> None:
     ax = axes[0]
     for i, rr in enumerate(diag.before):
         f, a = periodogram(rr.residual, rr.record.dt)
-        keep = f > 0
+        f, a = f[f > 0], a[f > 0]
+        keep = extremes_kept(np.log(f), a, low=False)
         ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
     ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8)
     ax.set_xlabel("frequency (Hz)")
@@ -127,7 +144,8 @@ def figure_spectrum(diag, path: Path) -> None:
     duration = max(rr.record.t.size * rr.record.dt for rr in ids)
     dt = max(rr.record.dt for rr in ids)  # below every record's Nyquist frequency
     f, a = coherent_spectrum(ids, 1.0 / duration, 0.45 / dt, pad=2)
-    ax.loglog(f, np.maximum(a, 1e-12), lw=0.5, color="C0")
+    keep = extremes_kept(np.log(f), a, low=False)
+    ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color="C0")
     if diag.cause == "interference":
         ax.axvline(diag.parameters["frequency_hz"], color="C3", lw=0.8, ls="--", label="named interference")
         ax.legend(fontsize=7)

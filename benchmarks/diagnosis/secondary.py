@@ -8,8 +8,9 @@ line's frequency) refitted on each fold's training records, and judged on
 that score: a secondary cause too is named only on records that took no
 part in choosing its parameters, and the spread of its fold estimates is
 their uncertainty. An interference on top takes its frequency per fold from
-the other records (``interference.fold_frequencies``); so do the causes
-tried on top of a named interference. The backward step names a new cause,
+the other records (``interference.fold_frequencies``), and is one line only
+if the folds agree within their resolution; the causes tried on top of a
+named interference take its frequency per fold too. The backward step names a new cause,
 so it scores as the named cause's finalists are (``search.run_screen``):
 every own nonlinear parameter refitted per fold.
 """
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .candidates import CREEP_PERIODS, Candidate
-from .interference import fold_frequencies, on_top, on_top_estimates
+from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
 from .selection import (EXPLAIN_SHARE, Z_PASS, Z_SAME, at_bound, evidence, fold_uncertainty, heldout_errors,
                         heldout_null, own_nonlinear, promising, score, share_of_misfit)
@@ -77,6 +78,14 @@ def _start(screen, folds, chosen: Candidate) -> _Kept:
     return _Kept(chosen, e, train, e)
 
 
+def _folds_disagree(screen, fold_f: list) -> str:
+    """Why lines whose frequencies the folds chose apart are not one interference ("" if they agree)."""
+    if frequencies_agree(screen, fold_f):
+        return ""
+    return (f"the folds found it at {', '.join(f'{f:.4g}' for f in fold_f)} Hz, further apart than the "
+            f"resolution {fold_tolerance_hz(screen):.3g} Hz: not one line")
+
+
 def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
     """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
     records, from what is kept fitted on them alone, and checked at the frequencies scored."""
@@ -84,7 +93,7 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
     fold_f = fold_frequencies(screen, kept.train)  # each fold's without its held-out record
     e = on_top(screen, folds, kept.errors, kept.train, fold_f)
     comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)  # what was scored
-    comp.limit = screen.limit_of("interference", comp.estimates)
+    comp.limit = screen.limit_of("interference", comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
     return comp, kept.part, kept.errors, kept.train, e, e

@@ -7,7 +7,6 @@ import logging
 import math
 from pathlib import Path
 
-import corner
 import numpy as np
 
 from hysbench.benchmarks.plots import pyplot, save_figure
@@ -91,6 +90,8 @@ def corner_figure(run: PosteriorRun, path: Path) -> list[str]:
     root = logging.getLogger()
     level = root.level
     root.setLevel(logging.ERROR)  # corner logs a warning for sparse tails of a contour
+    import corner  # imported here: the command line loads this module for every command
+
     try:
         fig = corner.corner(S[:, cols], labels=[names[i] for i in idx], quantiles=[0.05, 0.5, 0.95],
                             show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8},
