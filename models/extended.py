@@ -48,6 +48,7 @@ from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
+from numba.typed import List as TypedList
 
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
@@ -56,6 +57,8 @@ from .inverse import StepInvertible, StepStructure
 from .filter_kernels import (
     first_order_foh,
     lowpass1_bank,
+    lowpass1_bank_at,
+    lowpass2_columns_at,
     lowpass2_rows,
     lowpass2_sets,
     second_order_foh,
@@ -183,16 +186,23 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         return self.base_model.param_names
 
     # --- pieces --------------------------------------------------------------
-    def _relaxation_columns(self, u: np.ndarray, dt: float, taus: Sequence[float]) -> np.ndarray:
-        """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order."""
+    def _relaxation_columns(self, u: np.ndarray, dt: float, taus: Sequence[float],
+                            at: np.ndarray | None = None) -> np.ndarray:
+        """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order; with ``at`` (sorted,
+        distinct sample indices) only those samples are kept: (..., at.size)."""
         a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(t), dt) for t in taus)))
+        if at is None:
+            bank = lowpass1_bank
+        else:
+            at = np.ascontiguousarray(at, dtype=np.int64)
+            bank = lambda v, a, b0, b1: lowpass1_bank_at(v, a, b0, b1, at)  # noqa: E731
         if tuple(self.relaxation_powers) == (1,):  # the bank's rows are already in the weights' order
-            return lowpass1_bank(np.ascontiguousarray(u, dtype=float), a, b0, b1)
+            return bank(np.ascontiguousarray(u, dtype=float), a, b0, b1)
         rows = []
         for p in self.relaxation_powers:
-            rows.append(lowpass1_bank(np.ascontiguousarray(u**p), a, b0, b1))  # (K, T)
+            rows.append(bank(np.ascontiguousarray(u**p), a, b0, b1))  # (K, T)
         n_p = len(self.relaxation_powers)
-        out = np.empty((len(taus) * n_p, u.size))
+        out = np.empty((len(taus) * n_p, rows[0].shape[1]))
         for k in range(len(taus)):
             for j in range(n_p):
                 out[k * n_p + j] = rows[j][k]
@@ -441,21 +451,33 @@ class ExtendedModel(StepInvertible, HysteresisModel):
             cols = {k: v[rows] for k, v in cols.items()}
         if self.has("relaxation"):
             taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
-            R = self._relaxation_columns(u, dt, taus)
+            kept = at_rows and _increasing(rows)
+            R = self._relaxation_columns(u, dt, taus, at=rows if kept else None)
             for j, w in enumerate(self._relaxation_weight_names()):
-                cols[w] = R[j][rows] if at_rows else R[j]
+                cols[w] = R[j][rows] if at_rows and not kept else R[j]
         if self.has("creep"):
             cols["creep_size"] = self._creep_column(rows if at_rows else n, dt, nonlinear["creep_time"], t0)
         if self.has("resonance"):
             actuator = [name for name in cols if name != "offset"]
             if actuator:
                 phi, g0, g1 = second_order_foh(nonlinear["natural_frequency"], nonlinear["damping_ratio"], dt)
+                if rows is not None and _increasing(rows):  # filtered whole, kept at the rows only
+                    F = lowpass2_columns_at(TypedList([np.ascontiguousarray(cols[c], dtype=float) for c in actuator]),
+                                            phi, g0, g1, np.ascontiguousarray(rows, dtype=np.int64))
+                    filtered = dict(zip(actuator, F))
+                    return {k: filtered[k] if k in filtered else v[rows] for k, v in cols.items()}
                 F = lowpass2_rows(np.ascontiguousarray(np.stack([cols[c] for c in actuator])), phi, g0, g1)
                 for j, c in enumerate(actuator):
                     cols[c] = F[j]
         if rows is not None and not at_rows:
             cols = {k: v[rows] for k, v in cols.items()}
         return cols
+
+
+def _increasing(rows: np.ndarray) -> bool:
+    """Whether sample indices are distinct and in order (what the row-kept filter needs)."""
+    rows = np.asarray(rows)
+    return rows.ndim == 1 and rows.size > 0 and bool(np.all(np.diff(rows) > 0)) and int(rows[0]) >= 0
 
 
 def factory(base: str, components: Sequence[str]):

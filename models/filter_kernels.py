@@ -82,6 +82,33 @@ def lowpass1_bank(v, a, b0, b1):
 
 
 @njit(cache=True)
+def _lowpass1_at(v, a, b0, b1, rows, out):
+    # _lowpass1's recurrence, the output kept at the sorted, distinct sample indices ``rows`` only
+    x = 0.0
+    j = 0
+    while j < rows.shape[0] and rows[j] == 0:
+        out[j] = 0.0
+        j += 1
+    for k in range(v.shape[0] - 1):
+        if j == rows.shape[0]:
+            break
+        x = a * x + b0 * v[k] + b1 * v[k + 1]
+        if rows[j] == k + 1:
+            out[j] = x
+            j += 1
+
+
+@njit(cache=True, parallel=True)
+def lowpass1_bank_at(v, a, b0, b1, rows):
+    """``lowpass1_bank`` kept at the sorted, distinct sample indices ``rows``: (m, rows.size)."""
+    m = a.shape[0]
+    out = np.empty((m, rows.shape[0]))
+    for j in prange(m):
+        _lowpass1_at(v, a[j], b0[j], b1[j], rows, out[j])
+    return out
+
+
+@njit(cache=True)
 def _lowpass2(v, phi, g0, g1, out):
     # at rest at the first sample's level (a mode in equilibrium with the output it starts from)
     x0 = v[0]
@@ -103,6 +130,40 @@ def lowpass2_rows(V, phi, g0, g1):
     out = np.empty_like(V)
     for j in prange(V.shape[0]):
         _lowpass2(V[j], phi, g0, g1, out[j])
+    return out
+
+
+@njit(cache=True)
+def _lowpass2_at(v, phi, g0, g1, rows, out):
+    # _lowpass2's recurrence, the output kept at the sorted, distinct sample indices ``rows`` only
+    x0 = v[0]
+    x1 = 0.0
+    j = 0
+    while j < rows.shape[0] and rows[j] == 0:
+        out[j] = x0
+        j += 1
+    for k in range(v.shape[0] - 1):
+        if j == rows.shape[0]:
+            break
+        vk = v[k]
+        vn = v[k + 1]
+        n0 = phi[0, 0] * x0 + phi[0, 1] * x1 + g0[0] * vk + g1[0] * vn
+        n1 = phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn
+        x0 = n0
+        x1 = n1
+        if rows[j] == k + 1:
+            out[j] = x0
+            j += 1
+
+
+@njit(cache=True, parallel=True)
+def lowpass2_columns_at(columns, phi, g0, g1, rows):
+    """Each signal of ``columns`` (a numba typed List of (T,) arrays) through the same second-order low-pass,
+    kept at the sorted, distinct sample indices ``rows``: (m, rows.size), without stacking the signals."""
+    m = len(columns)
+    out = np.empty((m, rows.shape[0]))
+    for j in prange(m):
+        _lowpass2_at(columns[np.int64(j)], phi, g0, g1, rows, out[j])
     return out
 
 

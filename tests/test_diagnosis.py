@@ -55,7 +55,8 @@ from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.identification import Fit, identify
 from hysbench.models import CAUSES, ExtendedModel, get_model
-from hysbench.models.filter_kernels import first_order_foh, lowpass1, lowpass2_rows, second_order_foh
+from hysbench.models.filter_kernels import (first_order_foh, lowpass1, lowpass1_bank, lowpass1_bank_at,
+                                           lowpass2_columns_at, lowpass2_rows, second_order_foh)
 from measured_data import pzt_dataset
 
 DT = 1e-3
@@ -86,6 +87,33 @@ def test_second_order_low_pass_is_the_continuous_response(fn, zeta, seed):
     for j in range(2):  # at rest at the first value: that value plus the response to the rest, from zero
         ref = x[j, 0] + _lsim([w * w], [1.0, 2 * zeta * w, w * w], x[j] - x[j, 0], t)
         np.testing.assert_allclose(y[j], ref, atol=1e-7 * np.max(np.abs(x)))
+
+
+@given(fn=st.floats(0.5, 60.0), zeta=st.floats(0.02, 2.5), seed=st.integers(0, 10_000),
+       rows=st.lists(st.integers(0, 399), min_size=1, max_size=40, unique=True).map(sorted))
+def test_second_order_low_pass_kept_at_rows_is_the_whole_response_there(fn, zeta, seed, rows):
+    """The kernel that keeps only some samples (no stacked copy of its signals) runs the same recurrence."""
+    from numba.typed import List
+
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(rng.normal(size=(3, 400)), axis=1) + 1.0
+    rows = np.array(rows, dtype=np.int64)
+    whole = lowpass2_rows(np.ascontiguousarray(x), *second_order_foh(fn, zeta, DT))
+    kept = lowpass2_columns_at(List([np.ascontiguousarray(r) for r in x]), *second_order_foh(fn, zeta, DT), rows)
+    np.testing.assert_array_equal(kept, whole[:, rows])
+
+
+@given(taus=st.lists(st.floats(0.003, 30.0), min_size=1, max_size=3), seed=st.integers(0, 10_000),
+       rows=st.lists(st.integers(0, 399), min_size=1, max_size=40, unique=True).map(sorted))
+def test_first_order_bank_kept_at_rows_is_the_whole_bank_there(taus, seed, rows):
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(rng.normal(size=400)) + 1.0
+    a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(t, DT) for t in taus)))
+    rows = np.array(rows, dtype=np.int64)
+    np.testing.assert_array_equal(lowpass1_bank_at(x, a, b0, b1, rows), lowpass1_bank(x, a, b0, b1)[:, rows])
+    model = ExtendedModel("mrpim", ("relaxation",), n_relaxation=len(taus), relaxation_powers=[1, 2])
+    whole = model._relaxation_columns(x, DT, taus)
+    np.testing.assert_array_equal(model._relaxation_columns(x, DT, taus, at=rows), whole[:, rows])
 
 
 def test_first_order_by_hand():
