@@ -108,6 +108,13 @@ def lowpass1_bank_at(v, a, b0, b1, rows):
     return out
 
 
+@njit(cache=True, inline="always")
+def _step2(phi, g0, g1, x0, x1, vk, vn):
+    # one first-order-hold step of the second-order block: the state (x, x') at the next sample
+    return (phi[0, 0] * x0 + phi[0, 1] * x1 + g0[0] * vk + g1[0] * vn,
+            phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn)
+
+
 @njit(cache=True)
 def _lowpass2(v, phi, g0, g1, out):
     # at rest at the first sample's level (a mode in equilibrium with the output it starts from)
@@ -115,12 +122,7 @@ def _lowpass2(v, phi, g0, g1, out):
     x1 = 0.0
     out[0] = x0
     for k in range(v.shape[0] - 1):
-        vk = v[k]
-        vn = v[k + 1]
-        n0 = phi[0, 0] * x0 + phi[0, 1] * x1 + g0[0] * vk + g1[0] * vn
-        n1 = phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn
-        x0 = n0
-        x1 = n1
+        x0, x1 = _step2(phi, g0, g1, x0, x1, v[k], v[k + 1])
         out[k + 1] = x0
 
 
@@ -145,12 +147,7 @@ def _lowpass2_at(v, phi, g0, g1, rows, out):
     for k in range(v.shape[0] - 1):
         if j == rows.shape[0]:
             break
-        vk = v[k]
-        vn = v[k + 1]
-        n0 = phi[0, 0] * x0 + phi[0, 1] * x1 + g0[0] * vk + g1[0] * vn
-        n1 = phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn
-        x0 = n0
-        x1 = n1
+        x0, x1 = _step2(phi, g0, g1, x0, x1, v[k], v[k + 1])
         if rows[j] == k + 1:
             out[j] = x0
             j += 1
