@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import Mapping, MutableMapping, Sequence
 
 import numpy as np
 from numba.typed import List as TypedList
@@ -187,9 +187,20 @@ class ExtendedModel(StepInvertible, HysteresisModel):
 
     # --- pieces --------------------------------------------------------------
     def _relaxation_columns(self, u: np.ndarray, dt: float, taus: Sequence[float],
-                            at: np.ndarray | None = None) -> np.ndarray:
+                            at: np.ndarray | None = None, cache: MutableMapping | None = None) -> np.ndarray:
         """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order; with ``at`` (sorted,
-        distinct sample indices) only those samples are kept: (..., at.size)."""
+        distinct sample indices) only those samples are kept: (..., at.size). ``cache``: the caller's
+        {(tau, p): row} for this u, dt and ``at``, read and filled (each tau's filter runs alone, so a row
+        is the same computed now or before)."""
+        if cache is not None and at is not None:
+            powers = tuple(self.relaxation_powers)
+            missing = list(dict.fromkeys(float(t) for t in taus if any((float(t), p) not in cache for p in powers)))
+            if missing:
+                fresh = self._relaxation_columns(u, dt, missing, at)
+                for i, t in enumerate(missing):
+                    for j, p in enumerate(powers):
+                        cache[(t, p)] = fresh[i * len(powers) + j]
+            return np.stack([cache[(float(t), p)] for t in taus for p in powers])
         a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(t), dt) for t in taus)))
         if at is None:
             bank = lowpass1_bank
@@ -438,12 +449,14 @@ class ExtendedModel(StepInvertible, HysteresisModel):
 
     def assemble_columns(self, u: np.ndarray, dt: float, base_columns: Mapping[str, np.ndarray],
                          nonlinear: Mapping[str, float], t0: float = 0.0,
-                         rows: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                         rows: np.ndarray | None = None,
+                         relaxation_cache: MutableMapping | None = None) -> dict[str, np.ndarray]:
         """The actuator's regressor columns (by linear parameter name) from the base's columns:
         relaxation and creep columns added, all but the offset through the resonance. No delay or
         interference here (see ``regressors``). ``base_columns`` may hold only some of the base's
         columns (or none); ``t0`` is the actuator's own time at u's first sample. With ``rows``
-        (sample indices) every column is returned at those samples only."""
+        (sample indices) every column is returned at those samples only; ``relaxation_cache``: a dict the
+        caller keeps for these u, dt and rows, which saves refiltering a time constant seen before."""
         n = u.size
         cols: dict[str, np.ndarray] = dict(base_columns)
         at_rows = rows is not None and not self.has("resonance")  # the mode's filter needs whole columns
@@ -452,7 +465,7 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         if self.has("relaxation"):
             taus = [nonlinear[f"tau{k}"] for k in range(1, self.n_relaxation + 1)]
             kept = at_rows and _increasing(rows)
-            R = self._relaxation_columns(u, dt, taus, at=rows if kept else None)
+            R = self._relaxation_columns(u, dt, taus, at=rows if kept else None, cache=relaxation_cache)
             for j, w in enumerate(self._relaxation_weight_names()):
                 cols[w] = R[j][rows] if at_rows and not kept else R[j]
         if self.has("creep"):

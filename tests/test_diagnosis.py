@@ -21,7 +21,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
@@ -114,6 +114,23 @@ def test_first_order_bank_kept_at_rows_is_the_whole_bank_there(taus, seed, rows)
     model = ExtendedModel("mrpim", ("relaxation",), n_relaxation=len(taus), relaxation_powers=[1, 2])
     whole = model._relaxation_columns(x, DT, taus)
     np.testing.assert_array_equal(model._relaxation_columns(x, DT, taus, at=rows), whole[:, rows])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.lists(st.sampled_from([0.003, 0.02, 0.05, 0.4]), min_size=1, max_size=3, unique=True),
+                min_size=1, max_size=5), st.integers(0, 2**31 - 1))
+def test_relaxation_columns_from_the_cache_are_those_filtered_afresh(calls, seed):
+    """Time constants seen before come from the caller's cache, new ones are filtered: the same rows either
+    way, over a sequence of calls that repeat, reorder and mix them."""
+    rng = np.random.default_rng(seed)
+    x = np.cumsum(rng.normal(size=300)) + 1.0
+    rows = np.sort(rng.choice(300, 60, replace=False)).astype(np.int64)
+    cache = {}
+    for taus in calls:
+        model = ExtendedModel("mrpim", ("relaxation",), n_relaxation=len(taus), relaxation_powers=[1, 2])
+        fresh = model._relaxation_columns(x, DT, taus, at=rows)
+        np.testing.assert_array_equal(model._relaxation_columns(x, DT, taus, at=rows, cache=cache), fresh)
+    assert set(cache) == {(t, p) for taus in calls for t in taus for p in (1, 2)}
 
 
 def test_first_order_by_hand():

@@ -52,7 +52,7 @@ def _label(rec) -> str:
 def figure_residual_time(diag, path: Path) -> None:
     plt = pyplot()
     recs = diag.before
-    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False)
+    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False, layout="constrained")
     after = {rr.file: rr for rr in diag.after}
     for ax, rr in zip(axes[:, 0], recs):
         r = rr.record
@@ -69,14 +69,14 @@ def figure_residual_time(diag, path: Path) -> None:
     axes[0, 0].set_title(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
                          "records; shaded: scored window", fontsize=9)
     axes[-1, 0].set_xlabel("time (s)")
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def _panels(plt, n: int):
     """A figure with one small panel per record, four to a row."""
     cols = min(4, n)
     rows = int(math.ceil(n / cols))
-    return plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False)
+    return plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
 
 
 def figure_residual_input(diag, path: Path) -> None:
@@ -97,7 +97,7 @@ def figure_residual_input(diag, path: Path) -> None:
     axes[0, 0].legend(fontsize=6)
     fig.supxlabel(f"input ({diag.dataset.input_unit or 'input units'})", fontsize=8)
     fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def figure_residual_phase(diag, path: Path) -> None:
@@ -122,12 +122,12 @@ def figure_residual_phase(diag, path: Path) -> None:
     axes[0, 0].legend(fontsize=6)
     fig.supxlabel("phase within the drive period (0: input minimum)", fontsize=8)
     fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def figure_spectrum(diag, path: Path) -> None:
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
     ax = axes[0]
     for i, rr in enumerate(diag.before):
         f, a = periodogram(rr.residual, rr.record.dt)
@@ -153,12 +153,12 @@ def figure_spectrum(diag, path: Path) -> None:
     ax.set_ylabel("pooled coherent amplitude")
     ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
                  fontsize=9)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def figure_error_vs_frequency(diag, path: Path) -> None:
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     series = [("before", diag.before, "0.3", "o")]
     if diag.base_whole:
         series.append(("base refit, whole records", diag.base_whole, "C0", "s"))
@@ -180,12 +180,12 @@ def figure_error_vs_frequency(diag, path: Path) -> None:
         ax.set_ylabel("e_rms (% of measured peak-to-peak)")
         ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
     axes[0].legend(fontsize=7)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def figure_whiteness(diag, path: Path) -> None:
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.8))
+    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
         rho = autocorrelation(rr.residual, LAGS)
@@ -198,13 +198,13 @@ def figure_whiteness(diag, path: Path) -> None:
     ax.set_ylabel("autocorrelation of the residual")
     ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
     ax.legend(fontsize=6)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 def figure_candidates(diag, path: Path) -> None:
     plt = pyplot()
     cands = sorted(diag.candidates, key=lambda c: -c.heldout_gain)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), layout="constrained")
     names = [c.cause for c in cands]
     colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
     axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)
@@ -216,7 +216,7 @@ def figure_candidates(diag, path: Path) -> None:
     axes[1].set_xlabel("z (signed-rank test over blocks)")
     axes[1].invert_yaxis()
     fig.suptitle("candidate causes (red: named)", fontsize=9)
-    save_figure(fig, path)
+    save_figure(fig, path, tight=False)
 
 
 FIGURES = {

@@ -51,6 +51,7 @@ COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of an
 LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
 LOCKED_TURN = math.pi / 16  # ... or turn in phase from drive period to period by more than this (rad per period)
 LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
+RELAXATION_CACHE = 512  # filtered input rows kept per record (10,000 rows each: 40 MB)
 
 
 @dataclass
@@ -110,6 +111,7 @@ class Screen:
             n = r.t.size
             rows = np.arange(n) if n <= max_rows else np.sort(rng.choice(n, max_rows, replace=False))
             self.parts.append(_Part(r, rows, r.y[rows].copy()))
+        self._relaxation_cache = [{} for _ in self.parts]  # {(tau, power): filtered input at the rows} per record
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
         # the causes' time scale
@@ -220,8 +222,12 @@ class Screen:
         blocks = []
         for m, p in enumerate(self.parts):
             r = p.record
-            cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows)
-            out = np.empty((p.rows.size, len(names)))
+            cache = self._relaxation_cache[m]
+            if len(cache) > RELAXATION_CACHE:
+                cache.clear()
+            cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows,
+                                          relaxation_cache=cache)
+            out = np.empty((p.rows.size, len(names)), order="F")  # filled by column; QR takes Fortran order
             for j, c in enumerate(names):
                 if c in ("interference_sin", "interference_cos"):  # on the rows only
                     phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
