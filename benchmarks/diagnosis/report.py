@@ -69,7 +69,7 @@ def figure_residual_time(diag, path: Path) -> None:
     axes[0, 0].set_title(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
                          "records; shaded: scored window", fontsize=9)
     axes[-1, 0].set_xlabel("time (s)")
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def _panels(plt, n: int):
@@ -97,7 +97,7 @@ def figure_residual_input(diag, path: Path) -> None:
     axes[0, 0].legend(fontsize=6)
     fig.supxlabel(f"input ({diag.dataset.input_unit or 'input units'})", fontsize=8)
     fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def figure_residual_phase(diag, path: Path) -> None:
@@ -122,7 +122,7 @@ def figure_residual_phase(diag, path: Path) -> None:
     axes[0, 0].legend(fontsize=6)
     fig.supxlabel("phase within the drive period (0: input minimum)", fontsize=8)
     fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def figure_spectrum(diag, path: Path) -> None:
@@ -153,7 +153,7 @@ def figure_spectrum(diag, path: Path) -> None:
     ax.set_ylabel("pooled coherent amplitude")
     ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
                  fontsize=9)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def figure_error_vs_frequency(diag, path: Path) -> None:
@@ -180,7 +180,7 @@ def figure_error_vs_frequency(diag, path: Path) -> None:
         ax.set_ylabel("e_rms (% of measured peak-to-peak)")
         ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
     axes[0].legend(fontsize=7)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def figure_whiteness(diag, path: Path) -> None:
@@ -198,7 +198,7 @@ def figure_whiteness(diag, path: Path) -> None:
     ax.set_ylabel("autocorrelation of the residual")
     ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
     ax.legend(fontsize=6)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 def figure_candidates(diag, path: Path) -> None:
@@ -216,7 +216,7 @@ def figure_candidates(diag, path: Path) -> None:
     axes[1].set_xlabel("z (signed-rank test over blocks)")
     axes[1].invert_yaxis()
     fig.suptitle("candidate causes (red: named)", fontsize=9)
-    save_figure(fig, path, tight=False)
+    save_figure(fig, path)
 
 
 FIGURES = {

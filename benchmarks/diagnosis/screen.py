@@ -51,7 +51,7 @@ COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of an
 LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
 LOCKED_TURN = math.pi / 16  # ... or turn in phase from drive period to period by more than this (rad per period)
 LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
-RELAXATION_CACHE = 512  # filtered input rows kept per record (10,000 rows each: 40 MB)
+RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
 
 
 @dataclass
