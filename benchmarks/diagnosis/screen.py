@@ -54,6 +54,14 @@ LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
 RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
 
 
+def lag_shared(z: Mapping[str, float]) -> dict:
+    """A mode's start on top of a kept delay, the delay shortened by the mode's low-frequency lag
+    (2 zeta / omega_n = zeta / (pi f_n)): a delay fitted first has taken up that lag, so with it held a mode
+    at its true values adds the lag twice and predicts worse than none."""
+    lag = z["damping_ratio"] / (math.pi * z["natural_frequency"])
+    return {**z, "delay": max(float(z["delay"]) - lag, 0.0)}
+
+
 @dataclass
 class _Part:
     """One identification record in the screen: its row subset and the base's columns."""
@@ -474,6 +482,8 @@ class Screen:
         start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
         if search:
             starts = self._starts(model, start, [n for n in model.nonlinear_names if n not in primary.params])
+            if other.cause == "resonance" and "delay" in primary.params:
+                starts += [lag_shared(q) for q in starts[1:]]
             rss = [self.evaluate(model, z)[0] for z in starts]
             if min(rss) > (1.0 - MIN_EXPLAINED) * primary.rss:
                 return None

@@ -200,6 +200,14 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
     return chain
 
 
+def _at_fastest_creep(screen, c: Candidate) -> bool:
+    """Creep whose only flaw is its time scale at the fastest its meaning allows (``CREEP_PERIODS`` drive
+    periods). Standing for a relaxation slower than every drive period, that is what it replaces: a drift
+    this fast, whose time scale these records do not identify."""
+    return (c.cause == "creep" and at_bound(screen, c) in ([], ["creep_time"])
+            and c.estimates["time_scale_s"] <= 1.02 * screen.creep_min)
+
+
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
     """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the
     secondary causes alone (a composite in the order kept, each searched on top of the ones before) predict
@@ -225,7 +233,10 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     together = None  # all of them, scored once a replacement is worth comparing
     for replacement in options:
         chain = _chain(screen, own, replacement)
-        if chain is None or any(c.limit or at_bound(screen, c) for c in chain):
+        standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
+        if chain is None or any((c.limit or at_bound(screen, c)) and not (standing_in and c is chain[-1]
+                                                                         and _at_fastest_creep(screen, c))
+                                for c in chain):
             continue
         if together is None:
             together = refit_errors(screen, folds, result, diag.also[-1])
@@ -244,9 +255,15 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     diag.dropped = old
     diag.also = also
     v.chosen, v.cause = first, first.cause
-    slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
-            "every drive period)," if len(replacement) > len(causes) else "")
-    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records as well "
-                f"without it (with it better by z = {without['z']:.1f} < {Z_SAME:g}): {old.cause} is not needed, and "
+    slow = ""
+    if standing_in:
+        pinned = (f"; creep's time scale sits at its limit of {screen.creep_min:.3g} s ({CREEP_PERIODS:g} drive "
+                  "periods): not identified" if chain[-1].limit else "")
+        slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
+                f"every drive period{pinned}),")
+    how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
+           f"as well without it (with it better by z = {without['z']:.1f} < {Z_SAME:g})")
+    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
+                f"{old.cause} is not needed, and "
                 f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "
                 f"{old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")
