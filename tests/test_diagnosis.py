@@ -1009,6 +1009,10 @@ def test_creep_standing_for_a_slow_relaxation_may_sit_at_its_fastest_time_scale(
     assert d.cause == "delay" and [c.cause for c in d.also] == ["creep"], d.verdict.reason
     assert parameter_errors(truth, "delay", d.parameters)["delay_s"] <= 0.25
     assert d.also[0].limit and "not identified" in d.verdict.reason
+    assert d.to_json()["also_not_identified"] == {"creep": d.also[0].limit}
+    from hysbench.benchmarks.diagnosis.report import verdict_lines
+
+    assert any(line.startswith("also: creep (not identified: time scale at the limit") for line in verdict_lines(d))
 
 
 def test_a_mode_inside_a_broadband_drive_is_searched_and_named():

@@ -267,7 +267,8 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
     also = [c.cause + (f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
-                       if c.heldout.get("as_good") else "") for c in d.also]
+                       if c.heldout.get("as_good") else "") + (f" (not identified: {c.limit})" if c.limit else "")
+            for c in d.also]
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
                  f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
