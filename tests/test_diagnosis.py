@@ -1012,7 +1012,20 @@ def test_creep_standing_for_a_slow_relaxation_may_sit_at_its_fastest_time_scale(
     assert d.to_json()["also_not_identified"] == {"creep": d.also[0].limit}
     from hysbench.benchmarks.diagnosis.report import verdict_lines
 
-    assert any(line.startswith("also: creep (not identified: time scale at the limit") for line in verdict_lines(d))
+    lines = verdict_lines(d)
+    assert any(line.startswith("also: creep (not identified: time scale at the limit") for line in lines)
+    pinned = any(n.startswith("parameters at their bounds") for n in d.base_fit.notes)
+    assert any(line.startswith("caution: the base model's fit has parameters at their bounds") for line in lines) == pinned
+
+
+def test_a_base_fit_pinned_at_a_bound_is_a_caution_on_the_verdict():
+    from hysbench.benchmarks.diagnosis.report import base_bound_caution
+
+    assert base_bound_caution(["varpro: linear solve regularised", "parameters at their bounds: gamma (upper 0.0197), "
+                               "lambda (lower -0.0197); the optimum may lie beyond (option bounds widens them)"]) == (
+        "the base model's fit has parameters at their bounds: gamma (upper 0.0197), lambda (lower -0.0197): part of "
+        "the misfit the diagnosis explains may be that bound's, not the actuator's")
+    assert base_bound_caution(["varpro: linear solve regularised"]) == ""
 
 
 def test_a_mode_inside_a_broadband_drive_is_searched_and_named():

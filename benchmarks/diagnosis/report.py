@@ -231,6 +231,15 @@ FIGURES = {
 
 
 # --- markdown ---------------------------------------------------------------------
+def base_bound_caution(notes) -> str:
+    """What a base fit pinned at its search bounds means for the verdict ("" if none is)."""
+    pinned = [n.split(";")[0] for n in notes if n.startswith("parameters at their bounds")]
+    if not pinned:
+        return ""
+    return (f"the base model's fit has {pinned[0]}: part of the misfit the diagnosis explains may be that "
+            "bound's, not the actuator's")
+
+
 def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[str]:
     """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its
     parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
@@ -284,6 +293,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
     if d.warning:
         lines.append(strong("warning:") + f" {d.warning}.")
+    caution = base_bound_caution(d.base_fit.notes)
+    if caution:
+        lines.append(strong("caution:") + f" {caution}")
     return lines
 
 
@@ -369,6 +381,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]
     t = d.timings
     lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()) + ".", ""]
+    if d.base_fit.notes:
+        lines += ["Notes of the base model's fit:", ""] + [f"* {n}" for n in d.base_fit.notes] + [""]
     if d.extended_fit and d.extended_fit.notes:
         lines += ["Notes of the extended fit:", ""] + [f"* {n}" for n in d.extended_fit.notes] + [""]
     return "\n".join(lines)
