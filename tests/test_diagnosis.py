@@ -996,24 +996,26 @@ def test_a_mode_under_the_virtual_deas_own_lag_is_found_on_top_of_the_delay_kept
     assert max(errors.values()) <= 0.25, errors
 
 
-def test_creep_standing_for_a_slow_relaxation_may_sit_at_its_fastest_time_scale():
-    """A 24.7 ms delay and a logarithmic creep (t_c 9.5 s) planted on the Table 2 MRPIM under the protocol's
-    sines (balanced plan of seed 31, case 177). A two-time-constant relaxation (29 s slowest) is named with the
-    delay on top; creep on top of both sits at its fastest time scale (two drive periods: a log creep over
-    20 s records). Delay + creep, creep standing for the relaxation's slow part, predict the held-out records
-    far better than relaxation + delay: the relaxation is dropped, the delay named within 25 %, creep kept
-    under "also" with its time scale reported as not identified."""
-    ds, truth = planted_case(("delay", "creep"), "mrpim", "sines", 3100177)
+@pytest.mark.parametrize("seed, end", [(3100177, "its limit"), (3200177, "the end of its search")])
+def test_creep_standing_for_a_slow_relaxation_may_have_its_time_scale_at_an_end(seed, end):
+    """A delay and a logarithmic creep planted on the Table 2 MRPIM under the protocol's sines (balanced plans of
+    seeds 31 and 32, case 177: 24.7 ms and t_c 9.5 s; 8.8 ms and t_c 49 s). A two-time-constant relaxation (29 s
+    and 276 s slowest) is named with the delay on top. Creep on top of the delay then has its time scale at
+    an end: the fastest its meaning allows (two drive periods: a log creep over 20 s records) or the slowest
+    searched (a straight drift). Delay + creep, creep standing for the relaxation's slow part, predict the
+    held-out records as well (seed 31: far better): the relaxation is dropped, the delay named within 25 %,
+    creep kept under "also", its time scale reported as not identified."""
+    from hysbench.benchmarks.diagnosis.report import verdict_lines
+
+    ds, truth = planted_case(("delay", "creep"), "mrpim", "sines", seed)
     d = diagnose(ds, seed=0, experiments=False)
     assert d.dropped is not None and d.dropped.cause == "relaxation", d.verdict.reason
     assert d.cause == "delay" and [c.cause for c in d.also] == ["creep"], d.verdict.reason
     assert parameter_errors(truth, "delay", d.parameters)["delay_s"] <= 0.25
-    assert d.also[0].limit and "not identified" in d.verdict.reason
-    assert d.to_json()["also_not_identified"] == {"creep": d.also[0].limit}
-    from hysbench.benchmarks.diagnosis.report import verdict_lines
-
+    assert f"creep's time scale sits at {end}" in d.verdict.reason and "not identified" in d.verdict.reason
+    assert list(d.to_json()["also_not_identified"]) == ["creep"]
     lines = verdict_lines(d)
-    assert any(line.startswith("also: creep (not identified: time scale at the limit") for line in lines)
+    assert any(line.startswith("also: creep (not identified: ") for line in lines)
     pinned = any(n.startswith("parameters at their bounds") for n in d.base_fit.notes)
     assert any(line.startswith("caution: the base model's fit has parameters at their bounds") for line in lines) == pinned
 

@@ -58,7 +58,7 @@ from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .secondary import drop_redundant_primary, secondary_causes
+from .secondary import drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
                         decide)
@@ -239,7 +239,7 @@ class Diagnosis:
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
             "also_as_good": {c.cause: c.heldout.get("as_good", []) for c in self.also if c.heldout.get("as_good")},
-            "also_not_identified": {c.cause: c.limit for c in self.also if c.limit},
+            "also_not_identified": {c.cause: not_identified(c) for c in self.also if not_identified(c)},
             "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))

@@ -11,6 +11,7 @@ from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
+from .secondary import not_identified
 
 MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
 
@@ -276,7 +277,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
     also = [c.cause + (f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
-                       if c.heldout.get("as_good") else "") + (f" (not identified: {c.limit})" if c.limit else "")
+                       if c.heldout.get("as_good") else "") + (f" (not identified: {not_identified(c)})" if not_identified(c) else "")
             for c in d.also]
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "

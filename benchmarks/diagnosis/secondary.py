@@ -200,12 +200,20 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
     return chain
 
 
-def _at_fastest_creep(screen, c: Candidate) -> bool:
-    """Creep whose only flaw is its time scale at the fastest its meaning allows (``CREEP_PERIODS`` drive
-    periods). Standing for a relaxation slower than every drive period, that is what it replaces: a drift
-    this fast, whose time scale these records do not identify."""
-    return (c.cause == "creep" and at_bound(screen, c) in ([], ["creep_time"])
-            and c.estimates["time_scale_s"] <= 1.02 * screen.creep_min)
+def _creep_time_unidentified(screen, c: Candidate) -> bool:
+    """Creep whose only flaw is its time scale at an end: the fastest its meaning allows (``CREEP_PERIODS``
+    drive periods) or the slowest searched (a straight drift over these records). Standing for a relaxation
+    slower than every drive period, whose own time constant these records do not pin down either, it is what
+    that relaxation's slow part is: a drift since the start, its time scale not identified."""
+    return c.cause == "creep" and set(at_bound(screen, c)) <= {"creep_time"}
+
+
+def not_identified(c: Candidate) -> str:
+    """Why a kept cause's parameters are not identified ("" if they are): out of its meaning, or at a bound."""
+    if c.limit:
+        return c.limit
+    pinned = c.heldout.get("at_bound") or []
+    return f"{', '.join(pinned)} at its search bound" if pinned else ""
 
 
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
@@ -216,7 +224,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     others stay under "also". A named relaxation whose slowest time constant is longer than the longest drive
     period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes alone do not do,
     they are tried with creep after them, creep standing for that slow part (the weaker claim, as in
-    ``selection.decide``; it may sit at its fastest time scale, ``_at_fastest_creep``). Every score here with
+    ``selection.decide``; its time scale may sit at an end, ``_creep_time_unidentified``). Every score here with
     the nonlinear parameters refitted per fold, since it names a new cause. Only for a clean verdict (no
     ambiguity, no unexplained remainder) of causes that compose (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
@@ -235,7 +243,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         chain = _chain(screen, own, replacement)
         standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
         if chain is None or any((c.limit or at_bound(screen, c)) and not (standing_in and c is chain[-1]
-                                                                         and _at_fastest_creep(screen, c))
+                                                                         and _creep_time_unidentified(screen, c))
                                 for c in chain):
             continue
         if together is None:
@@ -257,8 +265,9 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     v.chosen, v.cause = first, first.cause
     slow = ""
     if standing_in:
-        pinned = (f"; creep's time scale sits at its limit of {screen.creep_min:.3g} s ({CREEP_PERIODS:g} drive "
-                  "periods): not identified" if chain[-1].limit else "")
+        creep_s = chain[-1].estimates["time_scale_s"]
+        pinned = (f"; creep's time scale sits at {'its limit' if chain[-1].limit else 'the end of its search'}, "
+                  f"{creep_s:.3g} s: not identified" if not_identified(chain[-1]) else "")
         slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
                 f"every drive period{pinned}),")
     how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
