@@ -239,7 +239,7 @@ class Diagnosis:
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
             "also_as_good": {c.cause: c.heldout.get("as_good", []) for c in self.also if c.heldout.get("as_good")},
-            "also_not_identified": {c.cause: not_identified(c) for c in self.also if not_identified(c)},
+            "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
             "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))

@@ -276,9 +276,12 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                          + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
-    also = [c.cause + (f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
-                       if c.heldout.get("as_good") else "") + (f" (not identified: {not_identified(c)})" if not_identified(c) else "")
-            for c in d.also]
+    also = []
+    for c in d.also:
+        text, why = c.cause, not_identified(c)
+        if c.heldout.get("as_good"):
+            text += f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
+        also.append(text + (f" (not identified: {why})" if why else ""))
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
                  f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")

@@ -242,9 +242,13 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     for replacement in options:
         chain = _chain(screen, own, replacement)
         standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
-        if chain is None or any((c.limit or at_bound(screen, c)) and not (standing_in and c is chain[-1]
-                                                                         and _creep_time_unidentified(screen, c))
-                                for c in chain):
+
+        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep standing in: see above)
+            if standing_in and c is chain[-1] and _creep_time_unidentified(screen, c):
+                return False
+            return bool(c.limit or at_bound(screen, c))
+
+        if chain is None or any(flawed(c) for c in chain):
             continue
         if together is None:
             together = refit_errors(screen, folds, result, diag.also[-1])
