@@ -61,18 +61,33 @@ def _onto(x: np.ndarray, low: float, high: float) -> np.ndarray:
 def drive_band(u: np.ndarray, dt: float, tail: float = DRIVE_BAND_TAIL) -> tuple[float, float] | None:
     """(f_lo, f_hi): the lowest and highest frequencies (Hz) of a drive, each cutting off ``tail`` of its
     power (periodogram of u minus its mean), between the record's first bin 1 / (n dt) and Nyquist;
-    None for a constant drive."""
+    None for a constant drive.
+
+    The periodogram sees the record as periodic. A record whose end does not join its start (the step
+    from its last sample to its first is larger than every step inside it) leaks power from that jump
+    far above its band, which would overstate f_hi and so tighten every bound scaled by the drive's
+    shortest period; f_hi is read after the line through the record's ends is taken out. That line adds
+    power near the record's first bins, so f_lo is read from the record as it is (there leakage can only
+    move f_lo down, which widens the band)."""
     x = np.asarray(u, dtype=float)
     if x.size < 4:
         return None
-    power = np.abs(np.fft.rfft(x - x.mean()))[1:] ** 2
-    total = float(power.sum())
-    if not total > 0:
-        return None
     f = np.fft.rfftfreq(x.size, dt)[1:]
-    share = np.cumsum(power) / total
-    lo = float(f[int(np.searchsorted(share, tail))])
-    hi = float(f[min(int(np.searchsorted(share, 1.0 - tail)), f.size - 1)])
+
+    def share(v: np.ndarray) -> np.ndarray | None:
+        power = np.abs(np.fft.rfft(v - v.mean()))[1:] ** 2
+        total = float(power.sum())
+        return np.cumsum(power) / total if total > 0 else None
+
+    as_is = share(x)
+    if as_is is None:
+        return None
+    joined = as_is
+    if abs(x[0] - x[-1]) > np.abs(np.diff(x)).max():
+        joined = share(x - np.linspace(x[0], x[-1], x.size))
+        joined = as_is if joined is None else joined
+    lo = float(f[int(np.searchsorted(as_is, tail))])
+    hi = float(f[min(int(np.searchsorted(joined, 1.0 - tail)), f.size - 1)])
     return lo, max(hi, lo)
 
 
