@@ -241,6 +241,12 @@ def base_bound_caution(notes) -> str:
             "bound's, not the actuator's")
 
 
+def _bound_cell(heldout: dict) -> str:
+    """The candidate table's bound column: parameters at a bound, and open-ended ones (``selection.open_ended``)."""
+    names = [*(heldout.get("at_bound") or []), *(f"{n} (open-ended)" for n in heldout.get("open_ended") or [])]
+    return ", ".join(names) or "-"
+
+
 def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[str]:
     """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its
     parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
@@ -252,7 +258,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if units[k] else "")
                                                 for k, v in d.parameters.items() if k in units))
         if d.uncertainty:
+            open_ = set(d.chosen.heldout.get("open_ended") or [])  # its folds at the bound agree trivially
             lines.append("uncertainty (jackknife over the held-out folds): " + ", ".join(
+                f"{k}: not identified" if k in open_ else
                 f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"
                 for k, v in d.uncertainty.items()))
         how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
@@ -335,7 +343,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         h = c.heldout
         lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {100 * c.heldout_gain:.3f} % | "
                      f"{_fmt(h.get('z'), 3)} | {h.get('folds_improved')}/{h.get('n_folds')} | "
-                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {', '.join(h.get('at_bound') or []) or '-'} | "
+                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {_bound_cell(h)} | "
                      + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items()) + " |")
     if d.secondary_tried:
         lines += ["", "Secondary causes tried on top of the named one (held-out against the named one alone):", "",

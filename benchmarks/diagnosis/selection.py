@@ -277,8 +277,23 @@ def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
     return out
 
 
+OPEN_ENDED = ("creep_time",)  # parameters whose upper search bound is a limit within the cause's meaning
+OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
+
+
+def open_ended(screen, c: Candidate) -> list[str]:
+    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning: creep's
+    time scale longer than these records show (1 - exp(-t / T) -> t / T, a straight drift since the start).
+    The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
+    out = []
+    for n in own_nonlinear(screen, c):
+        if n in OPEN_ENDED and math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < AT_BOUND:
+            out.append(n)
+    return out
+
+
 def at_bound(screen, c: Candidate) -> list[str]:
-    """The candidate's own nonlinear parameters at a search bound."""
+    """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
     out = []
     if c.cause in ("saturation", "interference"):
         return out
@@ -289,7 +304,7 @@ def at_bound(screen, c: Candidate) -> list[str]:
             if v >= hi * (1 - AT_BOUND):
                 out.append(n)
         elif is_log(n) and lo > 0:
-            if math.log(v / lo) < AT_BOUND or math.log(hi / v) < AT_BOUND:
+            if math.log(v / lo) < AT_BOUND or (math.log(hi / v) < AT_BOUND and n not in OPEN_ENDED):
                 out.append(n)
         elif v <= lo + AT_BOUND * (hi - lo) or v >= hi - AT_BOUND * (hi - lo):
             out.append(n)
@@ -394,6 +409,8 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     ok = [c for c in candidates if passes(c)]
     not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
                       if c.heldout.get("at_bound") and c.heldout_gain > 0]  # would predict something, unidentified
+    not_identified += [f"{c.cause}: {', '.join(c.heldout['open_ended'])} ({OPEN_ENDED_NOTE})" for c in candidates
+                       if c.heldout.get("open_ended") and not c.heldout.get("at_bound") and c.heldout_gain > 0]
     evidence = [c for c in candidates if (significant(c) or c.heldout_gain >= STRONG_GAIN)  # structure, partly predicted
                 and not carried_by_one_record(folds, e_null, errors[id(c)])]
     if not ok:
