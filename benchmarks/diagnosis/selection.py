@@ -411,6 +411,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                       if c.heldout.get("at_bound") and c.heldout_gain > 0]  # would predict something, unidentified
     not_identified += [f"{c.cause}: {', '.join(c.heldout['open_ended'])} ({OPEN_ENDED_NOTE})" for c in candidates
                        if c.heldout.get("open_ended") and not c.heldout.get("at_bound") and c.heldout_gain > 0]
+    not_identified = list(dict.fromkeys(not_identified))  # relaxation variants may repeat a line
     evidence = [c for c in candidates if (significant(c) or c.heldout_gain >= STRONG_GAIN)  # structure, partly predicted
                 and not carried_by_one_record(folds, e_null, errors[id(c)])]
     if not ok:
