@@ -1037,6 +1037,7 @@ def test_creep_whose_time_scale_runs_to_its_upper_bound_is_a_straight_drift_name
     assert max(parameter_errors(truth, "resonance", d.also[0].estimates).values()) <= 0.25
     lines = verdict_lines(d)
     assert "creep_time: not identified" in next(line for line in lines if line.startswith("uncertainty"))
+    assert "s (not identified)" in next(line for line in lines if line.startswith("parameters:"))
     assert any(n.startswith("creep: creep_time (longer than these records show") for n in d.to_json()["not_identified"])
 
 

@@ -255,7 +255,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "damping_ratio": "", "time_scale_s": "s",
              "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "side": ""}
     if d.chosen is not None:  # the named parameters (per-record phases and diagnostics are in the JSON)
+        unidentified = {"time_scale_s"} if "creep_time" in (d.chosen.heldout.get("open_ended") or []) else set()
         lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if units[k] else "")
+                                                + (" (not identified)" if k in unidentified else "")
                                                 for k, v in d.parameters.items() if k in units))
         if d.uncertainty:
             open_ = set(d.chosen.heldout.get("open_ended") or [])  # its folds at the bound agree trivially
