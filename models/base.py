@@ -113,7 +113,10 @@ class HysteresisModel:
 
     @property
     def param_names(self) -> tuple[str, ...]:
-        return tuple(p.name for p in self.parameters())
+        names = self.__dict__.get("_param_names")  # cached like ``parameters``: hyperparameters are fixed
+        if names is None:
+            names = self.__dict__["_param_names"] = tuple(p.name for p in self.parameters())
+        return names
 
     @property
     def n_params(self) -> int:

@@ -96,11 +96,14 @@ class PlayOperatorModel(StepInvertible, HysteresisModel):
         return np.abs(du), ddu
 
     def _column_indices(self) -> dict[str, list[int]]:
-        index = {n: i for i, n in enumerate(self.param_names)}
-        return {
-            "weights": [index[f"a{i}"] for i in range(1, self.n_operators + 1)],
-            "poly": [index[f"p{j}"] for j in range(1, self.poly_order + 1)],
-        }
+        cached = self.__dict__.get("_column_index_cache")
+        if cached is None:
+            index = {n: i for i, n in enumerate(self.param_names)}
+            cached = self.__dict__["_column_index_cache"] = {
+                "weights": [index[f"a{i}"] for i in range(1, self.n_operators + 1)],
+                "poly": [index[f"p{j}"] for j in range(1, self.poly_order + 1)],
+            }
+        return cached
 
     # --- evaluation ------------------------------------------------------
     def _batch_arguments(self, u, dt: float, param_sets, input_range):
