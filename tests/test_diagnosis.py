@@ -574,16 +574,20 @@ def _draw_above(kinds, limit, base="mrpim", drive="sines", start=0):
     raise AssertionError(f"no draw of {kinds} above {limit} %")
 
 
-def test_the_planted_mrpim_plant_is_one_system_that_varpro_recovers_on_multisines():
+@pytest.mark.parametrize("seed", [7, 3200052])
+def test_the_planted_mrpim_plant_is_one_system_that_varpro_recovers_on_multisines(seed):
     """Every record of the Table 2 MRPIM plant has the same thresholds (not each record's own peak, which a
-    multisine does not always reach): varpro on the three identification multisines then predicts the two
-    validation multisines to the noise. (Each record's own peak left 0.35 and 3.1 mm rms here, noise 0.01.)"""
-    ds, truth = planted_case(("null-white",), "mrpim", "multisines", 7)
+    multisine does not always reach), over the identification drives' range -- the range eq. 8 gives a model
+    fitted to them: varpro on the three identification multisines then fits them and predicts the two
+    validation multisines to the noise. (Each record's own peak left 0.35 and 3.1 mm rms on seed 7, noise
+    0.01; the design range 0.5-2.5 kV, above every identification peak of seed 32's case 52, 2.41-2.49 kV,
+    left 1.15 x the noise, a structure a sub-sample delay partly explained: that null was confirmed.)"""
+    ds, truth = planted_case(("null-white",), "mrpim", "multisines", seed)
     peaks = [float(r.u.max()) for r in ds.records]
-    assert max(peaks) - min(peaks) > 0.1  # the records differ in peak: the case that went wrong
+    assert max(peaks) - min(peaks) > 0.05  # the records differ in peak: the case that went wrong
     fit = identify(get_model("mrpim"), ds, method="varpro", seed=0)
-    for r in ds.validation:
-        assert np.sqrt(np.mean((r.y - fit.predict(r)) ** 2)) < 1.5 * truth["noise_sd"], r.file
+    for r in ds.records:
+        assert np.sqrt(np.mean((r.y - fit.predict(r)) ** 2)) < 1.05 * truth["noise_sd"], r.file
 
 
 @pytest.mark.parametrize("cause", [c for c in CAUSES if c not in STRONG])
