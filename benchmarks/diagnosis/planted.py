@@ -29,6 +29,10 @@ dead zone          y -> y_mid + sign(y - y_mid) max(|y - y_mid| - w, 0) (a senso
                    w p2p x uniform [0.02, 0.08]
 =================  ===========================================================================
 
+The Table 2 MRPIM plant has one set of thresholds for every record, over the identification drives'
+input range (eq. 8 for a model fitted to them; the protocol's sines and the triangles span 0.5-2.5 kV,
+a multisine's fade-in may lower its peak).
+
 p2p: the 0.5 - 99.5 % quantile range of the identification outputs (MRPIM's q V''
 term spikes at a triangle's corners). Noise: white, sd p2p x uniform [0.001, 0.003]; the nulls also with AR(1)
 noise, phi uniform [0.9, 0.99], the same marginal sd. ``strength``: the rms
