@@ -241,6 +241,9 @@ def base_bound_caution(notes) -> str:
             "bound's, not the actuator's")
 
 
+REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters
+
+
 def _bound_cell(heldout: dict) -> str:
     """The candidate table's bound column: parameters at a bound, and open-ended ones (``selection.open_ended``)."""
     names = [*(heldout.get("at_bound") or []), *(f"{n} (open-ended)" for n in heldout.get("open_ended") or [])]
@@ -255,12 +258,12 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "damping_ratio": "", "time_scale_s": "s",
              "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "side": ""}
     if d.chosen is not None:  # the named parameters (per-record phases and diagnostics are in the JSON)
-        unidentified = {"time_scale_s"} if "creep_time" in (d.chosen.heldout.get("open_ended") or []) else set()
+        open_ = set(d.chosen.heldout.get("open_ended") or [])  # its folds at the bound agree trivially
+        unidentified = {REPORTED_AS.get(n, n) for n in open_}
         lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if units[k] else "")
                                                 + (" (not identified)" if k in unidentified else "")
                                                 for k, v in d.parameters.items() if k in units))
         if d.uncertainty:
-            open_ = set(d.chosen.heldout.get("open_ended") or [])  # its folds at the bound agree trivially
             lines.append("uncertainty (jackknife over the held-out folds): " + ", ".join(
                 f"{k}: not identified" if k in open_ else
                 f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"

@@ -21,7 +21,7 @@ from .relaxation import fit_relaxation
 from .residuals import RecordResidual
 from .resonance import fit_resonance
 from .saturation import fit_saturation, joint_saturation
-from .selection import (Folds, at_bound, fold_uncertainty, heldout_errors, heldout_null, line_worth_refit, open_ended,
+from .selection import (Folds, bound_flags, fold_uncertainty, heldout_errors, heldout_null, line_worth_refit,
                         passes, promising, score)
 
 
@@ -30,8 +30,7 @@ def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, re
     nonlinear parameters are refitted per fold, and their spread is its uncertainty."""
     c.train_residuals = []
     e, fold_est = heldout_errors(screen, folds, c, refit=refit, train_residuals=c.train_residuals)
-    c.heldout = {**score(folds, e_null, e), "at_bound": at_bound(screen, c), "open_ended": open_ended(screen, c),
-                 "refit_per_fold": refit}
+    c.heldout = {**score(folds, e_null, e), **bound_flags(screen, c), "refit_per_fold": refit}
     if refit and c.cause == "interference":
         c.heldout["same_line"] = same_line(screen, fold_est)
     if fold_est:

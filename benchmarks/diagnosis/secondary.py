@@ -24,8 +24,9 @@ from typing import Callable
 from .candidates import CREEP_PERIODS, Candidate
 from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
-from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, at_bound, evidence, fold_uncertainty,
-                        heldout_errors, heldout_null, open_ended, own_nonlinear, promising, score, share_of_misfit)
+from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, at_bound, bound_flags, evidence,
+                        fold_uncertainty, heldout_errors, heldout_null, own_nonlinear, promising, score,
+                        share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
 
@@ -111,16 +112,14 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
     part_train = []
     part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
     e = judged = kept.with_line(screen, folds, part_e, part_train)
-    comp.heldout = {**score(folds, kept.reference, e),
-                    "at_bound": at_bound(screen, comp) if kept.part is not None else [],
-                    "open_ended": open_ended(screen, comp) if kept.part is not None else [], "refit_per_fold": False}
+    flags = bound_flags(screen, comp) if kept.part is not None else {"at_bound": [], "open_ended": []}
+    comp.heldout = {**score(folds, kept.reference, e), **flags, "refit_per_fold": False}
     if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
         refit_train = []
         refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
                                            only=added_names(screen, kept.part, comp))
         judged = kept.with_line(screen, folds, refit_e, refit_train)
-        comp.heldout = {**score(folds, kept.reference, judged), "at_bound": comp.heldout["at_bound"],
-                        "open_ended": comp.heldout["open_ended"], "refit_per_fold": True}
+        comp.heldout = {**score(folds, kept.reference, judged), **flags, "refit_per_fold": True}
         comp.uncertainty = fold_uncertainty(screen, fold_est)
     return comp, comp, part_e, part_train, e, judged
 
@@ -266,8 +265,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
     also = []
     for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
-        c.heldout = {**score(folds, errors[i - 1], errors[i]), "at_bound": at_bound(screen, c),
-                     "open_ended": open_ended(screen, c), "refit_per_fold": True}
+        c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
         also.append(c)
     diag.dropped = old
     diag.also = also

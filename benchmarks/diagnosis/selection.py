@@ -292,6 +292,11 @@ def open_ended(screen, c: Candidate) -> list[str]:
     return out
 
 
+def bound_flags(screen, c: Candidate) -> dict:
+    """The held-out score's bound entries: ``at_bound`` and ``open_ended``."""
+    return {"at_bound": at_bound(screen, c), "open_ended": open_ended(screen, c)}
+
+
 def at_bound(screen, c: Candidate) -> list[str]:
     """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
     out = []
