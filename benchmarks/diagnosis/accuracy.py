@@ -136,6 +136,11 @@ def judge(truth: dict, verdict: str, also: list[str]) -> bool:
     return base == "virtual-dea" and verdict == "relaxation" and any(k in also for k in kinds)
 
 
+def _validation_gain(d) -> dict:
+    v = d.gain().get("validation") or {}
+    return {k: v[k] for k in ("explained_whole", "explained_window", "z_whole") if k in v}
+
+
 def run_case(case: dict) -> dict:
     ds, truth = planted_case(case["kinds"], case["base"], case["drive"], case["seed"])
     t0 = time.perf_counter()
@@ -147,7 +152,7 @@ def run_case(case: dict) -> dict:
     per_effect = effect_evidence(d, truth)
     return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
             "strength_pct": truth["strength_pct"], "effects": truth["effects"], "verdict": d.cause,
-            "confirmed": d.confirmed, "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
+            "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": _within(errors),

@@ -28,7 +28,8 @@
    identified on the identification records' whole length, every parameter
    free; the base model is refitted the same way; the validation records --
    untouched so far -- measure the gain of the one over the other
-   (confirmed if it lowers their residual). An interference is confirmed by
+   (confirmed if it lowers their residual by more than their noise explains,
+   ``residuals.gain_z``: correlated noise counted). An interference is confirmed by
    the same frequency and amplitude on the validation records, its phase
    fitted per record.
 """
@@ -41,6 +42,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from hysbench.data.dataset import Dataset, DatasetError, load_dataset
@@ -65,6 +67,7 @@ from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRU
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
+Z_CONFIRM = stats.norm.isf(0.05)  # the validation gain beyond the records' noise: one-sided 5 %
 
 
 class DiagnosisError(HysbenchError):
@@ -176,22 +179,24 @@ class Diagnosis:
     @property
     def confirmed(self) -> bool | None:
         """Whether the named extension lowers the validation residual against the base model refitted
-        on the same whole records (and, for an interference, shows the same amplitude there)."""
+        on the same whole records, on the windows and by more than the records' noise explains (z >=
+        ``Z_CONFIRM``); an interference (phase fitted per validation record) by the same amplitude there."""
         v = self.gain().get("validation")
         if not v:
             return None
         ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
         if self.cause == "interference":
-            ok = ok and bool(self.interference_check.get("same_amplitude"))
-        return ok
+            return ok and bool(self.interference_check.get("same_amplitude"))
+        return ok and bool(v["z_whole"] >= Z_CONFIRM)
 
     @property
     def warning(self) -> str:
         if self.confirmed is not False:
             return ""
         v = self.gain()["validation"]
-        return (f"the extension does not improve the validation records against the base model refitted the same "
-                f"way (residual sum of squares removed: {100 * v['explained_whole']:.1f} % whole, "
+        return (f"the extension does not improve the validation records beyond their noise against the base model "
+                f"refitted the same way (residual sum of squares removed: {100 * v['explained_whole']:.1f} % whole, "
+                f"z = {v['z_whole']:.2f} against the noise, needs {Z_CONFIRM:.3g}; "
                 f"{100 * v['explained_window']:.1f} % on the windows"
                 + (f"; interference amplitude there {self.interference_check.get('validation_amplitude', 0):.3g}"
                    if self.cause == "interference" else "")

@@ -32,7 +32,7 @@ from hysbench.models import ExtendedModel, get_model
 from hysbench.models.extended import extended_name, register_extensions
 from hysbench.models.registry import list_models
 
-from .residuals import RecordResidual
+from .residuals import RecordResidual, gain_z
 
 # Options of the final identification (the start is already close; see module docstring).
 VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 8}
@@ -106,7 +106,8 @@ def scores_by_file(residuals: Sequence[RecordResidual]) -> dict:
 
 def gain(before: Sequence[RecordResidual], after: Sequence[RecordResidual], role: str = "validation") -> dict:
     """What the extension gains on the records of ``role``: the share of the residual sum of squares
-    it removes (whole records and scored windows), and the mean e_rms before and after."""
+    it removes (whole records and scored windows), the z-score of the whole-record gain against the
+    records' own noise (``residuals.gain_z``), and the mean e_rms before and after."""
     b = [rr for rr in before if rr.record.role == role]
     a = {rr.file: rr for rr in after}
     if not b:
@@ -121,6 +122,7 @@ def gain(before: Sequence[RecordResidual], after: Sequence[RecordResidual], role
         "records": [rr.file for rr in b],
         "explained_whole": 1.0 - ss_a / ss_b if ss_b > 0 else math.nan,
         "explained_window": 1.0 - w_a / w_b if w_b > 0 else math.nan,
+        "z_whole": gain_z([(rr.residual, a[rr.file].residual) for rr in b]),
         "mean_e_rms_before": float(np.mean([s["e_rms"] for s in sb])),
         "mean_e_rms_after": float(np.mean([s["e_rms"] for s in sa])),
         "mean_e_rms_whole_before": float(np.mean([s["e_rms_whole"] for s in sb])),

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+from scipy.ndimage import median_filter
 from scipy.signal import zoom_fft
 
 from hysbench.data.metrics import e_m, e_rms
@@ -95,6 +96,49 @@ def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     spec = np.fft.rfft(x * np.hanning(x.size))
     amp = 2.0 * np.abs(spec) / np.sum(np.hanning(x.size))
     return np.fft.rfftfreq(x.size, dt), amp
+
+
+FLOOR_HALF_WIDTH = 15  # bins each side of the running median (fewer at low frequency: k // 2, at least 2)
+
+
+def noise_floor(r: np.ndarray) -> np.ndarray:
+    """The residual's continuous spectrum on the rfft bins, in periodogram units (|R_k|^2 / n, mean
+    removed): a running median over +-min(15, k // 2) bins (at least 2), divided by ln 2 (the median of
+    an exponential), so a few lines -- misfit locked to the drive -- do not raise it; the window is
+    truncated at the top, and bin 0 takes bin 1's value."""
+    x = np.asarray(r, dtype=float) - np.mean(r)
+    p = np.abs(np.fft.rfft(x)) ** 2 / max(x.size, 1)
+    if p.size < 3:
+        return np.full(p.size, float(x @ x) / max(x.size, 1))
+    p[0] = p[1]
+    floor = np.empty_like(p)
+    if p.size > 2 * FLOOR_HALF_WIDTH + 1:  # the full window: +-FLOOR_HALF_WIDTH
+        floor[1:] = median_filter(p[1:], size=2 * FLOOR_HALF_WIDTH + 1, mode="nearest")
+    edges = [k for k in range(p.size) if k < 2 * FLOOR_HALF_WIDTH or k >= p.size - FLOOR_HALF_WIDTH]
+    for k in edges:  # narrower at low frequency, truncated at the top
+        h = min(FLOOR_HALF_WIDTH, max(2, k // 2))
+        floor[k] = np.median(p[max(1, k - h):k + h + 1])
+    return floor / math.log(2.0)
+
+
+def gain_z(pairs: list[tuple[np.ndarray, np.ndarray]]) -> float:
+    """One-sided z that going from residual r_b to r_a (pairs over records) lowers the sum of squares
+    by more than noise would: D = sum(r_b^2 - r_a^2) = sum(2 d r_b - d^2), d = r_b - r_a. If d is
+    unrelated to a record's noise e, sum(d e) has variance sum_k |D_k|^2 S_k / n (S: ``noise_floor``
+    of r_a, correlated noise included); z = D / (2 sd)."""
+    gained = var = 0.0
+    for r_b, r_a in pairs:
+        d = r_b - r_a
+        gained += float(r_b @ r_b - r_a @ r_a)
+        spec = np.abs(np.fft.rfft(d)) ** 2
+        w = np.full(spec.size, 2.0)
+        w[0] = 1.0
+        if d.size % 2 == 0:
+            w[-1] = 1.0
+        var += float(np.sum(w * spec * noise_floor(r_a))) / d.size
+    if var <= 0:
+        return math.copysign(math.inf, gained) if gained else 0.0
+    return gained / (2.0 * math.sqrt(var))
 
 
 MAX_SPECTRUM_POINTS = 1 << 21
