@@ -1048,11 +1048,16 @@ def test_creep_whose_time_scale_runs_to_its_upper_bound_is_a_straight_drift_name
 def test_a_base_fit_pinned_at_a_bound_is_a_caution_on_the_verdict():
     from hysbench.benchmarks.diagnosis.report import base_bound_caution
 
-    assert base_bound_caution(["varpro: linear solve regularised", "parameters at their bounds: gamma (upper 0.0197), "
-                               "lambda (lower -0.0197); the optimum may lie beyond (option bounds widens them)"]) == (
-        "the base model's fit has parameters at their bounds: gamma (upper 0.0197), lambda (lower -0.0197): part of "
+    pinned = SimpleNamespace(params={"gamma": 0.0197, "lambda": -0.0197, "a1": 2.0},
+                             diagnostics={"at_bounds": ["gamma", "lambda"]})
+    assert base_bound_caution(pinned) == (
+        "the base model's fit has parameters at their search bounds (gamma = 0.0197, lambda = -0.0197): part of "
         "the misfit the diagnosis explains may be that bound's, not the actuator's")
-    assert base_bound_caution(["varpro: linear solve regularised"]) == ""
+    assert base_bound_caution(SimpleNamespace(params={"a1": 2.0}, diagnostics={"at_bounds": []})) == ""
+    # a real fit pinned at a bound says so in the same place as its note
+    ds, _ = planted_case(("null-white",), "mrpim", "sines", 1)
+    fit = identify(get_model("mrpim"), ds, method="varpro", seed=0, bounds={"gamma": [0.0, 1e-4]})
+    assert fit.diagnostics["at_bounds"] and all(f"{n} = " in base_bound_caution(fit) for n in fit.diagnostics["at_bounds"])
 
 
 def test_a_mode_inside_a_broadband_drive_is_searched_and_named():

@@ -193,6 +193,8 @@ def summary(rows: list[dict]) -> dict:
         "named_planted": len(named := [r for r in rows if r["verdict"] in VOCABULARY and r["verdict"] in r["kinds"]]),
         "named_confirmed": sum(1 for r in named if r["confirmed"]),
         "fully_right": sum(1 for r in named if r["confirmed"] and r["parameters_within"]),
+        "wrong_named": len(wrong := [r for r in rows if not r["right"] and r["verdict"] in VOCABULARY]),
+        "wrong_confirmed": sum(1 for r in wrong if r["confirmed"]),
         "vocabulary_cases": len(vocab := [r for r in rows if r["kinds"][0] in VOCABULARY]),
         "named_or_ambiguous": sum(1 for r in vocab if r["right"] or set(r.get("ambiguous_with", [])) & set(r["kinds"])),
         "with_remainder": len(rem := [r for r in rows if r.get("remainder") is not None]),
@@ -322,6 +324,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"{s['parameters_judged']} | >= 90 % |",
         f"| the planted cause named: confirmed on validation / also every parameter within 25 % | "
         f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |",
+        f"| a wrong verdict naming a vocabulary cause: confirmed on validation | {s['wrong_confirmed']} of "
+        f"{s['wrong_named']} | - |",
         f"| vocabulary effects: right, or the planted cause listed as ambiguous with the named one | "
         f"{s['named_or_ambiguous']} of {s['vocabulary_cases']} | - |",
         f"| a cause named with an unexplained remainder (it removes < half of the misfit) / of them right | "

@@ -232,13 +232,15 @@ FIGURES = {
 
 
 # --- markdown ---------------------------------------------------------------------
-def base_bound_caution(notes) -> str:
-    """What a base fit pinned at its search bounds means for the verdict ("" if none is)."""
-    pinned = [n.split(";")[0] for n in notes if n.startswith("parameters at their bounds")]
+def base_bound_caution(fit) -> str:
+    """What a base fit pinned at its search bounds (``Fit.diagnostics["at_bounds"]``) means for the
+    verdict ("" if none is)."""
+    pinned = fit.diagnostics.get("at_bounds") or []
     if not pinned:
         return ""
-    return (f"the base model's fit has {pinned[0]}: part of the misfit the diagnosis explains may be that "
-            "bound's, not the actuator's")
+    values = ", ".join(f"{n} = {fit.params[n]:.4g}" for n in pinned)
+    return (f"the base model's fit has parameters at their search bounds ({values}): part of the misfit the "
+            "diagnosis explains may be that bound's, not the actuator's")
 
 
 REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters
@@ -310,7 +312,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
     if d.warning:
         lines.append(strong("warning:") + f" {d.warning}.")
-    caution = base_bound_caution(d.base_fit.notes)
+    caution = base_bound_caution(d.base_fit)
     if caution:
         lines.append(strong("caution:") + f" {caution}")
     return lines
