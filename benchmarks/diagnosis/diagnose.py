@@ -42,7 +42,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from hysbench.data.dataset import Dataset, DatasetError, load_dataset
@@ -62,12 +61,11 @@ from .screen import Screen
 from .search import run_screen
 from .secondary import drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
-from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_PASS, Z_SAME, Verdict,
-                        decide)
+from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_CONFIRM, Z_PASS,
+                        Z_SAME, Verdict, decide)
 
 FORMAT = "hysbench-diagnosis/2"
 INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
-Z_CONFIRM = stats.norm.isf(0.05)  # the validation gain beyond the records' noise: one-sided 5 %
 
 
 class DiagnosisError(HysbenchError):
@@ -166,7 +164,8 @@ class Diagnosis:
                 f"cause predicting most among those that are specific (three or more records), else unexplained; "
                 f"nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
-                "records take no part")
+                f"records take no part; they confirm the named extension if it lowers their residual with "
+                f"z >= {Z_CONFIRM:.3g} against their own noise (correlated noise counted)")
 
     def gain(self) -> dict:
         if not self.after:
@@ -355,7 +354,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                      candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": MIN_EXPLAINED,
-                               "z_pass": Z_PASS, "z_same": Z_SAME, "explain_share": EXPLAIN_SHARE,
+                               "z_pass": Z_PASS, "z_same": Z_SAME, "z_confirm": Z_CONFIRM,
+                               "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments})
     if experiments and verdict.chosen is not None:

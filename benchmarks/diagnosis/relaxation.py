@@ -9,7 +9,7 @@ import numpy as np
 
 from hysbench.models.extended import TAU_BOUNDS
 
-from .candidates import BIC_THRESHOLD, MAX_RELAXATION, Candidate
+from .candidates import BIC_THRESHOLD, MAX_RELAXATION, Candidate, is_log
 
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
@@ -33,3 +33,23 @@ def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence
         if k > 1 and out[-1].bic > out[-2].bic - stop_threshold:  # one more did not help: stop
             break
     return out
+
+
+def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 10) -> Candidate | None:
+    """The relaxation of one time constant fewer: ``c``'s time constants at a search bound (``pinned``)
+    dropped, the rest and the base's nonlinear parameters as ``c`` has them, then refined together. A time
+    constant at its bound is not identified, and the nested variant started from ``c``'s other ones can
+    find the fit its own greedy search missed. None if nothing is pinned or nothing would be left."""
+    taus = [n for n in c.model.nonlinear_names if n.startswith("tau")]
+    drop = [n for n in pinned if n in taus]
+    kept = sorted(float(c.params[n]) for n in taus if n not in drop)
+    if not drop or not kept:
+        return None
+    k = len(kept)
+    hyper = {"n_relaxation": k, "relaxation_powers": list(c.hyperparameters.get("relaxation_powers", [1]))}
+    model = screen.extension(("relaxation",), **hyper)
+    start = {**{n: c.params[n] for n in model.nonlinear_names if n in c.params},
+             **{f"tau{i}": v for i, v in enumerate(kept, 1)}}
+    z = screen.refine(model, start, [(n, is_log(n)) for n in model.nonlinear_names], max_nfev=max_nfev)
+    return screen.candidate("relaxation", f"relaxation, {k} time constant{'s' if k > 1 else ''}", model, z, hyper,
+                            stage="joint")

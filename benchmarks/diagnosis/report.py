@@ -12,6 +12,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
 from .secondary import not_identified
+from .selection import Z_CONFIRM
 
 MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
 
@@ -305,7 +306,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         v = g["validation"]
         lines.append(f"validation gain (records {', '.join(v['records'])}, against the base model refitted on the "
                      "same whole records): " + strong(f"{100 * v['explained_whole']:.2f} %") + " of its residual sum "
-                     f"of squares removed over whole records, {100 * v['explained_window']:.2f} % on the scored "
+                     f"of squares removed over whole records (z = {v['z_whole']:.2f} against the records' own noise, "
+                     f"correlated noise counted; confirmed from {Z_CONFIRM:.3g}), "
+                     f"{100 * v['explained_window']:.2f} % on the scored "
                      f"windows; mean e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
         vw = g["validation_vs_base_fitted_on_windows"]
         lines.append(f"against the base model fitted on the windows (the benchmark's): {100 * vw['explained_whole']:.2f} % "

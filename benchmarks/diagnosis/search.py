@@ -4,7 +4,9 @@ Order: the library screen (evidence, relaxation seeds); each cause's
 extension with the base's nonlinear parameters held (stage 1); a quick
 held-out score for each (``selection``); the passing ones refined with the
 base's nonlinear parameters free (stage 2: the best of each cause, at most ``max_joint``) and scored
-again; finally every passing candidate scored with its own nonlinear
+again; a relaxation with a time constant at its search bound gives the variant of one fewer, started from
+its other ones (``relaxation.without_pinned``), which replaces that variant if it predicts better, both
+with their own parameters refitted per fold; finally every passing candidate scored with its own nonlinear
 parameters refitted per fold (the honest score, and the uncertainty).
 """
 
@@ -17,7 +19,7 @@ from .creep import fit_creep
 from .delay import fit_delay
 from .interference import fit_interference, same_line
 from .library_screen import library_screen
-from .relaxation import fit_relaxation
+from .relaxation import fit_relaxation, without_pinned
 from .residuals import RecordResidual
 from .resonance import fit_resonance
 from .saturation import fit_saturation, joint_saturation
@@ -74,9 +76,20 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             if j.heldout_gain > c.heldout_gain:
                 pool = variants if c in variants else cands
                 pool[pool.index(c)] = j
+    for c in [v for v in variants if promising(v)]:  # a time constant at its bound: one fewer, from the others
+        r = without_pinned(screen, c, c.heldout["at_bound"])
+        if r is None:
+            continue
+        say(f"{r.label} (from {c.label} without its pinned time constant)")
+        score_candidate(screen, folds, e_null, errors, r, refit=True)  # fixed, its parameters saw every record
+        same = [v for v in variants if v.hyperparameters["n_relaxation"] == r.hyperparameters["n_relaxation"]]
+        if same and not same[0].heldout["refit_per_fold"]:
+            score_candidate(screen, folds, e_null, errors, same[0], refit=True)
+        if same and r.heldout_gain > same[0].heldout_gain:
+            variants[variants.index(same[0])] = r
     say("held-out scores with each finalist's own parameters refitted per fold")
     for c in variants + cands:
-        if passes(c) or line_worth_refit(c):
+        if (passes(c) or line_worth_refit(c)) and not c.heldout["refit_per_fold"]:
             score_candidate(screen, folds, e_null, errors, c, refit=True)
     best_relax = max(variants, key=lambda c: c.heldout_gain)
     return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,

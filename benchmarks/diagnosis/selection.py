@@ -95,6 +95,7 @@ STRUCTURE_F = 4.0  # periodic-structure ratio above which a residual is "structu
 PARTIAL_SE = 0.25  # a partial explanation's fold estimates must agree within this (relative)
 SAME_SLICE = 0.9  # two held-out improvements remove the same part: cosine >= 0.9 (81 % of each along the other)
 FOLD_NFEV = 8
+Z_CONFIRM = float(stats.norm.isf(0.05))  # validation: the gain beyond the records' own noise, one-sided 5 %
 
 
 @dataclass
