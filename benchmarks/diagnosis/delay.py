@@ -14,6 +14,7 @@ PROFILE_POINTS = 16
 PROFILE_NFEV = 4
 PROFILE_XTOL = 0.01  # Brent's tolerance on the profile, relative to its bracket
 SCAN_POINTS = 24  # the profile between the best grid point's neighbours: every half sample, at most this many
+EXACT_SCAN_POINTS = 160  # short records: the exact profile (base held) every sample up to the bound, at most this many
 
 
 def _delayed_null(screen, z):
@@ -56,10 +57,10 @@ def fit_delay(screen) -> Candidate:
     if that passes the BIC threshold, the best grid points and a one-sample delay are searched
     exactly (Brent within two samples), since a first-order search can be led astray by a misfit
     of another kind; otherwise the first-order optimum is evaluated exactly, once. On short records
-    (``Screen.small``) instead: the exact profile over a geometric grid of delays and the first-order
-    grid's best points, the base's nonlinear parameters refitted at each (a base with rate-dependent terms
-    takes up part of a delay), then that profile's minimum between the best point's neighbours
-    (``scan_minimum``)."""
+    (``Screen.small``) instead: the exact profile over a geometric grid of delays, the first-order grid's best
+    points and the best points of the exact profile every sample (the base held), the base's nonlinear
+    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then that
+    profile's minimum between the best point's neighbours (``scan_minimum``)."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
     hi = screen.bounds_of(model, "delay")[1]
@@ -81,8 +82,13 @@ def fit_delay(screen) -> Candidate:
                 profile[d] = (screen.evaluate(model, z)[0], z)
             return profile[d][0]
 
-        # the geometric grid and the first-order search's minima (a misfit with sharp features, e.g. the
-        # corners of a triangle drive, gives a profile valley narrower than the grid's steps)
+        # the geometric grid, the first-order search's minima and those of the exact profile (the base held)
+        # every sample: a misfit with sharp features, e.g. the corners of a triangle drive, gives a valley
+        # about a sample wide, between the grid's steps, where the first-order profile is flat
+        step = max(dt, hi / EXACT_SCAN_POINTS)
+        scan = np.arange(0.0, hi + step / 2, step)
+        exact = np.array([screen.evaluate(model, {**screen.base_nl, "delay": float(d)})[0] for d in scan])
+        starts += [float(scan[i]) for i in local_minima(exact, 2)]
         grid_d = np.unique(np.r_[np.geomspace(min(dt, hi), hi, PROFILE_POINTS), starts])
         j = int(np.argmin([profile_rss(d) for d in grid_d]))
         a, b = (float(grid_d[j - 1]) if j else 0.0), float(grid_d[min(j + 1, grid_d.size - 1)])
