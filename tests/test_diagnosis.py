@@ -1293,6 +1293,17 @@ def test_the_delay_profile_is_scanned_where_it_is_rough_at_the_scale_of_a_sample
     assert abs(scan_minimum(rss, 0.0038, 0.00725, dt) - floor) < dt / 20
 
 
+def test_a_delay_whose_valley_lies_between_the_profile_grid_points_is_found_by_the_exact_scan():
+    """Accuracy plan seed 36, case 93: a 21.9 ms delay (29 % strength) on MRPIM triangles. The exact profile
+    is flat (rss 38,900) except within a sample of 21.9 ms (185): the geometric grid steps from 20.3 to 28 ms,
+    the first-order profile is flat too, and the verdict was a 12 Hz mode. Scanned exactly every sample, the
+    delay is found."""
+    ds, truth = planted_case(("delay",), "mrpim", "triangles", 3600093)
+    d = diagnose(ds, seed=0, experiments=False, extend=False)
+    assert d.cause == "delay", (d.verdict.reason, [(c.cause, c.heldout, c.estimates) for c in d.candidates])
+    assert parameter_errors(truth, "delay", d.parameters)["delay_s"] < 0.01
+
+
 @pytest.mark.parametrize("delay_s", [0.0231, 0.012])
 def test_a_delay_under_a_triangle_drive_is_found_where_the_corners_line_up(delay_s):
     """MRPIM's V'' term puts a spike at every corner of a triangle drive; delayed (in the frequency domain, by the
