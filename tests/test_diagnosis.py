@@ -1079,7 +1079,8 @@ def test_a_base_fit_pinned_at_a_bound_is_a_caution_on_the_verdict():
     # a real fit pinned at a bound says so in the same place as its note
     ds, _ = planted_case(("null-white",), "mrpim", "sines", 1)
     fit = identify(get_model("mrpim"), ds, method="varpro", seed=0, bounds={"gamma": [0.0, 1e-4]})
-    assert fit.diagnostics["at_bounds"] and all(f"{n} = " in base_bound_caution(fit) for n in fit.diagnostics["at_bounds"])
+    pinned = fit.diagnostics["at_bounds"]
+    assert pinned and all(f"{n} = " in base_bound_caution(fit) for n in pinned)
 
 
 def test_a_mode_inside_a_broadband_drive_is_searched_and_named():

@@ -152,7 +152,8 @@ def run_case(case: dict) -> dict:
     per_effect = effect_evidence(d, truth)
     return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
             "strength_pct": truth["strength_pct"], "effects": truth["effects"], "verdict": d.cause,
-            "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also, "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
+            "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also,
+            "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": _within(errors),

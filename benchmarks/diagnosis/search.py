@@ -81,7 +81,8 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
         if r is None:
             continue
         say(f"{r.label} (from {c.label} without its pinned time constant)")
-        score_candidate(screen, folds, e_null, errors, r, refit=True)  # fixed, its parameters saw every record
+        # compared refitted per fold: with the parameters held, both have seen the left-out record
+        score_candidate(screen, folds, e_null, errors, r, refit=True)
         same = [v for v in variants if v.hyperparameters["n_relaxation"] == r.hyperparameters["n_relaxation"]]
         if same and not same[0].heldout["refit_per_fold"]:
             score_candidate(screen, folds, e_null, errors, same[0], refit=True)
