@@ -36,6 +36,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import json
 import time
 from dataclasses import dataclass, field
@@ -104,6 +106,7 @@ class Diagnosis:
     interference_check: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
     def chosen(self) -> Candidate | None:
@@ -168,12 +171,17 @@ class Diagnosis:
                 f"z >= {Z_CONFIRM:.3g} against their own noise (correlated noise counted)")
 
     def gain(self) -> dict:
+        """The named extension's gain on the validation and identification records (computed once for the
+        residuals it is given)."""
         if not self.after:
             return {}
-        out = {"validation": gain(self.base_whole, self.after, "validation"),
-               "identification": gain(self.base_whole, self.after, "identification"),
-               "validation_vs_base_fitted_on_windows": gain(self.before, self.after, "validation")}
-        return out
+        inputs = (self.base_whole, self.after, self.before)
+        if self._gain is None or any(a is not b for a, b in zip(self._gain[0], inputs)):
+            out = {"validation": gain(self.base_whole, self.after, "validation"),
+                   "identification": gain(self.base_whole, self.after, "identification"),
+                   "validation_vs_base_fitted_on_windows": gain(self.before, self.after, "validation")}
+            self._gain = (inputs, out)
+        return copy.deepcopy(self._gain[1])
 
     @property
     def confirmed(self) -> bool | None:

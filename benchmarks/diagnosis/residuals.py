@@ -114,7 +114,7 @@ def noise_floor(r: np.ndarray) -> np.ndarray:
     floor = np.empty_like(p)
     if p.size > 2 * FLOOR_HALF_WIDTH + 1:  # the full window: +-FLOOR_HALF_WIDTH
         floor[1:] = median_filter(p[1:], size=2 * FLOOR_HALF_WIDTH + 1, mode="nearest")
-    edges = [k for k in range(p.size) if k < 2 * FLOOR_HALF_WIDTH or k >= p.size - FLOOR_HALF_WIDTH]
+    edges = sorted({*range(min(2 * FLOOR_HALF_WIDTH, p.size)), *range(max(0, p.size - FLOOR_HALF_WIDTH), p.size)})
     for k in edges:  # narrower at low frequency, truncated at the top
         h = min(FLOOR_HALF_WIDTH, max(2, k // 2))
         floor[k] = np.median(p[max(1, k - h):k + h + 1])
