@@ -7,10 +7,13 @@ the most prominent peaks of the pooled incoherent spectrum of the null's
 residual (records' powers added), harmonics common to every drive left out,
 each refined by a line search. On a held-out record the frequency and the
 amplitude come from the other records and only the phase is fitted there
-(``predict_heldout``); scored with its own parameters refitted per fold, the
-frequency too is searched afresh on the other records (``fold_frequency``), so
-a held-out record takes no part in choosing the frequency it is scored at; so
-too on top of another named cause (``fold_frequencies``, ``on_top``), whose
+on top of the base model's own held-out prediction (``on_top``): a disturbance
+does not change what the input drives, so the base is fitted on the other
+records alone on both sides of the comparison, and a line is judged only by
+what it removes from each held-out record. Scored with its own parameters
+refitted per fold, the frequency too is searched afresh on the other records
+(``fold_frequencies``), so a held-out record takes no part in choosing the
+frequency it is scored at; so too on top of another named cause, whose
 residual on the other records then comes from its fit on them alone. A fold
 chooses its frequency the way it is scored: each of its records predicted with
 the amplitude of the others, only the phase its own (``loo_rss``), so a misfit
@@ -30,7 +33,6 @@ from scipy.optimize import minimize_scalar
 
 from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
-from .screen import column_basis
 
 LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
 
@@ -111,18 +113,6 @@ def fit_interference(screen, n_peaks: int = 5) -> Candidate:
     return interference_candidate(screen, best_frequency(screen, lambda g: loo_rss(residuals, times, g), n_peaks))
 
 
-def fold_frequency(screen, parts: Sequence[int], train: np.ndarray, base_rows: np.ndarray,
-                   n_peaks: int = 5) -> float:
-    """The frequency fitted on the records ``parts`` alone (``train``: their rows), the way it is then scored
-    (``predict_heldout``): their spectral peaks, each refined by a line search of ``loo_rss`` on their
-    residual with the base's columns projected off (``best_frequency``)."""
-    q = column_basis(base_rows[train])
-    r = screen.y[train] - q @ (q.T @ screen.y[train])
-    residuals = np.split(r, np.cumsum([screen.parts[m].rows.size for m in parts])[:-1])
-    times = [screen.parts[m].rows * screen.parts[m].record.dt for m in parts]
-    return best_frequency(screen, lambda g: loo_rss(residuals, times, g), n_peaks, parts)
-
-
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
     """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
     within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
@@ -184,22 +174,13 @@ def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> fl
     return float(math.hypot(*sinusoid_fit(residual, t, frequency_hz)))
 
 
-def predict_heldout(screen, frequency_hz: float, test: int, base_rows: np.ndarray, train: np.ndarray) -> tuple:
-    """Fold ``test`` left out: base + per-record sinusoids solved on the other records; on the test record the
-    base's prediction plus a sinusoid of the training frequency and amplitude, phase fitted there.
-    Returns (prediction on the test rows, training amplitude, residual on the training rows)."""
-    others = [m for m in range(len(screen.parts)) if m != test]
-    E = block_columns(screen, frequency_hz, others)
-    A = np.column_stack([base_rows, E])
-    theta, train_residual = screen.solve(A[train], screen.y[train])
-    nb = base_rows.shape[1]
-    amps = np.hypot(*theta[nb:].reshape(-1, 2).T)
-    amplitude = float(np.sqrt(np.mean(amps**2)))
-    test_rows = ~train
-    base_pred = base_rows[test_rows] @ theta[:nb]
-    p = screen.parts[test]
-    sine = phase_fitted(screen.y[test_rows] - base_pred, p.rows * p.record.dt, frequency_hz, amplitude)
-    return base_pred + sine, amplitude, train_residual
+def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Fold ``m``'s training residual with a sinusoid of this frequency fitted in each of its records."""
+    sizes = [p.rows.size for k, p in enumerate(screen.parts) if k != m]
+    times = [p.rows * p.record.dt for k, p in enumerate(screen.parts) if k != m]
+    parts = training_parts(screen, m, train_residual)
+    out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
+    return np.concatenate(out) if sizes else train_residual
 
 
 def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:

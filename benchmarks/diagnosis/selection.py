@@ -82,7 +82,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
-from .interference import fold_frequency, predict_heldout
+from .interference import fold_amplitude, fold_frequencies, lines_removed, on_top
 from .saturation import columns_of, fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
@@ -156,21 +156,17 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     given) are refitted on each fold's training rows (returns the fold estimates too). ``train_residuals``: a
     list that receives, per fold, the fit's residual on its training rows."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":  # with refit the frequency too comes from the other records alone
+    if c.cause == "interference":  # a disturbance: a line on top of the base's own held-out prediction
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
-        e = np.empty(screen.n)
-        fold_est = []
-        for m in range(folds.n):
-            test = folds.test(m)
-            f = nl["interference_frequency"]
-            if refit:
-                f = fold_frequency(screen, [k for k in range(folds.n) if k != m], ~test, base_rows)
-            pred, amp, train_res = predict_heldout(screen, f, m, base_rows, ~test)
-            e[test] = screen.y[test] - pred
-            fold_est.append({"interference_frequency": f, "amplitude": amp} if refit else {"amplitude": amp})
-            if train_residuals is not None:
-                train_residuals.append(train_res)
-        return e, fold_est
+        base_train = []
+        e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
+        f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
+        amps = [fold_amplitude(screen, m, base_train[m], f[m]) for m in range(folds.n)]
+        fold_est = [{"interference_frequency": fm, "amplitude": a} if refit else {"amplitude": a}
+                    for fm, a in zip(f, amps)]
+        if train_residuals is not None:
+            train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
+        return on_top(screen, folds, e_base, base_train, f), fold_est
     if c.cause == "saturation":
         return _heldout_saturation(screen, folds, c, refit, train_residuals)
     names = [n for n in own_nonlinear(screen, c) if only is None or n in only] if refit else []
