@@ -709,8 +709,16 @@ def test_an_interference_is_scored_on_top_of_the_base_models_own_held_out_predic
         res = s.y[test] - A[test] @ theta
         ab = np.linalg.lstsq(sinusoid(times[m]), res, rcond=None)[0]
         expected[test] = res - sinusoid(times[m]) @ (math.sqrt(np.mean(np.square(amps))) * ab / math.hypot(*ab))
-    e, _ = heldout_errors(s, folds, c)
+    train = []
+    e, _ = heldout_errors(s, folds, c, train_residuals=train)
     assert np.allclose(e, expected, rtol=0, atol=1e-6 * np.abs(s.y).max())
+    theta = np.linalg.lstsq(A[~folds.test(0)], s.y[~folds.test(0)], rcond=None)[0]
+    left = []  # fold 0's training residual: each other record's own least-squares sinusoid removed
+    for k in range(1, folds.n):
+        res = s.y[folds.test(k)] - A[folds.test(k)] @ theta
+        S = sinusoid(times[k])
+        left.append(res - S @ np.linalg.lstsq(S, res, rcond=None)[0])
+    assert np.allclose(train[0], np.concatenate(left), rtol=0, atol=1e-6 * np.abs(s.y).max())
     assert c.heldout["folds_improved"] == folds.n and c.heldout["same_line"]
     assert d.cause == "interference" and d.parameters["frequency_hz"] == pytest.approx(23.3, abs=0.05)
 

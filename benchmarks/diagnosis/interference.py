@@ -176,11 +176,10 @@ def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> fl
 
 def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> np.ndarray:
     """Fold ``m``'s training residual with a sinusoid of this frequency fitted in each of its records."""
-    sizes = [p.rows.size for k, p in enumerate(screen.parts) if k != m]
     times = [p.rows * p.record.dt for k, p in enumerate(screen.parts) if k != m]
     parts = training_parts(screen, m, train_residual)
     out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
-    return np.concatenate(out) if sizes else train_residual
+    return np.concatenate(out) if out else train_residual
 
 
 def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:
