@@ -685,7 +685,7 @@ def test_an_interference_is_scored_on_top_of_the_base_models_own_held_out_predic
     rng = np.random.default_rng(3)
     for r in ds.records:
         r.y = r.y + 0.1 * np.sin(2 * np.pi * 23.3 * r.t + rng.uniform(0, 2 * np.pi))
-    d = diagnose(ds, seed=0, experiments=False)
+    d = diagnose(ds, seed=0, experiments=False, extend=False)
     s, folds = d.screen, Folds.of(d.screen)
     c = next(c for c in d.candidates if c.cause == "interference")
     f = c.params["interference_frequency"]
