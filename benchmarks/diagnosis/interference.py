@@ -179,7 +179,7 @@ def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: floa
     times = [p.rows * p.record.dt for k, p in enumerate(screen.parts) if k != m]
     parts = training_parts(screen, m, train_residual)
     out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
-    return np.concatenate(out) if out else train_residual
+    return np.concatenate(out)
 
 
 def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:
