@@ -25,7 +25,7 @@ record; saturation: the level's error over the output's peak-to-peak).
 
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
-2026-11-27, see ``plan``).
+2026-11-27, see ``plan``; ``--pool DIR ...``: earlier runs' reports pooled, with the share's interval).
 """
 
 from __future__ import annotations
@@ -35,6 +35,8 @@ import contextlib
 import json
 import math
 import os
+import re
+import sys
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -43,8 +45,10 @@ from typing import Callable
 
 import numba
 import numpy as np
+from scipy import stats
 
 from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.models.errors import HysbenchError
 
 from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
@@ -56,6 +60,7 @@ PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 
 TOLERANCE = 0.25
 PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95
+CONFIDENCE = 0.95  # the intervals on the report's shares (Wilson score)
 
 
 # (base, drive) in the order the plan visits them: half MRPIM, a quarter each the virtual DEA and the real
@@ -173,6 +178,18 @@ def detection_limit(rows: list[dict], cause: str) -> dict:
     return {"strength_pct": None, "cases_above": 0, "cases": len(cases)}
 
 
+def wilson_interval(k: int, n: int, level: float = CONFIDENCE) -> tuple[float, float]:
+    """The Wilson score interval for a share k / n: the shares p whose score test |k - n p| / sqrt(n p (1-p))
+    does not reject at ``level`` (two-sided). (nan, nan) for n = 0."""
+    if n <= 0:
+        return math.nan, math.nan
+    z = float(stats.norm.isf((1.0 - level) / 2.0))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return (0.0 if k == 0 else centre - half), (1.0 if k == n else centre + half)
+
+
 def summary(rows: list[dict]) -> dict:
     right = sum(r["right"] for r in rows)
     null_rows = [r for r in rows if r["kinds"][0] in NULLS and r["base"] == "mrpim"]
@@ -181,6 +198,7 @@ def summary(rows: list[dict]) -> dict:
     with_params = [r for r in vocab_right if r["parameter_errors"]]
     return {
         "cases": len(rows), "right": right, "right_share": right / len(rows) if rows else math.nan,
+        "right_interval": wilson_interval(right, len(rows)),
         "right_via_also_unrecovered": (None if any(_via_also(r) and "also_parameter_errors" not in r for r in rows)
                                        else sum(1 for r in rows if _via_also(r) and not _also_within(r))),
         "confirmed_on_nulls": sum(1 for r in null_rows if r["verdict"] not in ("none", "unexplained") and r["confirmed"]),
@@ -191,6 +209,8 @@ def summary(rows: list[dict]) -> dict:
         "parameters_within_share": (sum(r["parameters_within"] for r in with_params) / len(with_params)
                                     if with_params else math.nan),
         "parameters_judged": len(with_params),
+        "parameters_within_interval": wilson_interval(sum(r["parameters_within"] for r in with_params),
+                                                      len(with_params)),
         "named_planted": len(named := [r for r in rows if r["verdict"] in VOCABULARY and r["verdict"] in r["kinds"]]),
         "named_confirmed": sum(1 for r in named if r["confirmed"]),
         "fully_right": sum(1 for r in named if r["confirmed"] and r["parameters_within"]),
@@ -296,6 +316,13 @@ def _machine(s: dict) -> str:
             f"{m['load_start']:.1f} at the start and {m['load_end']:.1f} at the end")
 
 
+def _interval_text(interval) -> str:
+    """ " (95 % interval a-b %)" for a share's interval (nothing if there is none)."""
+    if not interval or any(v is None or math.isnan(v) for v in interval):
+        return ""
+    return f" ({100 * CONFIDENCE:.0f} % interval {100 * interval[0]:.1f}-{100 * interval[1]:.1f} %)"
+
+
 def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     lines = ["# Accuracy of `hysbench diagnose` on planted effects", ""]
     if note:
@@ -312,7 +339,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
         "## Targets", "",
         "| measure | measured | target |", "|---|---|---|",
-        f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %** | >= 90 % |",
+        f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %**"
+        f"{_interval_text(s.get('right_interval'))} | >= 90 % |",
         f"| of them right only by the virtual DEA's own relaxation named with the planted cause under `also`, "
         f"whose parameters there are not within 25 % of the planted ones | "
         f"{'not recorded in this run' if s['right_via_also_unrecovered'] is None else s['right_via_also_unrecovered']}"
@@ -322,7 +350,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"| out-of-vocabulary effects given a confirmed vocabulary cause (MRPIM and piezo bases) | "
         f"**{s['oov_given_confirmed_vocabulary']}** of {s['oov']} | 0 |",
         f"| parameters within 25 % (right verdicts) | **{100 * s['parameters_within_share']:.1f} %** of "
-        f"{s['parameters_judged']} | >= 90 % |",
+        f"{s['parameters_judged']}{_interval_text(s.get('parameters_within_interval'))} | >= 90 % |",
         f"| the planted cause named: confirmed on validation / also every parameter within 25 % | "
         f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |",
         f"| a wrong verdict naming a vocabulary cause: confirmed on validation | {s['wrong_confirmed']} of "
@@ -342,6 +370,9 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         "planted cause in `also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the "
         "base model absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: relaxation, its physics' own, or `unexplained`; real "
         "piezo: `none` or `unexplained`).", "",
+        f"Intervals: {100 * CONFIDENCE:.0f} % Wilson score intervals, the cases taken as independent draws from "
+        "the plan's design (one plan's share can differ from the design's by about this much; "
+        "`--pool` pools several plans).", "",
         "## Confusion matrix (true effect x verdict, counts)", ""]
     verdicts = ["none", "unexplained", *VOCABULARY]
     lines += ["| true \\ verdict | " + " | ".join(verdicts) + " | right |", "|---" * (len(verdicts) + 2) + "|"]
@@ -453,7 +484,7 @@ def missing_bases(bases: tuple[str, ...]) -> dict[str, str]:
 def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None,
           missing: dict[str, str] | None = None, design: str = "balanced") -> dict:
     s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {}),
-         "plan_design": design}
+         "plan_design": design, "note": note}
     write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
                                                                      default=lambda o: o.tolist())))
     write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
@@ -495,13 +526,67 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
                  missing=missing, design=design)
 
 
+def _note_in(report: Path) -> str:
+    """The note at the head of an earlier report (between its title and the plan's line; "" if none)."""
+    if not report.is_file():
+        return ""
+    head = []
+    for line in report.read_text().splitlines()[1:]:
+        if re.match(r"\d+ cases \(`python3 -m", line) or line.startswith(("**No ", "## ")):
+            break
+        head.append(line)
+    return "\n".join(head).strip()
+
+
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
-    """Rewrite the report from the JSON of an earlier run (same cases, current report layout)."""
+    """Rewrite the report from the JSON of an earlier run (same cases, current report layout, its note kept)."""
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
     wall = wall_s if wall_s is not None else data["summary"].get("wall_s", data["summary"]["seconds"])
-    return write(data["cases"], Path(folder), wall, machine=data["summary"].get("machine"),
+    note = data["summary"].get("note")
+    if note is None:  # reports written before the note was kept in the JSON
+        note = _note_in(Path(folder) / "diagnosis_accuracy.md")
+    return write(data["cases"], Path(folder), wall, note=note, machine=data["summary"].get("machine"),
                  missing=data["summary"].get("missing_bases"),
                  design=data["summary"].get("plan_design", "slot-tied"))  # runs before 2026-11-27
+
+
+def pool(folders: list[str | Path]) -> dict:
+    """Several plans' reports pooled: per plan its seed, cases and verdicts right, and over all of them the
+    share right with its interval (the cases taken as independent draws from one design; pool plans scored
+    with the same code). Raises HysbenchError for a folder without a report or a plan given twice."""
+    plans, seen = [], set()
+    for folder in folders:
+        path = Path(folder) / "diagnosis_accuracy.json"
+        if not path.is_file():
+            raise HysbenchError(f"no accuracy report in {folder} (expected {path.name})")
+        try:
+            data = json.loads(path.read_text())
+            rows, s = data["cases"], data["summary"]
+        except (ValueError, KeyError, TypeError) as e:
+            raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
+        seed = _plan_seed(rows)
+        if seed in seen:
+            raise HysbenchError(f"plan seed {seed} is given twice ({folder})")
+        seen.add(seed)
+        plans.append({"folder": str(folder), "seed": seed, "cases": len(rows), "right": sum(r["right"] for r in rows),
+                      "confirmed_on_nulls": s["confirmed_on_nulls"], "nulls_mrpim": s["nulls_mrpim"],
+                      "oov_given_confirmed_vocabulary": s["oov_given_confirmed_vocabulary"], "oov": s["oov"]})
+    cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
+    return {"plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
+            "right_interval": wilson_interval(right, cases),
+            **{k: sum(p[k] for p in plans) for k in ("confirmed_on_nulls", "nulls_mrpim",
+                                                      "oov_given_confirmed_vocabulary", "oov")}}
+
+
+def pooled_markdown(p: dict) -> str:
+    lines = ["| plan seed | cases | right | share |", "|---|---|---|---|"]
+    lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
+              for q in p["plans"]]
+    lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
+              f"**{100 * p['right_share']:.1f} %**{_interval_text(p['right_interval'])}; confirmed causes on "
+              f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
+              f"vocabulary cause {p['oov_given_confirmed_vocabulary']} of {p['oov']}."]
+    return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> int:
@@ -514,7 +599,16 @@ def main(argv=None) -> int:
     parser.add_argument("--plan", choices=PLAN_DESIGNS, default="balanced",
                         help="balanced: every effect on every base and drive (default); slot-tied: the plans "
                              "before 2026-11-27, whose drive was fixed by the effect's slot")
+    parser.add_argument("--pool", nargs="+", metavar="DIR",
+                        help="pool the reports of earlier runs in these folders (no new run)")
     args = parser.parse_args(argv)
+    if args.pool:
+        try:
+            print(pooled_markdown(pool(args.pool)), end="")
+        except HysbenchError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        return 0
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
     s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
