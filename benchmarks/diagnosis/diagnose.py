@@ -60,7 +60,7 @@ from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .secondary import drop_redundant_primary, not_identified, secondary_causes
+from .secondary import complete_partial, drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_CONFIRM, Z_PASS,
                         Z_SAME, Verdict, decide)
@@ -370,7 +370,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
             say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")
             diag.experiments.append({"causes": [verdict.chosen.cause, other.cause],
                                      **suggest(screen, verdict.chosen, other)})
-    if verdict.chosen is None or not extend:
+    completed = verdict.chosen is None and extend and complete_partial(diag, result, say)
+    if diag.chosen is None or not extend:
         slow_part_twin(diag, result, experiments, say)
         timings["total"] = time.perf_counter() - t0
         return diag
@@ -382,7 +383,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, dataset)
     timings["base_refit"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    secondary_causes(diag, result, say)
+    if not completed:  # a completed partial cause has its secondary causes already
+        secondary_causes(diag, result, say)
     drop_redundant_primary(diag, result, say)
     slow_part_twin(diag, result, experiments, say)
     timings["secondary"] = time.perf_counter() - t1

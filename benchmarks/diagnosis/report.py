@@ -159,6 +159,8 @@ def figure_spectrum(diag, path: Path) -> None:
 
 
 def figure_error_vs_frequency(diag, path: Path) -> None:
+    if not any(rr.record.frequency_hz for rr in diag.before):  # no nominal drive frequency: nothing to plot
+        return
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     series = [("before", diag.before, "0.3", "o")]
@@ -417,6 +419,7 @@ def write_report(diag, out: str | Path, json_path: str | Path | None = None, not
     figures = {}
     for key, (fn, _) in FIGURES.items():
         file = f"{prefix}_{key}.png"
+        (out / file).unlink(missing_ok=True)  # a figure this diagnosis does not draw is not an earlier run's
         fn(diag, out / file)
         if (out / file).exists():
             figures[key] = file

@@ -24,8 +24,8 @@ from typing import Callable
 from .candidates import CREEP_PERIODS, Candidate
 from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
-from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, at_bound, bound_flags, evidence,
-                        fold_uncertainty, heldout_errors, heldout_null, own_nonlinear, promising, score,
+from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags, evidence,
+                        fold_uncertainty, heldout_errors, heldout_null, own_nonlinear, passes, promising, score,
                         share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
@@ -187,6 +187,39 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
                      comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency)
         if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
             pool = {k: v for k, v in pool.items() if k == "interference"}
+
+
+def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
+    """An ``unexplained`` verdict whose best partial cause passes the held-out test by itself but removes less
+    than ``EXPLAIN_SHARE`` of the base's held-out misfit beyond noise: the forward selection is run on top of it
+    (``secondary_causes``, each added cause judged on held-out records against what is kept). If what is then
+    kept removes at least ``EXPLAIN_SHARE``, the partial cause is named with those under "also" (two causes at
+    once: neither explains the misfit alone). Otherwise the verdict stays ``unexplained``. True if named."""
+    v = diag.verdict
+    p = v.partial
+    if v.cause != "unexplained" or p is None or not passes(p):
+        return False
+    say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
+    diag.verdict = Verdict(p.cause, p, [], "", v.not_identified)
+    tried = len(diag.secondary_tried)
+    secondary_causes(diag, result, say)
+    null_sse = float(result["errors"][id(diag.screen.null)] @ result["errors"][id(diag.screen.null)])
+    share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
+    if share < EXPLAIN_SHARE:
+        diag.verdict, diag.also = v, []
+        v.reason += ("" if len(diag.secondary_tried) == tried else
+                     f"; with other causes tried on top of {p.cause}, what is kept removes {100 * share:.0f} % "
+                     f"(< {100 * EXPLAIN_SHARE:.0f} %)")
+        return False
+    alone = p.heldout.get("share_of_misfit", share_of_misfit(diag.screen, null_sse, p.heldout["sse"]))
+    diag.verdict.reason = (
+        f"predicts the held-out identification records better than the base model refitted the same way (gain "
+        f"{100 * p.heldout_gain:.2f} %, z = {p.heldout['z']:.1f}) but removes only {100 * alone:.0f} % of the "
+        f"base model's held-out misfit beyond white noise by itself ({v.reason}); with "
+        f"{' + '.join(a.cause for a in diag.also)} on top, each predicting the held-out records better than what "
+        f"was kept before it, {100 * share:.0f} % (two causes at once)")
+    diag.verdict.partial = None
+    return True
 
 
 def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
