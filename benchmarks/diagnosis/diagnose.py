@@ -15,7 +15,10 @@
    ``selection``).
 4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
    two causes that predict equally well are reported as ambiguous, with the
-   drive that separates them (``experiment``).
+   drive that separates them (``experiment``). An ``unexplained`` verdict
+   whose best partial cause passes by itself is completed by the forward
+   selection of step 5 on top of it; if the two explain half of the misfit,
+   it is named (``secondary.complete_partial``).
 5. Other causes are tried on top of the named one (composite extension)
    and kept as "also" if they pass the held-out test against what is kept,
    their own parameters refitted per fold (``secondary.secondary_causes``);
@@ -163,7 +166,9 @@ class Diagnosis:
                 f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, every other cause "
                 f"within z = {Z_SAME:g} removing the same part, held-out improvements with cosine >= {SAME_SLICE:g}: "
                 f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
-                f"cause predicting most among those that are specific (three or more records), else unexplained; "
+                f"cause predicting most among those that are specific (three or more records), else the best "
+                f"partial cause (if it passes) with the causes kept on top of it by held-out forward selection if "
+                f"together they remove >= {EXPLAIN_SHARE:.0%} (two causes at once), else unexplained; "
                 f"nothing passing: unexplained if the residual is structured (period-to-period "
                 f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
                 f"records take no part; they confirm the named extension if it lowers their residual with "
