@@ -1614,3 +1614,19 @@ def test_a_white_noise_null_is_not_named_a_sub_sample_delay():
     assert d.cause in ("none", "unexplained"), d.verdict.reason
     delay = next(c for c in d.candidates if c.cause == "delay")
     assert delay.estimates["delay_s"] < 2e-3 and "shorter than one sample" in delay.limit
+
+
+def test_no_error_against_frequency_figure_is_drawn_for_records_without_a_drive_frequency(tmp_path):
+    """Records without a nominal drive frequency (the Bouc-Wen benchmark's) would leave that figure empty (it was,
+    with a warning): it is not drawn; with one it is."""
+    from hysbench.benchmarks.diagnosis import report
+
+    record = SimpleNamespace(frequency_hz=None, role="identification")
+    diag = SimpleNamespace(before=[SimpleNamespace(record=record)], base_whole=[], after=[])
+    path = tmp_path / "error.png"
+    report.figure_error_vs_frequency(diag, path)
+    assert not path.exists()
+    record.frequency_hz = 1.0
+    diag.before[0].scores = lambda: {"e_rms": 2.0, "e_rms_whole": 3.0}
+    report.figure_error_vs_frequency(diag, path)
+    assert path.stat().st_size > 0
