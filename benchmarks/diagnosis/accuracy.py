@@ -23,7 +23,8 @@ Parameters: relative error of each named parameter (relaxation: the named
 time constant nearest the planted one; creep: the drift over the longest
 record; saturation: the level's error over the output's peak-to-peak).
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results``
+Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 40``
+(``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
 2026-11-27, see ``plan``; ``--pool DIR ...``: earlier runs' reports pooled, with the share's interval).
 """
@@ -60,6 +61,7 @@ PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 
 TOLERANCE = 0.25
 PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95
+HEADLINE_SEED = 40  # the plan of results/diagnosis_accuracy.md (fresh, scored once with session 26's code)
 CONFIDENCE = 0.95  # the intervals on the report's shares (Wilson score)
 
 
@@ -568,7 +570,7 @@ def pool(folders: list[str | Path]) -> dict:
         if seed in seen:
             raise HysbenchError(f"plan seed {seed} is given twice ({folder})")
         seen.add(seed)
-        plans.append({"folder": str(folder), "seed": seed, "cases": len(rows), "right": sum(r["right"] for r in rows),
+        plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
                       "confirmed_on_nulls": s["confirmed_on_nulls"], "nulls_mrpim": s["nulls_mrpim"],
                       "oov_given_confirmed_vocabulary": s["oov_given_confirmed_vocabulary"], "oov": s["oov"]})
     cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)

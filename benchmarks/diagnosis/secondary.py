@@ -203,7 +203,8 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     diag.verdict = Verdict(p.cause, p, [], "", v.not_identified)
     tried = len(diag.secondary_tried)
     secondary_causes(diag, result, say)
-    null_sse = float(result["errors"][id(diag.screen.null)] @ result["errors"][id(diag.screen.null)])
+    e_null = result["errors"][id(diag.screen.null)]
+    null_sse = float(e_null @ e_null)
     share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
     if share < EXPLAIN_SHARE:
         diag.verdict, diag.also = v, []
