@@ -1123,6 +1123,8 @@ def test_a_partial_cause_completed_by_a_cause_on_top_is_named_with_it():
     also = {c.cause: c for c in d.also}
     assert "resonance" in also, [(c.label, c.estimates, c.heldout.get("gain")) for c in d.secondary_tried]
     assert parameter_errors(truth, "resonance", also["resonance"].estimates)["natural_frequency_hz"] <= 0.25
+    parts = {k: v for k, v in d.timings.items() if k != "total"}
+    assert abs(sum(parts.values()) - d.timings["total"]) <= 0.05 * d.timings["total"], d.timings  # completion timed
 
 
 @pytest.mark.parametrize("seed, end", [(3100177, "its limit"), (3200177, "the end of its search")])

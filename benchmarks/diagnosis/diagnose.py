@@ -370,14 +370,21 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                                "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments})
+    t1 = time.perf_counter()
     if experiments and verdict.chosen is not None:
         for other in verdict.ambiguous_with:
             say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")
             diag.experiments.append({"causes": [verdict.chosen.cause, other.cause],
                                      **suggest(screen, verdict.chosen, other)})
+    if diag.experiments:
+        timings["experiments"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
     completed = verdict.chosen is None and extend and complete_partial(diag, result, say)
+    secondary_s = time.perf_counter() - t1  # the completion runs the secondary causes on the partial cause
     if diag.chosen is None or not extend:
+        t1 = time.perf_counter()
         slow_part_twin(diag, result, experiments, say)
+        timings["secondary"] = secondary_s + time.perf_counter() - t1
         timings["total"] = time.perf_counter() - t0
         return diag
     fit_on = [r.file for r in dataset.identification]
@@ -392,7 +399,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
         secondary_causes(diag, result, say)
     drop_redundant_primary(diag, result, say)
     slow_part_twin(diag, result, experiments, say)
-    timings["secondary"] = time.perf_counter() - t1
+    timings["secondary"] = secondary_s + time.perf_counter() - t1
     chosen = diag.chosen
     t1 = time.perf_counter()
     if chosen.cause == "interference":
