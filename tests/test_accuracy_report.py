@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.benchmarks.diagnosis import accuracy
+from hysbench.benchmarks.diagnosis import accuracy, pooled
 from hysbench.models.errors import HysbenchError
 
 
@@ -67,14 +67,14 @@ def test_pooled_plans_add_their_cases_and_refuse_a_plan_twice_or_a_folder_withou
     a, b = tmp_path / "a", tmp_path / "b"
     _plan(a, 1, [True] * 8 + [False] * 2)
     _plan(b, 2, [True] * 5 + [False] * 5)
-    p = accuracy.pool([a, b])
+    p = pooled.pool([a, b])
     assert (p["cases"], p["right"], [q["seed"] for q in p["plans"]]) == (20, 13, ["1", "2"])
     assert p["right_interval"] == pytest.approx(accuracy.wilson_interval(13, 20))
-    assert "13 / 20 = **65.0 %**" in accuracy.pooled_markdown(p)
+    assert "13 / 20 = **65.0 %**" in pooled.pooled_markdown(p)
     with pytest.raises(HysbenchError, match="plan seed 1 is given twice"):
-        accuracy.pool([a, a])
+        pooled.pool([a, a])
     with pytest.raises(HysbenchError, match="no accuracy report"):
-        accuracy.pool([a, tmp_path / "missing"])
+        pooled.pool([a, tmp_path / "missing"])
     assert accuracy.main(["--pool", str(a), str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no accuracy report" in err
@@ -92,3 +92,53 @@ def test_a_rewritten_report_keeps_its_note_also_from_a_report_written_before_the
     (tmp_path / "diagnosis_accuracy.json").write_text(json.dumps(data))
     accuracy.rewrite(tmp_path)
     assert (tmp_path / "diagnosis_accuracy.md").read_text() == text
+
+
+def _case(seed, kinds, base, drive, strength, right):
+    return {**_row(kinds, right), "seed": seed, "base": base, "drive": drive, "strength_pct": strength}
+
+
+def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_by_base(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    stride = accuracy.PLAN_STRIDE
+    piezo = [(0.1, False), (0.2, False), (0.5, True), (1.0, True), (2.0, True)]  # limit 0.5, 3 cases above it
+    rows_a = [_case(5 * stride + i, ["relaxation"], "piezo", "sines", s, r) for i, (s, r) in enumerate(piezo[:3])]
+    rows_a += [_case(5 * stride + 9, ["null-white"], "mrpim", "triangles", 0.0, True)]
+    rows_b = [_case(6 * stride + i, ["relaxation"], "piezo", "sines", s, r) for i, (s, r) in enumerate(piezo[3:])]
+    rows_b += [_case(6 * stride + 5 + i, ["relaxation"], "mrpim", "sines", s, True) for i, s in enumerate((0.3, 0.4))]
+    rows_b += [_case(6 * stride + 8, ["delay", "creep"], "mrpim", "sines", 1.0, False)]
+    accuracy.write(rows_a, accuracy.ensure_dir(a), 1.0)
+    accuracy.write(rows_b, accuracy.ensure_dir(b), 1.0)
+    p = pooled.pool([a, b])
+    assert p["bases"] == ["mrpim", "piezo"]
+    assert p["by_effect_and_base"]["relaxation"]["piezo"]["cases"] == 5
+    assert p["by_effect_and_base"]["relaxation"]["piezo"]["right"] == 3
+    assert p["by_effect_and_base"]["relaxation"]["piezo"]["interval"] == pytest.approx(accuracy.wilson_interval(3, 5))
+    assert list(p["by_effect_and_base"]) == ["relaxation", "null-white", "delay+creep"]
+    limits = p["detection_limits"]["relaxation"]
+    assert (limits["piezo"]["strength_pct"], limits["piezo"]["cases_above"]) == (0.5, 3)
+    assert limits["piezo"]["strengths_pct"] == [0.1, 2.0]
+    assert limits["mrpim"]["strength_pct"] is None  # two cases only: fewer than three above any strength
+    assert p["by_base_and_drive"]["mrpim"]["sines"]["cases"] == 3
+    assert p["by_base_and_drive"]["mrpim"]["triangles"]["right"] == 1
+    assert sum(q["cases"] for per in p["by_effect_and_base"].values() for q in per.values()) == p["cases"] == 9
+    text = pooled.pooled_markdown(p)
+    assert "| relaxation | 2/2 (100 %, 34-100) | 3/5 (60 %, 23-88) |" in text
+    assert "**0.5** (3 of 5 cases above; drawn 0.1-2)" in text
+    rows_b += [_case(6 * stride + 7, ["relaxation"], "mrpim", "sines", 0.2, True)]
+    accuracy.write(rows_b, b, 1.0)
+    q = pooled.pool([a, b])["detection_limits"]["relaxation"]["mrpim"]
+    assert (q["strength_pct"], q["cases_above"], q["cases"]) == (0.2, 3, 3)
+    assert "**<= 0.2** (all 3 cases right; drawn 0.2-0.4)" in pooled.pooled_markdown(pooled.pool([a, b]))
+
+
+def test_a_pooled_report_is_written_whole_and_its_options_need_pool(tmp_path, capsys):
+    _plan(tmp_path / "a", 7, [True, False, True])
+    report = tmp_path / "out" / "pooled.md"
+    assert accuracy.main(["--pool", str(tmp_path / "a"), "--report", str(report), "--note", "Three cases."]) == 0
+    assert report.read_text().startswith("# Accuracy of `hysbench diagnose`, plans pooled\n\nThree cases.\n\n| plan")
+    assert json.loads(report.with_suffix(".json").read_text())["right"] == 2
+    with pytest.raises(SystemExit) as e:
+        accuracy.main(["--report", str(report)])
+    assert e.value.code == 2 and "--report and --note go with --pool" in capsys.readouterr().err
+

@@ -26,7 +26,7 @@ record; saturation: the level's error over the output's peak-to-peak).
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 40``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
-2026-11-27, see ``plan``; ``--pool DIR ...``: earlier runs' reports pooled, with the share's interval).
+2026-11-27, see ``plan``; ``--pool DIR ... [--report FILE.md]``: earlier runs' reports pooled, ``pooled``).
 """
 
 from __future__ import annotations
@@ -303,7 +303,7 @@ def _label(r: dict) -> str:
     return "+".join(r["kinds"])
 
 
-def _plan_seed(rows: list[dict]) -> str:
+def plan_seed_of(rows: list[dict]) -> str:
     """The plan's seed, from the cases' seeds (``plan``: seed * PLAN_STRIDE + index)."""
     return ", ".join(str(k) for k in sorted({r["seed"] // PLAN_STRIDE for r in rows})) or "-"
 
@@ -333,7 +333,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         lines += [f"**No {base} cases:** {why}; their share of the plan went to the other bases, so this plan "
                   "differs from one run with it.", ""]
     lines += [
-        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {_plan_seed(rows)}"
+        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {plan_seed_of(rows)}"
         f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}`), "
         "base model MRPIM; generators "
         "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
@@ -552,45 +552,6 @@ def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
                  design=data["summary"].get("plan_design", "slot-tied"))  # runs before 2026-11-27
 
 
-def pool(folders: list[str | Path]) -> dict:
-    """Several plans' reports pooled: per plan its seed, cases and verdicts right, and over all of them the
-    share right with its interval (the cases taken as independent draws from one design; pool plans scored
-    with the same code). Raises HysbenchError for a folder without a report or a plan given twice."""
-    plans, seen = [], set()
-    for folder in folders:
-        path = Path(folder) / "diagnosis_accuracy.json"
-        if not path.is_file():
-            raise HysbenchError(f"no accuracy report in {folder} (expected {path.name})")
-        try:
-            data = json.loads(path.read_text())
-            rows, s = data["cases"], data["summary"]
-        except (ValueError, KeyError, TypeError) as e:
-            raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
-        seed = _plan_seed(rows)
-        if seed in seen:
-            raise HysbenchError(f"plan seed {seed} is given twice ({folder})")
-        seen.add(seed)
-        plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
-                      "confirmed_on_nulls": s["confirmed_on_nulls"], "nulls_mrpim": s["nulls_mrpim"],
-                      "oov_given_confirmed_vocabulary": s["oov_given_confirmed_vocabulary"], "oov": s["oov"]})
-    cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
-    return {"plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
-            "right_interval": wilson_interval(right, cases),
-            **{k: sum(p[k] for p in plans) for k in ("confirmed_on_nulls", "nulls_mrpim",
-                                                      "oov_given_confirmed_vocabulary", "oov")}}
-
-
-def pooled_markdown(p: dict) -> str:
-    lines = ["| plan seed | cases | right | share |", "|---|---|---|---|"]
-    lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
-              for q in p["plans"]]
-    lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
-              f"**{100 * p['right_share']:.1f} %**{_interval_text(p['right_interval'])}; confirmed causes on "
-              f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
-              f"vocabulary cause {p['oov_given_confirmed_vocabulary']} of {p['oov']}."]
-    return "\n".join(lines) + "\n"
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", type=int, default=200)
@@ -603,14 +564,24 @@ def main(argv=None) -> int:
                              "before 2026-11-27, whose drive was fixed by the effect's slot")
     parser.add_argument("--pool", nargs="+", metavar="DIR",
                         help="pool the reports of earlier runs in these folders (no new run)")
+    parser.add_argument("--report", metavar="FILE.md",
+                        help="with --pool: write the pooled report here (and FILE.json) instead of printing it")
+    parser.add_argument("--note", default="", help="with --pool --report: a paragraph under the title")
     args = parser.parse_args(argv)
     if args.pool:
+        from .pooled import pool, pooled_markdown, write_pooled  # pooled builds on this module
         try:
-            print(pooled_markdown(pool(args.pool)), end="")
-        except HysbenchError as e:
+            p = pool(args.pool)
+            if args.report:
+                write_pooled(p, args.report, note=args.note)
+            else:
+                print(pooled_markdown(p), end="")
+        except (HysbenchError, OSError) as e:
             print(f"error: {e}", file=sys.stderr)
             return 2
         return 0
+    if args.report or args.note:
+        parser.error("--report and --note go with --pool")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
     s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs,

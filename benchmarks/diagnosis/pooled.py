@@ -1,0 +1,151 @@
+"""Several accuracy plans pooled: the share right with its interval, and where the diagnosis can be trusted.
+
+One plan of 200 cases measures the share right to about +-5 points and has only about seven single-cause
+cases per cause and base, too few for a detection limit by base. Pooled over plans scored with the same
+rule, the report gives per effect and base the share right (95 % Wilson interval) and, per vocabulary cause
+and base, the detection limit (``accuracy.detection_limit``: the smallest strength above which >= 95 % of
+the single-cause cases are right). A user whose plant is like one of the bases reads there what the
+diagnosis can find on it, and from which strength.
+
+Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --pool DIR ... [--report FILE.md]``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+
+from hysbench.data.files import ensure_dir, write_atomic, write_json
+from hysbench.models.errors import HysbenchError
+
+from .accuracy import CONFIDENCE, detection_limit, plan_seed_of, wilson_interval
+from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
+
+_TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
+
+
+def _read(folder: str | Path) -> tuple[list[dict], dict]:
+    path = Path(folder) / "diagnosis_accuracy.json"
+    if not path.is_file():
+        raise HysbenchError(f"no accuracy report in {folder} (expected {path.name})")
+    try:
+        data = json.loads(path.read_text())
+        rows, s = data["cases"], data["summary"]
+        for k in ("cases", "right", *_TOTALS):
+            s[k]
+    except (ValueError, KeyError, TypeError) as e:
+        raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
+    return rows, s
+
+
+def _share(rows: list[dict]) -> dict:
+    right = sum(bool(r["right"]) for r in rows)
+    return {"cases": len(rows), "right": right, "interval": list(wilson_interval(right, len(rows)))}
+
+
+def _effect_order(label: str) -> tuple:
+    kinds = label.split("+")
+    group = (0 if kinds[0] in VOCABULARY and len(kinds) == 1 else 1 if kinds[0] in NULLS
+             else 2 if kinds[0] in OUT_OF_VOCABULARY else 3)
+    return group, label
+
+
+def pool(folders: list[str | Path]) -> dict:
+    """Several plans' reports pooled: per plan its seed, cases and verdicts right; over all of them the
+    share right with its interval (the cases taken as independent draws from one design; pool plans scored
+    with the same rule), per effect and base and per base and drive the share right, and per vocabulary
+    cause and base the detection limit. Raises HysbenchError for a folder without a report or a plan given
+    twice."""
+    plans, seen, rows = [], set(), []
+    for folder in folders:
+        plan_rows, s = _read(folder)
+        seed = plan_seed_of(plan_rows)
+        if seed in seen:
+            raise HysbenchError(f"plan seed {seed} is given twice ({folder})")
+        seen.add(seed)
+        plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
+                      **{k: s[k] for k in _TOTALS}})
+        rows += plan_rows
+    cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
+    by_effect, by_drive = defaultdict(lambda: defaultdict(list)), defaultdict(lambda: defaultdict(list))
+    for r in rows:
+        by_effect["+".join(r["kinds"])][r["base"]].append(r)
+        by_drive[r["base"]][r["drive"]].append(r)
+    bases = [b for b in BASES if any(r["base"] == b for r in rows)]
+    return {
+        "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
+        "right_interval": wilson_interval(right, cases), **{k: sum(p[k] for p in plans) for k in _TOTALS},
+        "bases": bases,
+        "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
+                               for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
+        "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in DRIVES if by_drive[b][d]} for b in bases},
+        "detection_limits": {c: {b: {**detection_limit([r for r in rows if r["base"] == b], c),
+                                     "strengths_pct": _range([r["strength_pct"] for r in rows
+                                                              if r["base"] == b and r["kinds"] == [c]])}
+                                 for b in bases} for c in VOCABULARY},
+    }
+
+
+def _range(values: list[float]) -> list[float] | None:
+    return [min(values), max(values)] if values else None
+
+
+def _cell(q: dict | None) -> str:
+    if not q or not q["cases"]:
+        return "-"
+    lo, hi = q["interval"]
+    return f"{q['right']}/{q['cases']} ({100 * q['right'] / q['cases']:.0f} %, {100 * lo:.0f}-{100 * hi:.0f})"
+
+
+def _limit_cell(q: dict) -> str:
+    if not q["cases"]:
+        return "-"
+    drawn = f"drawn {q['strengths_pct'][0]:.3g}-{q['strengths_pct'][1]:.3g}"
+    if q["strength_pct"] is None:
+        return f"not reached ({q['cases']} case{'s' if q['cases'] > 1 else ''}; {drawn})"
+    if q["cases_above"] == q["cases"]:  # right down to the weakest drawn: the limit is at most that
+        return f"**<= {q['strength_pct']:.3g}** (all {q['cases']} cases right; {drawn})"
+    return f"**{q['strength_pct']:.3g}** ({q['cases_above']} of {q['cases']} cases above; {drawn})"
+
+
+def pooled_markdown(p: dict) -> str:
+    lines = ["| plan seed | cases | right | share |", "|---|---|---|---|"]
+    lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
+              for q in p["plans"]]
+    lo, hi = p["right_interval"]
+    interval = "" if math.isnan(lo) else f" ({100 * CONFIDENCE:.0f} % interval {100 * lo:.1f}-{100 * hi:.1f} %)"
+    lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
+              f"**{100 * p['right_share']:.1f} %**{interval}; confirmed causes on "
+              f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
+              f"vocabulary cause {p['oov_given_confirmed_vocabulary']} of {p['oov']}."]
+    if not p.get("by_effect_and_base"):
+        return "\n".join(lines) + "\n"
+    bases = p["bases"]
+    lines += ["", f"### Right verdicts by planted effect and base (right/cases, share, {100 * CONFIDENCE:.0f} % "
+                  "interval)", "", "| effect | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
+    lines += [f"| {e} | " + " | ".join(_cell(per.get(b)) for b in bases) + " |"
+              for e, per in p["by_effect_and_base"].items()]
+    drives = [d for d in DRIVES if any(d in per for per in p["by_base_and_drive"].values())]
+    lines += ["", "### Right verdicts by base and drive", "", "| base | " + " | ".join(drives) + " |",
+              "|---" * (len(drives) + 1) + "|"]
+    lines += [f"| {b} | " + " | ".join(_cell(per.get(d)) for d in drives) + " |"
+              for b, per in p["by_base_and_drive"].items()]
+    lines += ["", "### Detection limits by base (single-cause cases; strength: rms of the planted effect over the "
+                  "identification records, % of the output's peak-to-peak; limit: the smallest strength above "
+                  "which >= 95 % of the cases, at least 3, are right; <=: right down to the weakest drawn)", "",
+              "| cause | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
+    lines += [f"| {c} | " + " | ".join(_limit_cell(per[b]) for b in bases) + " |"
+              for c, per in p["detection_limits"].items()]
+    return "\n".join(lines) + "\n"
+
+
+def write_pooled(p: dict, report: str | Path, title: str = "Accuracy of `hysbench diagnose`, plans pooled",
+                 note: str = "") -> None:
+    """The pooled report as markdown (``report``) and JSON (same name, .json), each written whole."""
+    report = Path(report)
+    ensure_dir(report.parent)
+    head = [f"# {title}", ""] + ([note.rstrip(), ""] if note else [])
+    write_json(report.with_suffix(".json"), p)
+    write_atomic(report, "\n".join(head) + "\n" + pooled_markdown(p))
