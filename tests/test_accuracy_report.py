@@ -122,6 +122,7 @@ def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_
     assert p["by_base_and_drive"]["mrpim"]["sines"]["cases"] == 3
     assert p["by_base_and_drive"]["mrpim"]["triangles"]["right"] == 1
     assert sum(q["cases"] for per in p["by_effect_and_base"].values() for q in per.values()) == p["cases"] == 9
+    assert (p["parameters_judged"], p["parameters_within"]) == (0, 0)  # the stand-in rows name no parameter
     text = pooled.pooled_markdown(p)
     assert "| relaxation | 2/2 (100 %, 34-100) | 3/5 (60 %, 23-88) |" in text
     assert "**0.5** (3 of 5 cases above; drawn 0.1-2)" in text
@@ -130,6 +131,21 @@ def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_
     q = pooled.pool([a, b])["detection_limits"]["relaxation"]["mrpim"]
     assert (q["strength_pct"], q["cases_above"], q["cases"]) == (0.2, 3, 3)
     assert "**<= 0.2** (all 3 cases right; drawn 0.2-0.4)" in pooled.pooled_markdown(pooled.pool([a, b]))
+
+
+def test_pooled_parameters_within_25_percent_count_the_right_vocabulary_verdicts_that_name_parameters(tmp_path):
+    rows = []
+    for i, (kinds, right, errors, within) in enumerate([(["delay"], True, {"delay_s": 0.1}, True),
+                                                        (["delay"], True, {"delay_s": 0.4}, False),
+                                                        (["delay"], False, {"delay_s": 0.01}, True),  # wrong verdict
+                                                        (["null-white"], True, {}, False),
+                                                        (["creep"], True, {"drift": 0.2}, True)]):
+        rows.append({**_case(8 * accuracy.PLAN_STRIDE + i, kinds, "mrpim", "sines", 1.0, right),
+                     "parameter_errors": errors, "parameters_within": within})
+    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
+    p = pooled.pool([tmp_path])
+    assert (p["parameters_judged"], p["parameters_within"]) == (3, 2)
+    assert "within 25 %: 2 / 3 = **66.7 %**" in pooled.pooled_markdown(p)
 
 
 def test_a_pooled_report_is_written_whole_and_its_options_need_pool(tmp_path, capsys):

@@ -192,12 +192,16 @@ def wilson_interval(k: int, n: int, level: float = CONFIDENCE) -> tuple[float, f
     return (0.0 if k == 0 else centre - half), (1.0 if k == n else centre + half)
 
 
+def judged_parameters(rows: list[dict]) -> list[dict]:
+    """The right verdicts on a vocabulary cause with named parameters: those whose parameters are judged."""
+    return [r for r in rows if r["right"] and r["kinds"][0] in VOCABULARY and r["parameter_errors"]]
+
+
 def summary(rows: list[dict]) -> dict:
     right = sum(r["right"] for r in rows)
     null_rows = [r for r in rows if r["kinds"][0] in NULLS and r["base"] == "mrpim"]
     oov = [r for r in rows if r["kinds"][0] in OUT_OF_VOCABULARY]
-    vocab_right = [r for r in rows if r["right"] and r["kinds"][0] in VOCABULARY]
-    with_params = [r for r in vocab_right if r["parameter_errors"]]
+    with_params = judged_parameters(rows)
     return {
         "cases": len(rows), "right": right, "right_share": right / len(rows) if rows else math.nan,
         "right_interval": wilson_interval(right, len(rows)),
@@ -318,7 +322,7 @@ def _machine(s: dict) -> str:
             f"{m['load_start']:.1f} at the start and {m['load_end']:.1f} at the end")
 
 
-def _interval_text(interval) -> str:
+def interval_text(interval) -> str:
     """ " (95 % interval a-b %)" for a share's interval (nothing if there is none)."""
     if not interval or any(v is None or math.isnan(v) for v in interval):
         return ""
@@ -342,7 +346,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         "## Targets", "",
         "| measure | measured | target |", "|---|---|---|",
         f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %**"
-        f"{_interval_text(s.get('right_interval'))} | >= 90 % |",
+        f"{interval_text(s.get('right_interval'))} | >= 90 % |",
         f"| of them right only by the virtual DEA's own relaxation named with the planted cause under `also`, "
         f"whose parameters there are not within 25 % of the planted ones | "
         f"{'not recorded in this run' if s['right_via_also_unrecovered'] is None else s['right_via_also_unrecovered']}"
@@ -352,7 +356,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"| out-of-vocabulary effects given a confirmed vocabulary cause (MRPIM and piezo bases) | "
         f"**{s['oov_given_confirmed_vocabulary']}** of {s['oov']} | 0 |",
         f"| parameters within 25 % (right verdicts) | **{100 * s['parameters_within_share']:.1f} %** of "
-        f"{s['parameters_judged']}{_interval_text(s.get('parameters_within_interval'))} | >= 90 % |",
+        f"{s['parameters_judged']}{interval_text(s.get('parameters_within_interval'))} | >= 90 % |",
         f"| the planted cause named: confirmed on validation / also every parameter within 25 % | "
         f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |",
         f"| a wrong verdict naming a vocabulary cause: confirmed on validation | {s['wrong_confirmed']} of "

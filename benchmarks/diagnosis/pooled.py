@@ -20,7 +20,8 @@ from pathlib import Path
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
-from .accuracy import CONFIDENCE, detection_limit, plan_seed_of, wilson_interval
+from .accuracy import (CONFIDENCE, detection_limit, interval_text, judged_parameters, plan_seed_of,
+                       wilson_interval)
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
@@ -74,9 +75,13 @@ def pool(folders: list[str | Path]) -> dict:
         by_effect["+".join(r["kinds"])][r["base"]].append(r)
         by_drive[r["base"]][r["drive"]].append(r)
     bases = [b for b in BASES if any(r["base"] == b for r in rows)]
+    judged = judged_parameters(rows)
+    within = sum(bool(r["parameters_within"]) for r in judged)
     return {
         "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
         "right_interval": wilson_interval(right, cases), **{k: sum(p[k] for p in plans) for k in _TOTALS},
+        "parameters_judged": len(judged), "parameters_within": within,
+        "parameters_within_interval": wilson_interval(within, len(judged)),
         "bases": bases,
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
@@ -114,12 +119,14 @@ def pooled_markdown(p: dict) -> str:
     lines = ["| plan seed | cases | right | share |", "|---|---|---|---|"]
     lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
               for q in p["plans"]]
-    lo, hi = p["right_interval"]
-    interval = "" if math.isnan(lo) else f" ({100 * CONFIDENCE:.0f} % interval {100 * lo:.1f}-{100 * hi:.1f} %)"
     lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
-              f"**{100 * p['right_share']:.1f} %**{interval}; confirmed causes on "
+              f"**{100 * p['right_share']:.1f} %**{interval_text(p['right_interval'])}; confirmed causes on "
               f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
               f"vocabulary cause {p['oov_given_confirmed_vocabulary']} of {p['oov']}."]
+    if p.get("parameters_judged"):
+        lines[-1] += (f" Parameters of right verdicts within 25 %: {p['parameters_within']} / {p['parameters_judged']}"
+                      f" = **{100 * p['parameters_within'] / p['parameters_judged']:.1f} %**"
+                      f"{interval_text(p['parameters_within_interval'])}.")
     if not p.get("by_effect_and_base"):
         return "\n".join(lines) + "\n"
     bases = p["bases"]
