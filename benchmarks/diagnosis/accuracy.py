@@ -176,8 +176,9 @@ def detection_limit(rows: list[dict], cause: str) -> dict:
     for i, r in enumerate(cases):
         rest = cases[i:]
         if len(rest) >= 3 and sum(x["right"] for x in rest) >= RIGHT_SHARE * len(rest):
-            return {"strength_pct": r["strength_pct"], "cases_above": len(rest), "cases": len(cases)}
-    return {"strength_pct": None, "cases_above": 0, "cases": len(cases)}
+            return {"strength_pct": r["strength_pct"], "cases_above": len(rest), "cases": len(cases),
+                    "right_above": sum(x["right"] for x in rest)}
+    return {"strength_pct": None, "cases_above": 0, "cases": len(cases), "right_above": 0}
 
 
 def wilson_interval(k: int, n: int, level: float = CONFIDENCE) -> tuple[float, float]:

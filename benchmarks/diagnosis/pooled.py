@@ -110,9 +110,10 @@ def _limit_cell(q: dict) -> str:
     drawn = f"drawn {q['strengths_pct'][0]:.3g}-{q['strengths_pct'][1]:.3g}"
     if q["strength_pct"] is None:
         return f"not reached ({q['cases']} case{'s' if q['cases'] > 1 else ''}; {drawn})"
-    if q["cases_above"] == q["cases"]:  # right down to the weakest drawn: the limit is at most that
-        return f"**<= {q['strength_pct']:.3g}** (all {q['cases']} cases right; {drawn})"
-    return f"**{q['strength_pct']:.3g}** ({q['cases_above']} of {q['cases']} cases above; {drawn})"
+    right = f"{q['right_above']} of {q['cases_above']} right"
+    if q["cases_above"] == q["cases"]:  # >= 95 % right down to the weakest drawn: the limit is at most that
+        return f"**<= {q['strength_pct']:.3g}** (every case at or above it: {right}; {drawn})"
+    return f"**{q['strength_pct']:.3g}** ({q['cases_above']} of {q['cases']} cases at or above it, {right}; {drawn})"
 
 
 def pooled_markdown(p: dict) -> str:
@@ -141,7 +142,7 @@ def pooled_markdown(p: dict) -> str:
               for b, per in p["by_base_and_drive"].items()]
     lines += ["", "### Detection limits by base (single-cause cases; strength: rms of the planted effect over the "
                   "identification records, % of the output's peak-to-peak; limit: the smallest strength above "
-                  "which >= 95 % of the cases, at least 3, are right; <=: right down to the weakest drawn)", "",
+                  "which >= 95 % of the cases, at least 3, are right; <=: so down to the weakest drawn)", "",
               "| cause | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
     lines += [f"| {c} | " + " | ".join(_limit_cell(per[b]) for b in bases) + " |"
               for c, per in p["detection_limits"].items()]
