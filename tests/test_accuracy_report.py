@@ -78,6 +78,16 @@ def test_pooled_plans_add_their_cases_and_refuse_a_plan_twice_or_a_folder_withou
     assert accuracy.main(["--pool", str(a), str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no accuracy report" in err
+    data = json.loads((b / "diagnosis_accuracy.json").read_text())
+    del data["cases"][3]["seed"]
+    (b / "diagnosis_accuracy.json").write_text(json.dumps(data))
+    assert accuracy.main(["--pool", str(a), str(b)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "case 3 has no seed" in err
+    data["cases"] = "not a list"
+    (b / "diagnosis_accuracy.json").write_text(json.dumps(data))
+    with pytest.raises(HysbenchError, match="case 0 has no fields"):
+        pooled.pool([b])
 
 
 def test_a_rewritten_report_keeps_its_note_also_from_a_report_written_before_the_note_was_stored(tmp_path):

@@ -25,6 +25,7 @@ from .accuracy import (CONFIDENCE, detection_limit, interval_text, judged_parame
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
+_CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
 
 
 def _read(folder: str | Path) -> tuple[list[dict], dict]:
@@ -38,6 +39,13 @@ def _read(folder: str | Path) -> tuple[list[dict], dict]:
             s[k]
     except (ValueError, KeyError, TypeError) as e:
         raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
+    for i, r in enumerate(rows if isinstance(rows, list) else [None]):
+        bad = [k for k in _CASE_KEYS if k not in r] if isinstance(r, dict) else ["fields"]
+        if not bad and not (isinstance(r["seed"], int) and isinstance(r["kinds"], list)
+                            and isinstance(r["strength_pct"], (int, float))):
+            bad = ["seed, kinds or strength_pct of the right type"]
+        if bad:
+            raise HysbenchError(f"{path}: case {i} has no {', '.join(bad)}")
     return rows, s
 
 
