@@ -46,7 +46,6 @@ from typing import Callable
 
 import numba
 import numpy as np
-from scipy import stats
 
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
@@ -54,15 +53,15 @@ from hysbench.models.errors import HysbenchError
 from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, VOCABULARY, piezo_available, planted_case
+from .pooled import pool, pooled_markdown, write_pooled
+from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, detection_limit, interval_text, judged_parameters,
+                     plan_seed_of, wilson_interval)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
            + [("relaxation", "interference"), ("delay", "creep"), ("resonance", "creep"), ("saturation", "relaxation")])
 TOLERANCE = 0.25
-PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
-RIGHT_SHARE = 0.95
 HEADLINE_SEED = 40  # the plan of results/diagnosis_accuracy.md (fresh, scored once with session 26's code)
-CONFIDENCE = 0.95  # the intervals on the report's shares (Wilson score)
 
 
 # (base, drive) in the order the plan visits them: half MRPIM, a quarter each the virtual DEA and the real
@@ -168,34 +167,6 @@ def run_case(case: dict) -> dict:
             "right": judge(truth, d.cause, also), "seconds": seconds,
             "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect),
             "extension_could_show": extension_could_show(per_effect)}
-
-
-def detection_limit(rows: list[dict], cause: str) -> dict:
-    """The smallest strength s such that, among single-cause cases of at least s, >= 95 % are right."""
-    cases = sorted([r for r in rows if r["kinds"] == [cause]], key=lambda r: r["strength_pct"])
-    for i, r in enumerate(cases):
-        rest = cases[i:]
-        if len(rest) >= 3 and sum(x["right"] for x in rest) >= RIGHT_SHARE * len(rest):
-            return {"strength_pct": r["strength_pct"], "cases_above": len(rest), "cases": len(cases),
-                    "right_above": sum(x["right"] for x in rest)}
-    return {"strength_pct": None, "cases_above": 0, "cases": len(cases), "right_above": 0}
-
-
-def wilson_interval(k: int, n: int, level: float = CONFIDENCE) -> tuple[float, float]:
-    """The Wilson score interval for a share k / n: the shares p whose score test |k - n p| / sqrt(n p (1-p))
-    does not reject at ``level`` (two-sided). (nan, nan) for n = 0."""
-    if n <= 0:
-        return math.nan, math.nan
-    z = float(stats.norm.isf((1.0 - level) / 2.0))
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return (0.0 if k == 0 else centre - half), (1.0 if k == n else centre + half)
-
-
-def judged_parameters(rows: list[dict]) -> list[dict]:
-    """The right verdicts on a vocabulary cause with named parameters: those whose parameters are judged."""
-    return [r for r in rows if r["right"] and r["kinds"][0] in VOCABULARY and r["parameter_errors"]]
 
 
 def summary(rows: list[dict]) -> dict:
@@ -308,11 +279,6 @@ def _label(r: dict) -> str:
     return "+".join(r["kinds"])
 
 
-def plan_seed_of(rows: list[dict]) -> str:
-    """The plan's seed, from the cases' seeds (``plan``: seed * PLAN_STRIDE + index)."""
-    return ", ".join(str(k) for k in sorted({r["seed"] // PLAN_STRIDE for r in rows})) or "-"
-
-
 def _machine(s: dict) -> str:
     """Where the wall time was measured: cores and the 1-min load average at the run's start and end."""
     m = s.get("machine")
@@ -321,13 +287,6 @@ def _machine(s: dict) -> str:
     procs = m.get("jobs", 1)
     return (f"{procs} process{'es' if procs > 1 else ''} on a {m['cpu_count']}-core machine, 1-min load average "
             f"{m['load_start']:.1f} at the start and {m['load_end']:.1f} at the end")
-
-
-def interval_text(interval) -> str:
-    """ " (95 % interval a-b %)" for a share's interval (nothing if there is none)."""
-    if not interval or any(v is None or math.isnan(v) for v in interval):
-        return ""
-    return f" ({100 * CONFIDENCE:.0f} % interval {100 * interval[0]:.1f}-{100 * interval[1]:.1f} %)"
 
 
 def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
@@ -574,7 +533,6 @@ def main(argv=None) -> int:
     parser.add_argument("--note", default="", help="with --pool --report: a paragraph under the title")
     args = parser.parse_args(argv)
     if args.pool:
-        from .pooled import pool, pooled_markdown, write_pooled  # pooled builds on this module
         try:
             p = pool(args.pool)
             if args.report:

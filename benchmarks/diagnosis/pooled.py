@@ -3,7 +3,7 @@
 One plan of 200 cases measures the share right to about +-5 points and has only about seven single-cause
 cases per cause and base, too few for a detection limit by base. Pooled over plans scored with the same
 rule, the report gives per effect and base the share right (95 % Wilson interval) and, per vocabulary cause
-and base, the detection limit (``accuracy.detection_limit``: the smallest strength above which >= 95 % of
+and base, the detection limit (``shares.detection_limit``: the smallest strength above which >= 95 % of
 the single-cause cases are right). A user whose plant is like one of the bases reads there what the
 diagnosis can find on it, and from which strength.
 
@@ -20,9 +20,8 @@ from pathlib import Path
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
-from .accuracy import (CONFIDENCE, detection_limit, interval_text, judged_parameters, plan_seed_of,
-                       wilson_interval)
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
+from .shares import CONFIDENCE, detection_limit, interval_text, judged_parameters, plan_seed_of, wilson_interval
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")

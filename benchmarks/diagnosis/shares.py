@@ -1,0 +1,53 @@
+"""The counting the accuracy reports share: a plan's cases, shares with their intervals, detection limits."""
+
+from __future__ import annotations
+
+import math
+
+from scipy import stats
+
+from .planted import VOCABULARY
+
+PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
+RIGHT_SHARE = 0.95  # a detection limit: the share right at and above it
+CONFIDENCE = 0.95  # the intervals on the reports' shares (Wilson score)
+
+
+def detection_limit(rows: list[dict], cause: str) -> dict:
+    """The smallest strength s such that, among single-cause cases of at least s, >= 95 % are right."""
+    cases = sorted([r for r in rows if r["kinds"] == [cause]], key=lambda r: r["strength_pct"])
+    for i, r in enumerate(cases):
+        rest = cases[i:]
+        if len(rest) >= 3 and sum(x["right"] for x in rest) >= RIGHT_SHARE * len(rest):
+            return {"strength_pct": r["strength_pct"], "cases_above": len(rest), "cases": len(cases),
+                    "right_above": sum(x["right"] for x in rest)}
+    return {"strength_pct": None, "cases_above": 0, "cases": len(cases), "right_above": 0}
+
+
+def wilson_interval(k: int, n: int, level: float = CONFIDENCE) -> tuple[float, float]:
+    """The Wilson score interval for a share k / n: the shares p whose score test |k - n p| / sqrt(n p (1-p))
+    does not reject at ``level`` (two-sided). (nan, nan) for n = 0."""
+    if n <= 0:
+        return math.nan, math.nan
+    z = float(stats.norm.isf((1.0 - level) / 2.0))
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return (0.0 if k == 0 else centre - half), (1.0 if k == n else centre + half)
+
+
+def judged_parameters(rows: list[dict]) -> list[dict]:
+    """The right verdicts on a vocabulary cause with named parameters: those whose parameters are judged."""
+    return [r for r in rows if r["right"] and r["kinds"][0] in VOCABULARY and r["parameter_errors"]]
+
+
+def plan_seed_of(rows: list[dict]) -> str:
+    """The plan's seed, from the cases' seeds (``plan``: seed * PLAN_STRIDE + index)."""
+    return ", ".join(str(k) for k in sorted({r["seed"] // PLAN_STRIDE for r in rows})) or "-"
+
+
+def interval_text(interval) -> str:
+    """ " (95 % interval a-b %)" for a share's interval (nothing if there is none)."""
+    if not interval or any(v is None or math.isnan(v) for v in interval):
+        return ""
+    return f" ({100 * CONFIDENCE:.0f} % interval {100 * interval[0]:.1f}-{100 * interval[1]:.1f} %)"
