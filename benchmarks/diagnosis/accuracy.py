@@ -54,8 +54,8 @@ from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, VOCABULARY, piezo_available, planted_case
 from .pooled import pool, pooled_markdown, write_pooled
-from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, detection_limit, interval_text, judged_parameters,
-                     plan_seed_of, wilson_interval)
+from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, detection_limit, effect_label, interval_text,
+                     judged_parameters, plan_seed_of, wilson_interval)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -275,10 +275,6 @@ def _recovered(r: dict) -> bool:
     return _within(r.get("also_parameter_errors", {}).get("delay", {}))
 
 
-def _label(r: dict) -> str:
-    return "+".join(r["kinds"])
-
-
 def _machine(s: dict) -> str:
     """Where the wall time was measured: cores and the 1-min load average at the run's start and end."""
     m = s.get("machine")
@@ -342,8 +338,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         "## Confusion matrix (true effect x verdict, counts)", ""]
     verdicts = ["none", "unexplained", *VOCABULARY]
     lines += ["| true \\ verdict | " + " | ".join(verdicts) + " | right |", "|---" * (len(verdicts) + 2) + "|"]
-    for label in dict.fromkeys(_label(r) for r in rows):
-        sub = [r for r in rows if _label(r) == label]
+    for label in dict.fromkeys(effect_label(r) for r in rows):
+        sub = [r for r in rows if effect_label(r) == label]
         c = Counter(r["verdict"] for r in sub)
         lines.append(f"| {label} | " + " | ".join(str(c.get(v, 0) or "") for v in verdicts)
                      + f" | {sum(r['right'] for r in sub)}/{len(sub)} |")
@@ -372,8 +368,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
               f">= {100 * RIGHT_SHARE:.0f} % of the cases (at least 3).", "",
               "| cause | cases | detection limit (% of p2p) | cases above it | strengths drawn |", "|---|---|---|---|---|"]
     for cause, lim in s["detection_limits"].items():
-        st = [r["strength_pct"] for r in rows if r["kinds"] == [cause]]
-        rng = f"{min(st):.3g} - {max(st):.3g}" if st else "-"
+        rng = f"{lim['strengths_pct'][0]:.3g} - {lim['strengths_pct'][1]:.3g}" if lim["strengths_pct"] else "-"
         val = f"{lim['strength_pct']:.3g}" if lim["strength_pct"] is not None else "not reached"
         lines.append(f"| {cause} | {lim['cases']} | {val} | {lim['cases_above']} | {rng} |")
     lines += _ceiling_lines(s)
@@ -382,7 +377,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
               "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if not r["right"]:
-            lines.append(f"| {_label(r)} (seed {r['seed']}) | {r['base']} | {r['drive']} | {r['strength_pct']:.3g} | "
+            lines.append(f"| {effect_label(r)} (seed {r['seed']}) | {r['base']} | {r['drive']} | {r['strength_pct']:.3g} | "
                          f"{r['verdict']} | {', '.join(r['ambiguous_with']) or '-'} | {', '.join(r['also']) or '-'} | "
                          f"{_evidence_cell(r)} |")
     return "\n".join(lines) + "\n"

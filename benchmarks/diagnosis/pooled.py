@@ -21,7 +21,8 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
-from .shares import CONFIDENCE, detection_limit, interval_text, judged_parameters, plan_seed_of, wilson_interval
+from .shares import (CONFIDENCE, detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of,
+                     wilson_interval)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
@@ -34,10 +35,11 @@ def _read(folder: str | Path) -> tuple[list[dict], dict]:
     try:
         data = json.loads(path.read_text())
         rows, s = data["cases"], data["summary"]
-        for k in ("cases", "right", *_TOTALS):
-            s[k]
+        missing = [k for k in ("cases", "right", *_TOTALS) if k not in s]
     except (ValueError, KeyError, TypeError) as e:
         raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
+    if missing:
+        raise HysbenchError(f"{path} is not an accuracy report (its summary has no {', '.join(missing)})")
     for i, r in enumerate(rows if isinstance(rows, list) else [None]):
         bad = [k for k in _CASE_KEYS if k not in r] if isinstance(r, dict) else ["fields"]
         if not bad and not (isinstance(r["seed"], int) and isinstance(r["kinds"], list)
@@ -79,7 +81,7 @@ def pool(folders: list[str | Path]) -> dict:
     cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
     by_effect, by_drive = defaultdict(lambda: defaultdict(list)), defaultdict(lambda: defaultdict(list))
     for r in rows:
-        by_effect["+".join(r["kinds"])][r["base"]].append(r)
+        by_effect[effect_label(r)][r["base"]].append(r)
         by_drive[r["base"]][r["drive"]].append(r)
     bases = [b for b in BASES if any(r["base"] == b for r in rows)]
     judged = judged_parameters(rows)
@@ -93,15 +95,9 @@ def pool(folders: list[str | Path]) -> dict:
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in DRIVES if by_drive[b][d]} for b in bases},
-        "detection_limits": {c: {b: {**detection_limit([r for r in rows if r["base"] == b], c),
-                                     "strengths_pct": _range([r["strength_pct"] for r in rows
-                                                              if r["base"] == b and r["kinds"] == [c]])}
-                                 for b in bases} for c in VOCABULARY},
+        "detection_limits": {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases}
+                             for c in VOCABULARY},
     }
-
-
-def _range(values: list[float]) -> list[float] | None:
-    return [min(values), max(values)] if values else None
 
 
 def _cell(q: dict | None) -> str:
