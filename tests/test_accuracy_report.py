@@ -167,7 +167,10 @@ def test_a_pooled_report_is_written_whole_and_its_options_need_pool(tmp_path, ca
     assert json.loads(report.with_suffix(".json").read_text())["right"] == 2
     with pytest.raises(SystemExit) as e:
         accuracy.main(["--report", str(report)])
-    assert e.value.code == 2 and "--report and --note go with --pool" in capsys.readouterr().err
+    assert e.value.code == 2 and "--report, --note and --check go with --pool" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        accuracy.main(["--check", str(tmp_path / "a")])
+    assert e.value.code == 2 and "go with --pool" in capsys.readouterr().err
 
 
 
@@ -180,3 +183,44 @@ def test_a_limit_at_the_weakest_drawn_strength_says_how_many_of_its_cases_are_ri
     assert (q["strength_pct"], q["cases_above"], q["right_above"]) == (0.5, 20, 19)
     assert "**<= 0.5** (every case at or above it: 19 of 20 right; drawn 0.5-2.4)" in pooled.pooled_markdown(
         pooled.pool([tmp_path]))
+
+
+def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand(tmp_path, capsys):
+    """The limits chosen on plan 1 (creep on MRPIM: 0.5; delay on MRPIM: 2; resonance: none reached) checked on
+    plan 2: its creep cases at or above 0.5 (0.5, 0.9, 2.0: two right, an interval short of 95 %) and below it
+    (0.3, right); its delay case at 9 (right). A plan both pooled and checked is refused: not held out."""
+    stride = accuracy.PLAN_STRIDE
+    fit, held = tmp_path / "fit", tmp_path / "held"
+    rows = [_case(stride + i, ["creep"], "mrpim", "sines", s, r)
+            for i, (s, r) in enumerate([(0.2, False), (0.5, True), (0.7, True), (1.0, True)])]
+    rows += [_case(stride + 4 + i, ["delay"], "mrpim", "sines", s, s > 1) for i, s in enumerate((1.0, 2.0, 3.0, 4.0))]
+    rows += [_case(stride + 8 + i, ["resonance"], "mrpim", "sines", s, False) for i, s in enumerate((1.0, 2.0, 3.0))]
+    accuracy.write(rows, accuracy.ensure_dir(fit), 1.0)
+    rows = [_case(2 * stride + i, ["creep"], "mrpim", "triangles", s, r)
+            for i, (s, r) in enumerate([(0.3, True), (0.5, True), (0.9, False), (2.0, True)])]
+    rows += [_case(2 * stride + 4, ["creep"], "piezo", "sines", 5.0, False),  # no limit on the piezo base
+             _case(2 * stride + 5, ["delay"], "mrpim", "sines", 9.0, True),
+             _case(2 * stride + 6, ["resonance"], "mrpim", "sines", 9.0, True),
+             _case(2 * stride + 7, ["delay", "creep"], "mrpim", "sines", 9.0, False)]
+    accuracy.write(rows, accuracy.ensure_dir(held), 1.0)
+    p = pooled.pool([fit], check=[held])
+    c = p["checked"]
+    assert [q["seed"] for q in c["plans"]] == ["2"]
+    assert list(c["by_cause_and_base"]) == ["delay", "creep"]
+    assert [list(per) for per in c["by_cause_and_base"].values()] == [["mrpim"], ["mrpim"]]
+    q = c["by_cause_and_base"]["creep"]["mrpim"]
+    assert (q["limit_pct"], q["cases"], q["above"], q["right_above"], q["below"], q["right_below"]) == (
+        0.5, 4, 3, 2, 1, 1)
+    assert q["interval"] == pytest.approx(accuracy.wilson_interval(2, 3))
+    assert q["holds"] is False  # 2 of 3: the interval (21-94 %) does not reach 95 %
+    d = c["by_cause_and_base"]["delay"]["mrpim"]
+    assert (d["limit_pct"], d["above"], d["right_above"], d["below"], d["holds"]) == (2.0, 1, 1, 0, True)
+    assert (c["above"], c["right_above"]) == (4, 3)
+    text = pooled.pooled_markdown(p)
+    assert "| creep | mrpim | 0.5 | 2 of 3 | 67 % (21-94) | **no** (below 95 %) | 1 of 1 |" in text
+    assert "| delay | mrpim | 2 | 1 of 1 | 100 % (21-100) | yes | - |" in text
+    assert "3 of 4 cases at or above their limit right = **75.0 %**" in text
+    with pytest.raises(HysbenchError, match="cannot check them"):
+        pooled.pool([fit, held], check=[held])
+    assert accuracy.main(["--pool", str(fit), "--check", str(fit)]) == 2
+    assert "cannot check them" in capsys.readouterr().err

@@ -26,7 +26,8 @@ record; saturation: the level's error over the output's peak-to-peak).
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 40``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
-2026-11-27, see ``plan``; ``--pool DIR ... [--report FILE.md]``: earlier runs' reports pooled, ``pooled``).
+2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
+pooled, their detection limits checked on other runs, ``pooled``).
 """
 
 from __future__ import annotations
@@ -523,13 +524,15 @@ def main(argv=None) -> int:
                              "before 2026-11-27, whose drive was fixed by the effect's slot")
     parser.add_argument("--pool", nargs="+", metavar="DIR",
                         help="pool the reports of earlier runs in these folders (no new run)")
+    parser.add_argument("--check", nargs="+", metavar="DIR",
+                        help="with --pool: check the pooled detection limits on these other runs (held out)")
     parser.add_argument("--report", metavar="FILE.md",
                         help="with --pool: write the pooled report here (and FILE.json) instead of printing it")
     parser.add_argument("--note", default="", help="with --pool --report: a paragraph under the title")
     args = parser.parse_args(argv)
     if args.pool:
         try:
-            p = pool(args.pool)
+            p = pool(args.pool, check=args.check)
             if args.report:
                 write_pooled(p, args.report, note=args.note)
             else:
@@ -538,8 +541,8 @@ def main(argv=None) -> int:
             print(f"error: {e}", file=sys.stderr)
             return 2
         return 0
-    if args.report or args.note:
-        parser.error("--report and --note go with --pool")
+    if args.report or args.note or args.check:
+        parser.error("--report, --note and --check go with --pool")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
     s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs,

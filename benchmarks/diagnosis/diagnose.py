@@ -18,7 +18,10 @@
    drive that separates them (``experiment``). An ``unexplained`` verdict
    whose best partial cause passes by itself is completed by the forward
    selection of step 5 on top of it; if the two explain half of the misfit,
-   it is named (``secondary.complete_partial``).
+   it is named (``secondary.complete_partial``). A ``none`` verdict whose
+   best candidate is promising but short of evidence alone is completed the
+   same way; it is named if together they show evidence that more than one
+   record carries (``secondary.complete_promising``).
 5. Other causes are tried on top of the named one (composite extension)
    and kept as "also" if they pass the held-out test against what is kept,
    their own parameters refitted per fold (``secondary.secondary_causes``);
@@ -63,7 +66,7 @@ from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
-from .secondary import complete_partial, drop_redundant_primary, not_identified, secondary_causes
+from .secondary import complete_partial, complete_promising, drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_CONFIRM, Z_PASS,
                         Z_SAME, Verdict, decide)
@@ -379,7 +382,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     if diag.experiments:
         timings["experiments"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    completed = verdict.chosen is None and extend and complete_partial(diag, result, say)
+    completed = verdict.chosen is None and extend and (complete_partial(diag, result, say)
+                                                       or complete_promising(diag, result, say))
     secondary_s = time.perf_counter() - t1  # the completion runs the secondary causes on the partial cause
     if diag.chosen is None or not extend:
         t1 = time.perf_counter()

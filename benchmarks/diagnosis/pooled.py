@@ -7,7 +7,10 @@ and base, the detection limit (``shares.detection_limit``: the smallest strength
 the single-cause cases are right). A user whose plant is like one of the bases reads there what the
 diagnosis can find on it, and from which strength.
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --pool DIR ... [--report FILE.md]``.
+A limit is a claim, chosen on the pooled plans; ``check_limits`` tests it on plans that took no part in
+choosing it: their single-cause cases at or above their cause and base's limit, and how many are right.
+
+Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --pool DIR ... [--check DIR ...] [--report FILE.md]``.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
-from .shares import (CONFIDENCE, detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of,
+from .shares import (CONFIDENCE, RIGHT_SHARE, detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of,
                      wilson_interval)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
@@ -62,22 +65,54 @@ def _effect_order(label: str) -> tuple:
     return group, label
 
 
-def pool(folders: list[str | Path]) -> dict:
-    """Several plans' reports pooled: per plan its seed, cases and verdicts right; over all of them the
-    share right with its interval (the cases taken as independent draws from one design; pool plans scored
-    with the same rule), per effect and base and per base and drive the share right, and per vocabulary
-    cause and base the detection limit. Raises HysbenchError for a folder without a report or a plan given
-    twice."""
-    plans, seen, rows = [], set(), []
+def _read_plans(folders: list[str | Path], seen: set, why: str = "") -> tuple[list[dict], list[dict]]:
+    """(per plan its folder, seed, cases, right and totals; all their cases); a plan seed in ``seen`` (or given
+    twice) raises HysbenchError (``why``: added to its message)."""
+    plans, rows = [], []
     for folder in folders:
         plan_rows, s = _read(folder)
         seed = plan_seed_of(plan_rows)
         if seed in seen:
-            raise HysbenchError(f"plan seed {seed} is given twice ({folder})")
+            raise HysbenchError(f"plan seed {seed} is given twice ({folder}){why}")
         seen.add(seed)
         plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
                       **{k: s[k] for k in _TOTALS}})
         rows += plan_rows
+    return plans, rows
+
+
+def check_limits(limits: dict, rows: list[dict]) -> dict:
+    """Detection limits (per cause and base, ``pool``'s) checked on other plans' cases: per cause and base with
+    a limit, the single-cause cases at or above it, how many are right (the limit claims >= ``RIGHT_SHARE``)
+    with the interval, and the cases below it; and the same summed over every cause and base."""
+    out, above_all, right_all = {}, 0, 0
+    for cause, per in limits.items():
+        for base, q in per.items():
+            if q["strength_pct"] is None:
+                continue
+            cases = [r for r in rows if r["kinds"] == [cause] and r["base"] == base]
+            above = [r for r in cases if r["strength_pct"] >= q["strength_pct"]]
+            right = sum(bool(r["right"]) for r in above)
+            interval = wilson_interval(right, len(above))
+            out.setdefault(cause, {})[base] = {
+                "limit_pct": q["strength_pct"], "cases": len(cases), "above": len(above), "right_above": right,
+                "interval": list(interval), "holds": bool(above) and interval[1] >= RIGHT_SHARE,
+                "below": len(cases) - len(above), "right_below": sum(bool(r["right"]) for r in cases) - right}
+            above_all, right_all = above_all + len(above), right_all + right
+    return {"by_cause_and_base": out, "above": above_all, "right_above": right_all,
+            "interval": list(wilson_interval(right_all, above_all))}
+
+
+def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> dict:
+    """Several plans' reports pooled: per plan its seed, cases and verdicts right; over all of them the
+    share right with its interval (the cases taken as independent draws from one design; pool plans scored
+    with the same rule), per effect and base and per base and drive the share right, and per vocabulary
+    cause and base the detection limit; with ``check``, those limits checked on these other plans
+    (``check_limits``). Raises HysbenchError for a folder without a report or a plan given twice (also: both
+    pooled and checked, which would not be held out)."""
+    seen: set = set()
+    plans, rows = _read_plans(folders, seen)
+    checked = _read_plans(check, seen, ": a plan pooled for the limits cannot check them") if check else None
     cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
     by_effect, by_drive = defaultdict(lambda: defaultdict(list)), defaultdict(lambda: defaultdict(list))
     for r in rows:
@@ -85,6 +120,7 @@ def pool(folders: list[str | Path]) -> dict:
         by_drive[r["base"]][r["drive"]].append(r)
     bases = [b for b in BASES if any(r["base"] == b for r in rows)]
     judged = judged_parameters(rows)
+    limits = {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases} for c in VOCABULARY}
     within = sum(bool(r["parameters_within"]) for r in judged)
     return {
         "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
@@ -95,8 +131,8 @@ def pool(folders: list[str | Path]) -> dict:
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in DRIVES if by_drive[b][d]} for b in bases},
-        "detection_limits": {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases}
-                             for c in VOCABULARY},
+        "detection_limits": limits,
+        **({"checked": {"plans": checked[0], **check_limits(limits, checked[1])}} if checked else {}),
     }
 
 
@@ -149,7 +185,34 @@ def pooled_markdown(p: dict) -> str:
               "| cause | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
     lines += [f"| {c} | " + " | ".join(_limit_cell(per[b]) for b in bases) + " |"
               for c, per in p["detection_limits"].items()]
+    if "checked" in p:
+        lines += ["", *_checked_lines(p["checked"])]
     return "\n".join(lines) + "\n"
+
+
+def _checked_lines(c: dict) -> list[str]:
+    seeds = ", ".join(q["seed"] for q in c["plans"])
+    n = sum(q["cases"] for q in c["plans"])
+    lines = [f"### The detection limits checked on held-out plans (seed{'s' if len(c['plans']) > 1 else ''} "
+             f"{seeds}, {n} cases, none pooled above)", "",
+             f"Each limit above claims that >= {100 * RIGHT_SHARE:.0f} % of the single-cause cases at or above it "
+             "are right. Here its cases in plans that took no part in choosing it. Holds: the interval reaches "
+             f"{100 * RIGHT_SHARE:.0f} %.", "",
+             "| cause | base | limit | cases at or above it: right | share (95 % interval) | holds | below it: right |",
+             "|---|---|---|---|---|---|---|"]
+    for cause, per in c["by_cause_and_base"].items():
+        for base, q in per.items():
+            share = (f"{100 * q['right_above'] / q['above']:.0f} % ({100 * q['interval'][0]:.0f}-"
+                     f"{100 * q['interval'][1]:.0f})" if q["above"] else "-")
+            holds = ("-" if not q["above"] else "yes" if q["holds"] else f"**no** (below {100 * RIGHT_SHARE:.0f} %)")
+            below = f"{q['right_below']} of {q['below']}" if q["below"] else "-"
+            lines.append(f"| {cause} | {base} | {q['limit_pct']:.3g} | {q['right_above']} of {q['above']} | {share} | "
+                         f"{holds} | {below} |")
+    if c["above"]:
+        lines += ["", f"Every cause and base with a limit: {c['right_above']} of {c['above']} cases at or above "
+                      f"their limit right = **{100 * c['right_above'] / c['above']:.1f} %**"
+                      f"{interval_text(c['interval'])}."]
+    return lines
 
 
 def write_pooled(p: dict, report: str | Path, title: str = "Accuracy of `hysbench diagnose`, plans pooled",

@@ -24,9 +24,9 @@ from typing import Callable
 from .candidates import CREEP_PERIODS, Candidate
 from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
-from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags, evidence,
-                        fold_uncertainty, heldout_errors, heldout_null, own_nonlinear, passes, promising, score,
-                        share_of_misfit)
+from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
+                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, own_nonlinear,
+                        passes, promising, score, share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
 
@@ -220,6 +220,48 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
         f"{' + '.join(a.cause for a in diag.also)} on top, each predicting the held-out records better than what "
         f"was kept before it, {100 * share:.0f} % (two causes at once)")
     diag.verdict.partial = None
+    return True
+
+
+def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
+    """A ``none`` verdict whose best candidate is promising (a held-out gain in most folds, within its meaning
+    and off its bounds) but short of evidence by itself: the forward selection is run on top of it
+    (``secondary_causes``). Two causes at once can each fall short alone, e.g. a delay that only the fastest
+    drive shows on a plant that also relaxes. The promising cause is named with those kept under "also" only if
+    all of them together, every nonlinear parameter refitted per fold, show held-out evidence against the base
+    model that more than one record carries (``selection.carried_by_one_record``) and remove at least
+    ``EXPLAIN_SHARE`` of its held-out misfit beyond noise; otherwise the verdict stays ``none``. True if named."""
+    v, screen, folds = diag.verdict, diag.screen, result["folds"]
+    pool = [c for c in diag.candidates if promising(c) and not c.heldout.get("at_bound")]
+    if v.cause != "none" or not pool:
+        return False
+    p = max(pool, key=lambda c: c.heldout_gain)
+    say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other causes "
+        "on top")
+    diag.verdict = Verdict(p.cause, p, [], "", v.not_identified)
+    tried = len(diag.secondary_tried)
+    secondary_causes(diag, result, say)
+    e_null = result["errors"][id(screen.null)]
+    h, carried = None, True
+    if diag.also:
+        e = refit_errors(screen, folds, result, diag.also[-1])
+        h, carried = score(folds, e_null, e), carried_by_one_record(folds, e_null, e)
+    share = share_of_misfit(screen, float(e_null @ e_null), h["sse"]) if h else 0.0
+    if h is None or not evidence(h) or carried or share < EXPLAIN_SHARE:
+        diag.verdict, diag.also = v, []
+        if len(diag.secondary_tried) > tried:
+            v.reason += (f"; with other causes tried on top of {p.cause}, no combination predicts the held-out "
+                         "records better with evidence that more than one record carries and removes "
+                         f"{100 * EXPLAIN_SHARE:.0f} % of the misfit")
+        return False
+    h1 = p.heldout
+    diag.verdict.reason = (
+        f"predicts the held-out identification records better than the base model refitted the same way (gain "
+        f"{100 * h1['gain']:.2f} %, better in {h1['folds_improved']} of {h1['n_folds']} records) but short of "
+        f"evidence by itself (z = {h1['z']:.1f}); with {' + '.join(a.cause for a in diag.also)} on top, each "
+        f"predicting the held-out records better than what was kept before it, all of them with every parameter "
+        f"refitted per fold predict them better than the base model (gain {100 * h['gain']:.2f} %, z = "
+        f"{h['z']:.1f}) and remove {100 * share:.0f} % of its held-out misfit beyond white noise (two causes at once)")
     return True
 
 
