@@ -1111,6 +1111,57 @@ def test_a_partial_cause_is_named_only_if_the_causes_on_top_explain_half_the_mis
         assert diag.verdict is unexplained and diag.also == [] and "what is kept removes" in unexplained.reason
 
 
+@pytest.mark.parametrize("case, named", [("on every record", True), ("on one record", False),
+                                         ("a third of the misfit", False)])
+def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_records_show_evidence(monkeypatch,
+                                                                                                case, named):
+    """``complete_promising``: a ``none`` verdict whose best candidate predicts most held-out records better but
+    short of evidence runs the forward selection on top of it (a stand-in adding one cause). It is named only if
+    what is then kept, refitted per fold, shows evidence against the base that more than one record carries and
+    removes at least half of the misfit beyond noise; otherwise the verdict stays ``none``."""
+    from hysbench.benchmarks.diagnosis import secondary
+    from hysbench.benchmarks.diagnosis.selection import Verdict, evidence, promising
+
+    rng = np.random.default_rng(8)
+    folds = Folds(np.array([0, 4000, 8000, 12000]))
+    t = np.arange(12000) * DT
+    noise = rng.normal(0, 0.05, t.size)
+    signal_ = np.where(t >= 8000 * DT, 3.0, 1.0) * np.sin(2 * np.pi * 0.37 * t)  # most of it on one record
+    e_null = signal_ + noise
+    weak = signal_.copy()
+    weak[8000:] *= 0.6  # the promising cause alone: better on one record only
+    p = _scored("delay", folds, e_null, weak + noise)
+    p.heldout["folds_improved"] = 2  # and slightly on another: most records, no evidence
+    assert promising(p) and not evidence(p.heldout)
+    left = {"on every record": 0.1 * signal_,
+            "on one record": np.where(t >= 8000 * DT, 0.1, 0.998) * signal_,  # evidence, but that record's
+            "a third of the misfit": np.sqrt(0.67) * signal_}[case]
+    both = left + noise
+    screen = SimpleNamespace(n=t.size, noise_sd=0.05, null=object())
+    kept = _scored("relaxation", folds, e_null, both)
+    kept.heldout["refit_per_fold"] = True
+    result = {"errors": {id(screen.null): e_null, id(kept): both}, "folds": folds}
+
+    def on_top(diag, result, say):
+        assert diag.chosen is p  # the forward selection runs on top of the promising cause
+        diag.also.append(kept)
+        diag.secondary_tried.append(kept)
+
+    monkeypatch.setattr(secondary, "secondary_causes", on_top)
+    none = Verdict("none", None, reason="the best is not evidence")
+    diag = type("D", (), {"chosen": property(lambda self: self.verdict.chosen)})()
+    diag.verdict, diag.screen, diag.also, diag.secondary_tried, diag.candidates = none, screen, [], [], [p]
+    assert secondary.complete_promising(diag, result, lambda m: None) is named
+    if named:
+        assert diag.verdict.cause == "delay" and diag.verdict.chosen is p and diag.also == [kept]
+        assert "two causes at once" in diag.verdict.reason and "short of evidence by itself" in diag.verdict.reason
+    else:
+        assert diag.verdict is none and diag.also == [] and "no combination predicts" in none.reason
+    p.limit = "outside its meaning"  # a candidate outside its cause's meaning is not completed
+    diag.verdict, diag.also = Verdict("none", None, reason=""), []
+    assert secondary.complete_promising(diag, result, lambda m: None) is False and diag.also == []
+
+
 def test_a_partial_cause_completed_by_a_cause_on_top_is_named_with_it():
     """A 6.09 Hz mode (damping 0.15) planted on the virtual DEA under multisines (balanced plan of seed 39, case
     96). Its own relaxation predicts the held-out records by itself but removes less than half of the misfit
