@@ -663,13 +663,10 @@ def test_an_effect_at_or_above_the_pooled_detection_limit_of_its_base_is_named(c
         pytest.skip("the accuracy benchmark's piezo recording is not present")
     limit = json.loads(POOLED.read_text())["detection_limits"][cause][base]
     assert limit["strength_pct"] is not None and limit["cases_above"] >= MIN_CASES_ABOVE, limit
-    for seed in range(7_000_000, 7_000_300):
-        ds, truth = planted_case((cause,), base, drive, seed)
-        if truth["strength_pct"] >= limit["strength_pct"]:
-            break
+    ds, truth = _draw_above((cause,), limit["strength_pct"], base, drive, start=7_000_000)
     d = diagnose(ds, seed=0, experiments=False)
     also = [c.cause for c in d.also]
-    assert judge(truth, d.cause, also), (seed, truth["strength_pct"], d.cause, also, d.verdict.reason)
+    assert judge(truth, d.cause, also), (truth["seed"], truth["strength_pct"], d.cause, also, d.verdict.reason)
 
 
 def test_the_pooled_limits_tested_here_are_every_one_on_enough_cases_beyond_the_mrpim_plant():

@@ -384,7 +384,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     t1 = time.perf_counter()
     completed = verdict.chosen is None and extend and (complete_partial(diag, result, say)
                                                        or complete_promising(diag, result, say))
-    secondary_s = time.perf_counter() - t1  # the completion runs the secondary causes on the partial cause
+    secondary_s = time.perf_counter() - t1  # a completion runs the secondary causes on the partial or promising cause
     if diag.chosen is None or not extend:
         t1 = time.perf_counter()
         slow_part_twin(diag, result, experiments, say)

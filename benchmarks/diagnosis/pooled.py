@@ -197,7 +197,7 @@ def _checked_lines(c: dict) -> list[str]:
              f"{seeds}, {n} cases, none pooled above)", "",
              f"Each limit above claims that >= {100 * RIGHT_SHARE:.0f} % of the single-cause cases at or above it "
              "are right. Below, the cases at or above each limit in plans that took no part in choosing it. Holds: "
-             f"the 95 % interval of their share right reaches {100 * RIGHT_SHARE:.0f} %.", "",
+             f"the {100 * CONFIDENCE:.0f} % interval of their share right reaches {100 * RIGHT_SHARE:.0f} %.", "",
              "| cause | base | limit | cases at or above it: right | share (95 % interval) | holds | below it: right |",
              "|---|---|---|---|---|---|---|"]
     for cause, per in c["by_cause_and_base"].items():

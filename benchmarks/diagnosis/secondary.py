@@ -189,6 +189,14 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
             pool = {k: v for k, v in pool.items() if k == "interference"}
 
 
+def _forward_on(diag, result: dict, say: Callable[[str], None], p: Candidate) -> int:
+    """Name ``p`` for now and run the forward selection on top of it; the number of causes it tried."""
+    diag.verdict = Verdict(p.cause, p, [], "", diag.verdict.not_identified)
+    tried = len(diag.secondary_tried)
+    secondary_causes(diag, result, say)
+    return len(diag.secondary_tried) - tried
+
+
 def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     """An ``unexplained`` verdict whose best partial cause passes the held-out test by itself but removes less
     than ``EXPLAIN_SHARE`` of the base's held-out misfit beyond noise: the forward selection is run on top of it
@@ -200,15 +208,13 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     if v.cause != "unexplained" or p is None or not passes(p):
         return False
     say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
-    diag.verdict = Verdict(p.cause, p, [], "", v.not_identified)
-    tried = len(diag.secondary_tried)
-    secondary_causes(diag, result, say)
+    tried = _forward_on(diag, result, say, p)
     e_null = result["errors"][id(diag.screen.null)]
     null_sse = float(e_null @ e_null)
     share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
     if share < EXPLAIN_SHARE:
         diag.verdict, diag.also = v, []
-        v.reason += ("" if len(diag.secondary_tried) == tried else
+        v.reason += ("" if not tried else
                      f"; with other causes tried on top of {p.cause}, what is kept removes {100 * share:.0f} % "
                      f"(< {100 * EXPLAIN_SHARE:.0f} %)")
         return False
@@ -238,18 +244,17 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
     p = max(pool, key=lambda c: c.heldout_gain)
     say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other causes "
         "on top")
-    diag.verdict = Verdict(p.cause, p, [], "", v.not_identified)
-    tried = len(diag.secondary_tried)
-    secondary_causes(diag, result, say)
+    tried = _forward_on(diag, result, say, p)
     e_null = result["errors"][id(screen.null)]
-    h, carried = None, True
+    named = False
     if diag.also:
         e = refit_errors(screen, folds, result, diag.also[-1])
-        h, carried = score(folds, e_null, e), carried_by_one_record(folds, e_null, e)
-    share = share_of_misfit(screen, float(e_null @ e_null), h["sse"]) if h else 0.0
-    if h is None or not evidence(h) or carried or share < EXPLAIN_SHARE:
+        h = score(folds, e_null, e)
+        share = share_of_misfit(screen, float(e_null @ e_null), h["sse"])
+        named = evidence(h) and share >= EXPLAIN_SHARE and not carried_by_one_record(folds, e_null, e)
+    if not named:
         diag.verdict, diag.also = v, []
-        if len(diag.secondary_tried) > tried:
+        if tried:
             v.reason += (f"; with other causes tried on top of {p.cause}, no combination predicts the held-out "
                          "records better with evidence that more than one record carries and removes "
                          f"{100 * EXPLAIN_SHARE:.0f} % of the misfit")
