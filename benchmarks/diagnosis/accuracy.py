@@ -19,12 +19,18 @@ What counts as right (stated in the report):
 * nulls: ``none`` (the virtual DEA: its own relaxation or ``unexplained``,
   MRPIM not being its physics; the real recording: ``none`` or
   ``unexplained``, its own misfit being unknown).
+* on a user's dataset (``--on DATASET``): its own verdict, the diagnosis of
+  its records as they are, is what the base gives anyway. Nulls and
+  out-of-vocabulary effects: ``none``, ``unexplained`` or that verdict; one
+  vocabulary cause: it is named, or that verdict (a vocabulary cause) with
+  the planted cause in "also".
 Parameters: relative error of each named parameter (relaxation: the named
 time constant nearest the planted one; creep: the drift over the longest
 record; saturation: the level's error over the output's peak-to-peak).
 
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 45``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
+(``--on DATASET [--model NAME] [--segments K]``: PATTERN's effects planted on a user's dataset, ``plan_on``)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
 2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
 pooled, their detection limits checked on other runs, ``pooled``).
@@ -48,12 +54,14 @@ from typing import Callable
 import numba
 import numpy as np
 
+from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
-from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, VOCABULARY, piezo_available, planted_case
+from .planted import (BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY, piezo_available,
+                      planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, wilson_interval)
@@ -105,6 +113,23 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: st
     return out
 
 
+def plan_on(n_cases: int, seed: int, dataset: Dataset, model: str = "mrpim", own: str | None = None,
+            segments: int | None = None) -> list[dict]:
+    """PATTERN's effects in turn, planted on a user's dataset (its records and drives as they are; diagnosed
+    with ``segments`` as ``diagnose`` takes it); ``own``: its own verdict (``own_verdict``), carried by every
+    case for ``judge``."""
+    return [{"kinds": PATTERN[i % len(PATTERN)], "base": dataset.name, "drive": RECORDED,
+             "seed": seed * PLAN_STRIDE + i, "dataset": str(dataset.path), "model": model, "own": own,
+             **({"segments": segments} if segments else {})} for i in range(n_cases)]
+
+
+def own_verdict(dataset: Dataset, model: str = "mrpim", segments: int | None = None) -> dict:
+    """The diagnosis of a user's dataset as it is: what the base gives anyway, before anything is planted."""
+    d = diagnose(dataset, model=model, experiments=False, segments=segments)
+    return {"verdict": d.cause, "also": [c.cause for c in d.also], "reason": d.verdict.reason,
+            "confirmed": d.confirmed}
+
+
 def parameter_errors(truth: dict, cause: str, params: dict) -> dict:
     """Relative error of each named parameter against the planted effect of the named cause."""
     e = truth["effects"].get(cause)
@@ -130,8 +155,14 @@ def parameter_errors(truth: dict, cause: str, params: dict) -> dict:
     return {}
 
 
-def judge(truth: dict, verdict: str, also: list[str]) -> bool:
+def judge(truth: dict, verdict: str, also: list[str], own: str | None = None) -> bool:
+    """Right by the rules in the module docstring; ``own``: a user's dataset's own verdict (None: a fixed base)."""
     kinds, base = truth["kinds"], truth["base"]
+    if own is not None:
+        anyway = ("none", "unexplained", own)
+        if kinds[0] in NULLS or kinds[0] in OUT_OF_VOCABULARY:
+            return verdict in anyway
+        return verdict in kinds or (own in VOCABULARY and verdict == own and any(k in also for k in kinds))
     if kinds[0] in NULLS:
         if base == "virtual-dea":
             return verdict in ("relaxation", "unexplained")
@@ -149,9 +180,9 @@ def _validation_gain(d) -> dict:
 
 
 def run_case(case: dict) -> dict:
-    ds, truth = planted_case(case["kinds"], case["base"], case["drive"], case["seed"])
+    ds, truth = planted_case(case["kinds"], case["base"], case["drive"], case["seed"], dataset=case.get("dataset"))
     t0 = time.perf_counter()
-    d = diagnose(ds, experiments=False)
+    d = diagnose(ds, model=case.get("model", "mrpim"), experiments=False, segments=case.get("segments"))
     seconds = time.perf_counter() - t0
     also = [c.cause for c in d.also]
     errors = parameter_errors(truth, d.cause, d.parameters) if d.cause in case["kinds"] else {}
@@ -165,14 +196,15 @@ def run_case(case: dict) -> dict:
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": _within(errors),
             "also_parameter_errors": also_errors,
-            "right": judge(truth, d.cause, also), "seconds": seconds,
+            "right": judge(truth, d.cause, also, case.get("own")), "seconds": seconds,
             "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect),
-            "extension_could_show": extension_could_show(per_effect)}
+            "extension_could_show": extension_could_show(per_effect),
+            **({"own": case["own"]} if "dataset" in case else {})}
 
 
 def summary(rows: list[dict]) -> dict:
     right = sum(r["right"] for r in rows)
-    null_rows = [r for r in rows if r["kinds"][0] in NULLS and r["base"] == "mrpim"]
+    null_rows = [r for r in rows if r["kinds"][0] in NULLS and (r["base"] == "mrpim" or "own" in r)]
     oov = [r for r in rows if r["kinds"][0] in OUT_OF_VOCABULARY]
     with_params = judged_parameters(rows)
     return {
@@ -180,10 +212,11 @@ def summary(rows: list[dict]) -> dict:
         "right_interval": wilson_interval(right, len(rows)),
         "right_via_also_unrecovered": (None if any(_via_also(r) and "also_parameter_errors" not in r for r in rows)
                                        else sum(1 for r in rows if _via_also(r) and not _also_within(r))),
-        "confirmed_on_nulls": sum(1 for r in null_rows if r["verdict"] not in ("none", "unexplained") and r["confirmed"]),
+        "confirmed_on_nulls": sum(1 for r in null_rows if r["verdict"] not in ("none", "unexplained", r.get("own"))
+                                  and r["confirmed"]),
         "nulls_mrpim": len(null_rows),
         "oov_given_confirmed_vocabulary": sum(1 for r in oov if r["verdict"] in VOCABULARY and r["confirmed"]
-                                              and r["base"] != "virtual-dea"),
+                                              and r["base"] != "virtual-dea" and r["verdict"] != r.get("own")),
         "oov": len(oov),
         "parameters_within_share": (sum(r["parameters_within"] for r in with_params) / len(with_params)
                                     if with_params else math.nan),
@@ -293,27 +326,34 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     for base, why in (s.get("missing_bases") or {}).items():
         lines += [f"**No {base} cases:** {why}; their share of the plan went to the other bases, so this plan "
                   "differs from one run with it.", ""]
+    on = s.get("on")
+    model = on["model"] if on else "mrpim"
+    other_than_own = "a cause other than the dataset's own verdict"
     lines += [
         f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {plan_seed_of(rows)}"
-        f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}`), "
-        "base model MRPIM; generators "
+        f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}"
+        f"{_on_options(on)}`), base model {'MRPIM' if model == 'mrpim' else model}; generators "
         "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
+        *_on_lines(on),
         "## Targets", "",
         "| measure | measured | target |", "|---|---|---|",
         f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %**"
         f"{interval_text(s.get('right_interval'))} | >= 90 % |",
-        f"| of them right only by the virtual DEA's own relaxation named with the planted cause under `also`, "
-        f"whose parameters there are not within 25 % of the planted ones | "
-        f"{'not recorded in this run' if s['right_via_also_unrecovered'] is None else s['right_via_also_unrecovered']}"
-        " | - |",
-        f"| confirmed causes on nulls (MRPIM base, white and AR(1)) | **{s['confirmed_on_nulls']}** of "
-        f"{s['nulls_mrpim']} | 0 |",
-        f"| out-of-vocabulary effects given a confirmed vocabulary cause (MRPIM and piezo bases) | "
+        *([] if on else [
+            f"| of them right only by the virtual DEA's own relaxation named with the planted cause under `also`, "
+            f"whose parameters there are not within 25 % of the planted ones | "
+            f"{'not recorded in this run' if s['right_via_also_unrecovered'] is None else s['right_via_also_unrecovered']}"
+            " | - |"]),
+        f"| confirmed causes on nulls ({'MRPIM base' if not on else other_than_own}, white and AR(1)) | **{s['confirmed_on_nulls']}** of {s['nulls_mrpim']} | 0 |",
+        f"| out-of-vocabulary effects given a confirmed vocabulary cause "
+        f"({'MRPIM and piezo bases' if not on else other_than_own}) | "
         f"**{s['oov_given_confirmed_vocabulary']}** of {s['oov']} | 0 |",
-        f"| parameters within 25 % (right verdicts) | **{100 * s['parameters_within_share']:.1f} %** of "
-        f"{s['parameters_judged']}{interval_text(s.get('parameters_within_interval'))} | >= 90 % |",
+        "| parameters within 25 % (right verdicts) | " + (
+            f"**{100 * s['parameters_within_share']:.1f} %** of {s['parameters_judged']}"
+            f"{interval_text(s.get('parameters_within_interval'))}" if s["parameters_judged"] else
+            "- (no right verdict names a planted cause's parameters)") + " | >= 90 % |",
         f"| the planted cause named: confirmed on validation / also every parameter within 25 % | "
         f"{s['named_confirmed']} / {s['fully_right']} of {s['named_planted']} | - |",
         f"| a wrong verdict naming a vocabulary cause: confirmed on validation | {s['wrong_confirmed']} of "
@@ -322,17 +362,23 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"{s['named_or_ambiguous']} of {s['vocabulary_cases']} | - |",
         f"| a cause named with an unexplained remainder (it removes < half of the misfit) / of them right | "
         f"{s['with_remainder']} / {s['with_remainder_right']} | - |",
-        f"| MRPIM base: a cause listed in `also` that was not planted | {s['false_also_mrpim']} of "
-        f"{s['mrpim_cases']} | - |",
-        f"| virtual DEA nulls ({s['vdea_nulls']}): causes listed in `also` (its physics: relaxation and a lag) | "
-        f"{', '.join(f'{k} {v}' for k, v in sorted(s['also_on_vdea_nulls'].items())) or 'none'} | - |",
-        f"| virtual DEA: a planted relaxation or delay counted right with the nulls' own verdict (relaxation, "
-        f"delay under `also`) / of them the planted time constant or delay found within 25 % | "
-        f"{s['vdea_null_verdicts']} / {s['vdea_null_verdicts_recovered']} | - |", "",
-        "What counts as right: one vocabulary cause: it is named (virtual DEA: or its own relaxation named with the "
-        "planted cause in `also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the "
-        "base model absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: relaxation, its physics' own, or `unexplained`; real "
-        "piezo: `none` or `unexplained`).", "",
+        *([] if on else [
+            f"| MRPIM base: a cause listed in `also` that was not planted | {s['false_also_mrpim']} of "
+            f"{s['mrpim_cases']} | - |",
+            f"| virtual DEA nulls ({s['vdea_nulls']}): causes listed in `also` (its physics: relaxation and a lag) | "
+            f"{', '.join(f'{k} {v}' for k, v in sorted(s['also_on_vdea_nulls'].items())) or 'none'} | - |",
+            f"| virtual DEA: a planted relaxation or delay counted right with the nulls' own verdict (relaxation, "
+            f"delay under `also`) / of them the planted time constant or delay found within 25 % | "
+            f"{s['vdea_null_verdicts']} / {s['vdea_null_verdicts_recovered']} | - |"]), "",
+        "What counts as right: " + (
+            "one vocabulary cause: it is named (virtual DEA: or its own relaxation named with the planted cause in "
+            "`also`); two causes: one of them named; out of vocabulary: `unexplained` or `none` (the base model "
+            "absorbed it; virtual DEA: or relaxation), never a vocabulary cause; nulls: `none` (virtual DEA: "
+            "relaxation, its physics' own, or `unexplained`; real piezo: `none` or `unexplained`)." if not on else
+            f"the dataset's own verdict ({on['own']['verdict']}) is what the base gives anyway. One vocabulary "
+            "cause: it is named, or that verdict (if a vocabulary cause) with the planted cause in `also`; two "
+            "causes: one of them named, or that verdict with one of them in `also`; out of vocabulary and nulls: "
+            "`none`, `unexplained` or that verdict."), "",
         f"Intervals: {100 * CONFIDENCE:.0f} % Wilson score intervals, the cases taken as independent draws from "
         "the plan's design (one plan's share can differ from the design's by about this much; "
         "`--pool` pools several plans).", "",
@@ -382,6 +428,27 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
                          f"{r['verdict']} | {', '.join(r['ambiguous_with']) or '-'} | {', '.join(r['also']) or '-'} | "
                          f"{_evidence_cell(r)} |")
     return "\n".join(lines) + "\n"
+
+
+def _on_options(on: dict | None) -> str:
+    """The command's options of a run on a user's dataset ("" for the fixed bases)."""
+    if not on:
+        return ""
+    return (f" --on {on['dataset']}" + (f" --model {on['model']}" if on["model"] != "mrpim" else "")
+            + (f" --segments {on['segments']}" if on.get("segments") else ""))
+
+
+def _on_lines(on: dict | None) -> list[str]:
+    """The dataset a run planted its effects on, and the diagnosis of it as it is."""
+    if not on:
+        return []
+    own = on["own"]
+    return [f"Effects planted on the records of **{on['name']}** ({on['dataset']}) as they are: their drives, roles "
+            "and windows, their own noise (the nulls: white or AR(1) noise added). Strengths and parameters drawn as "
+            "for the fixed bases, relative to its identification output's peak-to-peak and input span.", "",
+            f"**The dataset as it is** (nothing planted): verdict **{own['verdict']}**"
+            f"{' (confirmed on validation)' if own.get('confirmed') else ''}"
+            f"{', also ' + ', '.join(own['also']) if own['also'] else ''}: {own['reason']}.", ""]
 
 
 def _evidence_cell(r: dict) -> str:
@@ -444,9 +511,10 @@ def missing_bases(bases: tuple[str, ...]) -> dict[str, str]:
 
 
 def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None,
-          missing: dict[str, str] | None = None, design: str = "balanced") -> dict:
+          missing: dict[str, str] | None = None, design: str = "balanced", on: dict | None = None) -> dict:
+    """The report and its JSON; ``on``: a run on a user's dataset (its path, name, model and own verdict)."""
     s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {}),
-         "plan_design": design, "note": note}
+         "plan_design": design, "note": note, **({"on": on} if on else {})}
     write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
                                                                      default=lambda o: o.tolist())))
     write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
@@ -459,33 +527,64 @@ def _one_thread() -> None:
 
 def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results", bases: tuple[str, ...] = BASES,
                  progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1,
-                 design: str = "balanced") -> dict:
-    """Run the plan (``plan``'s ``design``) and write the report (also every ``write_every`` cases, so a
-    stopped run leaves its largest honest part). ``jobs`` > 1 runs the cases in that many processes (one
-    numba thread each); the cases are independent and seeded, so the rows are the same. Returns the summary."""
-    out = ensure_dir(out)
+                 design: str = "balanced", dataset: str | Path | Dataset | None = None, model: str = "mrpim",
+                 segments: int | None = None) -> dict:
+    """Run the plan (``plan``'s ``design``; with ``dataset``, ``plan_on`` with ``model`` as the base model and
+    ``segments`` as ``diagnose`` takes it) and
+    write the report (also every ``write_every`` cases, so a stopped run leaves its largest honest part).
+    ``jobs`` > 1 runs the cases in that many processes (one numba thread each); the cases are independent and
+    seeded, so the rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with
+    raises HysbenchError before anything is written."""
     say = progress or (lambda s: None)
-    rows, t0 = [], time.perf_counter()
-    machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
-    cases = plan(n_cases, seed, bases, design)
-    missing = missing_bases(bases)
-    for base, why in missing.items():
-        say(f"no {base} cases: {why}")
     with contextlib.ExitStack() as stack:
-        if jobs > 1:
-            pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread))
-            results = pool.map(run_case, cases)
-        else:
-            results = map(run_case, cases)
-        for i, r in enumerate(results):
+        # the workers are forked before the parent runs any numba kernel (forking after OpenMP is unsafe)
+        pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread)) if jobs > 1 else None
+        on = None
+        if dataset is not None:
+            ds = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
+            say(f"diagnosing {ds.name} as it is (its own verdict)")
+            own = pool.submit(own_verdict, ds, model, segments).result() if pool else own_verdict(ds, model, segments)
+            say(f"its own verdict: {own['verdict']}")
+            on = {"dataset": str(ds.path), "name": ds.name, "model": model, "own": own,
+                  **({"segments": segments} if segments else {})}
+        out = ensure_dir(out)
+        rows, t0 = [], time.perf_counter()
+        machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
+        cases = (plan_on(n_cases, seed, ds, model, own["verdict"], segments) if on
+                 else plan(n_cases, seed, bases, design))
+        missing = missing_bases(bases) if not on else {}
+        for base, why in missing.items():
+            say(f"no {base} cases: {why}")
+
+        def keep(note: str) -> dict:
+            return write(rows, out, time.perf_counter() - t0, note=note, missing=missing, design=design, on=on,
+                         machine={**machine, "load_end": os.getloadavg()[0]})
+
+        results = pool.map(run_case, cases) if pool else map(run_case, cases)
+        for i, r in enumerate(_kept_on_failure(results, rows, lambda why: keep(
+                f"Stopped after {len(rows)} of {len(cases)} cases: {why}"))):
             rows.append(r)
             say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
                 f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
             if (i + 1) % write_every == 0:
-                write(rows, out, time.perf_counter() - t0, note=f"Partial run: {i + 1} of {len(cases)} cases.",
-                      machine={**machine, "load_end": os.getloadavg()[0]}, missing=missing, design=design)
-    return write(rows, out, time.perf_counter() - t0, machine={**machine, "load_end": os.getloadavg()[0]},
-                 missing=missing, design=design)
+                keep(f"Partial run: {i + 1} of {len(cases)} cases.")
+        return keep("")
+
+
+def _kept_on_failure(results, rows: list, keep: Callable[[str], object]):
+    """The results in turn; if one raises HysbenchError, the rows so far are written (``keep``) before it
+    propagates, so a stopped run loses nothing it computed."""
+    it = iter(results)
+    while True:
+        try:
+            r = next(it)
+        except StopIteration:
+            return
+        except HysbenchError as e:
+            if rows:
+                keep(str(e))
+            raise
+        yield r
 
 
 def _note_in(report: Path) -> str:
@@ -509,14 +608,22 @@ def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
         note = _note_in(Path(folder) / "diagnosis_accuracy.md")
     return write(data["cases"], Path(folder), wall, note=note, machine=data["summary"].get("machine"),
                  missing=data["summary"].get("missing_bases"),
-                 design=data["summary"].get("plan_design", "slot-tied"))  # runs before 2026-11-27
+                 design=data["summary"].get("plan_design", "slot-tied"),  # runs before 2026-11-27
+                 on=data["summary"].get("on"))
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="results")
+    parser.add_argument("--out", default=None,
+                        help="folder of the report (default: results; with --on: diagnosis-accuracy-NAME)")
+    parser.add_argument("--on", metavar="DATASET",
+                        help="plant the effects on this dataset's records (a folder with dataset.toml) instead of "
+                             "the fixed bases")
+    parser.add_argument("--model", default=None, help="with --on: the base model diagnosed (default: mrpim)")
+    parser.add_argument("--segments", type=int, default=None, metavar="K",
+                        help="with --on: cut each identification record into K records, as diagnose --segments")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="processes running cases at once (default: every core)")
     parser.add_argument("--plan", choices=PLAN_DESIGNS, default="balanced",
@@ -545,8 +652,20 @@ def main(argv=None) -> int:
         parser.error("--report, --note and --check go with --pool")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
-    s = run_accuracy(args.cases, args.seed, args.out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
-                     design=args.plan)
+    if (args.model is not None or args.segments is not None) and not args.on:
+        parser.error("--model and --segments go with --on (the fixed bases are judged for MRPIM, unsegmented)")
+    if args.segments is not None and args.segments < 2:
+        parser.error("--segments must be an integer >= 2")
+    if args.on and args.plan != "balanced":
+        parser.error("--plan goes with the fixed bases, not --on")
+    out = args.out or (f"diagnosis-accuracy-{re.sub(r'[^A-Za-z0-9_.-]+', '-', Path(args.on).name)}" if args.on
+                       else "results")
+    try:
+        s = run_accuracy(args.cases, args.seed, out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
+                         design=args.plan, dataset=args.on, model=args.model or "mrpim", segments=args.segments)
+    except HysbenchError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(json.dumps({k: v for k, v in s.items() if k != "detection_limits"}, indent=1))
     return 0
 

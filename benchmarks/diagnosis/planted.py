@@ -2,7 +2,10 @@
 
 ``planted_case(kind, base, drive, seed)`` builds a dataset: a plant (the
 Table 2 MRPIM, the virtual DEA's physics, or a real piezo recording), a
-drive, an effect drawn at random, then noise. Every effect has its own
+drive, an effect drawn at random, then noise. ``planted_case(kind,
+seed=seed, dataset=DS)`` plants it on a user's dataset instead: its records,
+roles, windows and drives as they are, its own noise (the nulls get white or
+AR(1) noise on top, as on the piezo recording). Every effect has its own
 functional form or numerical method, none shared with
 ``hysbench.models.extended`` (whose blocks are exact first-/second-order-hold
 recursions from rest):
@@ -41,7 +44,9 @@ of (effect - plain plant) over the identification records, in % of p2p.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
 from typing import Callable
 
 import numpy as np
@@ -61,6 +66,7 @@ OUT_OF_VOCABULARY = ("gain-modulation", "sensor-nonlinearity", "dead-zone")
 NULLS = ("null-white", "null-ar1")
 BASES = ("mrpim", "virtual-dea", "piezo")
 DRIVES = ("sines", "triangles", "multisines")
+RECORDED = "recorded"  # the drive of a user's dataset: its own records'
 SHARED = shared_datasets_root()
 PIEZO = SHARED / "piezo_sindy_1hz"
 DT = 2e-3  # the synthetic bases' sample time (s)
@@ -237,12 +243,23 @@ def _records(base: str, drive: str, seed: int) -> list[tuple[np.ndarray, np.ndar
 
 
 def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sines", seed: int = 0,
-                 effects: dict | None = None) -> tuple[Dataset, dict]:
+                 effects: dict | None = None,
+                 dataset: Dataset | str | os.PathLike | None = None) -> tuple[Dataset, dict]:
     """(dataset, truth) with the effects ``kinds`` (one or two of VOCABULARY, one of OUT_OF_VOCABULARY, or
     a null) drawn with ``seed`` (``effects`` replaces the drawn parameters, by kind). ``truth["signals"]``:
-    per effect and record file, what the effect added to the output before the noise (arrays; not JSON)."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), BASES.index(base), DRIVES.index(drive)]))
-    recs = _records(base, drive, seed)
+    per effect and record file, what the effect added to the output before the noise (arrays; not JSON).
+    With ``dataset`` (a Dataset or its folder) the effects are planted on its records, which keep their
+    files, roles and windows; ``base`` is then the dataset's name and ``drive`` ``RECORDED``."""
+    user = None
+    if dataset is not None:
+        user = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
+        base, drive = user.name, RECORDED
+        recs = [(r.t - r.t[0], r.u, r.y, r.role, r.frequency_hz) for r in user.records]
+        stream = [int(seed), len(BASES), len(DRIVES)]  # one stream for every user's dataset
+    else:
+        recs = _records(base, drive, seed)
+        stream = [int(seed), BASES.index(base), DRIVES.index(drive)]
+    rng = np.random.default_rng(np.random.SeedSequence(stream))
     ident = np.concatenate([y for _, _, y, role, _ in recs if role == "identification"])
     bottom, top = (float(q) for q in np.quantile(ident, [0.005, 0.995]))  # robust to MRPIM's spikes on triangles
     p2p = top - bottom
@@ -252,30 +269,37 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
              "longest_s": max(t[-1] for t, *_ in recs)}
     drawn = {k: draw(k, rng, p2p, span) for k in kinds}
     drawn.update(effects or {})
-    sd = p2p * float(rng.uniform(*NOISE)) if base != "piezo" else 0.0  # the recording has its own noise
+    recorded = base == "piezo" or user is not None  # a recording has its own noise
+    sd = p2p * float(rng.uniform(*NOISE)) if not recorded else 0.0
     ar1 = drawn.get("null-ar1", {}).get("ar1", 0.0)
-    if base == "piezo" and kinds[0] in NULLS:  # a null on the recording: its own noise, plus coloured noise
+    if recorded and kinds[0] in NULLS:  # a null on a recording: its own noise, plus white or coloured noise
         sd = p2p * float(rng.uniform(*NOISE))
     records, eff_ss, n_id = [], 0.0, 0
     signals = {k: {} for k in kinds}  # per effect and record: what it added (after the effects before it)
     for i, (t, u, y, role, f) in enumerate(recs):
         dt = float(t[1] - t[0])
         out = y
-        name = f"r{i}_{f:g}Hz" if f else f"r{i}_{drive}"
+        name = user.records[i].file if user is not None else f"{f'r{i}_{f:g}Hz' if f else f'r{i}_{drive}'}.npz"
         for k in kinds:
             before = out
             out = apply(k, drawn[k], t, u, out, dt, stats, rng)
-            signals[k][f"{name}.npz"] = out - before
+            signals[k][name] = out - before
         if role == "identification":
             eff_ss += float(np.sum((out - y) ** 2))
             n_id += y.size
         stats["offset_s"] += t[-1] + dt
         out = out + (noise(rng, y.size, sd, ar1) if sd > 0 else 0.0)
-        records.append(Record(file=f"{name}.npz", t=t, u=u, y=out, role=role, frequency_hz=f))
-    ds = Dataset(name=f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}", records=records,
-                 input_unit="V" if base == "piezo" else "kV", output_unit="um" if base == "piezo" else "mm",
-                 description=f"{base} driven by {drive}, planted {', '.join(kinds)} (seed {seed}); "
-                             "hysbench.benchmarks.diagnosis.planted")
+        if user is not None:
+            records.append(dataclasses.replace(user.records[i], y=out))
+        else:
+            records.append(Record(file=name, t=t, u=u, y=out, role=role, frequency_hz=f))
+    name = f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}"
+    how = f"planted {', '.join(kinds)} (seed {seed}); hysbench.benchmarks.diagnosis.planted"
+    if user is not None:
+        ds = dataclasses.replace(user, name=name, records=records, description=f"{user.name}, {how}", path=None)
+    else:
+        ds = Dataset(name=name, records=records, input_unit="V" if base == "piezo" else "kV",
+                     output_unit="um" if base == "piezo" else "mm", description=f"{base} driven by {drive}, {how}")
     truth = {"kinds": list(kinds), "effects": drawn, "base": base, "drive": drive, "seed": int(seed), "noise_sd": sd,
              "p2p": p2p, "strength_pct": 100 * math.sqrt(eff_ss / max(n_id, 1)) / p2p, "longest_s": stats["longest_s"],
              "signals": signals}

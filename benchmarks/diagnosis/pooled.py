@@ -23,7 +23,7 @@ from pathlib import Path
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
-from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, VOCABULARY
+from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
 from .shares import (CONFIDENCE, RIGHT_SHARE, detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of,
                      wilson_interval)
 
@@ -119,6 +119,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
         by_effect[effect_label(r)][r["base"]].append(r)
         by_drive[r["base"]][r["drive"]].append(r)
     bases = [b for b in BASES if any(r["base"] == b for r in rows)]
+    bases += list(dict.fromkeys(r["base"] for r in rows if r["base"] not in BASES))  # users' datasets
     judged = judged_parameters(rows)
     limits = {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases} for c in VOCABULARY}
     within = sum(bool(r["parameters_within"]) for r in judged)
@@ -130,7 +131,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
         "bases": bases,
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
-        "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in DRIVES if by_drive[b][d]} for b in bases},
+        "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in (*DRIVES, RECORDED) if by_drive[b][d]} for b in bases},
         "detection_limits": limits,
         **({"checked": {"plans": checked[0], **check_limits(limits, checked[1])}} if checked else {}),
     }
@@ -174,7 +175,7 @@ def pooled_markdown(p: dict) -> str:
                   "interval)", "", "| effect | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
     lines += [f"| {e} | " + " | ".join(_cell(per.get(b)) for b in bases) + " |"
               for e, per in p["by_effect_and_base"].items()]
-    drives = [d for d in DRIVES if any(d in per for per in p["by_base_and_drive"].values())]
+    drives = [d for d in (*DRIVES, RECORDED) if any(d in per for per in p["by_base_and_drive"].values())]
     lines += ["", "### Right verdicts by base and drive", "", "| base | " + " | ".join(drives) + " |",
               "|---" * (len(drives) + 1) + "|"]
     lines += [f"| {b} | " + " | ".join(_cell(per.get(d)) for d in drives) + " |"

@@ -1,0 +1,132 @@
+"""The accuracy benchmark on a user's dataset (``accuracy --on DATASET``): effects planted on its records as they
+are, judged against its own verdict."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hysbench.benchmarks.diagnosis import accuracy, pooled
+from hysbench.benchmarks.diagnosis.planted import RECORDED, planted_case
+from hysbench.data.dataset import Dataset, Record, load_dataset, save_dataset
+from hysbench.data.protocol import paper_voltage
+from hysbench.models import get_model
+
+DT = 5e-3
+ROLES = {0.5: "identification", 1.0: "validation", 2.0: "identification"}
+
+
+def _user_dataset(folder, identification=ROLES):
+    """A small dataset as a user would bring it: the Table 2 MRPIM under the paper's sines, two periods each."""
+    model = get_model("mrpim")
+    params = model.preset("paper")
+    records = []
+    for f, role in identification.items():
+        t = np.arange(int(round(2 / f / DT))) * DT
+        u = paper_voltage(t, f)
+        y = model.simulate(u, DT, params, input_range=(0.5, 2.5))
+        y = y + np.random.default_rng(int(10 * f)).normal(0.0, 1e-3 * np.ptp(y), y.size)
+        records.append(Record(file=f"sine_{f:g}Hz.npz", t=t, u=u, y=y, role=role, frequency_hz=f))
+    return save_dataset(Dataset(name="bench-user", records=records, input_unit="kV", output_unit="mm"), folder)
+
+
+@pytest.fixture(scope="module")
+def user_folder(tmp_path_factory):
+    return _user_dataset(tmp_path_factory.mktemp("user") / "bench_user")
+
+
+def test_an_effect_planted_on_a_dataset_keeps_its_records_and_adds_only_the_effect(user_folder):
+    src = load_dataset(user_folder)
+    ds, truth = planted_case(("delay",), seed=3, dataset=user_folder, effects={"delay": {"delay_s": 0.05}})
+    assert truth["base"] == "bench-user" and truth["drive"] == RECORDED
+    for a, b in zip(src.records, ds.records):
+        assert (a.file, a.role, a.frequency_hz, a.start, a.stop) == (b.file, b.role, b.frequency_hz, b.start, b.stop)
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.u, b.u)
+        # no noise added to a recording: the output changes by the effect alone
+        np.testing.assert_allclose(b.y - a.y, truth["signals"]["delay"][a.file], atol=1e-12)
+        # slow reference: the delayed output is the recorded one interpolated 50 ms (10 samples) earlier
+        k = np.arange(40, a.t.size - 40)
+        np.testing.assert_allclose(b.y[k], np.interp(a.t[k] - 0.05, a.t, a.y), atol=2e-3 * np.ptp(a.y))
+    assert truth["strength_pct"] > 0
+
+
+def test_a_null_planted_on_a_dataset_adds_noise_of_the_drawn_size(user_folder):
+    src = load_dataset(user_folder)
+    ds, truth = planted_case(("null-white",), seed=4, dataset=user_folder)
+    added = np.concatenate([b.y - a.y for a, b in zip(src.records, ds.records)])
+    assert truth["noise_sd"] > 0
+    assert abs(np.std(added) / truth["noise_sd"] - 1.0) < 0.1
+
+
+@pytest.mark.parametrize("kinds, verdict, also, own, right", [
+    (("delay",), "delay", [], "relaxation", True),
+    (("delay",), "relaxation", ["delay"], "relaxation", True),  # its own cause named, the planted one on top
+    (("delay",), "relaxation", [], "relaxation", False),
+    (("delay",), "none", [], "none", False),
+    (("delay",), "unexplained", ["delay"], "unexplained", False),  # "also" counts only under a named own cause
+    (("delay", "creep"), "relaxation", ["creep"], "relaxation", True),
+    (("null-ar1",), "relaxation", [], "relaxation", True),
+    (("null-ar1",), "unexplained", [], "none", True),
+    (("null-ar1",), "delay", [], "relaxation", False),
+    (("dead-zone",), "none", [], "unexplained", True),
+    (("dead-zone",), "saturation", [], "none", False),
+])
+def test_a_verdict_on_a_dataset_is_judged_against_its_own_verdict(kinds, verdict, also, own, right):
+    assert accuracy.judge({"kinds": list(kinds), "base": "bench-user"}, verdict, also, own) is right
+
+
+def test_the_benchmark_runs_on_a_dataset_and_its_report_states_the_dataset_own_verdict(user_folder, tmp_path):
+    out = tmp_path / "acc"
+    assert accuracy.main(["--on", str(user_folder), "--cases", "2", "--jobs", "1", "--out", str(out)]) == 0
+    data = json.loads((out / "diagnosis_accuracy.json").read_text())
+    on = data["summary"]["on"]
+    assert on["name"] == "bench-user" and on["model"] == "mrpim"
+    own = on["own"]["verdict"]
+    assert own in ("none", "unexplained", *accuracy.VOCABULARY)
+    rows = data["cases"]
+    assert [r["kinds"] for r in rows] == [list(k) for k in accuracy.PATTERN[:2]]
+    for r in rows:
+        assert r["base"] == "bench-user" and r["drive"] == RECORDED and r["own"] == own
+        assert r["right"] == accuracy.judge(r, r["verdict"], r["also"], own)
+    text = (out / "diagnosis_accuracy.md").read_text()
+    assert f"--on {user_folder}" in text and f"verdict **{own}**" in text
+    # pooled: the dataset is a base of its own, its drive the recorded one
+    p = pooled.pool([out])
+    assert p["bases"] == ["bench-user"] and list(p["by_base_and_drive"]["bench-user"]) == [RECORDED]
+
+
+def test_a_dataset_the_diagnosis_cannot_use_gets_one_line_and_exit_2_and_nothing_written(tmp_path, capsys):
+    one = _user_dataset(tmp_path / "one_ident", {0.5: "identification", 1.0: "validation"})
+    for argv in (["--on", str(tmp_path / "missing")], ["--on", str(one)],
+                 ["--on", str(one), "--model", "no-such-model"]):
+        out = tmp_path / "acc"
+        assert accuracy.main([*argv, "--cases", "1", "--jobs", "1", "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error: ")
+        assert not out.exists()
+    with pytest.raises(SystemExit) as e:
+        accuracy.main(["--model", "mrpim", "--cases", "1"])
+    assert e.value.code == 2
+
+
+def test_a_run_stopped_by_a_case_keeps_the_cases_before_it(user_folder, tmp_path, monkeypatch, capsys):
+    done = {"kinds": ["relaxation"], "base": "bench-user", "drive": RECORDED, "seed": 0, "strength_pct": 1.0,
+            "effects": {}, "verdict": "relaxation", "confirmed": False, "also": [], "ambiguous_with": [],
+            "remainder": None, "parameters": {}, "parameter_errors": {}, "parameters_within": False,
+            "right": True, "seconds": 1.0, "own": "none"}
+
+    def run_case(case):
+        if case["seed"] % accuracy.PLAN_STRIDE:
+            raise accuracy.HysbenchError("a record went non-finite")
+        return dict(done)
+
+    monkeypatch.setattr(accuracy, "run_case", run_case)
+    monkeypatch.setattr(accuracy, "own_verdict", lambda *a: {"verdict": "none", "also": [], "reason": "r",
+                                                             "confirmed": None})
+    out = tmp_path / "acc"
+    assert accuracy.main(["--on", str(user_folder), "--cases", "3", "--jobs", "1", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == "error: a record went non-finite"
+    data = json.loads((out / "diagnosis_accuracy.json").read_text())
+    assert len(data["cases"]) == 1
+    assert data["summary"]["note"] == "Stopped after 1 of 3 cases: a record went non-finite"
