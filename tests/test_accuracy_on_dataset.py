@@ -130,3 +130,21 @@ def test_a_run_stopped_by_a_case_keeps_the_cases_before_it(user_folder, tmp_path
     data = json.loads((out / "diagnosis_accuracy.json").read_text())
     assert len(data["cases"]) == 1
     assert data["summary"]["note"] == "Stopped after 1 of 3 cases: a record went non-finite"
+
+
+def test_a_mode_planted_on_a_long_record_solves_its_ode(monkeypatch):
+    """Beyond ``ADAPTIVE_MODE_SAMPLES`` the mode is integrated by fixed-step RK4; reference: scipy's DOP853 at
+    tight tolerances on the same ODE, the input linear between samples."""
+    from scipy.integrate import solve_ivp
+
+    from hysbench.benchmarks.diagnosis import planted
+
+    monkeypatch.setattr(planted, "ADAPTIVE_MODE_SAMPLES", 2000)  # a shorter record takes the same branch
+    dt, n, fn, zeta = 1e-3, 5000, 8.0, 0.1
+    t = np.arange(n) * dt
+    y = np.sin(2 * np.pi * 0.7 * t) + 0.3 * np.abs(np.sin(2 * np.pi * 0.23 * t))  # kinks at the sign changes
+    w = 2 * np.pi * fn
+    ref = solve_ivp(lambda s, q: [q[1], w * w * (np.interp(s, t, y) - q[0]) - 2 * zeta * w * q[1]], (0, t[-1]),
+                    [y[0], 0.0], t_eval=t, method="DOP853", rtol=1e-10, atol=1e-12, max_step=dt).y[0]
+    x = planted.mode_ode(y, dt, fn, zeta)
+    assert np.max(np.abs(x - ref)) < 1e-5 * np.ptp(y)
