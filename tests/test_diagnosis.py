@@ -1730,3 +1730,21 @@ def test_no_error_against_frequency_figure_is_drawn_for_records_without_a_drive_
     diag.before[0].scores = lambda: {"e_rms": 2.0, "e_rms_whole": 3.0}
     report.figure_error_vs_frequency(diag, path)
     assert path.stat().st_size > 0
+
+
+def test_thorough_tries_every_cause_on_top_also_on_records_taken_as_long(monkeypatch):
+    """On long records only the causes that nearly pass against the base alone are tried on top of the named one
+    (cost); with ``thorough`` every other cause is, as on short records."""
+    monkeypatch.setattr(Screen, "small", property(lambda self: False))  # these short records taken as long
+    ds, _ = planted_case(("relaxation",), "mrpim", "sines", 1)
+    tried = {}
+    for thorough in (False, True):
+        said = []
+        d = diagnose(ds, experiments=False, thorough=thorough, progress=said.append)
+        assert d.cause == "relaxation" and d.settings["thorough"] is thorough
+        pools = [line.split(" on top of ")[0].removeprefix("trying ").split(", ") for line in said
+                 if line.startswith("trying ")]
+        tried[thorough] = set(pools[0]) if pools else set()
+    # every cause but the named one (an interference outside its meaning is never tried: no disturbance)
+    assert set(CAUSES) - {"relaxation", "interference"} <= tried[True]
+    assert tried[False] < tried[True]

@@ -34,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--segments", type=integer_at_least(2), metavar="K",
                         help="cut each identification record into K consecutive records of whole periods "
                              "(leave-one-record-out on one long recording)")
+    parser.add_argument("--thorough", action="store_true",
+                        help="try every cause afresh on top of the named one also on long records (a delay or a "
+                             "mode under the plant's own relaxation; about three times slower on the default dataset)")
     parser.add_argument("--note", default="", help="a line put at the top of diagnosis.md")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -44,7 +47,7 @@ def main(args) -> int:
     say = timed_progress(args.quiet)
 
     diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
-                    segments=args.segments, progress=say)
+                    segments=args.segments, progress=say, thorough=args.thorough)
     say("writing the report")
     write_report(diag, args.out, args.json, note=args.note)
     print(verdict(diag))

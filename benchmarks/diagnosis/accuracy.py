@@ -30,7 +30,8 @@ record; saturation: the level's error over the output's peak-to-peak).
 
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 45``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
-(``--on DATASET [--model NAME] [--segments K]``: PATTERN's effects planted on a user's dataset, ``plan_on``)
+(``--on DATASET [--model NAME] [--segments K] [--thorough]``: PATTERN's effects planted on a user's dataset,
+``plan_on``)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
 2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
 pooled, their detection limits checked on other runs, ``pooled``).
@@ -60,8 +61,8 @@ from hysbench.models.errors import HysbenchError
 
 from .diagnose import diagnose
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
-from .planted import (BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY, piezo_available,
-                      planted_case)
+from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
+                      piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, wilson_interval)
@@ -114,18 +115,19 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: st
 
 
 def plan_on(n_cases: int, seed: int, dataset: Dataset, model: str = "mrpim", own: str | None = None,
-            segments: int | None = None) -> list[dict]:
+            segments: int | None = None, thorough: bool = False) -> list[dict]:
     """PATTERN's effects in turn, planted on a user's dataset (its records and drives as they are; diagnosed
-    with ``segments`` as ``diagnose`` takes it); ``own``: its own verdict (``own_verdict``), carried by every
-    case for ``judge``."""
+    with ``segments`` and ``thorough`` as ``diagnose`` takes them); ``own``: its own verdict (``own_verdict``),
+    carried by every case for ``judge``."""
     return [{"kinds": PATTERN[i % len(PATTERN)], "base": dataset.name, "drive": RECORDED,
              "seed": seed * PLAN_STRIDE + i, "dataset": str(dataset.path), "model": model, "own": own,
-             **({"segments": segments} if segments else {})} for i in range(n_cases)]
+             **({"segments": segments} if segments else {}), **({"thorough": True} if thorough else {})}
+            for i in range(n_cases)]
 
 
-def own_verdict(dataset: Dataset, model: str = "mrpim", segments: int | None = None) -> dict:
+def own_verdict(dataset: Dataset, model: str = "mrpim", segments: int | None = None, thorough: bool = False) -> dict:
     """The diagnosis of a user's dataset as it is: what the base gives anyway, before anything is planted."""
-    d = diagnose(dataset, model=model, experiments=False, segments=segments)
+    d = diagnose(dataset, model=model, experiments=False, segments=segments, thorough=thorough)
     return {"verdict": d.cause, "also": [c.cause for c in d.also], "reason": d.verdict.reason,
             "confirmed": d.confirmed}
 
@@ -182,7 +184,8 @@ def _validation_gain(d) -> dict:
 def run_case(case: dict) -> dict:
     ds, truth = planted_case(case["kinds"], case["base"], case["drive"], case["seed"], dataset=case.get("dataset"))
     t0 = time.perf_counter()
-    d = diagnose(ds, model=case.get("model", "mrpim"), experiments=False, segments=case.get("segments"))
+    d = diagnose(ds, model=case.get("model", "mrpim"), experiments=False, segments=case.get("segments"),
+                 thorough=case.get("thorough", False))
     seconds = time.perf_counter() - t0
     also = [c.cause for c in d.also]
     errors = parameter_errors(truth, d.cause, d.parameters) if d.cause in case["kinds"] else {}
@@ -435,7 +438,7 @@ def _on_options(on: dict | None) -> str:
     if not on:
         return ""
     return (f" --on {on['dataset']}" + (f" --model {on['model']}" if on["model"] != "mrpim" else "")
-            + (f" --segments {on['segments']}" if on.get("segments") else ""))
+            + (f" --segments {on['segments']}" if on.get("segments") else "") + (" --thorough" if on.get("thorough") else ""))
 
 
 def _on_lines(on: dict | None) -> list[str]:
@@ -445,7 +448,9 @@ def _on_lines(on: dict | None) -> list[str]:
     own = on["own"]
     return [f"Effects planted on the records of **{on['name']}** ({on['dataset']}) as they are: their drives, roles "
             "and windows, their own noise (the nulls: white or AR(1) noise added). Strengths and parameters drawn as "
-            "for the fixed bases, relative to its identification output's peak-to-peak and input span.", "",
+            "for the fixed bases, relative to its identification output's peak-to-peak and input span (a mode on a "
+            f"record longer than {ADAPTIVE_MODE_SAMPLES} samples by a fixed-step RK4)"
+            f"{'; every diagnosis with --thorough' if on.get('thorough') else ''}.", "",
             f"**The dataset as it is** (nothing planted): verdict **{own['verdict']}**"
             f"{' (confirmed on validation)' if own.get('confirmed') else ''}"
             f"{', also ' + ', '.join(own['also']) if own['also'] else ''}: {own['reason']}.", ""]
@@ -528,9 +533,9 @@ def _one_thread() -> None:
 def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results", bases: tuple[str, ...] = BASES,
                  progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1,
                  design: str = "balanced", dataset: str | Path | Dataset | None = None, model: str = "mrpim",
-                 segments: int | None = None) -> dict:
+                 segments: int | None = None, thorough: bool = False) -> dict:
     """Run the plan (``plan``'s ``design``; with ``dataset``, ``plan_on`` with ``model`` as the base model and
-    ``segments`` as ``diagnose`` takes it) and
+    ``segments`` and ``thorough`` as ``diagnose`` takes them) and
     write the report (also every ``write_every`` cases, so a stopped run leaves its largest honest part).
     ``jobs`` > 1 runs the cases in that many processes (one numba thread each); the cases are independent and
     seeded, so the rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with
@@ -543,14 +548,15 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
         if dataset is not None:
             ds = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
             say(f"diagnosing {ds.name} as it is (its own verdict)")
-            own = pool.submit(own_verdict, ds, model, segments).result() if pool else own_verdict(ds, model, segments)
+            args = (ds, model, segments, thorough)
+            own = pool.submit(own_verdict, *args).result() if pool else own_verdict(*args)
             say(f"its own verdict: {own['verdict']}")
             on = {"dataset": str(ds.path), "name": ds.name, "model": model, "own": own,
-                  **({"segments": segments} if segments else {})}
+                  **({"segments": segments} if segments else {}), **({"thorough": True} if thorough else {})}
         out = ensure_dir(out)
         rows, t0 = [], time.perf_counter()
         machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
-        cases = (plan_on(n_cases, seed, ds, model, own["verdict"], segments) if on
+        cases = (plan_on(n_cases, seed, ds, model, own["verdict"], segments, thorough) if on
                  else plan(n_cases, seed, bases, design))
         missing = missing_bases(bases) if not on else {}
         for base, why in missing.items():
@@ -624,6 +630,7 @@ def main(argv=None) -> int:
     parser.add_argument("--model", default=None, help="with --on: the base model diagnosed (default: mrpim)")
     parser.add_argument("--segments", type=int, default=None, metavar="K",
                         help="with --on: cut each identification record into K records, as diagnose --segments")
+    parser.add_argument("--thorough", action="store_true", help="with --on: as diagnose --thorough")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="processes running cases at once (default: every core)")
     parser.add_argument("--plan", choices=PLAN_DESIGNS, default="balanced",
@@ -652,8 +659,8 @@ def main(argv=None) -> int:
         parser.error("--report, --note and --check go with --pool")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
-    if (args.model is not None or args.segments is not None) and not args.on:
-        parser.error("--model and --segments go with --on (the fixed bases are judged for MRPIM, unsegmented)")
+    if (args.model is not None or args.segments is not None or args.thorough) and not args.on:
+        parser.error("--model, --segments and --thorough go with --on (the fixed bases are scored as they were)")
     if args.segments is not None and args.segments < 2:
         parser.error("--segments must be an integer >= 2")
     if args.on and args.plan != "balanced":
@@ -662,7 +669,8 @@ def main(argv=None) -> int:
                        else "results")
     try:
         s = run_accuracy(args.cases, args.seed, out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
-                         design=args.plan, dataset=args.on, model=args.model or "mrpim", segments=args.segments)
+                         design=args.plan, dataset=args.on, model=args.model or "mrpim", segments=args.segments,
+                         thorough=args.thorough)
     except HysbenchError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

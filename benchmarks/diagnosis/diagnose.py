@@ -306,13 +306,14 @@ def _confirm_interference(diag: Diagnosis) -> None:
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
              extend: bool = True, experiments: bool = True, segments: int | None = None,
-             progress: Callable[[str], None] | None = None) -> Diagnosis:
+             progress: Callable[[str], None] | None = None, thorough: bool = False) -> Diagnosis:
     """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
     record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
-    recording."""
+    recording. ``thorough``: every cause tried afresh on top of the named one also on long records
+    (``secondary.secondary_causes``; slower)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-                         segments, progress)
+                         segments, progress, thorough)
 
 
 def _check(dataset: Dataset, base: HysteresisModel) -> None:
@@ -329,7 +330,7 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
 
 
 def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-              segments, progress) -> Diagnosis:
+              segments, progress, thorough=False) -> Diagnosis:
     say = progress or (lambda s: None)
     if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
         dataset = load_dataset(dataset)
@@ -372,7 +373,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                                "z_pass": Z_PASS, "z_same": Z_SAME, "z_confirm": Z_CONFIRM,
                                "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
-                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments})
+                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
+                               "thorough": thorough})
     t1 = time.perf_counter()
     if experiments and verdict.chosen is not None:
         for other in verdict.ambiguous_with:

@@ -340,6 +340,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
                   f"minimum (`--segments {k}`): "
                   "the held-out folds are neighbouring stretches of one drive, so the evidence says what holds over "
                   "that drive, not what holds at other drives.", ""]
+    if d.settings.get("thorough"):
+        lines += ["Every cause was tried afresh on top of the named one (`--thorough`), also on these long records.", ""]
     lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Evidence: candidate causes (held-out)", "",

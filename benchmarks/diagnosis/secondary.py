@@ -151,13 +151,14 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
     clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
     parameters are then chosen without the record they predict. Of those that still show evidence, within
     the cause's meaning and off their search bounds, one is kept ("also"; ``_choose``). On short records
-    (``Screen.small``) every cause is tried and searched afresh, not only those that predict better than the
-    base alone: a second cause can show only once the first is accounted for. On long ones (cost) only
-    those are tried, from their own fits."""
+    (``Screen.small``), or on any with ``diag.settings["thorough"]``, every cause is tried and searched afresh,
+    not only those that predict better than the base alone: a second cause can show only once the first is
+    accounted for (a delay or a mode under a plant's own relaxation). Otherwise, on long records (cost: about
+    three times the diagnosis on the default dataset), only those are tried, from their own fits."""
     screen, chosen = diag.screen, diag.chosen
     folds = result["folds"]
     taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
-    fresh = screen.small
+    fresh = screen.small or bool(diag.settings.get("thorough"))
 
     def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
         return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
