@@ -566,31 +566,18 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
             return write(rows, out, time.perf_counter() - t0, note=note, missing=missing, design=design, on=on,
                          machine={**machine, "load_end": os.getloadavg()[0]})
 
-        results = pool.map(run_case, cases) if pool else map(run_case, cases)
-        for i, r in enumerate(_kept_on_failure(results, rows, lambda why: keep(
-                f"Stopped after {len(rows)} of {len(cases)} cases: {why}"))):
-            rows.append(r)
-            say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
-                f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
-            if (i + 1) % write_every == 0:
-                keep(f"Partial run: {i + 1} of {len(cases)} cases.")
-        return keep("")
-
-
-def _kept_on_failure(results, rows: list, keep: Callable[[str], object]):
-    """The results in turn; if one raises HysbenchError, the rows so far are written (``keep``) before it
-    propagates, so a stopped run loses nothing it computed."""
-    it = iter(results)
-    while True:
         try:
-            r = next(it)
-        except StopIteration:
-            return
-        except HysbenchError as e:
+            for i, r in enumerate(pool.map(run_case, cases) if pool else map(run_case, cases)):
+                rows.append(r)
+                say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
+                    f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
+                if (i + 1) % write_every == 0:
+                    keep(f"Partial run: {i + 1} of {len(cases)} cases.")
+        except HysbenchError as e:  # a failing case: the cases before it are kept
             if rows:
-                keep(str(e))
+                keep(f"Stopped after {len(rows)} of {len(cases)} cases: {e}")
             raise
-        yield r
+        return keep("")
 
 
 def _note_in(report: Path) -> str:
@@ -665,8 +652,7 @@ def main(argv=None) -> int:
         parser.error("--segments must be an integer >= 2")
     if args.on and args.plan != "balanced":
         parser.error("--plan goes with the fixed bases, not --on")
-    out = args.out or (f"diagnosis-accuracy-{re.sub(r'[^A-Za-z0-9_.-]+', '-', Path(args.on).name)}" if args.on
-                       else "results")
+    out = args.out or (f"diagnosis-accuracy-{Path(args.on).name}" if args.on else "results")
     try:
         s = run_accuracy(args.cases, args.seed, out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
                          design=args.plan, dataset=args.on, model=args.model or "mrpim", segments=args.segments,

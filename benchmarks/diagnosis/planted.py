@@ -17,7 +17,8 @@ relaxation         y += c (h_tau * u), h = exp(-t/tau)/tau, trapezoidal FFT conv
                    tau log-uniform [0.2, 8] s, |c| p2p/(input span) x uniform [0.02, 0.12], random sign
 delay              y(t - d) by a phase ramp in the frequency domain (padded with the rest output);
                    d uniform [3, 30] ms
-resonance          x'' + 2 zeta w x' + w^2 x = w^2 y, scipy solve_ivp (RK45) from x = y(0) at rest;
+resonance          x'' + 2 zeta w x' + w^2 x = w^2 y, scipy solve_ivp (RK45) from x = y(0) at rest
+                   (records beyond 20 000 samples, a user's only: fixed-step RK4);
                    f_n log-uniform [2, 15] Hz, zeta uniform [0.05, 0.5]
 creep              y += D ln(1 + t/t_c) / ln(1 + T/t_c) (logarithmic law, T the longest record);
                    t_c log-uniform [5, 50] s (slow: the vocabulary's creep), |D| p2p x uniform
@@ -314,11 +315,14 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
     for i, (t, u, y, role, f) in enumerate(recs):
         dt = float(t[1] - t[0])
         out = y
-        name = user.records[i].file if user is not None else f"{f'r{i}_{f:g}Hz' if f else f'r{i}_{drive}'}.npz"
+        if user is not None:
+            file = user.records[i].file
+        else:
+            file = f"r{i}_{f:g}Hz.npz" if f else f"r{i}_{drive}.npz"
         for k in kinds:
             before = out
             out = apply(k, drawn[k], t, u, out, dt, stats, rng)
-            signals[k][name] = out - before
+            signals[k][file] = out - before
         if role == "identification":
             eff_ss += float(np.sum((out - y) ** 2))
             n_id += y.size
@@ -327,7 +331,7 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
         if user is not None:
             records.append(dataclasses.replace(user.records[i], y=out))
         else:
-            records.append(Record(file=name, t=t, u=u, y=out, role=role, frequency_hz=f))
+            records.append(Record(file=file, t=t, u=u, y=out, role=role, frequency_hz=f))
     name = f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}"
     how = f"planted {', '.join(kinds)} (seed {seed}); hysbench.benchmarks.diagnosis.planted"
     if user is not None:
