@@ -28,7 +28,7 @@ from scipy import signal
 
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.accuracy import judge, parameter_errors
-from hysbench.benchmarks.diagnosis.experiment import suggest
+from hysbench.benchmarks.diagnosis.experiment import predict, probe_sine, separation, suggest
 from hysbench.benchmarks.diagnosis.planted import (
     fractional_delay,
     low_pass_convolution,
@@ -36,6 +36,7 @@ from hysbench.benchmarks.diagnosis.planted import (
     piezo_available,
     planted_case,
 )
+from hysbench.benchmarks.diagnosis.report import verdict_lines
 from hysbench.benchmarks.diagnosis.saturation import shows_clip, slope_where_clipped
 from hysbench.benchmarks.diagnosis.residuals import (
     RecordResidual,
@@ -48,10 +49,10 @@ from hysbench.benchmarks.diagnosis.residuals import (
 )
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, MIN_EXPLAINED, NO_CUT, Candidate
 from hysbench.benchmarks.diagnosis.screen import Screen
-from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, score
+from hysbench.benchmarks.diagnosis.selection import Z_SAME, Folds, decide, heldout_errors, heldout_null, score
 from hysbench.benchmarks.diagnosis.interference import (fold_frequencies, frequencies_agree, on_top,
                                                       same_line)
-from hysbench.benchmarks.diagnosis.secondary import _folds_disagree
+from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.identification import Fit, identify
@@ -491,6 +492,29 @@ def test_creep_planted_on_the_virtual_dea_is_reported_as_ambiguous_with_its_slow
     assert evidence["ambiguous"] and evidence["cause"] == "creep"
 
 
+def test_a_mode_on_the_virtual_dea_kept_as_a_delay_shows_the_mode_and_the_drive_that_separates_them():
+    """A 4.75 Hz mode (damping 0.38; RK45 of its own ODE) planted on the virtual DEA's physics under multisines
+    (accuracy plan seed 45, case 96): on top of the DEA's own relaxation a delay and a mode predict the held-out
+    records as well, so the delay (fewer parameters) is kept. The mode is reported beside it with its fit, and
+    a suggested experiment names the drive on which the two composites differ most, well above the noise."""
+    ds, truth = planted_case(("resonance",), "virtual-dea", "multisines", 4500096)
+    d = diagnose(ds, seed=0, experiments=True)
+    assert d.cause == "relaxation", d.verdict.reason
+    delay = next(c for c in d.also if c.cause == "delay")
+    alike = d.as_good_as(delay)
+    assert [a.cause for a in alike] == ["resonance"] and alike[0].heldout_gain > delay.heldout_gain
+    assert parameter_errors(truth, "resonance", alike[0].estimates)["natural_frequency_hz"] < 0.25
+    e = next(e for e in d.experiments if e["causes"] == ["delay", "resonance"])
+    assert e["on_top_of"] == "relaxation" and e["frequency_hz"] > 1.0 and e["separation"] > 10 * e["noise_sd"]
+    out = d.to_json()
+    assert out["also_as_good"] == {"delay": ["resonance"]}
+    assert out["also_as_good_fits"]["delay"][0]["estimates"]["natural_frequency_hz"] == alike[0].estimates[
+        "natural_frequency_hz"]
+    text = "\n".join(verdict_lines(d))
+    assert "as good on these records: resonance: natural_frequency_hz" in text
+    assert "suggested experiment (delay vs resonance, on top of relaxation)" in text
+
+
 def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 0.0, seed: int = 0):
     """Residuals of records (1 Hz drive, 1 ms) holding a sinusoid at f (one phase running through them all,
     as a disturbance does), drive-locked harmonics 1-3 and white noise."""
@@ -562,17 +586,100 @@ def test_a_lines_phase_turn_per_period_is_its_distance_from_the_harmonic(k, df, 
 
 def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
     """A pure delay d and a first-order lag tau = d agree at low frequency (both a phase lag w d) and differ
-    most at the highest probe frequency."""
+    most at the highest probe frequency at which the fits stay near the recorded output range (Table 2's MRPIM
+    driven from rest at 5 Hz leaves it by more than its width: its rate terms extrapolate)."""
     base = get_model("mrpim").preset("paper")
-    rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
+    t = np.arange(2000) * DT
+    y = get_model("mrpim").simulate(paper_voltage(t, 1.0), DT, base, input_range=(0.5, 2.5))
+    rec = Record("r.npz", t, paper_voltage(t, 1.0), y, frequency_hz=1.0)
     screen = SimpleNamespace(parts=[SimpleNamespace(record=rec)], input_range=(0.5, 2.5), noise_sd=0.01)
     delay = SimpleNamespace(cause="delay", model=ExtendedModel("mrpim", ("delay",)), params={**base, "delay": 0.02})
     lag = SimpleNamespace(cause="resonance", model=ExtendedModel("mrpim", ("resonance",)),
                           params={**base, "natural_frequency": 1 / (2 * np.pi * 0.01), "damping_ratio": 1.0})
     out = suggest(screen, delay, lag)
     sines = [p for p in out["probes"] if p["drive"].startswith("sine")]
-    assert out["separation"] == max(p["separation"] for p in out["probes"])
-    assert sines[-1]["separation"] > 5 * sines[0]["separation"]
+    inside = [p for p in sines if not p["outside_recorded"]]
+    assert [p["outside_recorded"] for p in sines] == [False] * (len(sines) - 1) + [True]
+    assert out["separation"] == max(p["separation"] for p in out["probes"] if not p["outside_recorded"])
+    assert out["frequency_hz"] == inside[-1]["frequency_hz"]
+    assert inside[-1]["separation"] > 5 * inside[0]["separation"]
+
+
+def test_a_suggested_experiment_is_never_a_probe_on_which_a_fit_leaves_the_recorded_range():
+    """Two fits that agree on the records but one of which runs away on a long hold (two slow time constants with
+    large opposite weights do): the hold is not suggested, whatever its separation; if every probe runs away,
+    no drive is suggested and the note says why. The probe sine is eq. 1's form over the input range."""
+    t = np.arange(2000) * DT
+    rec = Record("r.npz", t, np.zeros(2000), np.linspace(-1.0, 1.0, 2000), frequency_hz=1.0)
+    screen = SimpleNamespace(parts=[SimpleNamespace(record=rec)], input_range=(-150.0, 150.0), noise_sd=0.01)
+
+    def fit(cause, run_away_on_hold=False, run_away=False):
+        def simulate(u, dt, params, input_range=None):
+            y = u / 150.0 * 0.9
+            if run_away or (run_away_on_hold and np.ptp(u) == 0):
+                y = y + np.arange(u.size) * dt * 1e3
+            return y
+        return SimpleNamespace(cause=cause, params={}, model=SimpleNamespace(param_names=(), simulate=simulate))
+
+    out = suggest(screen, fit("relaxation", run_away_on_hold=True), fit("creep"))
+    hold = [p for p in out["probes"] if p["drive"].startswith("input held")]
+    assert hold and hold[0]["outside_recorded"] and hold[0]["separation"] > 100
+    assert not out["drive"].startswith("input held") and not out["outside_recorded"]
+    out = suggest(screen, fit("relaxation", run_away=True), fit("creep"))
+    assert out["drive"] is None and "recorded output range" in out["note"]
+    u = probe_sine(t, 1.0, -150.0, 150.0)
+    assert u[0] == pytest.approx(-150.0) and u.max() == pytest.approx(150.0, rel=1e-6)
+    np.testing.assert_allclose(probe_sine(t, 1.0, 0.5, 2.5), paper_voltage(t, 1.0))
+
+
+def test_a_clip_on_top_is_clipped_in_the_suggested_experiments_probes():
+    """A clip of a kept part (``saturation.clip_on_top``) shares that part's model; its probe prediction must be
+    the part's output clipped at the level, not the part's output (before 2026-12-02 the clip was dropped)."""
+    base = get_model("mrpim").preset("paper")
+    rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
+    screen = SimpleNamespace(parts=[SimpleNamespace(record=rec)], input_range=(0.5, 2.5), noise_sd=0.01)
+    model = ExtendedModel("mrpim", ("delay",))
+    part = Candidate("delay", "pure delay", model, {**base, "delay": 0.01}, 1, 1.0, 10)
+    t = np.arange(4000) * DT
+    u = paper_voltage(t, 1.0)
+    y = model.simulate(u, DT, part.params, input_range=screen.input_range)
+    level = float(np.quantile(y, 0.8))
+    clip = Candidate("saturation", "pure delay + clipped from above", model, {**part.params, "saturation_level": level},
+                     2, 1.0, 10, hyperparameters={"saturation_side": "upper"}, clips=part)
+    got = predict(screen, clip, u, DT)
+    np.testing.assert_array_equal(got, np.where(y > level, level, y))
+    assert separation(screen, part, clip, u, DT, 0) == pytest.approx(np.sqrt(np.mean((y - got) ** 2)))
+    assert separation(screen, part, clip, u, DT, 0) > 0
+
+
+def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with_their_fits():
+    """``secondary._choose`` keeps the simplest of the causes on top that the best does not beat by z >= Z_SAME;
+    it returns those as good (the best among them), whose fits the report shows and the suggested experiment
+    separates; a cause the best beats clearly is not among them."""
+    rng = np.random.default_rng(3)
+    folds = Folds(np.array([0, 4000, 8000, 12000]))
+    misfit = np.sin(np.arange(12000) / 300.0)
+    noise = rng.normal(0, 0.05, 12000)
+    kept = misfit + noise
+    screen = SimpleNamespace(noise_sd=0.05, n=12000)
+
+    def tried(cause, k, e):
+        c = Candidate(cause, cause, None, {}, k, 1.0, 12000)
+        c.heldout = {**score(folds, kept, e), "at_bound": [], "open_ended": []}
+        return (c, c, e, [], e, e)
+
+    e1, e2 = 0.1 * misfit + noise, 0.1 * misfit + rng.normal(0, 0.05, 12000)
+    e_mode, e_delay = sorted((e1, e2), key=lambda e: float(e @ e))  # the mode a little better, by chance
+    delay, mode = tried("delay", 1, e_delay), tried("resonance", 2, e_mode)
+    assert score(folds, e_delay, e_mode)["z"] < Z_SAME
+    creep = tried("creep", 1, 0.8 * misfit + noise)  # clearly worse than the mode
+    pick, alike = _choose(screen, folds, [mode, creep, delay], kept)
+    assert pick is delay and alike == [mode[0]]
+    assert delay[0].heldout["as_good"] == ["resonance"]
+    assert _choose(screen, folds, [creep], kept) == (creep, [])
+    none_ok = tried("delay", 1, kept)
+    none_ok[0].heldout["at_bound"] = ["delay"]
+    assert _choose(screen, folds, [none_ok], kept) == (None, [])
 
 
 # --- planted effects (drawn within the detection limits) --------------------------------------------

@@ -101,6 +101,7 @@ class Diagnosis:
     structure: dict
     also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
+    also_alternatives: dict = field(default_factory=dict)  # id(kept also) -> (what it is on top of, those as good)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
     dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
     experiments: list[dict] = field(default_factory=list)
@@ -120,6 +121,15 @@ class Diagnosis:
     @property
     def cause(self) -> str:
         return self.verdict.cause
+
+    def as_good_as(self, c: Candidate) -> list[Candidate]:
+        """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
+        kept secondary cause, less those kept as well later (then the records show both); empty once a backward
+        step has replaced it."""
+        if not any(a is c for a in self.also):
+            return []
+        kept = {a.cause for a in self.also}
+        return [a for a in self.also_alternatives.get(id(c), ("", []))[1] if a.cause not in kept]
 
     @property
     def extended_model(self) -> str | None:
@@ -257,7 +267,10 @@ class Diagnosis:
             "also": [c.cause for c in self.also],
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
-            "also_as_good": {c.cause: c.heldout.get("as_good", []) for c in self.also if c.heldout.get("as_good")},
+            "also_as_good": {c.cause: [a.cause for a in self.as_good_as(c)] for c in self.also if self.as_good_as(c)},
+            "also_as_good_fits": {c.cause: [{"cause": a.cause, "label": a.label, "estimates": a.estimates,
+                                             "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
+                                            for a in self.as_good_as(c)] for c in self.also if self.as_good_as(c)},
             "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
             "timings_s": self.timings, "settings": self.settings,
         }
@@ -283,6 +296,16 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
                  f"(z < {Z_SAME:g}): that part may be creep")
     if experiments:
         diag.experiments.append({"causes": [v.chosen.cause, "creep"], **suggest(diag.screen, v.chosen, comp)})
+
+
+def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
+    """A suggested experiment for each secondary cause kept with others as good on top of the same part (the
+    simpler one kept, ``secondary._choose``): the drive on which the two composites' predictions differ most."""
+    for c in diag.also:
+        for other in diag.as_good_as(c):
+            say(f"suggesting an experiment to separate {c.cause} from {other.cause} on top of what was kept")
+            diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag.also_alternatives[id(c)][0],
+                                     **suggest(diag.screen, c, other)})
 
 
 def _confirm_interference(diag: Diagnosis) -> None:
@@ -406,6 +429,10 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     drop_redundant_primary(diag, result, say)
     slow_part_twin(diag, result, experiments, say)
     timings["secondary"] = secondary_s + time.perf_counter() - t1
+    if experiments and any(diag.as_good_as(c) for c in diag.also):
+        t1 = time.perf_counter()
+        also_experiments(diag, say)
+        timings["experiments"] = timings.get("experiments", 0.0) + time.perf_counter() - t1
     chosen = diag.chosen
     t1 = time.perf_counter()
     if chosen.cause == "interference":

@@ -2,12 +2,15 @@
 
 When two causes predict the held-out records equally well (a delay and a
 short first-order lag under slow sines; creep and a slow relaxation), the
-two fitted extended models are simulated on probe drives -- the protocol's
-sine (eq. 1) and a triangle at log-spaced frequencies, and a multisine --
-over the same input range, each from rest for three periods; the root mean
-square of their difference over the last two periods (the first settles) is
-the separation. The probe with the largest separation is the experiment to
-run. Interference is not driven by the input: it is told apart by a record
+two fitted extended models are simulated on probe drives -- eq. 1's sine
+spanning the records' input range at log-spaced frequencies, and a multisine
+over that range -- each from rest for three periods; the root mean square of
+their difference over the last two periods (the first settles) is the
+separation. The probe with the largest separation is the experiment to run,
+except probes on which a fit leaves the recorded output range by more than
+its width: the records did not pin the fits down there, and a separation of
+fits that extrapolate (e.g. two slow time constants with large opposite
+weights) is no guide. Interference is not driven by the input: it is told apart by a record
 with the drive held constant. Neither is creep: against creep, one more probe
 holds the input at its lowest level (the rest) from the start, as long as the
 multisine, scored over its whole length (a drift there is creep; a
@@ -21,12 +24,13 @@ import math
 import numpy as np
 
 from hysbench.data.excitations import multisine
-from hysbench.data.protocol import paper_voltage
+from hysbench.data.protocol import AMPLITUDE_KV, OFFSET_KV, paper_voltage
 
 from .candidates import Candidate
 
 N_FREQUENCIES = 9
 SAMPLES_PER_PERIOD = 2000
+OUTSIDE_RECORDED = 1.0  # a probe's fit beyond the recorded output range by this many times its width
 
 
 def _probe_frequencies(screen) -> np.ndarray:
@@ -37,37 +41,71 @@ def _probe_frequencies(screen) -> np.ndarray:
     return np.exp(np.linspace(math.log(lo), math.log(max(hi, 2 * lo)), N_FREQUENCIES))
 
 
+def predict(screen, c: Candidate, u: np.ndarray, dt: float) -> np.ndarray:
+    """A candidate's output for the drive ``u``; a clip on top of a kept part clips that part's output."""
+    y = c.model.simulate(u, dt, {n: c.params[n] for n in c.model.param_names}, input_range=screen.input_range)
+    if getattr(c, "clips", None) is None:
+        return y
+    level = c.params["saturation_level"]
+    return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
+
+
 def separation(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> float:
-    ya = a.model.simulate(u, dt, a.params, input_range=screen.input_range)
-    yb = b.model.simulate(u, dt, b.params, input_range=screen.input_range)
+    """The root mean square of the two fits' difference after ``settle`` samples (nan if not finite)."""
+    return _probe(screen, a, b, u, dt, settle)["separation"]
+
+
+def probe_sine(t: np.ndarray, frequency_hz: float, low: float, high: float) -> np.ndarray:
+    """Eq. 1's sine (from its lowest point) over the input range [low, high]: eq. 1 itself on 0.5-2.5 kV."""
+    unit = (paper_voltage(t, frequency_hz) - (OFFSET_KV - AMPLITUDE_KV)) / (2 * AMPLITUDE_KV)
+    return low + (high - low) * unit
+
+
+def recorded_range(screen) -> tuple[float, float]:
+    """The output's range over the identification records."""
+    return (min(float(np.min(p.record.y)) for p in screen.parts), max(float(np.max(p.record.y)) for p in screen.parts))
+
+
+def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> dict:
+    """A probe's separation, and whether a fit leaves the recorded output range by more than its width there
+    (``OUTSIDE_RECORDED``): what the fits predict so far out, the records did not pin down."""
+    ya, yb = predict(screen, a, u, dt), predict(screen, b, u, dt)
     d = (ya - yb)[settle:]
-    return float(np.sqrt(np.mean(d * d))) if d.size and np.all(np.isfinite(d)) else math.nan
+    sep = float(np.sqrt(np.mean(d * d))) if d.size and np.all(np.isfinite(d)) else math.nan
+    lo, hi = recorded_range(screen)
+    margin = OUTSIDE_RECORDED * (hi - lo)
+    outside = not all(np.all(np.isfinite(y)) and y.min() >= lo - margin and y.max() <= hi + margin for y in (ya, yb))
+    return {"separation": sep, "outside_recorded": bool(outside)}
 
 
 def suggest(screen, a: Candidate, b: Candidate) -> dict:
-    """{"drive", "frequency_hz", "separation" (output units, rms), "noise_sd", "probes": [...]}."""
+    """{"drive", "frequency_hz", "separation" (output units, rms), "noise_sd", "probes": [...]}; probes on which a
+    fit leaves the recorded output range (``_probe``) are not suggested ("note" says so if none is left)."""
     if "interference" in (a.cause, b.cause):
         return {"drive": "constant input (drive off)", "frequency_hz": None, "separation": None,
                 "noise_sd": screen.noise_sd,
                 "note": "an interference is not driven by the input: record with the drive held constant"}
+    lo, hi = screen.input_range
     probes = []
     for f in _probe_frequencies(screen):
         dt = 1.0 / (f * SAMPLES_PER_PERIOD)
         t = np.arange(3 * SAMPLES_PER_PERIOD) * dt
-        probes.append({"drive": "sine (eq. 1)", "frequency_hz": float(f),
-                       "separation": separation(screen, a, b, paper_voltage(t, f), dt, SAMPLES_PER_PERIOD)})
+        probes.append({"drive": f"sine {lo:.3g}-{hi:.3g} (eq. 1's form)", "frequency_hz": float(f),
+                       **_probe(screen, a, b, probe_sine(t, f, lo, hi), dt, SAMPLES_PER_PERIOD)})
     freqs = _probe_frequencies(screen)
     dt = 1.0 / (freqs[-1] * 20)
     duration = 3.0 / freqs[0]
-    lo, hi = screen.input_range
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
     probes.append({"drive": f"multisine {freqs[0]:.3g}-{freqs[-1]:.3g} Hz", "frequency_hz": None,
-                   "separation": separation(screen, a, b, u, dt, u.size // 3)})
+                   **_probe(screen, a, b, u, dt, u.size // 3)})
     if "creep" in (a.cause, b.cause):
         hold = np.full(u.size, float(lo))
         probes.append({"drive": f"input held at {lo:.3g} (the rest) for {duration:.3g} s", "frequency_hz": None,
-                       "separation": separation(screen, a, b, hold, dt, 0)})
-    finite = [p for p in probes if p["separation"] is not None and math.isfinite(p["separation"])]
-    best = max(finite, key=lambda p: p["separation"]) if finite else {"drive": None, "frequency_hz": None,
-                                                                       "separation": None}
-    return {**best, "noise_sd": screen.noise_sd, "probes": probes}
+                       **_probe(screen, a, b, hold, dt, 0)})
+    finite = [p for p in probes if math.isfinite(p["separation"]) and not p["outside_recorded"]]
+    if finite:
+        return {**max(finite, key=lambda p: p["separation"]), "noise_sd": screen.noise_sd, "probes": probes}
+    lo_y, hi_y = recorded_range(screen)
+    return {"drive": None, "frequency_hz": None, "separation": None, "noise_sd": screen.noise_sd, "probes": probes,
+            "note": (f"on every probe a fit leaves the recorded output range ({lo_y:.3g} to {hi_y:.3g}) by more than "
+                     "its width: these records do not pin the fits down there, so no drive can be suggested from them")}

@@ -285,20 +285,24 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"(gain {100 * c.heldout_gain:.2f} %; " + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
                      + ")")
     for e in d.experiments:
+        pair = " vs ".join(e["causes"]) + (f", on top of {e['on_top_of']}" if e.get("on_top_of") else "")
         if e.get("frequency_hz"):
-            lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): drive with a {e['drive']} at "
+            lines.append(f"suggested experiment ({pair}): drive with a {e['drive']} at "
                          f"{_fmt(e['frequency_hz'], 3)} Hz, where the two fits differ most ({_fmt(e['separation'], 3)} "
                          f"{unit} rms, noise sd {_fmt(e['noise_sd'], 3)})")
         else:
-            lines.append(f"suggested experiment ({' vs '.join(e['causes'])}): {e['drive']}"
-                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else ""))
+            lines.append(f"suggested experiment ({pair}): {e['drive'] or 'none'}"
+                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else "")
+                         + (f": {e['note']}" if e.get("note") else ""))
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
     also = []
     for c in d.also:
         text, why = c.cause, not_identified(c)
-        if c.heldout.get("as_good"):
-            text += f" (or, as good on these records: {', '.join(c.heldout['as_good'])})"
+        fits = d.as_good_as(c)
+        if fits:
+            text += " (or, as good on these records: " + "; ".join(
+                f"{a.cause}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in a.estimates.items()) for a in fits) + ")"
         also.append(text + (f" (not identified: {why})" if why else ""))
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "

@@ -124,21 +124,23 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
     return comp, comp, part_e, part_train, e, judged
 
 
-def _choose(screen, folds, tried: list, reference) -> tuple | None:
+def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[Candidate]]:
     """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
     ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond noise (as in
-    ``selection.decide``); the others as good are listed with it."""
+    ``selection.decide``), and the others as good (not told apart on these records; their names are listed
+    with it)."""
     ok = [t for t in tried if _admissible(t[0])]
     if not ok:
-        return None
+        return None, []
     best = max(ok, key=lambda t: t[0].heldout["gain"])
     for t in ok:  # of what is kept leaves beyond noise
         t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
     same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < Z_SAME
                                            and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
     chosen = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
-    chosen[0].heldout["as_good"] = [t[0].cause for t in same if t[0] is not chosen[0]]  # not told apart here
-    return chosen
+    alike = [t[0] for t in same if t[0] is not chosen[0]]  # not told apart here
+    chosen[0].heldout["as_good"] = [c.cause for c in alike]
+    return chosen, alike
 
 
 def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
@@ -178,10 +180,11 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
             if t is not None:
                 diag.secondary_tried.append(t[0])
                 tried.append(t)
-        pick = _choose(screen, folds, tried, kept.reference)
+        pick, alike = _choose(screen, folds, tried, kept.reference)
         if pick is None:
             return
         comp, part, part_e, part_train, e, _ = pick
+        diag.also_alternatives[id(comp)] = (" + ".join([chosen.cause, *(a.cause for a in diag.also)]), alike)
         diag.also.append(comp)
         pool.pop(comp.cause)
         kept = _Kept(part, part_e, part_train, e,
