@@ -90,7 +90,7 @@ def figure_residual_input(diag, path: Path) -> None:
         r = rr.record
         k = _stride(r.t.size)
         ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
-        w = r.scored
+        w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
         ax.set_title(_label(r), fontsize=8)
         ax.tick_params(labelsize=7)
@@ -114,7 +114,7 @@ def figure_residual_phase(diag, path: Path) -> None:
         ph = phase_of(r)
         k = _stride(r.t.size)
         ax.plot(ph[::k], rr.residual[::k], ".", ms=1, color="0.7", label="all periods")
-        w = r.scored
+        w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         order = np.argsort(ph[w])
         ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
         ax.set_title(_label(r), fontsize=8)
