@@ -101,7 +101,7 @@ class Diagnosis:
     structure: dict
     also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
-    also_alternatives: dict = field(default_factory=dict)  # id(kept also) -> (what it is on top of, those as good)
+    also_alternatives: list = field(default_factory=list)  # (a kept also, what it is on top of, those as good)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
     dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
     experiments: list[dict] = field(default_factory=list)
@@ -126,10 +126,12 @@ class Diagnosis:
         """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
         kept secondary cause, less those kept as well later (then the records show both); empty once a backward
         step has replaced it."""
-        if not any(a is c for a in self.also):
-            return []
+        entry = self._alternatives_of(c)
         kept = {a.cause for a in self.also}
-        return [a for a in self.also_alternatives.get(id(c), ("", []))[1] if a.cause not in kept]
+        return [a for a in entry[2] if a.cause not in kept] if entry and any(a is c for a in self.also) else []
+
+    def _alternatives_of(self, c: Candidate) -> tuple | None:
+        return next((e for e in self.also_alternatives if e[0] is c), None)
 
     @property
     def extended_model(self) -> str | None:
@@ -304,7 +306,7 @@ def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
     for c in diag.also:
         for other in diag.as_good_as(c):
             say(f"suggesting an experiment to separate {c.cause} from {other.cause} on top of what was kept")
-            diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag.also_alternatives[id(c)][0],
+            diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag._alternatives_of(c)[1],
                                      **suggest(diag.screen, c, other)})
 
 
