@@ -52,7 +52,7 @@ def predict(screen, c: Candidate, u: np.ndarray, dt: float) -> np.ndarray:
 
 def separation(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> float:
     """The root mean square of the two fits' difference after ``settle`` samples (nan if not finite)."""
-    return _probe(screen, a, b, u, dt, settle)["separation"]
+    return _probe(screen, a, b, u, dt, settle, recorded_range(screen))["separation"]
 
 
 def probe_sine(t: np.ndarray, frequency_hz: float, low: float, high: float) -> np.ndarray:
@@ -66,13 +66,14 @@ def recorded_range(screen) -> tuple[float, float]:
     return (min(float(np.min(p.record.y)) for p in screen.parts), max(float(np.max(p.record.y)) for p in screen.parts))
 
 
-def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> dict:
-    """A probe's separation, and whether a fit leaves the recorded output range by more than its width there
+def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int,
+           recorded: tuple[float, float]) -> dict:
+    """A probe's separation, and whether a fit leaves the ``recorded`` output range by more than its width there
     (``OUTSIDE_RECORDED``): what the fits predict so far out, the records did not pin down."""
     ya, yb = predict(screen, a, u, dt), predict(screen, b, u, dt)
     d = (ya - yb)[settle:]
     sep = float(np.sqrt(np.mean(d * d))) if d.size and np.all(np.isfinite(d)) else math.nan
-    lo, hi = recorded_range(screen)
+    lo, hi = recorded
     margin = OUTSIDE_RECORDED * (hi - lo)
     outside = not all(np.all(np.isfinite(y)) and y.min() >= lo - margin and y.max() <= hi + margin for y in (ya, yb))
     return {"separation": sep, "outside_recorded": bool(outside)}
@@ -86,26 +87,27 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
                 "noise_sd": screen.noise_sd,
                 "note": "an interference is not driven by the input: record with the drive held constant"}
     lo, hi = screen.input_range
+    recorded = recorded_range(screen)
     probes = []
     for f in _probe_frequencies(screen):
         dt = 1.0 / (f * SAMPLES_PER_PERIOD)
         t = np.arange(3 * SAMPLES_PER_PERIOD) * dt
         probes.append({"drive": f"sine {lo:.3g}-{hi:.3g} (eq. 1's form)", "frequency_hz": float(f),
-                       **_probe(screen, a, b, probe_sine(t, f, lo, hi), dt, SAMPLES_PER_PERIOD)})
+                       **_probe(screen, a, b, probe_sine(t, f, lo, hi), dt, SAMPLES_PER_PERIOD, recorded)})
     freqs = _probe_frequencies(screen)
     dt = 1.0 / (freqs[-1] * 20)
     duration = 3.0 / freqs[0]
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
     probes.append({"drive": f"multisine {freqs[0]:.3g}-{freqs[-1]:.3g} Hz", "frequency_hz": None,
-                   **_probe(screen, a, b, u, dt, u.size // 3)})
+                   **_probe(screen, a, b, u, dt, u.size // 3, recorded)})
     if "creep" in (a.cause, b.cause):
         hold = np.full(u.size, float(lo))
         probes.append({"drive": f"input held at {lo:.3g} (the rest) for {duration:.3g} s", "frequency_hz": None,
-                       **_probe(screen, a, b, hold, dt, 0)})
+                       **_probe(screen, a, b, hold, dt, 0, recorded)})
     finite = [p for p in probes if math.isfinite(p["separation"]) and not p["outside_recorded"]]
     if finite:
         return {**max(finite, key=lambda p: p["separation"]), "noise_sd": screen.noise_sd, "probes": probes}
-    lo_y, hi_y = recorded_range(screen)
+    lo_y, hi_y = recorded
     return {"drive": None, "frequency_hz": None, "separation": None, "noise_sd": screen.noise_sd, "probes": probes,
             "note": (f"on every probe a fit leaves the recorded output range ({lo_y:.3g} to {hi_y:.3g}) by more than "
                      "its width: these records do not pin the fits down there, so no drive can be suggested from them")}
