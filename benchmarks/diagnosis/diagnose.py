@@ -101,7 +101,7 @@ class Diagnosis:
     structure: dict
     also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
-    also_alternatives: list = field(default_factory=list)  # (a kept also, what it is on top of, those as good)
+    also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
     dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
     experiments: list[dict] = field(default_factory=list)
@@ -126,12 +126,13 @@ class Diagnosis:
         """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
         kept secondary cause, less those kept as well later (then the records show both); empty once a backward
         step has replaced it."""
-        entry = self._alternatives_of(c)
-        kept = {a.cause for a in self.also}
-        return [a for a in entry[2] if a.cause not in kept] if entry and any(a is c for a in self.also) else []
+        alike = next((alike for kept, alike in self.also_alternatives if kept is c), [])
+        return [a for a in alike if a.cause not in {k.cause for k in self.also}]
 
-    def _alternatives_of(self, c: Candidate) -> tuple | None:
-        return next((e for e in self.also_alternatives if e[0] is c), None)
+    def on_top_of(self, c: Candidate) -> str:
+        """What a kept secondary cause was added to: the named cause and the ones kept before it."""
+        i = next(i for i, a in enumerate(self.also) if a is c)
+        return " + ".join([self.cause, *(a.cause for a in self.also[:i])])
 
     @property
     def extended_model(self) -> str | None:
@@ -250,6 +251,7 @@ class Diagnosis:
                         "method": self.extended_fit.method, "params": self.extended_fit.params,
                         "n_params": self.extended_fit.n_params, "fitted_on": self.extended_fit.fitted_on,
                         "notes": self.extended_fit.notes}
+        as_good = {c.cause: alike for c in self.also if (alike := self.as_good_as(c))}
         data = {
             "format": FORMAT, "model": self.model, "dataset": self.dataset.name,
             "dataset_hash": self.dataset.content_hash(), "seed": self.seed,
@@ -269,10 +271,10 @@ class Diagnosis:
             "also": [c.cause for c in self.also],
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
-            "also_as_good": {c.cause: [a.cause for a in self.as_good_as(c)] for c in self.also if self.as_good_as(c)},
-            "also_as_good_fits": {c.cause: [{"cause": a.cause, "label": a.label, "estimates": a.estimates,
-                                             "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
-                                            for a in self.as_good_as(c)] for c in self.also if self.as_good_as(c)},
+            "also_as_good": {cause: [a.cause for a in alike] for cause, alike in as_good.items()},
+            "also_as_good_fits": {cause: [{"cause": a.cause, "label": a.label, "estimates": a.estimates,
+                                           "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
+                                          for a in alike] for cause, alike in as_good.items()},
             "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
             "timings_s": self.timings, "settings": self.settings,
         }
@@ -306,7 +308,7 @@ def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
     for c in diag.also:
         for other in diag.as_good_as(c):
             say(f"suggesting an experiment to separate {c.cause} from {other.cause} on top of what was kept")
-            diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag._alternatives_of(c)[1],
+            diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag.on_top_of(c),
                                      **suggest(diag.screen, c, other)})
 
 

@@ -27,6 +27,10 @@ def _fmt(v, digits: int = 4) -> str:
     return str(v)
 
 
+def _estimates(c) -> str:
+    return ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
+
+
 def _stride(n: int) -> int:
     return max(1, int(math.ceil(n / MAX_PLOT_POINTS)))
 
@@ -282,8 +286,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
     for c in d.verdict.ambiguous_with:
         lines.append(strong(f"ambiguous with {c.cause}") + f": {c.label} predicts the held-out records as well "
-                     f"(gain {100 * c.heldout_gain:.2f} %; " + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
-                     + ")")
+                     f"(gain {100 * c.heldout_gain:.2f} %; {_estimates(c)})")
     for e in d.experiments:
         pair = " vs ".join(e["causes"]) + (f", on top of {e['on_top_of']}" if e.get("on_top_of") else "")
         if e.get("frequency_hz"):
@@ -301,8 +304,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         text, why = c.cause, not_identified(c)
         fits = d.as_good_as(c)
         if fits:
-            text += " (or, as good on these records: " + "; ".join(
-                f"{a.cause}: " + ", ".join(f"{k} = {_fmt(v)}" for k, v in a.estimates.items()) for a in fits) + ")"
+            text += f" (or, as good on these records: {'; '.join(f'{a.cause}: {_estimates(a)}' for a in fits)})"
         also.append(text + (f" (not identified: {why})" if why else ""))
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "

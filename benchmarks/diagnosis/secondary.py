@@ -184,7 +184,7 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
         if pick is None:
             return
         comp, part, part_e, part_train, e, _ = pick
-        diag.also_alternatives.append((comp, " + ".join([chosen.cause, *(a.cause for a in diag.also)]), alike))
+        diag.also_alternatives.append((comp, alike))
         diag.also.append(comp)
         pool.pop(comp.cause)
         kept = _Kept(part, part_e, part_train, e,
