@@ -1668,6 +1668,38 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
         r["extension_could_show"] = reach
     e = ceiling(rows)["evidence"]
     assert (e["extension_cases"], e["extension_cases_right"], e["extension_ceiling_right"]) == (1, 1, 2 + 1 + 1)
+    assert "kept_ceiling_right" not in e  # rows from before the third reading
+    for r, reach in zip(rows, [False, True, False, False, False, False]):
+        r["shows_on_kept"] = reach
+    e = ceiling(rows)["evidence"]
+    assert (e["kept_cases"], e["kept_cases_right"], e["kept_ceiling_right"]) == (1, 0, 2 + 1 + 2)
+    assert "ceiling **5 / 6 = 83.3 %**" in markdown(rows, summary(rows), 1.0)
+
+
+def test_the_third_ceiling_reading_is_on_top_of_everything_kept_unless_a_planted_cause_is_in_it():
+    """``kept_composite``: the last kept candidate when the diagnosis kept more than the named cause, none
+    of it planted and all of it one design; ``shows_on_kept``: evidence against the base or the named cause,
+    and where everything kept is a reference, against it too."""
+    from types import SimpleNamespace as NS
+
+    from hysbench.benchmarks.diagnosis.evidence_ceiling import kept_composite, shows_on_kept
+
+    def cand(*parts):
+        return NS(cause=parts[-1], model=NS(components=parts))
+
+    relax, relax_delay = cand("relaxation"), cand("relaxation", "delay")
+    diag = NS(chosen=relax, also=[relax_delay])
+    assert kept_composite(diag, ["resonance"]) is relax_delay
+    assert kept_composite(diag, ["delay"]) is None  # a planted cause kept: nothing to add on top
+    assert kept_composite(NS(chosen=relax, also=[]), ["resonance"]) is None  # the named cause alone
+    assert kept_composite(NS(chosen=relax, also=[relax_delay, cand("interference")]), ["creep"]) is None
+    assert kept_composite(NS(chosen=None, also=[]), ["creep"]) is None
+
+    yes, no = {"evidence": True}, {"evidence": False}
+    assert shows_on_kept({"resonance": {"base": no, "named": yes}})  # no kept reference: as before
+    assert not shows_on_kept({"resonance": {"base": no, "named": yes, "kept": no, "extension_at_truth_on_kept": no}})
+    assert shows_on_kept({"resonance": {"base": no, "named": yes, "kept": no, "extension_at_truth_on_kept": yes}})
+    assert not shows_on_kept({"resonance": {"base": no, "named": no, "kept": yes}})  # needs the first reading too
 
 
 def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):
