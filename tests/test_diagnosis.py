@@ -1887,3 +1887,51 @@ def test_thorough_tries_every_cause_on_top_also_on_records_taken_as_long(monkeyp
     # every cause but the named one (an interference outside its meaning is never tried: no disturbance)
     assert set(CAUSES) - {"relaxation", "interference"} <= tried[True]
     assert tried[False] < tried[True]
+
+
+@pytest.mark.parametrize("lead_s", [0.0, 0.008])
+def test_the_own_lead_is_the_output_delay_at_which_the_base_model_fits_the_records_best(lead_s):
+    """A plant whose output leads its model by L: the classical P-I model (rate-independent, so it cannot
+    absorb a lead) identified on Table 2 MRPIM data, then driven by the input L ahead (1-2.5 Hz sines, eq. 1's
+    form, written here). The base model alone fits best with the output delayed by L, so a planted delay d
+    shows beyond it as d - L. Nothing planted here (the delay's signal is zero)."""
+    from hysbench.benchmarks.diagnosis.diagnose import build_screen
+    from hysbench.benchmarks.diagnosis.own_timing import own_lead
+    from hysbench.data.dataset import Dataset
+
+    mrpim, base, rng, dt = get_model("mrpim"), get_model("classical-pi"), np.random.default_rng(11), 1e-3
+    plan = [(1.0, "identification"), (2.0, "identification"), (1.5, "validation"), (2.5, "identification")]
+
+    def records(plant, lead):
+        out = []
+        for i, (f, role) in enumerate(plan):
+            t = np.arange(int(round(3 / f / dt))) * dt
+            y = plant(1.5 - np.cos(2 * np.pi * f * (t + lead)))  # eq. 1's form, 0.5-2.5 kV
+            out.append(Record(f"s{i}.csv", t, 1.5 - np.cos(2 * np.pi * f * t), y + rng.normal(0, 0.003, t.size),
+                              role=role, frequency_hz=f))
+        return Dataset(name="leading-plant", records=out, input_unit="kV", output_unit="mm")
+
+    table2 = records(lambda u: mrpim.simulate(u, dt, mrpim.preset("paper"), input_range=(0.5, 2.5)), 0.0)
+    fit = identify(base, table2, method="varpro", seed=0)
+    ds = records(lambda u: base.simulate(u, dt, fit.params, input_range=fit.input_range), lead_s)
+    screen = build_screen(ds, base)[-1]
+    found = own_lead(screen, {r.file: np.zeros(r.t.size) for r in ds.identification})
+    assert found == pytest.approx(lead_s, abs=5e-4)
+    assert own_lead(screen, {r.file: np.zeros(3) for r in ds.identification}) is None  # not the planted records
+
+
+def test_a_delay_is_judged_against_the_planted_delay_less_the_base_s_own_lead():
+    from hysbench.benchmarks.diagnosis.accuracy import with_own_lead
+    from hysbench.benchmarks.diagnosis.own_timing import needs_lead
+
+    truth = {"kinds": ["delay"], "effects": {"delay": {"delay_s": 0.0214}}}
+    assert with_own_lead(truth, None) is truth and with_own_lead(truth, 0.0) is truth
+    judged = with_own_lead(truth, 0.0075)
+    assert judged["effects"]["delay"]["delay_s"] == pytest.approx(0.0139)
+    assert truth["effects"]["delay"]["delay_s"] == 0.0214  # the truth itself untouched
+    assert parameter_errors(judged, "delay", {"delay_s": 0.0139})["delay_s"] == pytest.approx(0.0, abs=1e-12)
+    assert parameter_errors(truth, "delay", {"delay_s": 0.0139})["delay_s"] == pytest.approx(0.35, abs=0.01)
+    row = {"kinds": ["delay"], "base": "piezo", "verdict": "none", "also": []}
+    assert not needs_lead(row)
+    assert needs_lead({**row, "verdict": "delay"}) and needs_lead({**row, "also": ["delay"]})
+    assert not needs_lead({**row, "verdict": "delay", "base": "mrpim"})  # the plant is the base model

@@ -356,6 +356,28 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
         raise DiagnosisError(f"dataset {dataset.name!r} has no validation records: the gain cannot be measured")
 
 
+def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_rows: int = MAX_ROWS,
+                 say: Callable[[str], None] = lambda s: None, timings: dict | None = None):
+    """The base model identified on the windows (varpro), its residuals and their summaries, the noise sd
+    (median over the identification records) and the candidate screen on the whole records' rows:
+    ``(base_fit, before, summaries, noise_sd, screen)``."""
+    timings = {} if timings is None else timings
+    t0 = time.perf_counter()
+    say(f"identifying {base.name} (varpro) on the identification records' windows")
+    base_fit = identify(base, dataset, method="varpro", seed=seed)
+    timings["base_fit"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    before = residuals_of_fit(base_fit, dataset)
+    summaries = summarise(before)
+    noise = float(np.median([s.noise_sd for s in summaries if s.role == "identification"]))
+    timings["residuals"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    screen = Screen(base, base_fit.params, base_fit.input_range, dataset.identification,
+                    data_scale(dataset.identification), noise_sd=noise, max_rows=max_rows, seed=seed)
+    timings["null_fit"] = time.perf_counter() - t1
+    return base_fit, before, summaries, noise, screen
+
+
 def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
               segments, progress, thorough=False) -> Diagnosis:
     say = progress or (lambda s: None)
@@ -371,20 +393,9 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     _check(dataset, base)
     timings = {}
     t0 = time.perf_counter()
-    say(f"identifying {base.name} (varpro) on the identification records' windows")
-    base_fit = identify(base, dataset, method="varpro", seed=seed)
-    timings["base_fit"] = time.perf_counter() - t0
-
-    t1 = time.perf_counter()
-    before = residuals_of_fit(base_fit, dataset)
-    summaries = summarise(before)
-    noise = float(np.median([s.noise_sd for s in summaries if s.role == "identification"]))
-    timings["residuals"] = time.perf_counter() - t1
-
+    base_fit, before, summaries, noise, screen = build_screen(dataset, base, seed, max_rows, say, timings)
     t1 = time.perf_counter()
     say("fitting candidate causes on the identification records' whole length")
-    screen = Screen(base, base_fit.params, base_fit.input_range, dataset.identification,
-                    data_scale(dataset.identification), noise_sd=noise, max_rows=max_rows, seed=seed)
     result = run_screen(screen, before, max_relaxation=max_relaxation, progress=say)
     structure = periodic_structure(screen.null_residuals())
     structured = bool(structure["F"] > STRUCTURE_F) if structure["records"] else False
