@@ -22,7 +22,11 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .planted import fractional_delay
+from hysbench.data.segments import own_samples
+from hysbench.models import get_model
+
+from .diagnose import build_screen
+from .planted import fractional_delay, planted_case
 
 MAX_LEAD_S = 0.030  # the planted delays' upper end
 GRID_STEP_S = 0.0025
@@ -72,12 +76,6 @@ def needs_lead(row: Mapping) -> bool:
 def lead_of_case(row: Mapping) -> float | None:
     """``own_lead`` for an earlier run's case (``needs_lead``): its data drawn again and the base model
     identified and screened as ``diagnose`` does (its nonlinear parameters refitted per delay)."""
-    from hysbench.data.segments import own_samples
-    from hysbench.models import get_model
-
-    from .diagnose import build_screen
-    from .planted import planted_case
-
     ds, truth = planted_case(tuple(row["kinds"]), row["base"], row["drive"], row["seed"])
     screen = build_screen(own_samples(ds), get_model(row.get("model", "mrpim")), 0)[-1]
     return own_lead(screen, truth["signals"]["delay"])

@@ -24,8 +24,8 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
-from .shares import (CONFIDENCE, RIGHT_SHARE, detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of,
-                     wilson_interval)
+from .shares import (CONFIDENCE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
+                     judged_parameters, plan_seed_of, wilson_interval)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
@@ -123,11 +123,15 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
     judged = judged_parameters(rows)
     limits = {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases} for c in VOCABULARY}
     within = sum(bool(r["parameters_within"]) for r in judged)
+    leads = [r["own_lead_s"] for r in rows if r.get("own_lead_s") is not None]
+    alone = sum(all(v <= TOLERANCE for v in (r.get("parameter_errors_planted_alone") or r["parameter_errors"]).values())
+                for r in judged)
     return {
         "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
         "right_interval": wilson_interval(right, cases), **{k: sum(p[k] for p in plans) for k in _TOTALS},
         "parameters_judged": len(judged), "parameters_within": within,
         "parameters_within_interval": wilson_interval(within, len(judged)),
+        **({"parameters_within_planted_alone": alone, "own_leads_s": leads} if leads else {}),
         "bases": bases,
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
@@ -168,6 +172,13 @@ def pooled_markdown(p: dict) -> str:
         lines[-1] += (f" Parameters of right verdicts within 25 %: {p['parameters_within']} / {p['parameters_judged']}"
                       f" = **{100 * p['parameters_within'] / p['parameters_judged']:.1f} %**"
                       f"{interval_text(p['parameters_within_interval'])}.")
+        if p.get("own_leads_s"):
+            positive = [1e3 * v for v in p["own_leads_s"] if v > 0]
+            lines[-1] += (f" A delay on a base other than the Table 2 MRPIM is judged against the planted delay less "
+                          f"the base's own lead on the base model (measured in {len(p['own_leads_s'])} cases, positive "
+                          f"in {len(positive)}" + (f": {min(positive):.2f}-{max(positive):.2f} ms" if positive else "")
+                          + f"); against the planted delay alone {p['parameters_within_planted_alone']} / "
+                          f"{p['parameters_judged']} within 25 %.")
     if not p.get("by_effect_and_base"):
         return "\n".join(lines) + "\n"
     bases = p["bases"]

@@ -11,6 +11,7 @@ from .planted import VOCABULARY
 PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95  # a detection limit: the share right at and above it
 CONFIDENCE = 0.95  # the intervals on the reports' shares (Wilson score)
+TOLERANCE = 0.25  # a named parameter is right within this relative error (a clip's level: of the peak-to-peak)
 
 
 def effect_label(r: dict) -> str:
