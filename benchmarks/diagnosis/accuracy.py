@@ -640,20 +640,16 @@ def _note_in(report: Path) -> str:
     return "\n".join(head).strip()
 
 
-def add_own_leads(folder: str | Path, jobs: int = 1) -> int:
+def add_own_leads(folder: str | Path, workers: ProcessPoolExecutor | None = None) -> int:
     """An earlier run's delay cases on a base other than the Table 2 MRPIM (``own_timing.needs_lead``) judged
     as ``run_case`` now judges them: the base's own lead measured, and where it is positive a named delay's
     error taken against the planted delay less it; a delay under "also" (its estimate not in the row) is
     diagnosed again, and its verdict must come back the same. The report is rewritten. Returns the number of
-    cases measured."""
+    cases measured. ``workers``: processes forked before this process ran any numba kernel (``run_accuracy``)."""
     path = Path(folder) / "diagnosis_accuracy.json"
     data = json.loads(path.read_text())
     todo = [i for i, r in enumerate(data["cases"]) if needs_lead(r) and "own_lead_s" not in r]
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs, initializer=_one_thread) as ex:
-            leads = list(ex.map(lead_of_case, [data["cases"][i] for i in todo]))
-    else:
-        leads = [lead_of_case(data["cases"][i]) for i in todo]
+    leads = list((workers.map if workers else map)(lead_of_case, [data["cases"][i] for i in todo]))
     for i, lead in zip(todo, leads):
         r = data["cases"][i]
         r["own_lead_s"] = lead
@@ -721,10 +717,12 @@ def main(argv=None) -> int:
                              "reports (no new run)")
     args = parser.parse_args(argv)
     if args.own_leads:
-        try:
-            for folder in args.own_leads:
-                n = add_own_leads(folder, args.jobs)
-                print(f"{folder}: own lead measured in {n} case(s)")
+        try:  # the processes forked first: a delay under "also" is diagnosed again in this one
+            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
+            with forked or contextlib.nullcontext() as workers:
+                for folder in args.own_leads:
+                    n = add_own_leads(folder, workers)
+                    print(f"{folder}: own lead measured in {n} case(s)", flush=True)
         except (OSError, ValueError, KeyError, HysbenchError) as e:
             print(f"hysbench accuracy: {e}", file=sys.stderr)
             return 2
