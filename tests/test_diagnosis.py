@@ -1915,9 +1915,19 @@ def test_the_own_lead_is_the_output_delay_at_which_the_base_model_fits_the_recor
     fit = identify(base, table2, method="varpro", seed=0)
     ds = records(lambda u: base.simulate(u, dt, fit.params, input_range=fit.input_range), lead_s)
     screen = build_screen(ds, base)[-1]
-    found = own_lead(screen, {r.file: np.zeros(r.t.size) for r in ds.identification})
+    found = own_lead(screen, {"delay": {r.file: np.zeros(r.t.size) for r in ds.identification}})
     assert found == pytest.approx(lead_s, abs=5e-4)
-    assert own_lead(screen, {r.file: np.zeros(3) for r in ds.identification}) is None  # not the planted records
+    # every planted effect is taken off: half the output 10 ms earlier, planted on top, leaves the lead where it
+    # was (left on, it would lengthen the lead by about 5 ms)
+    leading = {r.file: 0.5 * (np.interp(r.t + 0.010, r.t, r.y) - r.y) for r in ds.identification}
+    planted = copy.deepcopy(ds)
+    for r in planted.identification:
+        r.y = r.y + leading[r.file]
+    screen = build_screen(planted, base)[-1]
+    nothing = {f: 0 * v for f, v in leading.items()}
+    assert own_lead(screen, {"delay": nothing, "other": leading}) == pytest.approx(found, abs=2e-4)
+    assert own_lead(screen, {"delay": nothing}) - found > 2e-3
+    assert own_lead(screen, {"delay": {r.file: np.zeros(3) for r in ds.identification}}) is None  # not these records
 
 
 def test_a_delay_is_judged_against_the_planted_delay_less_the_base_s_own_lead():

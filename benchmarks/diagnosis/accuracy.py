@@ -188,7 +188,7 @@ def run_case(case: dict) -> dict:
                  thorough=case.get("thorough", False))
     seconds = time.perf_counter() - t0
     also = [c.cause for c in d.also]
-    lead = (own_lead(d.screen, truth["signals"]["delay"]) if "delay" in case["kinds"] and case["base"] != "mrpim"
+    lead = (own_lead(d.screen, truth["signals"]) if "delay" in case["kinds"] and case["base"] != "mrpim"
             and "delay" in (d.cause, *also) else None)
     judged = with_own_lead(truth, lead)
     errors = parameter_errors(judged, d.cause, d.parameters) if d.cause in case["kinds"] else {}

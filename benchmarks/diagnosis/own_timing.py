@@ -47,16 +47,20 @@ def base_rss_with_output_delayed(screen, unplanted: Mapping[str, np.ndarray], s:
     return float(shifted.evaluate(screen.base, z)[0])
 
 
-def own_lead(screen, delay_signal: Mapping[str, np.ndarray]) -> float | None:
+def own_lead(screen, planted: Mapping[str, Mapping[str, np.ndarray]]) -> float | None:
     """s* >= 0 (seconds): the output delay at which the base model alone fits the unplanted identification
-    records best (``delay_signal``: what the planted delay added per record, ``planted_case``'s
-    ``truth["signals"]["delay"]``); None if the screen's records are not the planted ones sample for sample."""
+    records best (``planted``: per planted effect, what it added per record, ``planted_case``'s
+    ``truth["signals"]``; every effect is taken off); None if the screen's records are not the planted ones
+    sample for sample."""
     unplanted = {}
     for p in screen.parts:
-        added = delay_signal.get(p.record.file)
-        if added is None or np.shape(added) != p.record.y.shape:
-            return None
-        unplanted[p.record.file] = p.record.y - np.asarray(added)
+        y = p.record.y.copy()
+        for per_record in planted.values():
+            added = per_record.get(p.record.file)
+            if added is None or np.shape(added) != y.shape:
+                return None
+            y -= np.asarray(added)
+        unplanted[p.record.file] = y
     grid = np.arange(0.0, MAX_LEAD_S + GRID_STEP_S / 2, GRID_STEP_S)
     rss = [base_rss_with_output_delayed(screen, unplanted, s) for s in grid]
     k = int(np.argmin(rss))
@@ -78,4 +82,4 @@ def lead_of_case(row: Mapping) -> float | None:
     identified and screened as ``diagnose`` does (its nonlinear parameters refitted per delay)."""
     ds, truth = planted_case(tuple(row["kinds"]), row["base"], row["drive"], row["seed"])
     screen = build_screen(own_samples(ds), get_model(row.get("model", "mrpim")), 0)[-1]
-    return own_lead(screen, truth["signals"]["delay"])
+    return own_lead(screen, truth["signals"])
