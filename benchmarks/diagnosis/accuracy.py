@@ -66,7 +66,7 @@ from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABU
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, wilson_interval)
+                     judged_parameters, plan_seed_of, span_text, wilson_interval)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -439,7 +439,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
                   "base's own lead on the base model: the delay of the unplanted records' output at which the base "
                   "model alone fits them best (`own_timing`: the generator's shift and the base refitted, not the "
                   "delay extension; leads only). A planted delay d shows beyond the base model as about d less that "
-                  f"lead. Measured in {leads.size} case(s): {leads.min():.2f}-{leads.max():.2f} ms.", ""]
+                  f"lead. Measured in {leads.size} case(s): {span_text(leads)}.", ""]
     lines += ["| cause | parameter | cases | median error | within 25 % |", "|---|---|---|---|---|"]
     for cause in VOCABULARY:
         errs: dict[str, list] = {}

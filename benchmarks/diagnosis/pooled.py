@@ -25,7 +25,7 @@ from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
 from .shares import (CONFIDENCE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, wilson_interval)
+                     judged_parameters, plan_seed_of, span_text, wilson_interval)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
@@ -176,7 +176,7 @@ def pooled_markdown(p: dict) -> str:
             positive = [1e3 * v for v in p["own_leads_s"] if v > 0]
             lines[-1] += (f" A delay on a base other than the Table 2 MRPIM is judged against the planted delay less "
                           f"the base's own lead on the base model (measured in {len(p['own_leads_s'])} cases, positive "
-                          f"in {len(positive)}" + (f": {min(positive):.2f}-{max(positive):.2f} ms" if positive else "")
+                          f"in {len(positive)}" + (f": {span_text(positive)}" if positive else "")
                           + f"); against the planted delay alone {p['parameters_within_planted_alone']} / "
                           f"{p['parameters_judged']} within 25 %.")
     if not p.get("by_effect_and_base"):

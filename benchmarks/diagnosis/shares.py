@@ -60,3 +60,9 @@ def interval_text(interval) -> str:
     if not interval or any(v is None or math.isnan(v) for v in interval):
         return ""
     return f" ({100 * CONFIDENCE:.0f} % interval {100 * interval[0]:.1f}-{100 * interval[1]:.1f} %)"
+
+
+def span_text(values, unit: str = "ms", fmt: str = ".2f") -> str:
+    """"a-b ms" for a span of values, "a ms" when they are all one value."""
+    lo, hi = format(min(values), fmt), format(max(values), fmt)
+    return f"{lo} {unit}" if lo == hi else f"{lo}-{hi} {unit}"
