@@ -26,7 +26,10 @@ What counts as right (stated in the report):
   the planted cause in "also".
 Parameters: relative error of each named parameter (relaxation: the named
 time constant nearest the planted one; creep: the drift over the longest
-record; saturation: the level's error over the output's peak-to-peak).
+record; saturation: the level's error over the output's peak-to-peak; a
+delay on a base other than the Table 2 MRPIM: against the planted delay less
+the base's own lead on the base model, ``own_timing``, the error against the
+planted delay alone kept beside it).
 
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 45``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
@@ -34,7 +37,8 @@ Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out r
 ``plan_on``)
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
 2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
-pooled, their detection limits checked on other runs, ``pooled``).
+pooled, their detection limits checked on other runs, ``pooled``; ``--own-leads DIR ...``: earlier runs'
+delay cases given the base's own lead, ``add_own_leads``).
 """
 
 from __future__ import annotations
