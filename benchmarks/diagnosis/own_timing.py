@@ -5,11 +5,12 @@ alone may fit the unplanted records best with their output delayed by some
 s* > 0: the plant leads what the base model can represent. A planted delay d
 then shows, beyond the base model, as about d - s*, and the diagnosis (which
 reports the delay beyond the base model) can at most find that. Measured on
-the unplanted records (the planted delay's signal taken off) by delaying
+the unplanted records (every planted effect's signal taken off) by delaying
 their output (``planted.fractional_delay``, the generator's own shift, not
 the delay extension) and refitting the base model's nonlinear parameters on
 the screen's rows: a grid over [0, ``MAX_LEAD_S``], then bounded Brent
-around the best point. Only leads are measured: an output advanced in time
+around the best point (a lead of ``MAX_LEAD_S`` or more comes back as
+``MAX_LEAD_S``). Only leads are measured: an output advanced in time
 needs samples after a record's end. The Table 2 MRPIM base is the plant,
 so its lead is zero by construction and not measured.
 """
