@@ -70,7 +70,7 @@ from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABU
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, span_text, wilson_interval)
+                     judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -192,8 +192,8 @@ def run_case(case: dict) -> dict:
                  thorough=case.get("thorough", False))
     seconds = time.perf_counter() - t0
     also = [c.cause for c in d.also]
-    lead = (own_lead(d.screen, truth["signals"]) if "delay" in case["kinds"] and case["base"] != "mrpim"
-            and "delay" in (d.cause, *also) else None)
+    found = {"kinds": case["kinds"], "base": case["base"], "verdict": d.cause, "also": also}
+    lead = own_lead(d.screen, truth["signals"]) if needs_lead(found) else None
     judged = with_own_lead(truth, lead)
     errors = parameter_errors(judged, d.cause, d.parameters) if d.cause in case["kinds"] else {}
     also_errors = {c.cause: parameter_errors(judged, c.cause, c.estimates) for c in d.also if c.cause in case["kinds"]}
@@ -210,7 +210,7 @@ def run_case(case: dict) -> dict:
             "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
             "parameters": d.parameters, "parameter_errors": errors,
-            "parameters_within": _within(errors),
+            "parameters_within": within_tolerance(errors),
             "also_parameter_errors": also_errors,
             "right": judge(truth, d.cause, also, case.get("own")), "seconds": seconds,
             "effect_evidence": per_effect, "effect_shows_evidence": shows_evidence(per_effect),
@@ -249,7 +249,7 @@ def summary(rows: list[dict]) -> dict:
         "parameters_within_share": (sum(r["parameters_within"] for r in with_params) / len(with_params)
                                     if with_params else math.nan),
         "parameters_judged": len(with_params),
-        "parameters_within_planted_alone": sum(_within(r.get("parameter_errors_planted_alone") or r["parameter_errors"])
+        "parameters_within_planted_alone": sum(within_tolerance(r.get("parameter_errors_planted_alone") or r["parameter_errors"])
                                                for r in with_params),
         "own_leads_s": [r["own_lead_s"] for r in rows if "own_lead_s" in r],
         "parameters_within_interval": wilson_interval(sum(r["parameters_within"] for r in with_params),
@@ -326,14 +326,9 @@ def _via_also(r: dict) -> bool:
         k in r["also"] for k in r["kinds"])
 
 
-def _within(errors: dict) -> bool:
-    """Parameter errors (``parameter_errors``), every one within 25 % (none: not within)."""
-    return bool(errors) and all(v <= TOLERANCE for v in errors.values())
-
-
 def _also_within(r: dict) -> bool:
     """A planted cause under "also" with every parameter within 25 %."""
-    return any(_within(e) for e in r.get("also_parameter_errors", {}).values())
+    return any(within_tolerance(e) for e in r.get("also_parameter_errors", {}).values())
 
 
 def _recovered(r: dict) -> bool:
@@ -341,7 +336,7 @@ def _recovered(r: dict) -> bool:
     25 % of its value."""
     if r["kinds"] == ["relaxation"]:
         return r["parameters_within"]
-    return _within(r.get("also_parameter_errors", {}).get("delay", {}))
+    return within_tolerance(r.get("also_parameter_errors", {}).get("delay", {}))
 
 
 def _machine(s: dict) -> str:
@@ -664,7 +659,7 @@ def add_own_leads(folder: str | Path, workers: ProcessPoolExecutor | None = None
             r["parameter_errors_planted_alone"] = r["parameter_errors"]
             r["also_parameter_errors_planted_alone"] = r.get("also_parameter_errors", {})
             r["parameter_errors"] = parameter_errors(with_own_lead(truth, lead), "delay", r["parameters"])
-            r["parameters_within"] = _within(r["parameter_errors"])
+            r["parameters_within"] = within_tolerance(r["parameter_errors"])
             continue
         again = run_case({k: r[k] for k in ("kinds", "base", "drive", "seed")})  # estimates under "also"
         if (again["verdict"], again["also"]) != (r["verdict"], r["also"]):

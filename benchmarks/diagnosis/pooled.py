@@ -24,8 +24,8 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
-from .shares import (CONFIDENCE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, span_text, wilson_interval)
+from .shares import (CONFIDENCE, RIGHT_SHARE, detection_limit, effect_label, interval_text,
+                     judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
@@ -124,8 +124,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
     limits = {c: {b: detection_limit([r for r in rows if r["base"] == b], c) for b in bases} for c in VOCABULARY}
     within = sum(bool(r["parameters_within"]) for r in judged)
     leads = [r["own_lead_s"] for r in rows if r.get("own_lead_s") is not None]
-    alone = sum(all(v <= TOLERANCE for v in (r.get("parameter_errors_planted_alone") or r["parameter_errors"]).values())
-                for r in judged)
+    alone = sum(within_tolerance(r.get("parameter_errors_planted_alone") or r["parameter_errors"]) for r in judged)
     return {
         "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
         "right_interval": wilson_interval(right, cases), **{k: sum(p[k] for p in plans) for k in _TOTALS},

@@ -66,3 +66,8 @@ def span_text(values, unit: str = "ms", fmt: str = ".2f") -> str:
     """"a-b ms" for a span of values, "a ms" when they are all one value."""
     lo, hi = format(min(values), fmt), format(max(values), fmt)
     return f"{lo} {unit}" if lo == hi else f"{lo}-{hi} {unit}"
+
+
+def within_tolerance(errors: dict) -> bool:
+    """Parameter errors (``accuracy.parameter_errors``), every one within ``TOLERANCE`` (none: not within)."""
+    return bool(errors) and all(v <= TOLERANCE for v in errors.values())
