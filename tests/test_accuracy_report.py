@@ -224,3 +224,78 @@ def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand(tmp_path
         pooled.pool([fit, held], check=[held])
     assert accuracy.main(["--pool", str(fit), "--check", str(fit)]) == 2
     assert "cannot check them" in capsys.readouterr().err
+
+
+def _evidence_case(seed, kinds, base, right, shown, extension, verdict="none", also=()):
+    return {**_case(seed, kinds, base, "sines", 1.0, right), "verdict": verdict, "also": list(also),
+            "effect_evidence": {}, "effect_shows_evidence": shown, "extension_could_show": extension}
+
+
+def test_the_pooled_report_gives_the_ceiling_of_every_plan_and_pooled_counted_by_hand(tmp_path):
+    """Ceiling: nulls and out-of-vocabulary cases, plus the vocabulary cases with evidence, plus those without it
+    that are right anyway. Plan 1: 1 null + (2 with evidence) + (1 right without) = 4 of 5 by the waveform,
+    1 + 1 + 1 = 3 by the extensions; plan 2: 1 + 1 + 0 = 2 of 3 by both."""
+    stride = accuracy.PLAN_STRIDE
+    one = [_evidence_case(stride, ["delay"], "mrpim", True, True, True),
+           _evidence_case(stride + 1, ["delay"], "piezo", False, True, False),
+           _evidence_case(stride + 2, ["creep"], "piezo", True, False, False),
+           _evidence_case(stride + 3, ["creep"], "piezo", False, False, False),
+           _evidence_case(stride + 4, ["null-white"], "mrpim", True, False, False)]
+    two = [_evidence_case(2 * stride, ["resonance"], "virtual-dea", False, True, True),
+           _evidence_case(2 * stride + 1, ["resonance"], "virtual-dea", False, False, False),
+           _evidence_case(2 * stride + 2, ["dead-zone"], "mrpim", False, False, False)]
+    for folder, rows in (("one", one), ("two", two)):
+        accuracy.write(rows, accuracy.ensure_dir(tmp_path / folder), 1.0)
+    p = pooled.pool([tmp_path / "one", tmp_path / "two"])
+    assert [(q["ceiling_right"], q["extension_ceiling_right"]) for q in p["plans"]] == [(4, 3), (2, 2)]
+    e = p["ceiling"]
+    assert (e["ceiling_right"], e["extension_ceiling_right"], e["with_evidence"], e["with_evidence_right"]) == (6, 5, 3, 1)
+    assert e["intervals"]["ceiling_right"] == pytest.approx(accuracy.wilson_interval(6, 8))
+    piezo = e["by_base"]["piezo"]
+    assert (piezo["cases"], piezo["with_evidence"], piezo["with_evidence_right"], piezo["without_evidence_right"]) == (
+        3, 1, 0, 1)
+    assert (piezo["extension_cases"], piezo["extension_without_right"]) == (0, 1)
+    text = pooled.pooled_markdown(p)
+    assert "| 1 | 5 | 3 | 60.0 % | 4 | 3 |" in text and "**6 / 8 = 75.0 %**" in text and "**5 / 8 = 62.5 %**" in text
+    assert "| piezo | 3 | 1 | 2 | 1 |" in text  # right 1; at most 1 + 1 by the waveforms, 0 + 1 by the extensions
+    assert "on top of everything the diagnosis kept" not in text  # no plan has the third reading
+    for r in one + two:
+        r.pop("effect_shows_evidence")
+    accuracy.write(one + two, tmp_path / "one", 1.0)
+    assert pooled.pool([tmp_path / "one"])["ceiling"] == {}  # plans from before the check: no ceiling
+
+
+def test_the_third_reading_is_added_to_an_earlier_run_by_diagnosing_again_only_what_kept_more(tmp_path, monkeypatch):
+    """``add_kept_evidence``: a case that kept nothing more than its named cause takes its first reading; one that
+    kept more (none of it planted, no line or clip) and shows evidence is diagnosed again; if that comes back
+    otherwise it keeps the first reading and is listed."""
+    stride = accuracy.PLAN_STRIDE
+    rows = [_evidence_case(stride, ["resonance"], "virtual-dea", False, True, True, "relaxation", ["delay"]),
+            _evidence_case(stride + 1, ["creep"], "virtual-dea", False, True, True, "relaxation", ["delay"]),
+            _evidence_case(stride + 2, ["delay"], "virtual-dea", True, True, True, "relaxation", ["delay"]),
+            _evidence_case(stride + 3, ["creep"], "mrpim", False, True, True, "relaxation"),
+            _evidence_case(stride + 4, ["creep"], "mrpim", False, False, False, "relaxation", ["delay"]),
+            _evidence_case(stride + 5, ["saturation"], "mrpim", False, True, True, "relaxation", ["saturation"]),
+            _evidence_case(stride + 6, ["null-white"], "mrpim", True, False, False)]
+    assert [accuracy.keeps_more(r) for r in rows] == [True, True, False, False, True, False, False]
+    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
+    asked = []
+
+    def again(case):
+        asked.append(case["seed"])
+        on_kept = {"resonance": {"kept": {"gain": -0.1, "z": -1.0, "folds_improved": 1, "n_folds": 3, "evidence": False}}}
+        if case["seed"] == stride:
+            return {"verdict": "relaxation", "also": ["delay"], "shows_on_kept": False, "effect_evidence": on_kept}
+        return {"verdict": "relaxation", "also": ["creep"], "shows_on_kept": False, "effect_evidence": {}}
+
+    monkeypatch.setattr(accuracy, "run_case", again)
+    assert accuracy.add_kept_evidence(tmp_path) == {"rerun": 2, "same": 1, "differs": [stride + 1]}
+    assert asked == [stride, stride + 1]
+    data = json.loads((tmp_path / "diagnosis_accuracy.json").read_text())
+    got = [r.get("shows_on_kept") for r in data["cases"]]
+    assert got == [False, True, True, True, False, True, None]  # the second: another verdict, the first reading
+    assert data["cases"][0]["effect_evidence"]["resonance"]["kept"]["evidence"] is False
+    assert data["cases"][1]["kept_rerun_differs"] == {"verdict": "relaxation", "also": ["creep"]}
+    e = data["summary"]["evidence"]
+    assert (e["kept_ceiling_right"], e["kept_rerun_differs"]) == (1 + 4 + 0, 1)  # the null, four with it, none right without
+    assert "1 case(s) diagnosed again for this reading came back" in (tmp_path / "diagnosis_accuracy.md").read_text()

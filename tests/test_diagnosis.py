@@ -1674,6 +1674,13 @@ def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow()
     e = ceiling(rows)["evidence"]
     assert (e["kept_cases"], e["kept_cases_right"], e["kept_ceiling_right"]) == (1, 0, 2 + 1 + 2)
     assert "ceiling **5 / 6 = 83.3 %**" in markdown(rows, summary(rows), 1.0)
+    # the strictest, from each row's evidence: the second case's delay by its extension on the base and kept
+    on, off = ({"gain": g, "z": z, "folds_improved": 3, "n_folds": 3, "evidence": g > 0} for g, z in ((0.2, 3.5), (-0.1, 0.0)))
+    rows[1]["effect_evidence"] = {"delay": {"base": on, "extension_at_truth_on_base": on, "kept": off,
+                                            "extension_at_truth_on_kept": on}}
+    e = ceiling(rows)["evidence"]
+    assert (e["strict_cases"], e["strict_cases_right"], e["strict_ceiling_right"]) == (1, 0, 2 + 1 + 2)
+    assert "ceiling **5 / 6 = 83.3 %**." in markdown(rows, summary(rows), 1.0).split("The strictest")[1]
 
 
 def test_the_third_ceiling_reading_is_on_top_of_everything_kept_unless_a_planted_cause_is_in_it():
@@ -1700,6 +1707,28 @@ def test_the_third_ceiling_reading_is_on_top_of_everything_kept_unless_a_planted
     assert not shows_on_kept({"resonance": {"base": no, "named": yes, "kept": no, "extension_at_truth_on_kept": no}})
     assert shows_on_kept({"resonance": {"base": no, "named": yes, "kept": no, "extension_at_truth_on_kept": yes}})
     assert not shows_on_kept({"resonance": {"base": no, "named": no, "kept": yes}})  # needs the first reading too
+
+
+def test_the_strictest_ceiling_reading_asks_the_extension_on_the_base_or_named_and_on_everything_kept():
+    """``extension_could_show``: a mode by its extension at the planted values on the base or the named cause
+    (not on what was kept), an effect without such an extension by its waveform; ``extension_on_kept``: that,
+    and on top of everything kept by the same rule, per effect."""
+    from hysbench.benchmarks.diagnosis.evidence_ceiling import extension_could_show, extension_on_kept
+
+    yes, no = {"evidence": True}, {"evidence": False}
+    mode = {"base": yes, "extension_at_truth_on_base": no, "named": no, "extension_at_truth_on_named": yes}
+    assert extension_could_show({"resonance": mode}) and extension_on_kept({"resonance": mode})  # nothing kept
+    assert not extension_could_show({"resonance": {**mode, "extension_at_truth_on_named": no,
+                                                   "extension_at_truth_on_kept": yes}})  # kept alone: not this reading
+    kept_waveform_only = {**mode, "kept": yes, "extension_at_truth_on_kept": no}
+    assert extension_could_show({"resonance": kept_waveform_only})
+    assert not extension_on_kept({"resonance": kept_waveform_only})  # its extension does not show on what was kept
+    assert extension_on_kept({"resonance": {**mode, "kept": no, "extension_at_truth_on_kept": yes}})
+    creep = {"base": yes, "kept": no}  # no extension at planted values: the waveform, on base and on kept
+    assert extension_could_show({"creep": creep}) and not extension_on_kept({"creep": creep})
+    # per effect: one effect on the base, another on what was kept, is neither on both
+    assert not extension_on_kept({"creep": creep, "relaxation": {"base": no, "extension_at_truth_on_base": no,
+                                                                 "kept": yes, "extension_at_truth_on_kept": yes}})
 
 
 def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):

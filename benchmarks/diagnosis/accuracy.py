@@ -7,7 +7,8 @@ physics, the real piezo recording when ../shared/datasets has it) and
 three drives (the protocol's sines, triangles, multisines), runs
 ``diagnose`` (base model MRPIM) on each and writes
 ``diagnosis_accuracy.md`` / ``.json``: the confusion matrix (true effect x
-verdict), each named parameter's error, per cause the detection limit.
+verdict), each named parameter's error, per cause the detection limit, and
+the benchmark's ceiling (``evidence_ceiling``, ``shares.ceiling``).
 
 What counts as right (stated in the report):
 * one vocabulary cause: that cause named. On the virtual DEA, whose physics
@@ -38,7 +39,8 @@ Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out r
 (``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
 2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
 pooled, their detection limits checked on other runs, ``pooled``; ``--own-leads DIR ...``: earlier runs'
-delay cases given the base's own lead, ``add_own_leads``).
+delay cases given the base's own lead, ``add_own_leads``; ``--kept-evidence DIR ...``: earlier runs given the
+ceiling readings on top of everything kept, ``add_kept_evidence``).
 """
 
 from __future__ import annotations
@@ -69,8 +71,8 @@ from .own_timing import lead_of_case, needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
-from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
+from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, ceiling, detection_limit, effect_label,
+                     interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -274,42 +276,6 @@ def summary(rows: list[dict]) -> dict:
         **ceiling(rows),
         "seconds": sum(r["seconds"] for r in rows),
     }
-
-
-def ceiling(rows: list[dict]) -> dict:
-    """The vocabulary cases whose planted effect, its exact waveform as a regressor, gives held-out evidence
-    (``evidence_ceiling``), and the best verdict share a rule that names causes only on such evidence could
-    reach: every other case right, and among the rest only those already right (by a verdict the base gives
-    anyway); the same with the vocabulary's own extensions at the planted parameters (``extension_*``).
-    Empty for rows from before the check."""
-    vocab = [r for r in rows if r["kinds"][0] in VOCABULARY]
-    if not vocab or any("effect_shows_evidence" not in r for r in vocab):
-        return {}
-
-    def reach(sub: list[dict], flag: str) -> tuple[int, int, int]:
-        """(cases with the flag, of them right, right among the others)"""
-        return (sum(r[flag] for r in sub), sum(r["right"] for r in sub if r[flag]),
-                sum(r["right"] for r in sub if not r[flag]))
-
-    others = len(rows) - len(vocab)
-    seen, seen_right, unseen_right = reach(vocab, "effect_shows_evidence")
-    out = {"vocabulary_cases": len(vocab), "with_evidence": seen, "with_evidence_right": seen_right,
-           "without_evidence_right": unseen_right, "ceiling_right": others + seen + unseen_right,
-           "ceiling_share": (others + seen + unseen_right) / len(rows), "by_base": {}}
-    for b in dict.fromkeys(r["base"] for r in vocab):
-        sub = [r for r in vocab if r["base"] == b]
-        n, right, rest = reach(sub, "effect_shows_evidence")
-        out["by_base"][b] = {"cases": len(sub), "with_evidence": n, "with_evidence_right": right,
-                             "without_evidence_right": rest}
-    if all("extension_could_show" in r for r in vocab):
-        n, right, rest = reach(vocab, "extension_could_show")
-        out.update(extension_cases=n, extension_cases_right=right, extension_ceiling_right=others + n + rest,
-                   extension_ceiling_share=(others + n + rest) / len(rows))
-    if all("shows_on_kept" in r for r in vocab):
-        n, right, rest = reach(vocab, "shows_on_kept")
-        out.update(kept_cases=n, kept_cases_right=right, kept_ceiling_right=others + n + rest,
-                   kept_ceiling_share=(others + n + rest) / len(rows))
-    return {"evidence": out}
 
 
 def _null_verdict_on_vdea(r: dict) -> bool:
@@ -552,6 +518,15 @@ def _ceiling_lines(s: dict) -> list[str]:
                   "absorbed part of it, and another choice of secondary cause might have left room for the planted "
                   f"one. {e['kept_cases']} vocabulary cases (of them right {e['kept_cases_right']}); ceiling "
                   f"**{e['kept_ceiling_right']} / {s['cases']} = {100 * e['kept_ceiling_share']:.1f} %**."]
+        if "strict_ceiling_right" in e:
+            lines[-1] += (" The strictest, both at once (a relaxation, delay or mode by its extension at the planted "
+                          "parameters, on top of the base or the named cause and on top of everything kept): "
+                          f"{e['strict_cases']} vocabulary cases (of them right {e['strict_cases_right']}); ceiling "
+                          f"**{e['strict_ceiling_right']} / {s['cases']} = {100 * e['strict_ceiling_share']:.1f} %**.")
+        if e.get("kept_rerun_differs"):
+            lines[-1] += (f" This reading was added later (`accuracy --kept-evidence`: the cases that kept more than "
+                          f"the named cause diagnosed again); {e['kept_rerun_differs']} case(s) diagnosed again for "
+                          "this reading came back with another verdict and keep the readings without it.")
     return lines
 
 
@@ -673,6 +648,44 @@ def add_own_leads(folder: str | Path, workers: ProcessPoolExecutor | None = None
     return len(todo)
 
 
+def keeps_more(r: dict) -> bool:
+    """Whether a row's diagnosis kept more than its named cause in one design, none of it planted: the rows
+    whose ``shows_on_kept`` needs the diagnosis again (``evidence_ceiling.kept_composite``, from the row)."""
+    chain = ([r["verdict"]] if r["verdict"] in VOCABULARY else []) + list(r["also"])
+    return len(chain) >= 2 and not set(chain) & {"interference", "saturation"} and not set(chain) & set(r["kinds"])
+
+
+def add_kept_evidence(folder: str | Path, workers: ProcessPoolExecutor | None = None) -> dict:
+    """An earlier run's third ceiling reading (``evidence_ceiling.shows_on_kept``): a vocabulary case whose
+    diagnosis kept nothing more than the named cause takes ``shows_on_kept`` from its row (it is then
+    ``effect_shows_evidence``); one that kept more (``keeps_more``) and whose effect shows evidence is diagnosed
+    again. If that comes back with the same verdict and ``also``, its reading is taken; if not, the case keeps
+    the first reading (``shows_evidence``: the ceiling is not lowered by a rerun that kept something else) and
+    is listed under ``kept_rerun_differs``. The report is rewritten. Returns {rerun, same, differs}."""
+    path = Path(folder) / "diagnosis_accuracy.json"
+    data = json.loads(path.read_text())
+    rows = data["cases"]
+    vocab = [r for r in rows if r["kinds"][0] in VOCABULARY and "shows_on_kept" not in r]
+    todo = [r for r in vocab if r.get("effect_shows_evidence") and keeps_more(r)]
+    again = list((workers.map if workers else map)(run_case, [{k: r[k] for k in ("kinds", "base", "drive", "seed")}
+                                                               for r in todo]))
+    differs = []
+    for r in vocab:
+        r["shows_on_kept"] = bool(r.get("effect_shows_evidence"))
+    for r, a in zip(todo, again):
+        if (a["verdict"], a["also"]) != (r["verdict"], r["also"]):
+            r["kept_rerun_differs"] = {"verdict": a["verdict"], "also": a["also"]}
+            differs.append(r["seed"])
+            continue
+        r["shows_on_kept"] = a["shows_on_kept"]
+        for kind, refs in a["effect_evidence"].items():
+            r.setdefault("effect_evidence", {}).setdefault(kind, {}).update(
+                {ref: v for ref, v in refs.items() if ref.endswith("kept")})
+    write_json(path, data)
+    rewrite(folder)
+    return {"rerun": len(todo), "same": len(todo) - len(differs), "differs": differs}
+
+
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
     """Rewrite the report from the JSON of an earlier run (same cases, current report layout, its note kept)."""
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
@@ -714,7 +727,22 @@ def main(argv=None) -> int:
     parser.add_argument("--own-leads", nargs="+", metavar="DIR",
                         help="add the base's own lead (own_timing) to earlier runs' delay cases and rewrite their "
                              "reports (no new run)")
+    parser.add_argument("--kept-evidence", nargs="+", metavar="DIR",
+                        help="add the third ceiling reading (on top of everything kept) to earlier runs, diagnosing "
+                             "again only the cases that kept more than the named cause (no new run)")
     args = parser.parse_args(argv)
+    if args.kept_evidence:
+        try:
+            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
+            with forked or contextlib.nullcontext() as workers:
+                for folder in args.kept_evidence:
+                    n = add_kept_evidence(folder, workers)
+                    print(f"{folder}: {n['rerun']} case(s) diagnosed again, {n['same']} the same; differ: "
+                          f"{n['differs'] or 'none'}", flush=True)
+        except (OSError, ValueError, KeyError, HysbenchError) as e:
+            print(f"hysbench accuracy: {e}", file=sys.stderr)
+            return 2
+        return 0
     if args.own_leads:
         try:  # the processes forked first: a delay under "also" is diagnosed again in this one
             forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None

@@ -126,15 +126,19 @@ def shows_evidence(per_effect: Mapping, references: tuple[str, ...] = ("base", "
     return any(s["evidence"] for refs in per_effect.values() for ref, s in refs.items() if ref in references)
 
 
+def _reaches(refs: Mapping, on: tuple[str, ...]) -> bool:
+    """One effect's evidence on any of the references ``on``: a relaxation's, delay's or mode's by its extension
+    at the planted parameters, another effect's by its waveform."""
+    at_truth = {ref.removeprefix("extension_at_truth_on_"): s for ref, s in refs.items()
+                if ref.startswith("extension_at_truth")}
+    return any(s["evidence"] for ref, s in (at_truth or refs).items() if ref in on)
+
+
 def extension_could_show(per_effect: Mapping) -> bool:
     """The reading with the vocabulary's own extensions: a planted relaxation, delay or mode counts only if
-    its extension at the planted parameters gives held-out evidence (on the base or the named cause); the
+    its extension at the planted parameters gives held-out evidence on the base or the named cause; the
     other effects as ``shows_evidence``."""
-    for refs in per_effect.values():
-        at_truth = [s for ref, s in refs.items() if ref.startswith("extension_at_truth")]
-        if any(s["evidence"] for s in (at_truth or refs.values())):
-            return True
-    return False
+    return any(_reaches(refs, ("base", "named")) for refs in per_effect.values())
 
 
 def shows_on_kept(per_effect: Mapping) -> bool:
@@ -144,3 +148,12 @@ def shows_on_kept(per_effect: Mapping) -> bool:
         return False
     on_kept = [s for refs in per_effect.values() for ref, s in refs.items() if ref.endswith("kept")]
     return not on_kept or any(s["evidence"] for s in on_kept)
+
+
+def extension_on_kept(per_effect: Mapping) -> bool:
+    """The strictest reading: an effect that ``extension_could_show`` counts and, where everything kept is a
+    reference of its own, that shows on top of it by the same rule (its extension at the planted parameters
+    for a relaxation, delay or mode; else its waveform)."""
+    return any(_reaches(refs, ("base", "named")) and (not any(ref.endswith("kept") for ref in refs)
+                                                       or _reaches(refs, ("kept",)))
+               for refs in per_effect.values())

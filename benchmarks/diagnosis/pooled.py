@@ -10,6 +10,9 @@ diagnosis can find on it, and from which strength.
 A limit is a claim, chosen on the pooled plans; ``check_limits`` tests it on plans that took no part in
 choosing it: their single-cause cases at or above their cause and base's limit, and how many are right.
 
+The benchmark's ceiling (``shares.ceiling``) is pooled too: per reading of the planted effects' own held-out
+evidence, the share a rule that names causes only on such evidence could reach at most, with its interval.
+
 Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --pool DIR ... [--check DIR ...] [--report FILE.md]``.
 """
 
@@ -24,7 +27,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
-from .shares import (CONFIDENCE, RIGHT_SHARE, detection_limit, effect_label, interval_text,
+from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
@@ -76,9 +79,30 @@ def _read_plans(folders: list[str | Path], seen: set, why: str = "") -> tuple[li
             raise HysbenchError(f"plan seed {seed} is given twice ({folder}){why}")
         seen.add(seed)
         plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
-                      **{k: s[k] for k in _TOTALS}})
+                      **{k: s[k] for k in _TOTALS}, **_ceilings(plan_rows)})
         rows += plan_rows
     return plans, rows
+
+
+_READINGS = (("ceiling_right", "its waveform, on top of the base or the named cause"),
+             ("extension_ceiling_right", "the vocabulary's extension at the planted values (a relaxation, delay or "
+                                         "mode; other effects by their waveform), on top of the base or the named cause"),
+             ("kept_ceiling_right", "1, and on top of everything the diagnosis kept by its waveform or extension"),
+             ("strict_ceiling_right", "2, and on top of everything the diagnosis kept by the same rule (the strictest)"))
+
+
+def _ceilings(rows: list[dict]) -> dict:
+    """A plan's ceiling readings (``shares.ceiling``: cases right at best), those its rows hold."""
+    e = ceiling(rows).get("evidence", {})
+    return {k: e[k] for k, _ in _READINGS if k in e}
+
+
+def pooled_ceiling(rows: list[dict]) -> dict:
+    """``shares.ceiling`` over the pooled cases, each reading with its interval; empty if a plan lacks them."""
+    e = ceiling(rows).get("evidence")
+    if not e:
+        return {}
+    return {**e, "intervals": {k: list(wilson_interval(e[k], len(rows))) for k, _ in _READINGS if k in e}}
 
 
 def check_limits(limits: dict, rows: list[dict]) -> dict:
@@ -135,7 +159,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
         "by_effect_and_base": {e: {b: _share(v) for b, v in per.items()}
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in (*DRIVES, RECORDED) if by_drive[b][d]} for b in bases},
-        "detection_limits": limits,
+        "detection_limits": limits, "ceiling": pooled_ceiling(rows),
         **({"checked": {"plans": checked[0], **check_limits(limits, checked[1])}} if checked else {}),
     }
 
@@ -160,9 +184,11 @@ def _limit_cell(q: dict) -> str:
 
 
 def pooled_markdown(p: dict) -> str:
-    lines = ["| plan seed | cases | right | share |", "|---|---|---|---|"]
+    readings = [k for k, _ in _READINGS if all(k in q for q in p["plans"])]
+    lines = ["| plan seed | cases | right | share |" + "".join(f" ceiling {i + 1} |" for i in range(len(readings))),
+             "|---|---|---|---|" + "---|" * len(readings)]
     lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
-              for q in p["plans"]]
+              + "".join(f" {q[k]} |" for k in readings) for q in p["plans"]]
     lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
               f"**{100 * p['right_share']:.1f} %**{interval_text(p['right_interval'])}; confirmed causes on "
               f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
@@ -196,9 +222,53 @@ def pooled_markdown(p: dict) -> str:
               "| cause | " + " | ".join(bases) + " |", "|---" * (len(bases) + 1) + "|"]
     lines += [f"| {c} | " + " | ".join(_limit_cell(per[b]) for b in bases) + " |"
               for c, per in p["detection_limits"].items()]
+    lines += _pooled_ceiling_lines(p)
     if "checked" in p:
         lines += ["", *_checked_lines(p["checked"])]
     return "\n".join(lines) + "\n"
+
+
+def _pooled_ceiling_lines(p: dict) -> list[str]:
+    e = p.get("ceiling")
+    if not e:
+        return []
+    n = p["cases"]
+    lines = ["", "### The benchmark's ceiling, pooled (the readings numbered as in the plan table)", "",
+             "Per vocabulary case, whether the planted effect gives held-out evidence by itself, by the diagnosis's "
+             "own test (each plan's report says how). A rule that names causes only on held-out evidence is right "
+             "at most in every null and out-of-vocabulary case, every vocabulary case with that evidence, and "
+             "those without it that it gets right anyway (a verdict the base gives). The first reading is generous "
+             "(for a delay, mode or clip the waveform is the true output transformed, so it carries part of the "
+             "base's own misfit); those on top of what was kept err low (it was fitted with the effect present, and "
+             "another choice of secondary cause might have left room for the planted one).", "",
+             "| reading: the effect shows on held-out records as | vocabulary cases with it | of them right | ceiling | "
+             f"{100 * CONFIDENCE:.0f} % interval |", "|---|---|---|---|---|"]
+    counts = {"ceiling_right": ("with_evidence", "with_evidence_right"),
+              "extension_ceiling_right": ("extension_cases", "extension_cases_right"),
+              "kept_ceiling_right": ("kept_cases", "kept_cases_right"),
+              "strict_ceiling_right": ("strict_cases", "strict_cases_right")}
+    for i, (k, label) in enumerate(_READINGS):
+        if k in e:
+            lo, hi = e["intervals"][k]
+            lines.append(f"| {i + 1}. {label} | {e[counts[k][0]]} of {e['vocabulary_cases']} | {e[counts[k][1]]} | "
+                         f"**{e[k]} / {n} = {100 * e[k] / n:.1f} %** | {100 * lo:.1f}-{100 * hi:.1f} % |")
+    lines += ["", f"Right now: {p['right']} / {n} = {100 * p['right_share']:.1f} %; the target is 90 %."]
+    if e.get("kept_rerun_differs"):
+        k = e["kept_rerun_differs"]
+        lines[-1] += (f" Readings 3 and 4 need the diagnosis of the cases that kept more than the named cause "
+                      f"run again; {k} of them came back with another verdict and keep{'s' if k == 1 else ''} readings "
+                      "1 and 2 (a rerun that kept something else does not lower the ceiling).")
+    names = [(i + 1, {"ceiling_right": ("with_evidence", "without_evidence_right")}.get(
+        k, (k.replace("_ceiling_right", "_cases"), k.replace("_ceiling_right", "_without_right"))))
+        for i, (k, _) in enumerate(_READINGS) if k in e]
+    lines += ["", "By base, the vocabulary cases right and at most right by each reading:", "",
+              "| base | vocabulary cases | right | " + " | ".join(f"reading {i}" for i, _ in names) + " |",
+              "|---|---|---|" + "---|" * len(names)]
+    for b, v in e["by_base"].items():
+        right = v["with_evidence_right"] + v["without_evidence_right"]
+        lines.append(f"| {b} | {v['cases']} | {right} | " + " | ".join(str(v[n] + v[rest]) for _, (n, rest) in names)
+                     + " |")
+    return lines
 
 
 def _checked_lines(c: dict) -> list[str]:

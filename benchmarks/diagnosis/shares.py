@@ -6,6 +6,7 @@ import math
 
 from scipy import stats
 
+from .evidence_ceiling import extension_on_kept
 from .planted import VOCABULARY
 
 PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
@@ -71,3 +72,50 @@ def span_text(values, unit: str = "ms", fmt: str = ".2f") -> str:
 def within_tolerance(errors: dict) -> bool:
     """Parameter errors (``accuracy.parameter_errors``), every one within ``TOLERANCE`` (none: not within)."""
     return bool(errors) and all(v <= TOLERANCE for v in errors.values())
+
+
+def ceiling(rows: list[dict]) -> dict:
+    """The vocabulary cases whose planted effect, its exact waveform as a regressor, gives held-out evidence
+    (``evidence_ceiling``), and the best verdict share a rule that names causes only on such evidence could
+    reach: every other case right, and among the rest only those already right (by a verdict the base gives
+    anyway); the same with the vocabulary's own extensions at the planted parameters (``extension_*``), on
+    top of everything the diagnosis kept (``kept_*``; ``kept_rerun_differs``: cases whose later reading came
+    back with another verdict and kept the first, ``accuracy.add_kept_evidence``), and both at once, the
+    strictest (``strict_*``, ``evidence_ceiling.extension_on_kept``). Empty for rows from before the check."""
+    vocab = [r for r in rows if r["kinds"][0] in VOCABULARY]
+    if not vocab or any("effect_shows_evidence" not in r for r in vocab):
+        return {}
+
+    def reach(sub: list[dict], has) -> tuple[int, int, int]:
+        """(cases for which ``has(row)``, of them right, right among the others)"""
+        flags = [bool(has(r)) for r in sub]
+        return (sum(flags), sum(r["right"] for r, f in zip(sub, flags) if f),
+                sum(r["right"] for r, f in zip(sub, flags) if not f))
+
+    def flag(key: str):
+        return lambda r: r[key]
+
+    others = len(rows) - len(vocab)
+    seen, seen_right, unseen_right = reach(vocab, flag("effect_shows_evidence"))
+    out = {"vocabulary_cases": len(vocab), "with_evidence": seen, "with_evidence_right": seen_right,
+           "without_evidence_right": unseen_right, "ceiling_right": others + seen + unseen_right,
+           "ceiling_share": (others + seen + unseen_right) / len(rows), "by_base": {}}
+    for b in dict.fromkeys(r["base"] for r in vocab):
+        sub = [r for r in vocab if r["base"] == b]
+        n, right, rest = reach(sub, flag("effect_shows_evidence"))
+        out["by_base"][b] = {"cases": len(sub), "with_evidence": n, "with_evidence_right": right,
+                             "without_evidence_right": rest}
+    readings = [("extension", "extension_could_show", flag("extension_could_show")),
+                ("kept", "shows_on_kept", flag("shows_on_kept")),
+                ("strict", "shows_on_kept", lambda r: extension_on_kept(r.get("effect_evidence") or {}))]
+    for name, needs, has in readings:
+        if all(needs in r for r in vocab):
+            n, right, rest = reach(vocab, has)
+            out.update({f"{name}_cases": n, f"{name}_cases_right": right, f"{name}_ceiling_right": others + n + rest,
+                        f"{name}_ceiling_share": (others + n + rest) / len(rows)})
+            for b, v in out["by_base"].items():
+                n, right, rest = reach([r for r in vocab if r["base"] == b], has)
+                v.update({f"{name}_cases": n, f"{name}_cases_right": right, f"{name}_without_right": rest})
+    if "kept_cases" in out:
+        out["kept_rerun_differs"] = sum("kept_rerun_differs" in r for r in vocab)
+    return {"evidence": out}
