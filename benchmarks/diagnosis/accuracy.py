@@ -66,6 +66,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .diagnose import diagnose
+from . import evidence_ceiling
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence, shows_on_kept
 from .own_timing import lead_of_case, needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
@@ -649,10 +650,9 @@ def add_own_leads(folder: str | Path, workers: ProcessPoolExecutor | None = None
 
 
 def keeps_more(r: dict) -> bool:
-    """Whether a row's diagnosis kept more than its named cause in one design, none of it planted: the rows
-    whose ``shows_on_kept`` needs the diagnosis again (``evidence_ceiling.kept_composite``, from the row)."""
-    chain = ([r["verdict"]] if r["verdict"] in VOCABULARY else []) + list(r["also"])
-    return len(chain) >= 2 and not set(chain) & {"interference", "saturation"} and not set(chain) & set(r["kinds"])
+    """``evidence_ceiling.keeps_more`` from a row: the rows whose ``shows_on_kept`` needs the diagnosis again."""
+    kept = [r["verdict"], *r["also"]] if r["verdict"] in VOCABULARY else list(r["also"])
+    return evidence_ceiling.keeps_more(kept, r["kinds"])
 
 
 def add_kept_evidence(folder: str | Path, workers: ProcessPoolExecutor | None = None) -> dict:

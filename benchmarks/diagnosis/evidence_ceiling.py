@@ -23,7 +23,7 @@ part of it. Benchmark-only: it needs the generator's truth
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -82,15 +82,18 @@ def effect_evidence(diag, truth: Mapping) -> dict:
     return out
 
 
+def keeps_more(causes: Sequence[str], kinds) -> bool:
+    """Whether what the diagnosis kept (the named cause, then those under "also") is more than the named cause,
+    composes into one design (no interference or clip) and holds none of the planted ``kinds``."""
+    return len(causes) >= 2 and not set(causes) & {*NO_NAMED_REFERENCE, *kinds}
+
+
 def kept_composite(diag, kinds) -> object | None:
     """Everything the diagnosis kept as one separable candidate (the last of the named cause and its secondary
-    causes, each composed on top of the ones before), if it is more than the named cause, composes into one
-    design (no interference or clip) and holds none of the planted ``kinds``; else None."""
+    causes, each composed on top of the ones before) if it ``keeps_more``, its components included; else None."""
     chain = [c for c in (diag.chosen, *diag.also) if c is not None]
-    if len(chain) < 2:
-        return None
-    parts = {c.cause for c in chain} | set(getattr(chain[-1].model, "components", ()))
-    if parts & set(NO_NAMED_REFERENCE) or parts & set(kinds):
+    parts = [c.cause for c in chain] + list(getattr(chain[-1].model, "components", ()) if chain else ())
+    if len(chain) < 2 or not keeps_more(parts, kinds):
         return None
     return chain[-1]
 

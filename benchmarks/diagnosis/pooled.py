@@ -84,17 +84,23 @@ def _read_plans(folders: list[str | Path], seen: set, why: str = "") -> tuple[li
     return plans, rows
 
 
-_READINGS = (("ceiling_right", "its waveform, on top of the base or the named cause"),
-             ("extension_ceiling_right", "the vocabulary's extension at the planted values (a relaxation, delay or "
-                                         "mode; other effects by their waveform), on top of the base or the named cause"),
-             ("kept_ceiling_right", "1, and on top of everything the diagnosis kept by its waveform or extension"),
-             ("strict_ceiling_right", "2, and on top of everything the diagnosis kept by the same rule (the strictest)"))
+# the ceiling readings (``shares.ceiling``): its keys for the ceiling, the cases with the evidence, of them right,
+# and right without it; the label
+_READINGS = (("ceiling_right", "with_evidence", "with_evidence_right", "without_evidence_right",
+              "its waveform, on top of the base or the named cause"),
+             ("extension_ceiling_right", "extension_cases", "extension_cases_right", "extension_without_right",
+              "the vocabulary's extension at the planted values (a relaxation, delay or mode; other effects by their "
+              "waveform), on top of the base or the named cause"),
+             ("kept_ceiling_right", "kept_cases", "kept_cases_right", "kept_without_right",
+              "1, and on top of everything the diagnosis kept by its waveform or extension"),
+             ("strict_ceiling_right", "strict_cases", "strict_cases_right", "strict_without_right",
+              "2, and on top of everything the diagnosis kept by the same rule (the strictest)"))
 
 
 def _ceilings(rows: list[dict]) -> dict:
     """A plan's ceiling readings (``shares.ceiling``: cases right at best), those its rows hold."""
     e = ceiling(rows).get("evidence", {})
-    return {k: e[k] for k, _ in _READINGS if k in e}
+    return {q[0]: e[q[0]] for q in _READINGS if q[0] in e}
 
 
 def pooled_ceiling(rows: list[dict]) -> dict:
@@ -102,7 +108,7 @@ def pooled_ceiling(rows: list[dict]) -> dict:
     e = ceiling(rows).get("evidence")
     if not e:
         return {}
-    return {**e, "intervals": {k: list(wilson_interval(e[k], len(rows))) for k, _ in _READINGS if k in e}}
+    return {**e, "intervals": {q[0]: list(wilson_interval(e[q[0]], len(rows))) for q in _READINGS if q[0] in e}}
 
 
 def check_limits(limits: dict, rows: list[dict]) -> dict:
@@ -184,7 +190,7 @@ def _limit_cell(q: dict) -> str:
 
 
 def pooled_markdown(p: dict) -> str:
-    readings = [k for k, _ in _READINGS if all(k in q for q in p["plans"])]
+    readings = [r[0] for r in _READINGS if all(r[0] in q for q in p["plans"])]
     lines = ["| plan seed | cases | right | share |" + "".join(f" ceiling {i + 1} |" for i in range(len(readings))),
              "|---|---|---|---|" + "---|" * len(readings)]
     lines += [f"| {q['seed']} | {q['cases']} | {q['right']} | {100 * q['right'] / q['cases']:.1f} % |"
@@ -243,31 +249,24 @@ def _pooled_ceiling_lines(p: dict) -> list[str]:
              "another choice of secondary cause might have left room for the planted one).", "",
              "| reading: the effect shows on held-out records as | vocabulary cases with it | of them right | ceiling | "
              f"{100 * CONFIDENCE:.0f} % interval |", "|---|---|---|---|---|"]
-    counts = {"ceiling_right": ("with_evidence", "with_evidence_right"),
-              "extension_ceiling_right": ("extension_cases", "extension_cases_right"),
-              "kept_ceiling_right": ("kept_cases", "kept_cases_right"),
-              "strict_ceiling_right": ("strict_cases", "strict_cases_right")}
-    for i, (k, label) in enumerate(_READINGS):
-        if k in e:
-            lo, hi = e["intervals"][k]
-            lines.append(f"| {i + 1}. {label} | {e[counts[k][0]]} of {e['vocabulary_cases']} | {e[counts[k][1]]} | "
-                         f"**{e[k]} / {n} = {100 * e[k] / n:.1f} %** | {100 * lo:.1f}-{100 * hi:.1f} % |")
+    readings = [(i + 1, q) for i, q in enumerate(_READINGS) if q[0] in e]
+    for i, (k, cases, right, _, label) in readings:
+        lo, hi = e["intervals"][k]
+        lines.append(f"| {i}. {label} | {e[cases]} of {e['vocabulary_cases']} | {e[right]} | "
+                     f"**{e[k]} / {n} = {100 * e[k] / n:.1f} %** | {100 * lo:.1f}-{100 * hi:.1f} % |")
     lines += ["", f"Right now: {p['right']} / {n} = {100 * p['right_share']:.1f} %; the target is 90 %."]
     if e.get("kept_rerun_differs"):
         k = e["kept_rerun_differs"]
         lines[-1] += (f" Readings 3 and 4 need the diagnosis of the cases that kept more than the named cause "
                       f"run again; {k} of them came back with another verdict and keep{'s' if k == 1 else ''} readings "
                       "1 and 2 (a rerun that kept something else does not lower the ceiling).")
-    names = [(i + 1, {"ceiling_right": ("with_evidence", "without_evidence_right")}.get(
-        k, (k.replace("_ceiling_right", "_cases"), k.replace("_ceiling_right", "_without_right"))))
-        for i, (k, _) in enumerate(_READINGS) if k in e]
     lines += ["", "By base, the vocabulary cases right and at most right by each reading:", "",
-              "| base | vocabulary cases | right | " + " | ".join(f"reading {i}" for i, _ in names) + " |",
-              "|---|---|---|" + "---|" * len(names)]
+              "| base | vocabulary cases | right | " + " | ".join(f"reading {i}" for i, _ in readings) + " |",
+              "|---|---|---|" + "---|" * len(readings)]
     for b, v in e["by_base"].items():
         right = v["with_evidence_right"] + v["without_evidence_right"]
-        lines.append(f"| {b} | {v['cases']} | {right} | " + " | ".join(str(v[n] + v[rest]) for _, (n, rest) in names)
-                     + " |")
+        lines.append(f"| {b} | {v['cases']} | {right} | "
+                     + " | ".join(str(v[cases] + v[rest]) for _, (_, cases, _, rest, _) in readings) + " |")
     return lines
 
 

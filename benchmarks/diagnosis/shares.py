@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from operator import itemgetter
 
 from scipy import stats
 
@@ -92,21 +93,18 @@ def ceiling(rows: list[dict]) -> dict:
         return (sum(flags), sum(r["right"] for r, f in zip(sub, flags) if f),
                 sum(r["right"] for r, f in zip(sub, flags) if not f))
 
-    def flag(key: str):
-        return lambda r: r[key]
-
     others = len(rows) - len(vocab)
-    seen, seen_right, unseen_right = reach(vocab, flag("effect_shows_evidence"))
+    seen, seen_right, unseen_right = reach(vocab, itemgetter("effect_shows_evidence"))
     out = {"vocabulary_cases": len(vocab), "with_evidence": seen, "with_evidence_right": seen_right,
            "without_evidence_right": unseen_right, "ceiling_right": others + seen + unseen_right,
            "ceiling_share": (others + seen + unseen_right) / len(rows), "by_base": {}}
     for b in dict.fromkeys(r["base"] for r in vocab):
         sub = [r for r in vocab if r["base"] == b]
-        n, right, rest = reach(sub, flag("effect_shows_evidence"))
+        n, right, rest = reach(sub, itemgetter("effect_shows_evidence"))
         out["by_base"][b] = {"cases": len(sub), "with_evidence": n, "with_evidence_right": right,
                              "without_evidence_right": rest}
-    readings = [("extension", "extension_could_show", flag("extension_could_show")),
-                ("kept", "shows_on_kept", flag("shows_on_kept")),
+    readings = [("extension", "extension_could_show", itemgetter("extension_could_show")),
+                ("kept", "shows_on_kept", itemgetter("shows_on_kept")),
                 ("strict", "shows_on_kept", lambda r: extension_on_kept(r.get("effect_evidence") or {}))]
     for name, needs, has in readings:
         if all(needs in r for r in vocab):
