@@ -318,12 +318,11 @@ def strongest_first(own: dict, causes: list[str]) -> list[str]:
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
     """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
     causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
-    predict the held-out
-    records as well as all of them together (together not better by z >= ``Z_SAME``), show held-out evidence
-    against the base, and are within their meaning and off their search bounds: the first of them is named, the
-    others stay under "also". A named relaxation whose slowest time constant is longer than the longest drive
-    period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes alone do not do,
-    they are tried with creep after them, creep standing for that slow part (the weaker claim, as in
+    predict the held-out records as well as all of them together (together not better by z >= ``Z_SAME``), show
+    held-out evidence against the base, and are within their meaning and off their search bounds: the first of
+    them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
+    the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes
+    alone do not do, they are tried in the order kept with creep after them, creep standing for that slow part (the weaker claim, as in
     ``selection.decide``; its time scale may sit at an end, ``_creep_time_unidentified``). Every score here with
     the nonlinear parameters refitted per fold, since it names a new cause. Only for a clean verdict (no
     ambiguity, no unexplained remainder) of causes that compose (not interference or saturation)."""
