@@ -287,11 +287,26 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
 
 
 def _creep_time_unidentified(screen, c: Candidate) -> bool:
-    """Creep whose only flaw is its time scale at an end: the fastest its meaning allows (``CREEP_PERIODS``
-    drive periods) or the slowest searched (a straight drift over these records). Standing for a relaxation
-    slower than every drive period, whose own time constant these records do not pin down either, it is what
-    that relaxation's slow part is: a drift since the start, its time scale not identified."""
-    return c.cause == "creep" and set(at_bound(screen, c)) <= {"creep_time"}
+    """A creep (alone or in a composite) whose only flaw is its time scale at an end: the fastest its meaning
+    allows (``CREEP_PERIODS`` drive periods) or the slowest searched (a straight drift over these records).
+    Replacing a relaxation slower than every drive period, whose own time constant these records do not pin
+    down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
+    identified."""
+    parts = getattr(c.model, "components", (c.cause,))
+    return ("creep" in parts and (c.cause == "creep" or not c.limit)
+            and set(at_bound(screen, c)) <= {"creep_time"})
+
+
+def _pinned_creep(screen, chain: list[Candidate]) -> str:
+    """What the backward step says of a creep in ``chain`` whose time scale sits at an end ("" if none does)."""
+    c = next((c for c in chain if "creep_time" in c.params and "creep_time" in at_bound(screen, c)), None)
+    if c is None:
+        return ""
+    lo, hi = screen.bounds_of(c.model, "creep_time")
+    t = float(c.params["creep_time"])
+    where = "its limit" if t < math.sqrt(lo * hi) else "the end of its search"
+    alone = " alone" if c is chain[0] and len(chain) > 1 else ""
+    return f"creep's time scale{alone} sits at {where}, {t:.3g} s: not identified"
 
 
 def not_identified(c: Candidate) -> str:
@@ -315,6 +330,22 @@ def strongest_first(own: dict, causes: list[str]) -> list[str]:
     return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
 
 
+def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float) -> list[list[str]]:
+    """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
+    for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
+    ``CREEP_PERIODS``), also the same with creep after them, standing for that slow part."""
+    options = [strongest_first(own, causes)]
+    if slow_relaxation(chosen, creep_min) and "creep" in own and "creep" not in causes:
+        options.append([*options[0], "creep"])
+    return options
+
+
+def slow_relaxation(chosen: Candidate, creep_min: float) -> bool:
+    """A relaxation whose slowest time constant is at least ``creep_min`` / ``CREEP_PERIODS`` (slower than every
+    drive period): creep may stand for that slow part."""
+    return chosen.cause == "relaxation" and max(chosen.estimates["tau_s"]) >= creep_min / CREEP_PERIODS
+
+
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
     """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
     causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
@@ -322,8 +353,9 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     held-out evidence against the base, and are within their meaning and off their search bounds: the first of
     them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
     the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes
-    alone do not do, they are tried in the order kept with creep after them, creep standing for that slow part (the weaker claim, as in
-    ``selection.decide``; its time scale may sit at an end, ``_creep_time_unidentified``). Every score here with
+    alone do not do, they are tried again, strongest first, with creep after them, creep standing for that slow
+    part (the weaker claim, as in ``selection.decide``; its time scale may sit at an end,
+    ``_creep_time_unidentified``). Every score here with
     the nonlinear parameters refitted per fold, since it names a new cause. Only for a clean verdict (no
     ambiguity, no unexplained remainder) of causes that compose (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
@@ -333,17 +365,15 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         return
     say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
     own = {c.cause: c for c in diag.candidates}
-    options = [strongest_first(own, causes)]
-    if (v.chosen.cause == "relaxation" and "creep" in own and "creep" not in causes
-            and max(v.chosen.estimates["tau_s"]) >= screen.creep_min / CREEP_PERIODS):
-        options.append([*causes, "creep"])
+    options = replacements(v.chosen, own, causes, screen.creep_min)
+    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min)
     together = None  # all of them, scored once a replacement is worth comparing
     for replacement in options:
         chain = _chain(screen, own, replacement)
         standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
 
-        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep standing in: see above)
-            if standing_in and c is chain[-1] and _creep_time_unidentified(screen, c):
+        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
+            if creep_may_stand_in and _creep_time_unidentified(screen, c):
                 return False
             return bool(c.limit or at_bound(screen, c))
 
@@ -366,13 +396,13 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     diag.dropped = old
     diag.also = also
     v.chosen, v.cause = first, first.cause
+    pinned = _pinned_creep(screen, chain)
     slow = ""
     if standing_in:
-        creep_s = chain[-1].estimates["time_scale_s"]
-        pinned = (f"; creep's time scale sits at {'its limit' if chain[-1].limit else 'the end of its search'}, "
-                  f"{creep_s:.3g} s: not identified" if not_identified(chain[-1]) else "")
         slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
-                f"every drive period{pinned}),")
+                f"every drive period{'; ' + pinned if pinned else ''}),")
+    elif pinned:
+        slow = f" ({pinned}; it stands for a time constant of {max(old.estimates['tau_s']):.3g} s)"
     how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
            f"as well without it (with it better by z = {without['z']:.1f} < {Z_SAME:g})")
     v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
