@@ -26,8 +26,8 @@ from .candidates import CREEP_PERIODS, Candidate
 from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
 from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
-                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, own_nonlinear,
-                        passes, promising, score, share_of_misfit)
+                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, open_ended,
+                        own_nonlinear, passes, promising, score, share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
 
@@ -299,7 +299,8 @@ def _creep_time_unidentified(screen, c: Candidate) -> bool:
 
 def _pinned_creep(screen, chain: list[Candidate]) -> str:
     """What the backward step says of a creep in ``chain`` whose time scale sits at an end ("" if none does)."""
-    c = next((c for c in chain if "creep_time" in c.params and "creep_time" in at_bound(screen, c)), None)
+    c = next((c for c in chain if "creep_time" in c.params
+              and "creep_time" in at_bound(screen, c) + open_ended(screen, c)), None)
     if c is None:
         return ""
     lo, hi = screen.bounds_of(c.model, "creep_time")
