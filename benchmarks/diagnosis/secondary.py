@@ -26,8 +26,8 @@ from .candidates import CREEP_PERIODS, Candidate
 from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
 from .saturation import clip_on_top
 from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
-                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, open_ended,
-                        own_nonlinear, passes, promising, score, share_of_misfit)
+                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, own_nonlinear,
+                        passes, promising, score, share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
 
@@ -299,15 +299,13 @@ def _creep_time_unidentified(screen, c: Candidate) -> bool:
 
 def _pinned_creep(screen, chain: list[Candidate]) -> str:
     """What the backward step says of a creep in ``chain`` whose time scale sits at an end ("" if none does)."""
-    c = next((c for c in chain if "creep_time" in c.params
-              and "creep_time" in at_bound(screen, c) + open_ended(screen, c)), None)
-    if c is None:
-        return ""
-    lo, hi = screen.bounds_of(c.model, "creep_time")
-    t = float(c.params["creep_time"])
-    where = "its limit" if t < math.sqrt(lo * hi) else "the end of its search"
-    alone = " alone" if c is chain[0] and len(chain) > 1 else ""
-    return f"creep's time scale{alone} sits at {where}, {t:.3g} s: not identified"
+    for c in chain:
+        flags = bound_flags(screen, c)
+        if "creep_time" in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
+            where = "its limit" if "creep_time" in flags["at_bound"] else "the end of its search"
+            alone = " alone" if c is chain[0] and len(chain) > 1 else ""
+            return f"creep's time scale{alone} sits at {where}, {float(c.params['creep_time']):.3g} s: not identified"
+    return ""
 
 
 def not_identified(c: Candidate) -> str:
@@ -355,10 +353,10 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
     the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes
     alone do not do, they are tried again, strongest first, with creep after them, creep standing for that slow
-    part (the weaker claim, as in ``selection.decide``; its time scale may sit at an end,
-    ``_creep_time_unidentified``). Every score here with
-    the nonlinear parameters refitted per fold, since it names a new cause. Only for a clean verdict (no
-    ambiguity, no unexplained remainder) of causes that compose (not interference or saturation)."""
+    part (the weaker claim, as in ``selection.decide``); for such a relaxation a creep, appended or kept, may
+    have its time scale at an end (``_creep_time_unidentified``). Every score here with the nonlinear
+    parameters refitted per fold, since it names a new cause. Only for a clean verdict (no ambiguity, no
+    unexplained remainder) of causes that compose (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
     causes = [c.cause for c in diag.also]
     if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
