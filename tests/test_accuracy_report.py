@@ -44,6 +44,22 @@ def _row(kinds, right):
             "parameters": {}, "parameter_errors": {}, "parameters_within": False, "right": right, "seconds": 1.0}
 
 
+def test_confirmed_causes_are_counted_on_the_nulls_of_the_mrpim_and_the_piezo_recording_not_the_virtual_dea():
+    """A confirmed cause on a null counts on the MRPIM and the real recording; the virtual DEA's own relaxation,
+    its physics, does not; ``none`` and ``unexplained`` never do."""
+    def null(base, verdict, confirmed):
+        r = _row(["null-ar1"], False)
+        r.update(base=base, verdict=verdict, confirmed=confirmed)
+        return r
+
+    rows = [null("mrpim", "none", None), null("mrpim", "delay", False), null("piezo", "delay", True),
+            null("piezo", "unexplained", None), null("virtual-dea", "relaxation", True), _row(["delay"], True)]
+    s = accuracy.summary(rows)
+    assert (s["confirmed_on_nulls"], s["nulls_checked"]) == (1, 4)
+    assert "| confirmed causes on nulls (MRPIM and piezo bases, white and AR(1)) | **1** of 4 | 0 |" in (
+        accuracy.markdown(rows, s, 1.0))
+
+
 def _plan(folder, seed, rights):
     rows = []
     for i, right in enumerate(rights):
@@ -220,6 +236,8 @@ def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand(tmp_path
     assert "| creep | mrpim | 0.5 | 2 of 3 | 67 % (21-94) | **no** (below 95 %) | 1 of 1 |" in text
     assert "| delay | mrpim | 2 | 1 of 1 | 100 % (21-100) | yes | - |" in text
     assert "3 of 4 cases at or above their limit right = **75.0 %**" in text
+    assert c["all_cases"] == {"cases": 8, "right": 5, "interval": pytest.approx(accuracy.wilson_interval(5, 8))}
+    assert "Every case of these plans, at any strength: 5 / 8 right = **62.5 %**" in text
     with pytest.raises(HysbenchError, match="cannot check them"):
         pooled.pool([fit, held], check=[held])
     assert accuracy.main(["--pool", str(fit), "--check", str(fit)]) == 2

@@ -235,7 +235,7 @@ def with_own_lead(truth: dict, lead: float | None) -> dict:
 
 def summary(rows: list[dict]) -> dict:
     right = sum(r["right"] for r in rows)
-    null_rows = [r for r in rows if r["kinds"][0] in NULLS and (r["base"] == "mrpim" or "own" in r)]
+    null_rows = [r for r in rows if r["kinds"][0] in NULLS and (r["base"] != "virtual-dea" or "own" in r)]
     oov = [r for r in rows if r["kinds"][0] in OUT_OF_VOCABULARY]
     with_params = judged_parameters(rows)
     return {
@@ -245,7 +245,7 @@ def summary(rows: list[dict]) -> dict:
                                        else sum(1 for r in rows if _via_also(r) and not _also_within(r))),
         "confirmed_on_nulls": sum(1 for r in null_rows if r["verdict"] not in ("none", "unexplained", r.get("own"))
                                   and r["confirmed"]),
-        "nulls_mrpim": len(null_rows),
+        "nulls_checked": len(null_rows),
         "oov_given_confirmed_vocabulary": sum(1 for r in oov if r["verdict"] in VOCABULARY and r["confirmed"]
                                               and r["base"] != "virtual-dea" and r["verdict"] != r.get("own")),
         "oov": len(oov),
@@ -343,7 +343,8 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
             f"whose parameters there are not within 25 % of the planted ones | "
             f"{'not recorded in this run' if s['right_via_also_unrecovered'] is None else s['right_via_also_unrecovered']}"
             " | - |"]),
-        f"| confirmed causes on nulls ({'MRPIM base' if not on else other_than_own}, white and AR(1)) | **{s['confirmed_on_nulls']}** of {s['nulls_mrpim']} | 0 |",
+        f"| confirmed causes on nulls ({'MRPIM and piezo bases' if not on else other_than_own}, white and AR(1)) | "
+        f"**{s['confirmed_on_nulls']}** of {s['nulls_checked']} | 0 |",
         f"| out-of-vocabulary effects given a confirmed vocabulary cause "
         f"({'MRPIM and piezo bases' if not on else other_than_own}) | "
         f"**{s['oov_given_confirmed_vocabulary']}** of {s['oov']} | 0 |",

@@ -30,7 +30,7 @@ from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULA
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
-_TOTALS = ("confirmed_on_nulls", "nulls_mrpim", "oov_given_confirmed_vocabulary", "oov")
+_TOTALS = ("confirmed_on_nulls", "nulls_checked", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
 
 
@@ -166,7 +166,9 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in (*DRIVES, RECORDED) if by_drive[b][d]} for b in bases},
         "detection_limits": limits, "ceiling": pooled_ceiling(rows),
-        **({"checked": {"plans": checked[0], **check_limits(limits, checked[1])}} if checked else {}),
+        **({"checked": {"plans": checked[0], "all_cases": _share(checked[1]),
+                        **{k: sum(q[k] for q in checked[0]) for k in _TOTALS},
+                        **check_limits(limits, checked[1])}} if checked else {}),
     }
 
 
@@ -197,7 +199,7 @@ def pooled_markdown(p: dict) -> str:
               + "".join(f" {q[k]} |" for k in readings) for q in p["plans"]]
     lines += ["", f"Pooled over {len(p['plans'])} plans: {p['right']} / {p['cases']} = "
               f"**{100 * p['right_share']:.1f} %**{interval_text(p['right_interval'])}; confirmed causes on "
-              f"nulls {p['confirmed_on_nulls']} of {p['nulls_mrpim']}, out-of-vocabulary effects given a confirmed "
+              f"nulls {p['confirmed_on_nulls']} of {p['nulls_checked']}, out-of-vocabulary effects given a confirmed "
               f"vocabulary cause {p['oov_given_confirmed_vocabulary']} of {p['oov']}."]
     if p.get("parameters_judged"):
         lines[-1] += (f" Parameters of right verdicts within 25 %: {p['parameters_within']} / {p['parameters_judged']}"
@@ -292,6 +294,12 @@ def _checked_lines(c: dict) -> list[str]:
         lines += ["", f"Every cause and base with a limit: {c['right_above']} of {c['above']} cases at or above "
                       f"their limit right = **{100 * c['right_above'] / c['above']:.1f} %**"
                       f"{interval_text(c['interval'])}."]
+    if "all_cases" in c:  # reports written before 2026-12-03 have no overall share of the held-out plans
+        a = c["all_cases"]
+        lines += ["", f"Every case of these plans, at any strength: {a['right']} / {a['cases']} right = "
+                      f"**{100 * a['right'] / a['cases']:.1f} %**{interval_text(a['interval'])}; confirmed causes "
+                      f"on nulls {c['confirmed_on_nulls']} of {c['nulls_checked']}, out-of-vocabulary effects given "
+                      f"a confirmed vocabulary cause {c['oov_given_confirmed_vocabulary']} of {c['oov']}."]
     return lines
 
 
