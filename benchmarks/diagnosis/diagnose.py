@@ -60,7 +60,7 @@ from hysbench.models.base import HysteresisModel
 from hysbench.models.errors import HysbenchError
 
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
-from .experiment import suggest
+from .experiment import RESHAPING_CAUSES, one_drive, suggest
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
 from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
@@ -229,6 +229,19 @@ class Diagnosis:
                    if self.cause == "interference" else "")
                 + f"): '{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
 
+    @property
+    def one_drive_caution(self) -> str:
+        """Under one periodic drive a delay, a lag or a mode only reshapes the response's harmonics, as a static
+        nonlinearity outside the vocabulary can: said when one is named or kept ("" otherwise)."""
+        named = list(dict.fromkeys(c for c in (self.cause, *(a.cause for a in self.also)) if c in RESHAPING_CAUSES))
+        drive = one_drive(self.dataset.records) if named else None
+        if drive is None:
+            return ""
+        return (f"every record ({drive['records']}) has the same drive, {drive['frequency_hz']:.4g} Hz over the same "
+                f"input range: under it {' and '.join(named)} only reshape{'s' if len(named) == 1 else ''} the "
+                "periodic response, as a static nonlinearity outside the vocabulary (a dead band, a sensor curvature) "
+                "can; a record at another amplitude or frequency would tell them apart")
+
     def to_json(self) -> dict:
         v = self.verdict
         evidence = {
@@ -268,6 +281,7 @@ class Diagnosis:
             "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
             "gain": self.gain(), "interference_check": self.interference_check,
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
+            "one_drive_caution": self.one_drive_caution,
             "also": [c.cause for c in self.also],
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},

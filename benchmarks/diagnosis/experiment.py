@@ -31,6 +31,26 @@ from .candidates import Candidate
 N_FREQUENCIES = 9
 SAMPLES_PER_PERIOD = 2000
 OUTSIDE_RECORDED = 1.0  # a probe's fit beyond the recorded output range by this many times its width
+# causes that, under one periodic drive, only reshape the response's harmonics -- as a static nonlinearity does
+RESHAPING_CAUSES = ("relaxation", "delay", "resonance")
+SAME_DRIVE = 0.02  # two inputs' quantiles agree within this share of their range: the same drive
+_DRIVE_QUANTILES = (0.01, 0.25, 0.5, 0.75, 0.99)
+
+
+def one_drive(records) -> dict | None:
+    """The drive every record shares -- one frequency, and over the scored windows the same input quantiles
+    (level, amplitude and waveform) within ``SAME_DRIVE`` of the input range -- or None (a record without a
+    drive frequency, or any two records that differ)."""
+    if not records or any(r.frequency_hz is None for r in records):
+        return None
+    if len({float(r.frequency_hz) for r in records}) > 1:
+        return None
+    q = np.array([np.quantile(r.u[r.scored], _DRIVE_QUANTILES) for r in records])
+    width = float(q[:, -1].max() - q[:, 0].min())
+    if not width > 0 or float(np.max(q.max(axis=0) - q.min(axis=0))) > SAME_DRIVE * width:
+        return None
+    return {"frequency_hz": float(records[0].frequency_hz), "input_low": float(q[:, 0].min()),
+            "input_high": float(q[:, -1].max()), "records": len(records)}
 
 
 def _probe_frequencies(screen) -> np.ndarray:

@@ -323,9 +323,9 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
     if d.warning:
         lines.append(strong("warning:") + f" {d.warning}.")
-    caution = base_bound_caution(d.base_fit)
-    if caution:
-        lines.append(strong("caution:") + f" {caution}")
+    for caution in (base_bound_caution(d.base_fit), d.one_drive_caution):
+        if caution:
+            lines.append(strong("caution:") + f" {caution}")
     return lines
 
 

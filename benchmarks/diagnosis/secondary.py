@@ -349,8 +349,9 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
     causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
     predict the held-out records as well as all of them together (together not better by z >= ``Z_SAME``), show
-    held-out evidence against the base, and are within their meaning and off their search bounds: the first of
-    them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
+    held-out evidence against the base, remove at least ``EXPLAIN_SHARE`` of its held-out misfit beyond white
+    noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
+    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
     the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes
     alone do not do, they are tried again, strongest first, with creep after them, creep standing for that slow
     part (the weaker claim, as in ``selection.decide``); for such a relaxation a creep, appended or kept, may
@@ -382,7 +383,9 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
             together = refit_errors(screen, folds, result, diag.also[-1])
         errors = [refit_errors(screen, folds, result, c) for c in chain]
         without = score(folds, errors[-1], together)  # how much better all together predict
-        if without["z"] < Z_SAME and evidence(score(folds, result["errors"][id(screen.null)], errors[-1])):
+        e_null = result["errors"][id(screen.null)]
+        explains = share_of_misfit(screen, float(e_null @ e_null), float(errors[-1] @ errors[-1])) >= EXPLAIN_SHARE
+        if without["z"] < Z_SAME and evidence(score(folds, e_null, errors[-1])) and explains:
             break
     else:
         return
