@@ -351,11 +351,12 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     predict the held-out records as well as all of them together (together not better by z >= ``Z_SAME``), show
     held-out evidence against the base, remove at least ``EXPLAIN_SHARE`` of its held-out misfit beyond white
     noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
-    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose slowest time constant is longer than
-    the longest drive period may be creep there (``selection.slow_relaxation_twin``): if the secondary causes
-    alone do not do, they are tried again, strongest first, with creep after them, creep standing for that slow
-    part (the weaker claim, as in ``selection.decide``); for such a relaxation a creep, appended or kept, may
-    have its time scale at an end (``_creep_time_unidentified``). Every score here with the nonlinear
+    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose
+    slowest time constant is longer than the longest drive period may be creep there
+    (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
+    strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
+    ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
+    (``_creep_time_unidentified``). Every score here with the nonlinear
     parameters refitted per fold, since it names a new cause. Only for a clean verdict (no ambiguity, no
     unexplained remainder) of causes that compose (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
