@@ -60,6 +60,22 @@ def test_confirmed_causes_are_counted_on_the_nulls_of_the_mrpim_and_the_piezo_re
         accuracy.markdown(rows, s, 1.0))
 
 
+def test_pooled_reports_count_confirmed_nulls_from_their_cases_whatever_their_summary_says(tmp_path):
+    """A report written before the counting changed (summary key ``nulls_mrpim``, the MRPIM's nulls only)
+    pools with the counts this code gives its cases: a confirmed cause on a piezo null counts."""
+    r = _row(["null-white"], False)
+    r.update(base="piezo", verdict="delay", confirmed=True)
+    rows = [r, _row(["null-ar1"], True), _row(["delay"], True)]
+    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
+    path = tmp_path / "diagnosis_accuracy.json"
+    data = json.loads(path.read_text())
+    data["summary"].pop("nulls_checked")
+    data["summary"].update(nulls_mrpim=1, confirmed_on_nulls=0)
+    path.write_text(json.dumps(data))
+    p = pooled.pool([tmp_path])
+    assert (p["confirmed_on_nulls"], p["nulls_checked"]) == (1, 2)
+
+
 def _plan(folder, seed, rights):
     rows = []
     for i, right in enumerate(rights):

@@ -72,8 +72,8 @@ from .own_timing import lead_of_case, needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
-from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, ceiling, detection_limit, effect_label,
-                     interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
+from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, ceiling, confirmed_counts, detection_limit,
+                     effect_label, interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -235,20 +235,13 @@ def with_own_lead(truth: dict, lead: float | None) -> dict:
 
 def summary(rows: list[dict]) -> dict:
     right = sum(r["right"] for r in rows)
-    null_rows = [r for r in rows if r["kinds"][0] in NULLS and (r["base"] != "virtual-dea" or "own" in r)]
-    oov = [r for r in rows if r["kinds"][0] in OUT_OF_VOCABULARY]
     with_params = judged_parameters(rows)
     return {
         "cases": len(rows), "right": right, "right_share": right / len(rows) if rows else math.nan,
         "right_interval": wilson_interval(right, len(rows)),
         "right_via_also_unrecovered": (None if any(_via_also(r) and "also_parameter_errors" not in r for r in rows)
                                        else sum(1 for r in rows if _via_also(r) and not _also_within(r))),
-        "confirmed_on_nulls": sum(1 for r in null_rows if r["verdict"] not in ("none", "unexplained", r.get("own"))
-                                  and r["confirmed"]),
-        "nulls_checked": len(null_rows),
-        "oov_given_confirmed_vocabulary": sum(1 for r in oov if r["verdict"] in VOCABULARY and r["confirmed"]
-                                              and r["base"] != "virtual-dea" and r["verdict"] != r.get("own")),
-        "oov": len(oov),
+        **confirmed_counts(rows),
         "parameters_within_share": (sum(r["parameters_within"] for r in with_params) / len(with_params)
                                     if with_params else math.nan),
         "parameters_judged": len(with_params),

@@ -27,7 +27,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
-from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, detection_limit, effect_label, interval_text,
+from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
 _TOTALS = ("confirmed_on_nulls", "nulls_checked", "oov_given_confirmed_vocabulary", "oov")
@@ -41,7 +41,7 @@ def _read(folder: str | Path) -> tuple[list[dict], dict]:
     try:
         data = json.loads(path.read_text())
         rows, s = data["cases"], data["summary"]
-        missing = [k for k in ("cases", "right", *_TOTALS) if k not in s]
+        missing = [k for k in ("cases", "right") if k not in s]
     except (ValueError, KeyError, TypeError) as e:
         raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
     if missing:
@@ -79,7 +79,7 @@ def _read_plans(folders: list[str | Path], seen: set, why: str = "") -> tuple[li
             raise HysbenchError(f"plan seed {seed} is given twice ({folder}){why}")
         seen.add(seed)
         plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
-                      **{k: s[k] for k in _TOTALS}, **_ceilings(plan_rows)})
+                      **confirmed_counts(plan_rows), **_ceilings(plan_rows)})  # counted as this code counts
         rows += plan_rows
     return plans, rows
 

@@ -8,12 +8,28 @@ from operator import itemgetter
 from scipy import stats
 
 from .evidence_ceiling import extension_on_kept
-from .planted import VOCABULARY
+from .planted import NULLS, OUT_OF_VOCABULARY, VOCABULARY
 
 PLAN_STRIDE = 100_000  # a case's seed: plan seed * PLAN_STRIDE + its index
 RIGHT_SHARE = 0.95  # a detection limit: the share right at and above it
 CONFIDENCE = 0.95  # the intervals on the reports' shares (Wilson score)
 TOLERANCE = 0.25  # a named parameter is right within this relative error (a clip's level: of the peak-to-peak)
+
+
+def confirmed_counts(rows: list[dict]) -> dict:
+    """The two "never" targets, counted from the cases: nulls given a confirmed cause (the MRPIM's and the
+    piezo recording's, or a user dataset's beyond its own verdict; not the virtual DEA's, whose own relaxation
+    is its physics) and out-of-vocabulary effects given a confirmed vocabulary cause (not on the virtual DEA)."""
+    nulls = [r for r in rows if r["kinds"][0] in NULLS and (r["base"] != "virtual-dea" or "own" in r)]
+    oov = [r for r in rows if r["kinds"][0] in OUT_OF_VOCABULARY]
+    return {
+        "confirmed_on_nulls": sum(1 for r in nulls if r["verdict"] not in ("none", "unexplained", r.get("own"))
+                                  and r["confirmed"]),
+        "nulls_checked": len(nulls),
+        "oov_given_confirmed_vocabulary": sum(1 for r in oov if r["verdict"] in VOCABULARY and r["confirmed"]
+                                              and r["base"] != "virtual-dea" and r["verdict"] != r.get("own")),
+        "oov": len(oov),
+    }
 
 
 def effect_label(r: dict) -> str:
