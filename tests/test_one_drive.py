@@ -34,6 +34,16 @@ def test_three_records_of_one_sine_share_one_drive_whatever_their_phase():
     assert one_drive(records[::-1]) == pytest.approx(drive)
 
 
+def test_a_record_with_part_of_a_period_beyond_its_whole_ones_shares_the_drive():
+    """As the last segment of a recording cut with --segments: 2.39 periods of the same sine (the part period
+    alone would shift the quantiles by more than the tolerance)."""
+    u = _sine(periods=3)[:2390]
+    assert abs(np.quantile(u, 0.5)) > 0.2  # over all of it the median moves by a tenth of the range
+    part = Record("b~2.npz", np.arange(u.size) * DT, u, np.zeros_like(u), frequency_hz=1.0, start=0, stop=u.size)
+    assert part.scored == slice(0, u.size)  # scored whole, as a segment is
+    assert one_drive([_record("a.npz", _sine(periods=2)), part]) is not None
+
+
 def test_another_frequency_waveform_level_or_a_record_without_a_frequency_is_another_drive():
     sine = _record("a.npz", _sine())
     t = np.arange(4000) * DT

@@ -37,15 +37,22 @@ SAME_DRIVE = 0.02  # two inputs' quantiles agree within this share of their rang
 _DRIVE_QUANTILES = (0.01, 0.25, 0.5, 0.75, 0.99)
 
 
+def _whole_periods(record) -> np.ndarray:
+    """The input over the whole drive periods at the start of the scored window (all of it if shorter than one)."""
+    u = record.u[record.scored]
+    n = int(round(1.0 / (record.frequency_hz * record.dt))) if record.dt > 0 else 0
+    return u[: u.size // n * n] if 0 < n <= u.size else u
+
+
 def one_drive(records) -> dict | None:
-    """The drive every record shares -- one frequency, and over the scored windows the same input quantiles
-    (level, amplitude and waveform) within ``SAME_DRIVE`` of the input range -- or None (a record without a
-    drive frequency, or any two records that differ)."""
+    """The drive every record shares -- one frequency, and over the whole periods of the scored windows the
+    same input quantiles (level, amplitude and waveform) within ``SAME_DRIVE`` of the input range -- or None (a
+    record without a drive frequency, or any two records that differ)."""
     if not records or any(r.frequency_hz is None for r in records):
         return None
     if len({float(r.frequency_hz) for r in records}) > 1:
         return None
-    q = np.array([np.quantile(r.u[r.scored], _DRIVE_QUANTILES) for r in records])
+    q = np.array([np.quantile(_whole_periods(r), _DRIVE_QUANTILES) for r in records])
     width = float(q[:, -1].max() - q[:, 0].min())
     if not width > 0 or float(np.max(q.max(axis=0) - q.min(axis=0))) > SAME_DRIVE * width:
         return None
