@@ -1565,6 +1565,8 @@ def test_one_recording_is_diagnosed_in_segments_without_its_validation_window(sh
     assert scores["e_rms_whole"] == scores["e_rms"]  # the validation record is its window: nothing else scored
     assert max(s["e_rms"] for s in data["before"].values()) < 0.25  # % of p2p; the benchmark's fit: 0.144 %
     assert data["evidence"]["periodic_structure"]["records"] == ident  # one-period segments taken together
+    reshaping = {data["cause"], *data["also"]} & {"relaxation", "delay", "resonance"}
+    assert bool(data["one_drive_caution"]) == bool(reshaping)  # one recording at one drive: said if one is named
 
 
 @pytest.mark.parametrize("cause", list(STRONG))
