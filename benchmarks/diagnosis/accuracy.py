@@ -73,7 +73,8 @@ from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABU
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, ceiling, confirmed_counts, detection_limit,
-                     effect_label, interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
+                     effect_label, interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval,
+                     within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]

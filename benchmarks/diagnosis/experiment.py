@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from hysbench.data.excitations import multisine
-from hysbench.data.protocol import AMPLITUDE_KV, OFFSET_KV, paper_voltage
+from hysbench.data.protocol import AMPLITUDE_KV, OFFSET_KV, paper_voltage, period_samples
 
 from .candidates import Candidate
 
@@ -40,7 +40,7 @@ _DRIVE_QUANTILES = (0.01, 0.25, 0.5, 0.75, 0.99)
 def _whole_periods(record) -> np.ndarray:
     """The input over the whole drive periods at the start of the scored window (all of it if shorter than one)."""
     u = record.u[record.scored]
-    n = int(round(1.0 / (record.frequency_hz * record.dt))) if record.dt > 0 else 0
+    n = period_samples(record.frequency_hz, record.dt) if record.dt > 0 else 0
     return u[: u.size // n * n] if 0 < n <= u.size else u
 
 

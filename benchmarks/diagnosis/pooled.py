@@ -30,7 +30,6 @@ from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULA
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
-_TOTALS = ("confirmed_on_nulls", "nulls_checked", "oov_given_confirmed_vocabulary", "oov")
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
 
 
@@ -157,7 +156,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
     alone = sum(within_tolerance(r.get("parameter_errors_planted_alone") or r["parameter_errors"]) for r in judged)
     return {
         "plans": plans, "cases": cases, "right": right, "right_share": right / cases if cases else math.nan,
-        "right_interval": wilson_interval(right, cases), **{k: sum(p[k] for p in plans) for k in _TOTALS},
+        "right_interval": wilson_interval(right, cases), **confirmed_counts(rows),
         "parameters_judged": len(judged), "parameters_within": within,
         "parameters_within_interval": wilson_interval(within, len(judged)),
         **({"parameters_within_planted_alone": alone, "own_leads_s": leads} if leads else {}),
@@ -167,7 +166,7 @@ def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> di
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in (*DRIVES, RECORDED) if by_drive[b][d]} for b in bases},
         "detection_limits": limits, "ceiling": pooled_ceiling(rows),
         **({"checked": {"plans": checked[0], "all_cases": _share(checked[1]),
-                        **{k: sum(q[k] for q in checked[0]) for k in _TOTALS},
+                        **confirmed_counts(checked[1]),
                         **check_limits(limits, checked[1])}} if checked else {}),
     }
 

@@ -356,9 +356,9 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
     strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
     ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
-    (``_creep_time_unidentified``). Every score here with the nonlinear
-    parameters refitted per fold, since it names a new cause. Only for a clean verdict (no ambiguity, no
-    unexplained remainder) of causes that compose (not interference or saturation)."""
+    (``_creep_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
+    names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
+    (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
     causes = [c.cause for c in diag.also]
     if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
@@ -369,6 +369,8 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     options = replacements(v.chosen, own, causes, screen.creep_min)
     creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min)
     together = None  # all of them, scored once a replacement is worth comparing
+    e_null = result["errors"][id(screen.null)]
+    null_sse = float(e_null @ e_null)
     for replacement in options:
         chain = _chain(screen, own, replacement)
         standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
@@ -384,8 +386,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
             together = refit_errors(screen, folds, result, diag.also[-1])
         errors = [refit_errors(screen, folds, result, c) for c in chain]
         without = score(folds, errors[-1], together)  # how much better all together predict
-        e_null = result["errors"][id(screen.null)]
-        explains = share_of_misfit(screen, float(e_null @ e_null), float(errors[-1] @ errors[-1])) >= EXPLAIN_SHARE
+        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= EXPLAIN_SHARE
         if without["z"] < Z_SAME and evidence(score(folds, e_null, errors[-1])) and explains:
             break
     else:
