@@ -213,6 +213,7 @@ def run_case(case: dict) -> dict:
             "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also,
             "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
+            "unexplained_check": d.unexplained_check,
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": within_tolerance(errors),
             "also_parameter_errors": also_errors,
