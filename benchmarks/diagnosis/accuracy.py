@@ -72,9 +72,9 @@ from .own_timing import lead_of_case, needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
-from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, ceiling, confirmed_counts, detection_limit,
-                     effect_label, interval_text, judged_parameters, plan_seed_of, span_text, wilson_interval,
-                     within_tolerance)
+from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_validation, ceiling, confirmed_counts,
+                     detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of, span_text,
+                     wilson_interval, within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -214,6 +214,8 @@ def run_case(case: dict) -> dict:
             "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
             "unexplained_check": d.unexplained_check,
+            "also_on_validation": [{k: a.get(k) for k in ("cause", "checked", "borne_out", "explained_whole", "z_whole")}
+                                   for a in d.also_check],
             "parameters": d.parameters, "parameter_errors": errors,
             "parameters_within": within_tolerance(errors),
             "also_parameter_errors": also_errors,
@@ -263,6 +265,7 @@ def summary(rows: list[dict]) -> dict:
         "with_remainder_right": sum(r["right"] for r in rem),
         "false_also_mrpim": sum(1 for r in rows if r["base"] == "mrpim" and set(r["also"]) - set(r["kinds"])),
         "mrpim_cases": sum(1 for r in rows if r["base"] == "mrpim"),
+        "also_on_validation": also_on_validation(rows),
         "also_on_vdea_nulls": dict(Counter(a for r in rows if r["base"] == "virtual-dea" and r["kinds"][0] in NULLS
                                            for a in r["also"])),
         "vdea_nulls": sum(1 for r in rows if r["base"] == "virtual-dea" and r["kinds"][0] in NULLS),
@@ -361,6 +364,11 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         *([] if on else [
             f"| MRPIM base: a cause listed in `also` that was not planted | {s['false_also_mrpim']} of "
             f"{s['mrpim_cases']} | - |",
+            *([] if not (av := s.get("also_on_validation")) else [
+                f"| causes under `also` borne out on the validation records, on top of what was kept before them: "
+                f"planted / not planted (the virtual DEA's own relaxation and lag count as not planted; a clip "
+                f"not checked: {av['not_checked']}) | {av['planted']['borne_out']} of {av['planted']['checked']} / "
+                f"{av['not_planted']['borne_out']} of {av['not_planted']['checked']} | - |"]),
             f"| virtual DEA nulls ({s['vdea_nulls']}): causes listed in `also` (its physics: relaxation and a lag) | "
             f"{', '.join(f'{k} {v}' for k, v in sorted(s['also_on_vdea_nulls'].items())) or 'none'} | - |",
             f"| virtual DEA: a planted relaxation or delay counted right with the nulls' own verdict (relaxation, "

@@ -43,8 +43,11 @@
    candidate's extension, fitted on the identification records' whole
    length, must predict the validation records beyond their noise, else what
    looked structured is not borne out and the verdict is ``none``
-   (``check_unexplained``; coloured noise fits a slow part of one record's
+   (``validation.check_unexplained``; coloured noise fits a slow part of one record's
    noise on the others).
+9. Each cause kept under "also" is checked on the validation records on top
+   of what was kept before it, by the same test (``validation.check_also``):
+   reported, the verdict unchanged.
 """
 
 from __future__ import annotations
@@ -68,18 +71,17 @@ from hysbench.models.errors import HysbenchError
 
 from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
 from .experiment import RESHAPING_CAUSES, one_drive, suggest
-from .extensions import gain, identify_whole, registered_extension, residuals_of_fit, scores_by_file
-from .interference import amplitude_at, phase_fitted
+from .extensions import gain, residuals_of_fit, scores_by_file
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
 from .search import run_screen
 from .secondary import complete_partial, complete_promising, drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
+from .validation import borne_out, check_also, check_unexplained, fit_extension, refit_base_whole
 from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_CONFIRM, Z_PASS,
                         Z_SAME, Verdict, decide)
 
 FORMAT = "hysbench-diagnosis/2"
-INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
 
 
 class DiagnosisError(HysbenchError):
@@ -118,6 +120,7 @@ class Diagnosis:
     base_whole: list[RecordResidual] = field(default_factory=list)
     interference_check: dict = field(default_factory=dict)
     unexplained_check: dict | None = None  # an unexplained verdict's evidence on the validation records
+    also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
@@ -198,7 +201,8 @@ class Diagnosis:
                 f"records take no part; they confirm the named extension if it lowers their residual with "
                 f"z >= {Z_CONFIRM:.3g} against their own noise (correlated noise counted); an unexplained verdict "
                 f"resting on a candidate alone (no period-to-period structure) becomes none unless that candidate's "
-                f"extension lowers the validation records' residual the same way")
+                f"extension lowers the validation records' residual the same way; each cause under also is checked "
+                f"the same way on top of what was kept before it (reported, the verdict unchanged)")
 
     def gain(self) -> dict:
         """The named extension's gain on the validation and identification records (computed once for the
@@ -289,6 +293,7 @@ class Diagnosis:
             "gain": self.gain(), "interference_check": self.interference_check,
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
             "one_drive_caution": self.one_drive_caution, "unexplained_check": self.unexplained_check,
+            "also_on_validation": self.also_check,
             "also": [c.cause for c in self.also],
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
@@ -331,86 +336,6 @@ def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
             say(f"suggesting an experiment to separate {c.cause} from {other.cause} on top of what was kept")
             diag.experiments.append({"causes": [c.cause, other.cause], "on_top_of": diag.on_top_of(c),
                                      **suggest(diag.screen, c, other)})
-
-
-def borne_out(v: dict, cause: str, interference_check: dict) -> bool:
-    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
-    records' residual over whole records and on the windows, by more than their noise explains (z >=
-    ``Z_CONFIRM``); an interference, by the same amplitude there."""
-    ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
-    if cause == "interference":
-        return ok and bool(interference_check.get("same_amplitude"))
-    return ok and bool(v["z_whole"] >= Z_CONFIRM)
-
-
-def interference_on_validation(base_whole: list[RecordResidual], c: Candidate) -> tuple[list[RecordResidual], dict]:
-    """The validation records' residual (base refitted on whole records) at ``c``'s frequency: the after-residual
-    with its amplitude (phase fitted per record) and the amplitude there."""
-    f = c.estimates["frequency_hz"]
-    amplitude = c.estimates["amplitude"]
-    after, amps = [], []
-    for rr in base_whole:
-        t = rr.record.t - rr.record.t[0]
-        sine = phase_fitted(rr.residual, t, f, amplitude)
-        after.append(RecordResidual(rr.record, rr.prediction + sine))
-        if rr.record.role == "validation":
-            amps.append(amplitude_at(rr.residual, t, f))
-    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
-    return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
-                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= INTERFERENCE_AMPLITUDE_TOLERANCE)}
-
-
-def fit_extension(diag: Diagnosis, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
-    """``c``'s extension identified on the identification records' whole length, every parameter free (an
-    interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
-    record and the interference check."""
-    if c.cause == "interference":
-        after, check = interference_on_validation(diag.base_whole, c)
-        return None, after, check
-    base, screen = diag.screen.base, diag.screen
-    ext = registered_extension(base.name, c.cause, c.hyperparameters, base.get_hyperparameters())
-    say(f"identifying {ext.name} on the identification records' whole length")
-    bounds = {n: list(screen.bounds_of(ext, n)) for n in ext.nonlinear_names if n not in base.param_names}
-    fit = identify_whole(ext, diag.dataset, c.params, diag.seed, [r.file for r in diag.dataset.identification],
-                         bounds, {p.record.file: p.rows for p in screen.parts})
-    return fit, residuals_of_fit(fit, diag.dataset), {}
-
-
-def refit_base_whole(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """The baseline an extension is measured against: the base model refitted on the identification records'
-    whole length (on the screen's rows), from its fit on their windows."""
-    base = diag.screen.base
-    say(f"refitting {base.name} on the identification records' whole length (the baseline)")
-    diag.base_whole_fit = identify_whole(base, diag.dataset, diag.base_fit.params, diag.seed,
-                                         [r.file for r in diag.dataset.identification],
-                                         rows={p.record.file: p.rows for p in diag.screen.parts})
-    diag.base_whole = residuals_of_fit(diag.base_whole_fit, diag.dataset)
-
-
-def check_unexplained(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """An ``unexplained`` verdict resting on its best partial candidate alone: that candidate's extension must
-    predict the validation records as a named cause must (``borne_out``); if it does not, the held-out evidence
-    that made the residual look structured is not borne out on data that took no part, and the verdict is
-    ``none`` (the candidate kept as the best partial one)."""
-    v, p = diag.verdict, diag.verdict.partial
-    say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
-    _, after, check = fit_extension(diag, p, say)
-    g = gain(diag.base_whole, after, "validation")
-    if not g:
-        diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": False,
-                                  "note": "no validation record"}
-        return
-    borne = borne_out(g, p.cause, check)
-    diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": True, "borne_out": borne,
-                              **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
-                              **({"interference_check": check} if check else {})}
-    if borne:
-        return
-    diag.verdict = Verdict("none", None, reason=(
-        f"{v.reason}; but fitted on the identification records {p.label} does not predict the validation records "
-        f"beyond their noise ({100 * g['explained_whole']:.1f} % of their residual removed, z = {g['z_whole']:.2f}, "
-        f"needs {Z_CONFIRM:.3g}): the structure it pointed to is not borne out on data that took no part, so "
-        f"nothing is named"), not_identified=v.not_identified, partial=p)
 
 
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
@@ -535,5 +460,9 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     t1 = time.perf_counter()
     diag.extended_fit, diag.after, diag.interference_check = fit_extension(diag, diag.chosen, say)
     timings["extended_fit"] = time.perf_counter() - t1
+    if diag.also:
+        t1 = time.perf_counter()
+        check_also(diag, say)
+        timings["also_check"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
     return diag

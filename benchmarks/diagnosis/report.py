@@ -259,6 +259,16 @@ def _bound_cell(heldout: dict) -> str:
     return ", ".join(names) or "-"
 
 
+def _also_on_validation(check: dict | None) -> str:
+    """What a cause kept under "also" did on the validation records, on top of what was kept before it."""
+    if not check:
+        return ""
+    if not check["checked"]:
+        return f" (validation: {check['note']})"
+    return (f" (validation, on top of what was kept before it: {100 * check['explained_whole']:.1f} % removed, "
+            f"z = {check['z_whole']:.2f}; " + ("borne out)" if check["borne_out"] else "NOT borne out)"))
+
+
 def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[str]:
     """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its
     parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
@@ -309,12 +319,13 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
     also = []
-    for c in d.also:
+    checks = d.also_check if len(d.also_check) == len(d.also) else [None] * len(d.also)
+    for c, check in zip(d.also, checks):
         text, why = c.cause, not_identified(c)
         fits = d.as_good_as(c)
         if fits:
             text += f" (or, as good on these records: {'; '.join(f'{a.cause}: {_estimates(a)}' for a in fits)})"
-        also.append(text + (f" (not identified: {why})" if why else ""))
+        also.append(text + (f" (not identified: {why})" if why else "") + _also_on_validation(check))
     lines.append(f"also: {', '.join(also) if also else 'none'}")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
                  f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")

@@ -32,6 +32,20 @@ def confirmed_counts(rows: list[dict]) -> dict:
     }
 
 
+def also_on_validation(rows: list[dict]) -> dict | None:
+    """The causes kept under "also" checked on the validation records (rows scored since session 36), split by
+    whether the cause was planted: borne out, and checked (None: no row has the check)."""
+    checked = [(a, r) for r in rows if "also_on_validation" in r for a in r["also_on_validation"] if a["checked"]]
+    if not any("also_on_validation" in r for r in rows):
+        return None
+    out = {}
+    for key, planted in (("planted", True), ("not_planted", False)):
+        mine = [a for a, r in checked if (a["cause"] in r["kinds"]) == planted]
+        out[key] = {"borne_out": sum(1 for a in mine if a["borne_out"]), "checked": len(mine)}
+    out["not_checked"] = sum(1 for r in rows for a in r.get("also_on_validation", []) if not a["checked"])
+    return out
+
+
 def effect_label(r: dict) -> str:
     """A case's planted effects, e.g. "delay+creep"."""
     return "+".join(r["kinds"])
