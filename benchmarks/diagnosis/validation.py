@@ -36,13 +36,14 @@ def borne_out(v: dict, cause: str, interference_check: dict) -> bool:
     return ok and bool(v["z_whole"] >= Z_CONFIRM)
 
 
-def interference_on_validation(base_whole: list[RecordResidual], c: Candidate) -> tuple[list[RecordResidual], dict]:
-    """The validation records' residual (base refitted on whole records) at ``c``'s frequency: the after-residual
-    with its amplitude (phase fitted per record) and the amplitude there."""
+def interference_on_validation(before: list[RecordResidual], c: Candidate) -> tuple[list[RecordResidual], dict]:
+    """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
+    whole records), its phase fitted per record: the residuals after it, and the validation records' own
+    amplitude there against ``c``'s."""
     f = c.estimates["frequency_hz"]
     amplitude = c.estimates["amplitude"]
     after, amps = [], []
-    for rr in base_whole:
+    for rr in before:
         t = rr.record.t - rr.record.t[0]
         sine = phase_fitted(rr.residual, t, f, amplitude)
         after.append(RecordResidual(rr.record, rr.prediction + sine))
@@ -60,23 +61,27 @@ def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit |
     if c.cause == "interference":
         after, check = interference_on_validation(diag.base_whole, c)
         return None, after, check
-    base, screen = diag.screen.base, diag.screen
+    base = diag.screen.base
     ext = registered_extension(base.name, c.cause, c.hyperparameters, base.get_hyperparameters())
     say(f"identifying {ext.name} on the identification records' whole length")
-    bounds = {n: list(screen.bounds_of(ext, n)) for n in ext.nonlinear_names if n not in base.param_names}
-    fit = identify_whole(ext, diag.dataset, c.params, diag.seed, [r.file for r in diag.dataset.identification],
-                         bounds, {p.record.file: p.rows for p in screen.parts})
+    fit = identified_whole(diag, ext, c.params)
     return fit, residuals_of_fit(fit, diag.dataset), {}
+
+
+def identified_whole(diag, model, start) -> Fit:
+    """``model`` identified on the identification records' whole length (on the screen's rows) from ``start``,
+    the parameters it adds to the base within the screen's search bounds."""
+    screen = diag.screen
+    bounds = {n: list(screen.bounds_of(model, n)) for n in model.nonlinear_names if n not in screen.base.param_names}
+    return identify_whole(model, diag.dataset, start, diag.seed, [r.file for r in diag.dataset.identification],
+                          bounds, {p.record.file: p.rows for p in screen.parts})
 
 
 def refit_base_whole(diag, say: Callable[[str], None]) -> None:
     """The baseline an extension is measured against: the base model refitted on the identification records'
     whole length (on the screen's rows), from its fit on their windows."""
-    base = diag.screen.base
-    say(f"refitting {base.name} on the identification records' whole length (the baseline)")
-    diag.base_whole_fit = identify_whole(base, diag.dataset, diag.base_fit.params, diag.seed,
-                                         [r.file for r in diag.dataset.identification],
-                                         rows={p.record.file: p.rows for p in diag.screen.parts})
+    say(f"refitting {diag.screen.base.name} on the identification records' whole length (the baseline)")
+    diag.base_whole_fit = identified_whole(diag, diag.screen.base, diag.base_fit.params)
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, diag.dataset)
 
 
@@ -124,8 +129,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         return
     lines = [diag.chosen] if diag.cause == "interference" else []  # a named line is on top of the base
     before, out = diag.after, []
-    fit_on = [r.file for r in diag.dataset.identification]
-    rows = {p.record.file: p.rows for p in diag.screen.parts}
     for c in diag.also:
         entry = {"cause": c.cause, "label": c.label}
         if c.clips is not None or (out and out[-1].get("note", "").startswith("a clip")):
@@ -137,10 +140,7 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             after, check = interference_on_validation(before, c)
             lines.append(c)
         else:
-            bounds = {n: list(diag.screen.bounds_of(c.model, n)) for n in c.model.nonlinear_names
-                      if n not in diag.screen.base.param_names}
-            fit = identify_whole(c.model, diag.dataset, c.params, diag.seed, fit_on, bounds, rows)
-            part = residuals_of_fit(fit, diag.dataset)
+            part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
             after = _with_lines(part, lines)
         g = gain(before, after, "validation")
         if not g:
