@@ -16,6 +16,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal, stats
 
+from hysbench.benchmarks.diagnosis import validation
+from hysbench.benchmarks.diagnosis.extensions import gain
 from hysbench.benchmarks.diagnosis.planted import planted_case
 from hysbench.benchmarks.diagnosis.residuals import FLOOR_HALF_WIDTH, gain_z, noise_floor
 
@@ -93,16 +95,16 @@ def test_a_relaxation_found_in_coloured_noise_is_not_confirmed():
     gain is z = 1.1 against the records' own noise: not confirmed, and the report says why. The relaxation
     candidate is checked on the validation records whatever the verdict, so the test checks the confirmation
     even when nothing is named."""
-    dg = sys.modules["hysbench.benchmarks.diagnosis.diagnose"]
+    diagnose = sys.modules["hysbench.benchmarks.diagnosis.diagnose"].diagnose
     ds, _ = planted_case(("null-ar1",), "mrpim", "sines", 3500082)
-    d = dg.diagnose(ds, seed=0, experiments=False)
+    d = diagnose(ds, seed=0, experiments=False)
     relaxation = next(c for c in d.candidates if c.cause == "relaxation")
     if not d.base_whole:
-        dg.refit_base_whole(d, lambda s: None)
-    _, after, _ = dg.fit_extension(d, relaxation, lambda s: None)
-    v = dg.gain(d.base_whole, after, "validation")
-    assert v["explained_whole"] > 0 and v["z_whole"] < dg.Z_CONFIRM
-    assert not dg.borne_out(v, "relaxation", {})
+        validation.refit_base_whole(d, lambda s: None)
+    _, after, _ = validation.fit_extension(d, relaxation, lambda s: None)
+    v = gain(d.base_whole, after, "validation")
+    assert v["explained_whole"] > 0 and v["z_whole"] < validation.Z_CONFIRM
+    assert not validation.borne_out(v, "relaxation", {})
     assert d.confirmed is not True
     if d.cause != "none":
         assert d.confirmed is False and "beyond their noise" in d.warning

@@ -319,7 +319,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     for n in d.verdict.not_identified:
         lines.append(f"not identified: {n}")
     also = []
-    checks = d.also_check if len(d.also_check) == len(d.also) else [None] * len(d.also)
+    checks = d.also_check or [None] * len(d.also)  # one per cause under also once checked
     for c, check in zip(d.also, checks):
         text, why = c.cause, not_identified(c)
         fits = d.as_good_as(c)

@@ -35,9 +35,9 @@ def confirmed_counts(rows: list[dict]) -> dict:
 def also_on_validation(rows: list[dict]) -> dict | None:
     """The causes kept under "also" checked on the validation records (rows scored since session 36), split by
     whether the cause was planted: borne out, and checked (None: no row has the check)."""
-    checked = [(a, r) for r in rows if "also_on_validation" in r for a in r["also_on_validation"] if a["checked"]]
     if not any("also_on_validation" in r for r in rows):
         return None
+    checked = [(a, r) for r in rows for a in r.get("also_on_validation", []) if a["checked"]]
     out = {}
     for key, planted in (("planted", True), ("not_planted", False)):
         mine = [a for a, r in checked if (a["cause"] in r["kinds"]) == planted]

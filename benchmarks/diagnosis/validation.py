@@ -91,13 +91,13 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
     that made the residual look structured is not borne out on data that took no part, and the verdict is
     ``none`` (the candidate kept as the best partial one)."""
     v, p = diag.verdict, diag.verdict.partial
-    say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
-    _, after, check = fit_extension(diag, p, say)
-    g = gain(diag.base_whole, after, "validation")
-    if not g:
+    if not diag.dataset.validation:
         diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": False,
                                   "note": "no validation record"}
         return
+    say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
+    _, after, check = fit_extension(diag, p, say)
+    g = gain(diag.base_whole, after, "validation")
     borne = borne_out(g, p.cause, check)
     diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": True, "borne_out": borne,
                               **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
@@ -127,11 +127,16 @@ def check_also(diag, say: Callable[[str], None]) -> None:
     is unchanged."""
     if not diag.also or not diag.after:
         return
+    if not diag.dataset.validation:
+        diag.also_check = [{"cause": c.cause, "label": c.label, "checked": False, "note": "no validation record"}
+                           for c in diag.also]
+        return
     lines = [diag.chosen] if diag.cause == "interference" else []  # a named line is on top of the base
-    before, out = diag.after, []
+    before, out, clipped = diag.after, [], False
     for c in diag.also:
         entry = {"cause": c.cause, "label": c.label}
-        if c.clips is not None or (out and out[-1].get("note", "").startswith("a clip")):
+        clipped = clipped or c.clips is not None
+        if clipped:
             out.append({**entry, "checked": False, "note": "a clip of what is kept, or on top of one: not checked"})
             continue
         say(f"checking {c.label} on the validation records")
@@ -143,9 +148,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
             after = _with_lines(part, lines)
         g = gain(before, after, "validation")
-        if not g:
-            out.append({**entry, "checked": False, "note": "no validation record"})
-            continue
         out.append({**entry, "checked": True, "borne_out": borne_out(g, c.cause, check),
                     **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
                     **({"interference_check": check} if check else {})})
