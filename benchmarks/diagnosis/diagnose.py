@@ -190,7 +190,7 @@ class Diagnosis:
                 f"a relaxation whose slowest time constant is slower than every drive period is compared with its "
                 f"faster ones plus creep, which is listed as ambiguous if it predicts as well); "
                 f"if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
-                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}, every other cause "
+                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%} (a mode's frequency; its damping is reported), every other cause "
                 f"within z = {Z_SAME:g} removing the same part, held-out improvements with cosine >= {SAME_SLICE:g}: "
                 f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
                 f"cause predicting most among those that are specific (three or more records), else the best "
