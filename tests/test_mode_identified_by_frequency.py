@@ -48,4 +48,5 @@ def test_a_mode_on_the_piezo_recording_is_named_although_its_damping_differs_bet
     u = d.chosen.uncertainty
     assert u["natural_frequency"]["relative_se"] <= PARTIAL_SE < u["damping_ratio"]["relative_se"], u
     assert parameter_errors(truth, "resonance", d.parameters)["natural_frequency_hz"] <= 0.25
+    assert "damping_ratio (fold spread" in d.verdict.reason and "not identified" in d.verdict.reason
     assert d.confirmed  # the mode predicts the validation record too

@@ -473,15 +473,16 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                     f"predicts the held-out identification records better than the base model refitted the same "
                     f"way (gain {100 * other.heldout_gain:.2f} %, z = {other.heldout['z']:.1f}); it removes "
                     f"{100 * share:.0f} % of the base model's held-out misfit beyond white noise: the other "
-                    f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"),
-                    not_identified, remainder=1.0 - share)
+                    f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"
+                    + loose_note(other)), not_identified, remainder=1.0 - share)
             return Verdict("unexplained", None, reason=(
                 f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
                 f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen)
         remainder = 1.0 - share
         reason += (f"; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
                    f"the other {100 * remainder:.0f} % is unexplained")
-    return Verdict(chosen.cause, chosen, list(others.values()), reason, not_identified, remainder=remainder)
+    return Verdict(chosen.cause, chosen, list(others.values()), reason + loose_note(chosen), not_identified,
+                   remainder=remainder)
 
 
 def share_of_misfit(screen, reference_sse: float, sse: float) -> float:
@@ -526,6 +527,17 @@ def identified(c: Candidate) -> bool:
         elif u["se"] > PARTIAL_SE * max(abs(float(np.mean(u["folds"]))), 1e-300):
             return False
     return True
+
+
+def loose_note(c: Candidate) -> str:
+    """What the reason says of a named cause's parameters that do not identify it (``IDENTIFYING``) and whose
+    fold estimates differ by more than ``PARTIAL_SE``: e.g. a mode's damping ratio."""
+    only = IDENTIFYING.get(c.cause)
+    if only is None:
+        return ""
+    loose = [f"{n} (fold spread ±{100 * u['relative_se']:.0f} %)" for n, u in c.uncertainty.items()
+             if n not in only and u.get("relative_se", 0.0) > PARTIAL_SE]
+    return f"; its {', '.join(loose)} not identified (the folds agree on {', '.join(only)})" if loose else ""
 
 
 def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray) -> bool:
