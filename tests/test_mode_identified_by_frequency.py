@@ -13,12 +13,13 @@ import pytest
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.planted import piezo_available, planted_case
-from hysbench.benchmarks.diagnosis.selection import PARTIAL_SE, identified
+from hysbench.benchmarks.diagnosis.selection import PARTIAL_SE, identified, loose_note
 
 
 def _candidate(cause: str, **spread) -> SimpleNamespace:
     """A candidate with the relative fold spread (jackknife se) s of each named parameter."""
-    return SimpleNamespace(cause=cause, uncertainty={n: {"relative_se": s, "folds": [1.0, 1.0]} for n, s in spread.items()})
+    uncertainty = {n: {"relative_se": s, "folds": [1.0, 1.0]} for n, s in spread.items()}
+    return SimpleNamespace(cause=cause, uncertainty=uncertainty)
 
 
 @pytest.mark.parametrize("frequency_se, damping_se, expected", [
@@ -32,6 +33,15 @@ def test_other_causes_need_every_fold_refitted_parameter_to_agree():
     assert identified(_candidate("relaxation", tau1=0.05, tau2=0.05))
     assert not identified(_candidate("relaxation", tau1=0.05, tau2=2 * PARTIAL_SE))
     assert not identified(_candidate("resonance"))  # nothing refitted per fold: agreement not shown
+
+
+def test_the_reason_says_when_a_mode_s_damping_is_not_identified_and_claims_agreement_only_where_it_holds():
+    assert loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.1)) == ""
+    note = loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.6))
+    assert "damping_ratio (fold spread ±60 %) not identified" in note and "agree on natural_frequency" in note
+    note = loose_note(_candidate("resonance", natural_frequency=0.6, damping_ratio=0.6))
+    assert "not identified" in note and "agree" not in note  # a mode named whole: its frequency was not checked
+    assert loose_note(_candidate("delay", delay=0.9)) == ""
 
 
 def test_a_mode_on_the_piezo_recording_is_named_although_its_damping_differs_between_the_folds():

@@ -537,7 +537,10 @@ def loose_note(c: Candidate) -> str:
         return ""
     loose = [f"{n} (fold spread ±{100 * u['relative_se']:.0f} %)" for n, u in c.uncertainty.items()
              if n not in only and u.get("relative_se", 0.0) > PARTIAL_SE]
-    return f"; its {', '.join(loose)} not identified (the folds agree on {', '.join(only)})" if loose else ""
+    if not loose:
+        return ""
+    agree = f" (the folds agree on {', '.join(only)})" if identified(c) else ""
+    return f"; its {', '.join(loose)} not identified{agree}"
 
 
 def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray) -> bool:
