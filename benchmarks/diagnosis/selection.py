@@ -50,7 +50,8 @@ Decision rule (``decide``):
    held-out misfit beyond white noise (n sd^2) is still named, with the rest
    reported as unexplained remainder, if it is *specific*: the part it removes
    passes the block test (z >= ``Z_PASS``), its fold estimates agree within
-   ``PARTIAL_SE``, and every other passing cause that predicts as well
+   ``PARTIAL_SE`` (a mode's: its frequency, ``IDENTIFYING``; its damping is
+   reported), and every other passing cause that predicts as well
    (z < ``Z_SAME``) removes the *same* part (held-out improvements
    e_null - e with cosine >= ``SAME_SLICE`` = 0.9): those are rival explanations of
    one part, so the one with fewest parameters is named and the others are
@@ -518,15 +519,15 @@ def identified(c: Candidate) -> bool:
     if not c.uncertainty:  # nothing refitted per fold: agreement not shown
         return False
     only = IDENTIFYING.get(c.cause)
-    for name, u in c.uncertainty.items():
-        if only is not None and name not in only:
-            continue
-        if "relative_se" in u or "se_over_range" in u:
-            if u.get("relative_se", u.get("se_over_range")) > PARTIAL_SE:
-                return False
-        elif u["se"] > PARTIAL_SE * max(abs(float(np.mean(u["folds"]))), 1e-300):
-            return False
-    return True
+    return all(agrees(u) for name, u in c.uncertainty.items() if only is None or name in only)
+
+
+def agrees(u: dict) -> bool:
+    """One parameter's fold estimates (``fold_uncertainty``) agree within ``PARTIAL_SE``: relative, a clipping
+    level relative to the output's range, else relative to the folds' mean."""
+    if "relative_se" in u or "se_over_range" in u:
+        return u.get("relative_se", u.get("se_over_range")) <= PARTIAL_SE
+    return u["se"] <= PARTIAL_SE * max(abs(float(np.mean(u["folds"]))), 1e-300)
 
 
 def loose_note(c: Candidate) -> str:
@@ -536,7 +537,7 @@ def loose_note(c: Candidate) -> str:
     if only is None:
         return ""
     loose = [f"{n} (fold spread ±{100 * u['relative_se']:.0f} %)" for n, u in c.uncertainty.items()
-             if n not in only and u.get("relative_se", 0.0) > PARTIAL_SE]
+             if n not in only and not agrees(u)]
     if not loose:
         return ""
     agree = f" (the folds agree on {', '.join(only)})" if identified(c) else ""
