@@ -229,6 +229,9 @@ def on_top(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.nd
     e = e_primary.copy()
     for m in range(n):
         rows = folds.test(m)
+        if not folds.is_scored(m):  # not a held-out target (``selection.Folds``)
+            e[rows] = 0.0
+            continue
         a = fold_amplitude(screen, m, train_residuals[m], f[m])
         e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m], f[m], a)
     return e
@@ -247,9 +250,11 @@ def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequ
                      frequencies_hz: Sequence[float]) -> dict:
     """What a sinusoid scored by ``on_top`` with one frequency per fold stands for: the folds' mean frequency,
     the rms of their amplitudes, and each record's phase (from its own start) where it is left out, for the
-    meaning checks (``Screen.limit_of``: cycles, drive lock)."""
+    meaning checks (``Screen.limit_of``: cycles, drive lock); phases of the held-out targets only."""
     phases = []
     for m, f in enumerate(frequencies_hz):
+        if not folds.is_scored(m):  # no held-out residual there
+            continue
         p = screen.parts[m]
         a, b = sinusoid_fit(e_primary[folds.test(m)], p.rows * p.record.dt, f)
         phases.append(float(math.atan2(b, a)))

@@ -11,6 +11,7 @@ from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
+from .screen import BEYOND_RANGE
 from .secondary import not_identified
 from .selection import Z_CONFIRM
 
@@ -250,6 +251,18 @@ def base_bound_caution(fit) -> str:
             "diagnosis explains may be that bound's, not the actuator's")
 
 
+def not_held_out_lines(d) -> list[str]:
+    """The records the held-out test does not predict (``screen.held_out_targets``), with why."""
+    skipped = d.settings.get("not_held_out") or []
+    if not skipped:
+        return []
+    names = ", ".join(f"{s['record']} (beyond by {100 * s['beyond_others_range']:.0f} % of the input span)"
+                      for s in skipped)
+    return ["", f"Not held-out targets: {names}. Each goes beyond the other identification records' input range by "
+                f"more than {100 * BEYOND_RANGE:.0f} % of the span, so a fit on the others would extrapolate there; "
+                "it takes part in every other fold's fit, and the held-out scores cover the other records."]
+
+
 REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters
 
 
@@ -374,7 +387,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
-              f"Rule: {d.decision_rule}.", "",
+              f"Rule: {d.decision_rule}.", *not_held_out_lines(d), "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],

@@ -52,6 +52,35 @@ LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in
 LOCKED_TURN = math.pi / 16  # ... or turn in phase from drive period to period by more than this (rad per period)
 LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
 RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
+BEYOND_RANGE = 0.05  # a record whose input leaves the others' range by more than this share of the span: no target
+
+
+def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
+    """How far each record's input goes beyond the range of the other records' inputs (either end), as a share
+    of the span of them all (0 if within)."""
+    if len(inputs) < 2:
+        return [0.0] * len(inputs)
+    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
+    span = max(hi) - min(lo)
+    if not span > 0:
+        return [0.0] * len(inputs)
+    out = []
+    for m in range(len(inputs)):
+        other_lo = min(v for k, v in enumerate(lo) if k != m)
+        other_hi = max(v for k, v in enumerate(hi) if k != m)
+        out.append(max(hi[m] - other_hi, other_lo - lo[m], 0.0) / span)
+    return out
+
+
+def held_out_targets(inputs: Sequence[np.ndarray]) -> list[bool]:
+    """Which records the held-out test predicts (``selection.Folds``): not one whose input goes beyond the other
+    records' range by more than ``BEYOND_RANGE`` of the span. Fitted on the others, the base model would
+    extrapolate there (weights of its hysteresis operators that only that record moves), and the comparison
+    would measure that, not the cause. The record still takes part in every other fold's fit. All records are
+    targets if fewer than two would be."""
+    beyond = beyond_others(inputs)
+    targets = [b <= BEYOND_RANGE for b in beyond]
+    return targets if sum(targets) >= 2 else [True] * len(inputs)
 
 
 def lag_shared(z: Mapping[str, float]) -> dict:
@@ -122,6 +151,10 @@ class Screen:
         self._relaxation_cache = [{} for _ in self.parts]  # {(tau, power): filtered input at the rows} per record
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
+        inputs = [p.record.u for p in self.parts]
+        self.held_out = held_out_targets(inputs)  # per record: a held-out target
+        self.beyond_range = beyond_others(inputs)
+        self.n_scored = sum(p.rows.size for p, t in zip(self.parts, self.held_out) if t)
         # the causes' time scale
         self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
         self.component_scale = replace(scale, time=self.drive_time)

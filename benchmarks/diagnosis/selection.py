@@ -22,6 +22,11 @@ predicted by a fit that did not see its record):
   ranks, so a record with a large misfit does not swamp the others;
 * the folds (records) it improves.
 
+A record whose input goes beyond the other identification records' range
+(``screen.held_out_targets``) is left out of the score: it is fitted in
+every other fold, but the base model fitted without it would extrapolate
+there, so its out-of-fold residuals are not a test of the cause.
+
 Decision rule (``decide``):
 
 1. A candidate *passes* if G >= ``MIN_EXPLAINED``, it improves more than half
@@ -101,17 +106,28 @@ Z_CONFIRM = float(stats.norm.isf(0.05))  # validation: the gain beyond the recor
 
 @dataclass
 class Folds:
-    """Leave-one-record-out on the screen's stacked rows."""
+    """Leave-one-record-out on the screen's stacked rows. Every record is left out once (fold m: record m);
+    only the ``scored`` ones are held-out targets (``Screen.held_out``): a record whose input goes beyond the
+    other records' range is predicted by extrapolation, and its out-of-fold residual is set to zero, so that
+    every sum, block and fold count below covers the scored records alone."""
 
     starts: np.ndarray  # row offsets of the records, len M + 1
+    scored: tuple | None = None  # per record: a held-out target (None: every record)
 
     @classmethod
     def of(cls, screen) -> "Folds":
-        return cls(np.cumsum([0] + [p.rows.size for p in screen.parts]))
+        return cls(np.cumsum([0] + [p.rows.size for p in screen.parts]), tuple(screen.held_out))
 
     @property
     def n(self) -> int:
         return self.starts.size - 1
+
+    def is_scored(self, m: int) -> bool:
+        return self.scored is None or bool(self.scored[m])
+
+    @property
+    def n_scored(self) -> int:
+        return sum(self.is_scored(m) for m in range(self.n))
 
     def test(self, m: int) -> np.ndarray:
         mask = np.zeros(self.starts[-1], dtype=bool)
@@ -121,8 +137,15 @@ class Folds:
     def blocks(self) -> list[np.ndarray]:
         out = []
         for m in range(self.n):
-            out += [b for b in np.array_split(np.arange(self.starts[m], self.starts[m + 1]), N_BLOCKS) if b.size]
+            if self.is_scored(m):
+                out += [b for b in np.array_split(np.arange(self.starts[m], self.starts[m + 1]), N_BLOCKS) if b.size]
         return out
+
+    def without(self, m: int) -> "Folds":
+        """The folds with record m's rows taken out (to score arrays indexed by ``~self.test(m)``)."""
+        sizes = [int(self.starts[k + 1] - self.starts[k]) for k in range(self.n) if k != m]
+        scored = None if self.scored is None else tuple(s for k, s in enumerate(self.scored) if k != m)
+        return Folds(np.cumsum([0] + sizes), scored)
 
 
 def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
@@ -130,12 +153,13 @@ def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
     """Every row's residual from a linear solve on the other records; ``design(m)`` gives fold m's
     stacked design (all rows). ``train_residuals``: a list that receives, per fold, the residual on its
     training rows (the other records) of that same solve."""
-    e = np.empty(screen.n)
+    e = np.zeros(screen.n)
     for m in range(folds.n):
         test = folds.test(m)
         A = design(m)
         theta, res = screen.solve(A[~test], screen.y[~test])
-        e[test] = screen.y[test] - A[test] @ theta
+        if folds.is_scored(m):
+            e[test] = screen.y[test] - A[test] @ theta
         if train_residuals is not None:
             train_residuals.append(res)
     return e
@@ -209,7 +233,7 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
     that goes higher."""
     side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
     A = clipped_columns(screen, c)
-    e = np.empty(screen.n)
+    e = np.zeros(screen.n)
     fold_est = []
     for m in range(folds.n):
         test = folds.test(m)
@@ -221,7 +245,8 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
         train = ~test & unclipped(screen, screen.y, side, level)
         theta, _ = screen.solve(A[train], screen.y[train])
         clip = np.minimum if side == "upper" else np.maximum
-        e[test] = screen.y[test] - clip(A[test] @ theta, level)
+        if folds.is_scored(m):
+            e[test] = screen.y[test] - clip(A[test] @ theta, level)
         if train_residuals is not None:
             train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
     return e, fold_est
@@ -244,9 +269,9 @@ def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
     ss_ref = float(e_ref @ e_ref)
     z = signed_rank_z(d)
     improved = sum(float(e_ref[folds.test(m)] @ e_ref[folds.test(m)]) > float(e_c[folds.test(m)] @ e_c[folds.test(m)])
-                   for m in range(folds.n))
+                   for m in range(folds.n) if folds.is_scored(m))
     return {"gain": 1.0 - float(e_c @ e_c) / ss_ref if ss_ref > 0 else 0.0, "z": z, "folds_improved": int(improved),
-            "n_folds": folds.n, "sse": float(e_c @ e_c)}
+            "n_folds": folds.n_scored, "sse": float(e_c @ e_c)}
 
 
 def jackknife(fold_estimates: list[dict]) -> dict:
@@ -489,7 +514,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
 def share_of_misfit(screen, reference_sse: float, sse: float) -> float:
     """The share of a reference's held-out misfit beyond white noise (n sd^2) that a candidate removes (1 if the
     reference leaves nothing beyond noise)."""
-    excess = reference_sse - screen.n * screen.noise_sd**2
+    excess = reference_sse - screen.n_scored * screen.noise_sd**2
     return float((reference_sse - sse) / excess) if excess > 0 else 1.0
 
 
@@ -498,14 +523,13 @@ def carried_by_one_record(folds: Folds, e_null: np.ndarray, e_c: np.ndarray) -> 
     rows it is no evidence (``evidence``). Coloured noise on the other records occasionally throws the base's
     extrapolation to one record far off (README, #14), and any extension with more columns then repairs it.
     With fewer than three records nothing is left to check, and the gain counts as it is."""
-    if folds.n < 3:
+    if folds.n_scored < 3:
         return False
     gain = [float(e_null[folds.test(m)] @ e_null[folds.test(m)] - e_c[folds.test(m)] @ e_c[folds.test(m)])
-            for m in range(folds.n)]
+            if folds.is_scored(m) else -math.inf for m in range(folds.n)]
     best = int(np.argmax(gain))
     keep = ~folds.test(best)
-    rest = Folds(np.cumsum([0] + [int(folds.starts[m + 1] - folds.starts[m]) for m in range(folds.n) if m != best]))
-    return not evidence(score(rest, e_null[keep], e_c[keep]))
+    return not evidence(score(folds.without(best), e_null[keep], e_c[keep]))
 
 
 IDENTIFYING = {"resonance": ("natural_frequency",)}  # a cause identified by these alone; the rest is its shape
@@ -584,7 +608,7 @@ def specific_part(folds: Folds, errors: dict, ok: Sequence[Candidate], partial: 
     e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
     most among those; None if there is none, or with fewer than three records (two fold estimates that agree
     are too weak a check to name a cause that does not predict best)."""
-    if folds.n < 3:
+    if folds.n_scored < 3:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):
         if c is not partial and c.cause != partial.cause and not not_specific(folds, errors, c, candidates, c, e_null):
