@@ -365,7 +365,7 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
     e_null = s1 + s2 + noise
     e_a = 0.6 * s1 + s2 + noise  # removes part of one component: 39 % of the misfit
     e_b = s1 + 0.22 * s2 + noise  # another slice of about the same size (37 %)
-    screen = SimpleNamespace(n=t.size, n_scored=t.size, noise_sd=0.05, creep_min=20.0)
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, creep_min=20.0)
     a = _scored("delay", folds, e_null, e_a, {"delay": {"se": 1e-4, "folds": [0.010, 0.0101, 0.0099]}})
     errors = {id(a): e_a}
     v = decide(screen, folds, [a], [], errors, e_null, structured=True)
@@ -441,7 +441,7 @@ def test_a_relaxation_slower_than_every_drive_period_that_creep_predicts_as_well
     e_null = drift + noise
     e_relax, e_creep = sorted([0.05 * drift + noise, 0.05 * drift + rng.normal(0, 0.01, t.size)],
                               key=lambda e: float(e @ e))  # as good; the relaxation by a hair
-    screen = SimpleNamespace(n=t.size, n_scored=t.size, noise_sd=0.01, creep_min=20.0)
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.01, creep_min=20.0)
     for tau, named in ((25.0, "creep"), (4.0, "relaxation")):
         relax, creep = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_creep)
         relax.estimates, creep.estimates = {"tau_s": [tau]}, {"size": 0.3, "time_scale_s": 20.0}
@@ -661,7 +661,7 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     misfit = np.sin(np.arange(12000) / 300.0)
     noise = rng.normal(0, 0.05, 12000)
     kept = misfit + noise
-    screen = SimpleNamespace(noise_sd=0.05, n=12000, n_scored=12000)
+    screen = SimpleNamespace(noise_sd=0.05, n=12000, n_held_out_rows=12000)
 
     def tried(cause, k, e):
         c = Candidate(cause, cause, None, {}, k, 1.0, 12000)
@@ -1294,7 +1294,7 @@ def test_a_partial_cause_is_named_only_if_the_causes_on_top_explain_half_the_mis
     e_null = signal_ + noise
     partial = _scored("relaxation", folds, e_null, 0.75 * signal_ + noise)  # 44 % of the misfit: partial
     both = np.sqrt(left_by_both) * signal_ + noise
-    screen = SimpleNamespace(n=t.size, n_scored=t.size, noise_sd=0.05, null=object())
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object())
     excess = float(e_null @ e_null) - t.size * 0.05**2
     assert (float(e_null @ e_null) - float(both @ both)) / excess == pytest.approx(1 - left_by_both, abs=0.03)
 
@@ -1342,7 +1342,7 @@ def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_recor
             "on one record": np.where(t >= 8000 * DT, 0.1, 0.998) * signal_,  # evidence, but that record's
             "a third of the misfit": np.sqrt(0.67) * signal_}[case]
     both = left + noise
-    screen = SimpleNamespace(n=t.size, n_scored=t.size, noise_sd=0.05, null=object())
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object())
     kept = _scored("relaxation", folds, e_null, both)
     kept.heldout["refit_per_fold"] = True
     result = {"errors": {id(screen.null): e_null, id(kept): both}, "folds": folds}

@@ -258,9 +258,9 @@ def not_held_out_lines(d) -> list[str]:
         return []
     names = ", ".join(f"{s['record']} (beyond by {100 * s['beyond_others_range']:.0f} % of the input span)"
                       for s in skipped)
-    return ["", f"Not held-out targets: {names}. Each goes beyond the other identification records' input range by "
-                f"more than {100 * BEYOND_RANGE:.0f} % of the span, so a fit on the others would extrapolate there; "
-                "it takes part in every other fold's fit, and the held-out scores cover the other records."]
+    return ["", f"Not held-out targets: {names}. A record that goes beyond the other identification records' input "
+                f"range by more than {100 * BEYOND_RANGE:.0f} % of the span is not predicted (a fit on the others would "
+                "extrapolate there); it takes part in every other fold's fit, and the held-out scores cover the others."]
 
 
 REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters

@@ -154,7 +154,7 @@ class Screen:
         inputs = [p.record.u for p in self.parts]
         self.held_out = held_out_targets(inputs)  # per record: a held-out target
         self.beyond_range = beyond_others(inputs)
-        self.n_scored = sum(p.rows.size for p, t in zip(self.parts, self.held_out) if t)
+        self.n_held_out_rows = sum(p.rows.size for p, t in zip(self.parts, self.held_out) if t)
         # the causes' time scale
         self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
         self.component_scale = replace(scale, time=self.drive_time)

@@ -512,9 +512,9 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
 
 
 def share_of_misfit(screen, reference_sse: float, sse: float) -> float:
-    """The share of a reference's held-out misfit beyond white noise (n sd^2) that a candidate removes (1 if the
-    reference leaves nothing beyond noise)."""
-    excess = reference_sse - screen.n_scored * screen.noise_sd**2
+    """The share of a reference's held-out misfit beyond white noise (n sd^2, n the held-out rows) that a
+    candidate removes (1 if the reference leaves nothing beyond noise)."""
+    excess = reference_sse - screen.n_held_out_rows * screen.noise_sd**2
     return float((reference_sse - sse) / excess) if excess > 0 else 1.0
 
 
