@@ -421,9 +421,11 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                                "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
-                               "not_held_out": [{"record": p.record.file, "beyond_others_range": b}
-                                                for p, t, b in zip(screen.parts, screen.held_out, screen.beyond_range)
-                                                if not t],
+                               "not_held_out": [{"record": p.record.file, "beyond_others_range": b,
+                                                 "held_out_until_s": until}
+                                                for p, until, b in zip(screen.parts, screen.held_out_until,
+                                                                       screen.beyond_range)
+                                                if until is not None],
                                "thorough": thorough})
     t1 = time.perf_counter()
     if experiments and verdict.chosen is not None:

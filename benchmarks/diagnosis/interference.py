@@ -228,12 +228,12 @@ def on_top(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.nd
     times = [p.rows * p.record.dt for p in screen.parts]
     e = e_primary.copy()
     for m in range(n):
-        rows = folds.test(m)
-        if not folds.is_scored(m):  # not a held-out target (``selection.Folds``)
-            e[rows] = 0.0
+        e[folds.tail(m)] = 0.0  # not held-out targets (``selection.Folds``)
+        if not folds.is_scored(m):
             continue
+        rows = folds.head(m)
         a = fold_amplitude(screen, m, train_residuals[m], f[m])
-        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m], f[m], a)
+        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m][:rows.stop - rows.start], f[m], a)
     return e
 
 
@@ -255,8 +255,8 @@ def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequ
     for m, f in enumerate(frequencies_hz):
         if not folds.is_scored(m):  # no held-out residual there
             continue
-        p = screen.parts[m]
-        a, b = sinusoid_fit(e_primary[folds.test(m)], p.rows * p.record.dt, f)
+        p, rows = screen.parts[m], folds.head(m)
+        a, b = sinusoid_fit(e_primary[rows], p.rows[:rows.stop - rows.start] * p.record.dt, f)
         phases.append(float(math.atan2(b, a)))
     amps = [fold_amplitude(screen, m, r, f) for m, (r, f) in enumerate(zip(train_residuals, frequencies_hz))]
     return {"frequency_hz": float(np.mean(frequencies_hz)), "amplitude": float(np.sqrt(np.mean(np.square(amps)))),

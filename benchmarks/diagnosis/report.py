@@ -252,15 +252,21 @@ def base_bound_caution(fit) -> str:
 
 
 def not_held_out_lines(d) -> list[str]:
-    """The records the held-out test does not predict (``screen.held_out_targets``), with why."""
+    """The records the held-out test predicts only in part (``screen.held_out_windows``), with why."""
     skipped = d.settings.get("not_held_out") or []
     if not skipped:
         return []
-    names = ", ".join(f"{s['record']} (beyond by {100 * s['beyond_others_range']:.0f} % of the input span)"
-                      for s in skipped)
-    return ["", f"Not held-out targets: {names}. A record that goes beyond the other identification records' input "
-                f"range by more than {100 * BEYOND_RANGE:.0f} % of the span is not predicted (a fit on the others would "
-                "extrapolate there); it takes part in every other fold's fit, and the held-out scores cover the others."]
+
+    def until(s) -> str:
+        t = s.get("held_out_until_s")
+        return "not predicted" if t is None or t <= 0 else f"predicted up to {t:.4g} s"
+
+    names = ", ".join(f"{s['record']} ({until(s)}; beyond by {100 * s['beyond_others_range']:.0f} % of the input "
+                      "span)" for s in skipped)
+    return ["", f"Held out in part: {names}. A record that goes beyond the other identification records' input "
+                f"range by more than {100 * BEYOND_RANGE:.0f} % of the span is predicted only up to where it first "
+                "does (a fit on the others would extrapolate beyond); it takes part whole in every other fold's fit, "
+                "and the held-out scores cover the rows predicted."]
 
 
 REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters

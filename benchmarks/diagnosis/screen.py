@@ -72,15 +72,33 @@ def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
     return out
 
 
-def held_out_targets(inputs: Sequence[np.ndarray]) -> list[bool]:
-    """Which records the held-out test predicts (``selection.Folds``): not one whose input goes beyond the other
-    records' range by more than ``BEYOND_RANGE`` of the span. Fitted on the others, the base model would
-    extrapolate there (weights of its hysteresis operators that only that record moves), and the comparison
-    would measure that, not the cause. The record still takes part in every other fold's fit. All records are
-    targets if fewer than two would be."""
+def first_excursion(u: np.ndarray, lo: float, hi: float, margin: float) -> int | None:
+    """The first sample of ``u`` beyond [lo - margin, hi + margin] (None if none is)."""
+    beyond = np.flatnonzero((u > hi + margin) | (u < lo - margin))
+    return int(beyond[0]) if beyond.size else None
+
+
+def held_out_windows(inputs: Sequence[np.ndarray]) -> list[int]:
+    """How many samples of each record, from its start, the held-out test predicts (``selection.Folds``):
+    all of a record whose input stays within the other records' range (to ``BEYOND_RANGE`` of the span), and
+    of one that leaves it, the samples before it first does. Fitted on the others, the base model would
+    extrapolate beyond (weights of its hysteresis operators that only that record moves), and the comparison
+    would measure that, not the cause. The record still takes part whole in every other fold's fit. All
+    records are predicted whole if fewer than two stay within."""
+    sizes = [int(u.size) for u in inputs]
     beyond = beyond_others(inputs)
-    targets = [b <= BEYOND_RANGE for b in beyond]
-    return targets if sum(targets) >= 2 else [True] * len(inputs)
+    if sum(b <= BEYOND_RANGE for b in beyond) < 2:
+        return sizes
+    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
+    margin = BEYOND_RANGE * (max(hi) - min(lo))
+    out = []
+    for m, u in enumerate(inputs):
+        k = None
+        if beyond[m] > BEYOND_RANGE:
+            others = [j for j in range(len(inputs)) if j != m]
+            k = first_excursion(u, min(lo[j] for j in others), max(hi[j] for j in others), margin)
+        out.append(sizes[m] if k is None else k)
+    return out
 
 
 def lag_shared(z: Mapping[str, float]) -> dict:
@@ -152,9 +170,13 @@ class Screen:
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
         inputs = [p.record.u for p in self.parts]
-        self.held_out = held_out_targets(inputs)  # per record: a held-out target
+        windows = held_out_windows(inputs)
+        self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, windows)]  # predicted rows
+        self.held_out = [k > 0 for k in self.scored_rows]  # per record: a held-out target
+        self.held_out_until = [w * p.record.dt if w < p.record.u.size else None  # s; None: whole
+                               for p, w in zip(self.parts, windows)]
         self.beyond_range = beyond_others(inputs)
-        self.n_held_out_rows = sum(p.rows.size for p, t in zip(self.parts, self.held_out) if t)
+        self.n_held_out_rows = sum(self.scored_rows)
         # the causes' time scale
         self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
         self.component_scale = replace(scale, time=self.drive_time)

@@ -23,9 +23,10 @@ predicted by a fit that did not see its record):
 * the folds (records) it improves.
 
 A record whose input goes beyond the other identification records' range
-(``screen.held_out_targets``) is left out of the score: it is fitted in
-every other fold, but the base model fitted without it would extrapolate
-there, so its out-of-fold residuals are not a test of the cause.
+(``screen.held_out_windows``) is scored only up to where it first does:
+it is fitted whole in every other fold, but the base model fitted without
+it would extrapolate beyond, so its out-of-fold residuals there are not a
+test of the cause.
 
 Decision rule (``decide``):
 
@@ -107,23 +108,33 @@ Z_CONFIRM = float(stats.norm.isf(0.05))  # validation: the gain beyond the recor
 @dataclass
 class Folds:
     """Leave-one-record-out on the screen's stacked rows. Every record is left out once (fold m: record m);
-    only the ``scored`` ones are held-out targets (``Screen.held_out``): a record whose input goes beyond the
-    other records' range is predicted by extrapolation, and its out-of-fold residual is set to zero, so that
-    every sum, block and fold count below covers the scored records alone."""
+    only its first ``scored[m]`` rows are held-out targets (``Screen.scored_rows``): past where a record's
+    input first goes beyond the other records' range it is predicted by extrapolation, and its out-of-fold
+    residual there (the ``tail``) is set to zero, so that every sum, block and fold count below covers the
+    scored rows alone. A record with no scored row is no target."""
 
     starts: np.ndarray  # row offsets of the records, len M + 1
-    scored: tuple | None = None  # per record: a held-out target (None: every record)
+    scored: tuple | None = None  # per record: its scored rows, from its start (None: every row)
 
     @classmethod
     def of(cls, screen) -> "Folds":
-        return cls(np.cumsum([0] + [p.rows.size for p in screen.parts]), tuple(screen.held_out))
+        return cls(np.cumsum([0] + [p.rows.size for p in screen.parts]), tuple(screen.scored_rows))
 
     @property
     def n(self) -> int:
         return self.starts.size - 1
 
     def is_scored(self, m: int) -> bool:
-        return self.scored is None or bool(self.scored[m])
+        return self.scored is None or self.scored[m] > 0
+
+    def head(self, m: int) -> slice:
+        """Record m's scored rows."""
+        end = self.starts[m + 1] if self.scored is None else self.starts[m] + self.scored[m]
+        return slice(int(self.starts[m]), int(end))
+
+    def tail(self, m: int) -> slice:
+        """Record m's rows after its scored ones (empty if all are scored)."""
+        return slice(self.head(m).stop, int(self.starts[m + 1]))
 
     @property
     def n_scored(self) -> int:
@@ -138,7 +149,8 @@ class Folds:
         out = []
         for m in range(self.n):
             if self.is_scored(m):
-                out += [b for b in np.array_split(np.arange(self.starts[m], self.starts[m + 1]), N_BLOCKS) if b.size]
+                h = self.head(m)
+                out += [b for b in np.array_split(np.arange(h.start, h.stop), N_BLOCKS) if b.size]
         return out
 
     def without(self, m: int) -> "Folds":
@@ -158,8 +170,8 @@ def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
         test = folds.test(m)
         A = design(m)
         theta, res = screen.solve(A[~test], screen.y[~test])
-        if folds.is_scored(m):
-            e[test] = screen.y[test] - A[test] @ theta
+        e[test] = screen.y[test] - A[test] @ theta
+        e[folds.tail(m)] = 0.0
         if train_residuals is not None:
             train_residuals.append(res)
     return e
@@ -245,8 +257,8 @@ def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
         train = ~test & unclipped(screen, screen.y, side, level)
         theta, _ = screen.solve(A[train], screen.y[train])
         clip = np.minimum if side == "upper" else np.maximum
-        if folds.is_scored(m):
-            e[test] = screen.y[test] - clip(A[test] @ theta, level)
+        e[test] = screen.y[test] - clip(A[test] @ theta, level)
+        e[folds.tail(m)] = 0.0
         if train_residuals is not None:
             train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
     return e, fold_est
