@@ -163,7 +163,8 @@ def test_a_creep_on_multisines_is_named_when_the_widest_record_is_predicted_only
     assert d.cause == "creep", d.verdict.reason
     assert d.chosen.heldout["n_folds"] == 3
     assert parameter_errors(truth, "creep", d.parameters)["drift"] <= 0.25
-    assert any("predicted up to 12.15 s" in line for line in not_held_out_lines(d))
+    assert skipped[0]["predicted_share"] == pytest.approx(12.152 / 15.0, abs=1e-3)
+    assert any("predicted up to t = 12.15 s, 81 % of it" in line for line in not_held_out_lines(d))
 
 
 def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_others_range():
@@ -179,3 +180,13 @@ def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_ot
     also = {c.cause: c for c in d.also}
     assert "resonance" in also
     assert parameter_errors(truth, "resonance", also["resonance"].estimates)["natural_frequency_hz"] <= 0.25
+
+
+def test_the_report_names_a_record_held_out_in_part_with_its_own_time_or_not_predicted():
+    d = SimpleNamespace(settings={"not_held_out": [
+        {"record": "a.csv", "beyond_others_range": 0.093, "predicted_share": 0.5, "held_out_until_s": 107.5},
+        {"record": "b.csv", "beyond_others_range": 0.2, "predicted_share": 0.0, "held_out_until_s": None}]})
+    text = " ".join(not_held_out_lines(d))
+    assert "a.csv (predicted up to t = 107.5 s, 50 % of it; beyond by 9 % of the input span)" in text
+    assert "b.csv (not predicted; beyond by 20 % of the input span)" in text
+    assert not_held_out_lines(SimpleNamespace(settings={})) == []

@@ -339,6 +339,18 @@ def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
                                      **suggest(diag.screen, c, other)})
 
 
+def _held_out_in_part(screen) -> list[dict]:
+    """The records the held-out test predicts only up to their first excursion beyond the others' input range:
+    that time on the record's own clock (None: not predicted at all) and the share of its samples before it."""
+    out = []
+    for p, w, b in zip(screen.parts, screen.held_out_windows, screen.beyond_range):
+        r = p.record
+        if w < r.u.size:
+            out.append({"record": r.file, "beyond_others_range": b, "predicted_share": w / r.u.size,
+                        "held_out_until_s": float(r.t[w]) if w > 0 else None})
+    return out
+
+
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
              extend: bool = True, experiments: bool = True, segments: int | None = None,
@@ -421,11 +433,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                                "explain_share": EXPLAIN_SHARE,
                                "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
-                               "not_held_out": [{"record": p.record.file, "beyond_others_range": b,
-                                                 "held_out_until_s": until}
-                                                for p, until, b in zip(screen.parts, screen.held_out_until,
-                                                                       screen.beyond_range)
-                                                if until is not None],
+                               "not_held_out": _held_out_in_part(screen),
                                "thorough": thorough})
     t1 = time.perf_counter()
     if experiments and verdict.chosen is not None:

@@ -259,7 +259,9 @@ def not_held_out_lines(d) -> list[str]:
 
     def until(s) -> str:
         t = s.get("held_out_until_s")
-        return "not predicted" if t is None or t <= 0 else f"predicted up to {t:.4g} s"
+        share = s.get("predicted_share")
+        of = f", {100 * share:.0f} % of it" if share is not None else ""
+        return "not predicted" if t is None else f"predicted up to t = {t:.4g} s{of}"
 
     names = ", ".join(f"{s['record']} ({until(s)}; beyond by {100 * s['beyond_others_range']:.0f} % of the input "
                       "span)" for s in skipped)

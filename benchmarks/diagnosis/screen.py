@@ -173,8 +173,7 @@ class Screen:
         windows = held_out_windows(inputs)
         self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, windows)]  # predicted rows
         self.held_out = [k > 0 for k in self.scored_rows]  # per record: a held-out target
-        self.held_out_until = [w * p.record.dt if w < p.record.u.size else None  # s; None: whole
-                               for p, w in zip(self.parts, windows)]
+        self.held_out_windows = windows  # per record: samples predicted from its start
         self.beyond_range = beyond_others(inputs)
         self.n_held_out_rows = sum(self.scored_rows)
         # the causes' time scale
