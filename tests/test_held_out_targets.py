@@ -88,7 +88,8 @@ def test_a_record_beyond_the_others_range_is_predicted_up_to_where_it_first_leav
 @given(st.lists(st.integers(0, 500), min_size=3, max_size=3), st.integers(0, 10_000))
 def test_scores_over_records_predicted_in_part_equal_scores_over_the_predicted_rows_alone(scored, seed):
     """The held-out score with records predicted only up to some row (their out-of-fold residuals after it
-    zero) is the score of the predicted rows alone: gain, block z, folds improved and the record count."""
+    zero) is the score of the predicted rows alone: gain, block z, folds improved, the record count, and whether
+    the evidence rests on one record (``carried_by_one_record``)."""
     rng = np.random.default_rng(seed)
     sizes = [400, 300, 500]
     scored = [min(k, n) for k, n in zip(scored, sizes)]
@@ -98,7 +99,8 @@ def test_scores_over_records_predicted_in_part_equal_scores_over_the_predicted_r
     for m in range(3):
         kept[folds.head(m)] = True
         assert folds.tail(m).stop - folds.tail(m).start == sizes[m] - scored[m]
-    e_ref, e_c = rng.normal(0, 1.0, starts[-1]), rng.normal(0, 0.8, starts[-1])
+    e_ref = rng.normal(0, 1.0, starts[-1])
+    e_c = np.concatenate([rng.normal(0, rng.choice([0.5, 0.95, 1.05]), n) for n in sizes])  # some records better
     zeroed = [np.where(kept, e, 0.0) for e in (e_ref, e_c)]
     got = score(folds, *zeroed)
     alone = [k for k in scored if k > 0]
@@ -106,6 +108,8 @@ def test_scores_over_records_predicted_in_part_equal_scores_over_the_predicted_r
     assert got["n_folds"] == want["n_folds"] == len(alone)
     for k in ("gain", "z", "folds_improved", "sse"):
         assert math.isclose(got[k], want[k], rel_tol=1e-12, abs_tol=1e-12), k
+    assert carried_by_one_record(folds, *zeroed) == carried_by_one_record(
+        Folds(np.cumsum([0] + alone)), e_ref[kept], e_c[kept])
     if len(alone) < 3:  # nothing left to check without one record
         assert not carried_by_one_record(folds, *zeroed)
 
