@@ -172,7 +172,6 @@ class Screen:
         inputs = [p.record.u for p in self.parts]
         windows = held_out_windows(inputs)
         self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, windows)]  # predicted rows
-        self.held_out = [k > 0 for k in self.scored_rows]  # per record: a held-out target
         self.held_out_windows = windows  # per record: samples predicted from its start
         self.beyond_range = beyond_others(inputs)
         self.n_held_out_rows = sum(self.scored_rows)
@@ -199,6 +198,11 @@ class Screen:
                               base_hyperparameters=self.base.get_hyperparameters(), **hyper)
             self._extension_cache[key] = m
         return m
+
+    @property
+    def held_out(self) -> list[bool]:
+        """Per record: a held-out target (some of its rows predicted)."""
+        return [k > 0 for k in self.scored_rows]
 
     @property
     def creep_min(self) -> float:
