@@ -5,27 +5,33 @@ input, so its phase relative to a record's start is arbitrary: the fit has
 one frequency and one (sin, cos) pair per record. Candidate frequencies are
 the most prominent peaks of the pooled incoherent spectrum of the null's
 residual (records' powers added), harmonics common to every drive left out,
-each refined by a line search. On a held-out record the frequency and the
-amplitude come from the other records and only the phase is fitted there
-on top of the base model's own held-out prediction (``on_top``): a disturbance
-does not change what the input drives, so the base is fitted on the other
-records alone on both sides of the comparison, and a line is judged only by
-what it removes from each held-out record. Scored with its own parameters
-refitted per fold, the frequency too is searched afresh on the other records
-(``fold_frequencies``), so a held-out record takes no part in choosing the
-frequency it is scored at; so too on top of another named cause, whose
-residual on the other records then comes from its fit on them alone. A fold
-chooses its frequency the way it is scored: each of its records predicted with
-the amplitude of the others, only the phase its own (``loo_rss``), so a misfit
-at a harmonic of some drives, strong in one record and weak in another, loses
-to a line of one amplitude. So does the fit on every identification record,
+each refined by a line search. The line is estimated jointly with the part it
+sits on (the base, or a named cause; ``JointLine``): fitted on the part's
+residual alone, a line close to a harmonic of the drive is partly taken up by
+the part first, so its amplitude came out low and its frequency pushed off the
+harmonic (before session 40). On a held-out record the frequency and the
+amplitude come from the other records, so estimated, and only the phase is
+fitted there, on top of the part's own held-out prediction (``joint_line``):
+a disturbance does not change what the input drives, so the part is fitted on
+the other records alone on both sides of the comparison, and a line is judged
+only by what it removes from each held-out record (solved together with the
+line, the part's prediction of a record it predicts poorly moved by more than
+the line removed: session 25). Scored with its own parameters refitted per
+fold, the frequency too is searched afresh on the other records, so a held-out
+record takes no part in choosing the frequency it is scored at. A fold chooses
+its frequency the way it is scored: each of its records predicted with the
+amplitude of the others, only the phase its own (``loo_rss``), so a misfit at
+a harmonic of some drives, strong in one record and weak in another, loses to
+a line of one amplitude. So does the fit on every identification record,
 whose frequency is the one reported. The validation records confirm it the
-same way.
+same way. On top of a clip (not linear) the line is fitted on its residual
+(``fold_frequencies``, ``on_top``).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -33,6 +39,7 @@ from scipy.optimize import minimize_scalar
 
 from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
+from .screen import column_basis
 
 LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
 
@@ -106,11 +113,10 @@ def best_frequency(screen, rss_of: Callable[[float], float], n_peaks: int = 5,
 
 def fit_interference(screen, n_peaks: int = 5) -> Candidate:
     """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
-    peaks, each refined by a line search of ``loo_rss`` on the null's residual (one amplitude for every
-    record, the phase per record)."""
-    residuals = np.split(screen.null_residual, np.cumsum([p.rows.size for p in screen.parts])[:-1])
-    times = [p.rows * p.record.dt for p in screen.parts]
-    return interference_candidate(screen, best_frequency(screen, lambda g: loo_rss(residuals, times, g), n_peaks))
+    peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
+    line (``JointLine``; one amplitude for every record, the phase per record)."""
+    line = JointLine(screen, screen.design(screen.base, screen.base_nl), range(len(screen.parts)))
+    return interference_candidate(screen, best_frequency(screen, line.loo_rss, n_peaks))
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -172,14 +178,6 @@ def sinusoid_fit(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> np
 def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:
     """Least-squares amplitude of a sinusoid of this frequency in ``residual`` (phase free)."""
     return float(math.hypot(*sinusoid_fit(residual, t, frequency_hz)))
-
-
-def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> np.ndarray:
-    """Fold ``m``'s training residual with a sinusoid of this frequency fitted in each of its records."""
-    times = [p.rows * p.record.dt for k, p in enumerate(screen.parts) if k != m]
-    parts = training_parts(screen, m, train_residual)
-    out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
-    return np.concatenate(out)
 
 
 def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:
@@ -261,3 +259,106 @@ def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequ
     amps = [fold_amplitude(screen, m, r, f) for m, (r, f) in enumerate(zip(train_residuals, frequencies_hz))]
     return {"frequency_hz": float(np.mean(frequencies_hz)), "amplitude": float(np.sqrt(np.mean(np.square(amps)))),
             "phase_rad_per_record": phases, "fold_frequencies_hz": [float(f) for f in frequencies_hz]}
+
+
+class JointLine:
+    """A part (its stacked design ``A``) fitted jointly with a line, one (sin, cos) pair per record, on the rows
+    of ``records``. Fitted on the part's residual alone, a line close to a harmonic of the drive is partly
+    taken up by the part first (a hysteresis model makes harmonics of its drive), so the line's amplitude comes
+    out low and its frequency is pushed away from the harmonic; fitted jointly, the part's columns take only
+    what the line does not. The line's columns are projected off the part's (``column_basis``)."""
+
+    def __init__(self, screen, A: np.ndarray, records: Sequence[int]):
+        self.screen, self.records = screen, list(records)
+        starts = np.cumsum([0] + [p.rows.size for p in screen.parts])
+        self.rows = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in self.records])
+        self.A, self.y = A[self.rows], screen.y[self.rows]
+        self.Q = column_basis(self.A)
+        self.r0 = self.y - self.Q @ (self.Q.T @ self.y)
+        self.times = [screen.parts[k].rows * screen.parts[k].record.dt for k in self.records]
+        self.cuts = np.cumsum([t.size for t in self.times])[:-1]
+
+    def columns(self, frequency_hz: float) -> np.ndarray:
+        S = np.zeros((self.y.size, 2 * len(self.times)))
+        for j, (t, a) in enumerate(zip(self.times, np.concatenate([[0], self.cuts]))):
+            S[a:a + t.size, 2 * j:2 * j + 2] = sinusoid_columns(t, frequency_hz)
+        return S
+
+    def fit(self, frequency_hz: float) -> tuple[np.ndarray, np.ndarray]:
+        """(the line on these rows, the residual of the part alone: the line left in)."""
+        S = self.columns(frequency_hz)
+        P = self.Q @ (self.Q.T @ S)
+        c = np.linalg.lstsq(S - P, self.r0, rcond=None)[0]
+        return S @ c, self.r0 + P @ c
+
+    def parts(self, frequency_hz: float) -> list[np.ndarray]:
+        """The part's residual with the line left in, one array per record."""
+        return np.split(self.fit(frequency_hz)[1], self.cuts)
+
+    def loo_rss(self, frequency_hz: float) -> float:
+        return loo_rss(self.parts(frequency_hz), self.times, frequency_hz)
+
+    def amplitude(self, frequency_hz: float) -> float:
+        """The line's amplitude: rms over the records of each one's (its own phase)."""
+        amp = [amplitude_at(r, t, frequency_hz) for r, t in zip(self.parts(frequency_hz), self.times)]
+        return float(np.sqrt(np.mean(np.square(amp))))
+
+
+@dataclass
+class FoldLines:
+    """A line estimated jointly with a part on each fold's training records (``JointLine``) and scored on the
+    left-out record, its phase fitted there: ``errors`` are the out-of-fold residuals (the line removed from
+    each held-out record's scored rows), ``part_errors`` the part's own (fitted without the line),
+    ``train_residuals`` per fold the joint fit's residual on its training rows, ``phases`` each scored record's
+    phase from its own start."""
+
+    errors: np.ndarray
+    part_errors: np.ndarray
+    frequencies_hz: list
+    amplitudes: list
+    train_residuals: list
+    phases: list
+
+    def estimates(self) -> dict:
+        """What the line scored stands for (as ``on_top_estimates``): the folds' mean frequency, the rms of
+        their amplitudes, each held-out record's phase from its own start."""
+        return {"frequency_hz": float(np.mean(self.frequencies_hz)),
+                "amplitude": float(np.sqrt(np.mean(np.square(self.amplitudes)))),
+                "phase_rad_per_record": list(self.phases),
+                "fold_frequencies_hz": [float(f) for f in self.frequencies_hz]}
+
+
+def joint_line(screen, folds, design: Callable[[int], np.ndarray], frequencies_hz: Sequence[float] | None = None,
+               n_peaks: int = 5) -> FoldLines:
+    """Out-of-fold residuals of a part (``design(m)``: fold m's stacked design, all rows) with a line: on each
+    fold's training records the part and the line are fitted jointly, the frequency (unless given, one per
+    fold) chosen there as the fit on every record chooses it (``best_frequency`` of ``JointLine.loo_rss``);
+    the left-out record is predicted by the part fitted on the training records alone, as in its own held-out
+    score, and the line, with the training records' amplitude, takes its phase from the record's scored rows
+    (``phase_fitted``). ``train_residuals``: the joint fit's."""
+    n = len(screen.parts)
+    e, part_e = np.zeros(screen.n), np.zeros(screen.n)
+    freqs, amps, train, phases = [], [], [], []
+    for m in range(n):
+        others = [k for k in range(n) if k != m]
+        A = design(m)
+        line = JointLine(screen, A, others)
+        f = float(frequencies_hz[m]) if frequencies_hz is not None else best_frequency(
+            screen, line.loo_rss, n_peaks, others)
+        fitted, with_line = line.fit(f)
+        theta, _ = screen.solve(line.A, line.y)  # the part alone: a disturbance does not change what is driven
+        test = folds.test(m)
+        part_e[test] = screen.y[test] - A[test] @ theta
+        part_e[folds.tail(m)] = 0.0
+        a = line.amplitude(f)
+        e[test] = part_e[test]
+        if folds.is_scored(m):
+            rows, t = folds.head(m), screen.parts[m].rows * screen.parts[m].record.dt
+            t = t[:rows.stop - rows.start]
+            e[rows] = part_e[rows] - phase_fitted(part_e[rows], t, f, a)
+            s, c = sinusoid_fit(part_e[rows], t, f)
+            phases.append(float(math.atan2(c, s)))
+        freqs.append(f)
+        amps.append(a)
+        train.append(with_line - fitted)
+    return FoldLines(e, part_e, freqs, amps, train, phases)

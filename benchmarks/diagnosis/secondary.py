@@ -8,9 +8,11 @@ line's frequency) refitted on each fold's training records, and judged on
 that score: a secondary cause too is named only on records that took no
 part in choosing its parameters, and the spread of its fold estimates is
 their uncertainty. An interference on top takes its frequency per fold from
-the other records (``interference.fold_frequencies``), and is one line only
-if the folds agree within their resolution; the causes tried on top of a
-named interference take its frequency per fold too. The backward step names a new cause,
+the other records, fitted there jointly with what is kept
+(``interference.joint_line``; on top of a clip, on its residual:
+``interference.fold_frequencies``), and is one line only if the folds agree
+within their resolution; the causes tried on top of a named interference take
+its frequency per fold too. The backward step names a new cause,
 so it scores as the named cause's finalists are (``search.run_screen``):
 every own nonlinear parameter refitted per fold.
 """
@@ -23,7 +25,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .candidates import CREEP_PERIODS, Candidate
-from .interference import fold_frequencies, fold_tolerance_hz, frequencies_agree, on_top, on_top_estimates
+from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top,
+                           on_top_estimates)
 from .saturation import clip_on_top
 from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
                         carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, own_nonlinear,
@@ -54,30 +57,38 @@ def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
 class _Kept:
     """What is kept so far: the separable part (None: the base alone), its held-out errors with its
     parameters held (per fold also its residual on the training rows, fitted on them alone), an
-    interference's frequency per fold (None: no line kept), and the reference the next cause is scored
-    against (what is kept predicts, the line included)."""
+    interference's frequency per fold (None: no line kept), the reference the next cause is scored
+    against (what is kept predicts, the line included), and per fold the stacked design of the separable part
+    (None: a clip, not linear)."""
 
     part: Candidate | None
     errors: object
     train: list
     reference: object
     frequency: list | None = None
+    designs: list | None = None
 
-    def with_line(self, screen, folds, part_e, part_train):
-        """A part's held-out errors with the kept line on top of it (if one is kept)."""
-        return on_top(screen, folds, part_e, part_train, self.frequency) if self.frequency is not None else part_e
+    def with_line(self, screen, folds, part_e, part_train, part_designs=None):
+        """A part's held-out errors with the kept line (if one is kept): fitted jointly with the part on each
+        fold's training records (``joint_line``), or on top of a clip's residual."""
+        if self.frequency is None:
+            return part_e
+        if part_designs:
+            return joint_line(screen, folds, lambda m: part_designs[m], self.frequency).errors
+        return on_top(screen, folds, part_e, part_train, self.frequency)
 
 
 def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
-    train = []
+    train, designs = [], []
     if chosen.cause == "interference":
+        base = screen.design(screen.base, screen.base_nl)
+        lines = joint_line(screen, folds, lambda m: base)
         e = heldout_null(screen, folds, train)
-        frequency = fold_frequencies(screen, train)
-        return _Kept(None, e, train, on_top(screen, folds, e, train, frequency), frequency)
-    e = heldout_errors(screen, folds, chosen, train_residuals=train)[0]
-    return _Kept(chosen, e, train, e)
+        return _Kept(None, e, train, lines.errors, lines.frequencies_hz, [base] * folds.n)
+    e = heldout_errors(screen, folds, chosen, train_residuals=train, designs=designs)[0]
+    return _Kept(chosen, e, train, e, designs=designs or None)
 
 
 def _folds_disagree(screen, fold_f: list) -> str:
@@ -92,13 +103,17 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
     """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
     records, from what is kept fitted on them alone, and checked at the frequencies scored."""
     comp = copy.copy(c)
-    fold_f = fold_frequencies(screen, kept.train)  # each fold's without its held-out record
-    e = on_top(screen, folds, kept.errors, kept.train, fold_f)
-    comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)  # what was scored
+    if kept.designs:  # each fold's frequency chosen without its held-out record
+        lines = joint_line(screen, folds, lambda m: kept.designs[m])
+        fold_f, e, comp.estimates = lines.frequencies_hz, lines.errors, lines.estimates()  # what was scored
+    else:
+        fold_f = fold_frequencies(screen, kept.train)
+        e = on_top(screen, folds, kept.errors, kept.train, fold_f)
+        comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)
     comp.limit = screen.limit_of("interference", comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
-    return comp, kept.part, kept.errors, kept.train, e, e
+    return comp, kept.part, kept.errors, kept.train, e, e, kept.designs
 
 
 def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
@@ -110,19 +125,19 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
         comp = copy.copy(c) if kept.part is None else screen.composite(kept.part, c, search=fresh)
     if comp is None:
         return None
-    part_train = []
-    part_e = heldout_errors(screen, folds, comp, train_residuals=part_train)[0]
-    e = judged = kept.with_line(screen, folds, part_e, part_train)
+    part_train, part_designs = [], []
+    part_e = heldout_errors(screen, folds, comp, train_residuals=part_train, designs=part_designs)[0]
+    e = judged = kept.with_line(screen, folds, part_e, part_train, part_designs)
     flags = bound_flags(screen, comp) if kept.part is not None else {"at_bound": [], "open_ended": []}
     comp.heldout = {**score(folds, kept.reference, e), **flags, "refit_per_fold": False}
     if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
-        refit_train = []
+        refit_train, refit_designs = [], []
         refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
-                                           only=added_names(screen, kept.part, comp))
-        judged = kept.with_line(screen, folds, refit_e, refit_train)
+                                           only=added_names(screen, kept.part, comp), designs=refit_designs)
+        judged = kept.with_line(screen, folds, refit_e, refit_train, refit_designs)
         comp.heldout = {**score(folds, kept.reference, judged), **flags, "refit_per_fold": True}
         comp.uncertainty = fold_uncertainty(screen, fold_est)
-    return comp, comp, part_e, part_train, e, judged
+    return comp, comp, part_e, part_train, e, judged, part_designs or None
 
 
 def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[Candidate]]:
@@ -184,12 +199,12 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
         pick, alike = _choose(screen, folds, tried, kept.reference)
         if pick is None:
             return
-        comp, part, part_e, part_train, e, _ = pick
+        comp, part, part_e, part_train, e, _, designs = pick
         diag.also_alternatives.append((comp, alike))
         diag.also.append(comp)
         pool.pop(comp.cause)
         kept = _Kept(part, part_e, part_train, e,
-                     comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency)
+                     comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency, designs)
         if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
             pool = {k: v for k, v in pool.items() if k == "interference"}
 

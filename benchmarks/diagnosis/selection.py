@@ -89,7 +89,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
-from .interference import fold_amplitude, fold_frequencies, lines_removed, on_top
+from .interference import joint_line
 from .saturation import columns_of, fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
@@ -187,27 +187,26 @@ def own_nonlinear(screen, c: Candidate) -> list[str]:
 
 
 def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
-                   train_residuals: list | None = None, only: Sequence[str] | None = None
-                   ) -> tuple[np.ndarray, list[dict]]:
+                   train_residuals: list | None = None, only: Sequence[str] | None = None,
+                   designs: list | None = None) -> tuple[np.ndarray, list[dict]]:
     """Out-of-fold residuals of a candidate; with ``refit`` its own nonlinear parameters (``only`` these, if
     given) are refitted on each fold's training rows (returns the fold estimates too). ``train_residuals``: a
-    list that receives, per fold, the fit's residual on its training rows."""
+    list that receives, per fold, the fit's residual on its training rows; ``designs``: one that receives, per
+    fold, the stacked design it was solved with (not for a clip or an interference: not linear)."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":  # a disturbance: a line on top of the base's own held-out prediction
+    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
-        base_train = []
-        e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
-        f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
-        amps = [fold_amplitude(screen, m, base_train[m], f[m]) for m in range(folds.n)]
-        fold_est = [{"interference_frequency": fm, "amplitude": a} if refit else {"amplitude": a}
-                    for fm, a in zip(f, amps)]
+        lines = joint_line(screen, folds, lambda m: base_rows,
+                           None if refit else [nl["interference_frequency"]] * folds.n)
+        fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
+                    for f, a in zip(lines.frequencies_hz, lines.amplitudes)]
         if train_residuals is not None:
-            train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
-        return on_top(screen, folds, e_base, base_train, f), fold_est
+            train_residuals.extend(lines.train_residuals)
+        return lines.errors, fold_est
     if c.cause == "saturation":
         return _heldout_saturation(screen, folds, c, refit, train_residuals)
     names = [n for n in own_nonlinear(screen, c) if only is None or n in only] if refit else []
-    fold_est, designs = [], []
+    fold_est, fold_nl = [], []
     for m in range(folds.n):
         z = dict(nl)
         if names:
@@ -222,11 +221,15 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
             else:
                 z = screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV, residual=residual)
             fold_est.append({n: float(z[n]) for n in names})
-        designs.append(z)
+        fold_nl.append(z)
     if not names:
         A = screen.design(c.model, nl)
-        return out_of_fold(screen, folds, lambda m: A, train_residuals), fold_est
-    return out_of_fold(screen, folds, lambda m: screen.design(c.model, designs[m]), train_residuals), fold_est
+        mats = [A] * folds.n
+    else:
+        mats = [screen.design(c.model, z) for z in fold_nl]
+    if designs is not None:
+        designs.extend(mats)
+    return out_of_fold(screen, folds, lambda m: mats[m], train_residuals), fold_est
 
 
 def clipped_columns(screen, c: Candidate) -> np.ndarray:
