@@ -269,13 +269,12 @@ class JointLine:
     what the line does not. The line's columns are projected off the part's (``column_basis``)."""
 
     def __init__(self, screen, A: np.ndarray, records: Sequence[int]):
-        self.screen, self.records = screen, list(records)
         starts = np.cumsum([0] + [p.rows.size for p in screen.parts])
-        self.rows = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in self.records])
-        self.A, self.y = A[self.rows], screen.y[self.rows]
+        rows = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in records])
+        self.A, self.y = A[rows], screen.y[rows]
         self.Q = column_basis(self.A)
         self.r0 = self.y - self.Q @ (self.Q.T @ self.y)
-        self.times = [screen.parts[k].rows * screen.parts[k].record.dt for k in self.records]
+        self.times = [screen.parts[k].rows * screen.parts[k].record.dt for k in records]
         self.cuts = np.cumsum([t.size for t in self.times])[:-1]
 
     def columns(self, frequency_hz: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agre
                            on_top_estimates)
 from .saturation import clip_on_top
 from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
-                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, heldout_null, own_nonlinear,
+                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, own_nonlinear,
                         passes, promising, score, share_of_misfit)
 
 MAX_SECONDARY = 4  # other causes tried on top of the named one
@@ -82,11 +82,11 @@ def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
     train, designs = [], []
-    if chosen.cause == "interference":
+    if chosen.cause == "interference":  # the base's errors and training residuals: those of its joint fit
         base = screen.design(screen.base, screen.base_nl)
         lines = joint_line(screen, folds, lambda m: base)
-        e = heldout_null(screen, folds, train)
-        return _Kept(None, e, train, lines.errors, lines.frequencies_hz, [base] * folds.n)
+        return _Kept(None, lines.part_errors, lines.train_residuals, lines.errors, lines.frequencies_hz,
+                     [base] * folds.n)
     e = heldout_errors(screen, folds, chosen, train_residuals=train, designs=designs)[0]
     return _Kept(chosen, e, train, e, designs=designs or None)
 
