@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
+from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED
 from hysbench.benchmarks.diagnosis.interference import JointLine, fold_frequencies
 from hysbench.benchmarks.diagnosis.planted import piezo_available, planted_case
 from hysbench.benchmarks.diagnosis.selection import Folds, heldout_errors, heldout_null
@@ -93,3 +94,45 @@ def test_a_line_near_a_drive_harmonic_keeps_its_amplitude_in_every_fold():
         assert est["amplitude"] == pytest.approx(planted["amplitude"], rel=0.5)
     assert d.cause == "interference", d.verdict.reason
     assert parameter_errors(truth, "interference", d.parameters)["frequency_hz"] < 0.01
+
+
+def _piezo_dead_zone():
+    if not piezo_available():
+        pytest.skip("the accuracy benchmark's piezo recording is not present")
+    return planted_case(("dead-zone",), "piezo", "sines", 4200085)  # seed 42, case 85
+
+
+def test_a_line_locked_to_the_drive_is_scored_on_the_residual_of_the_base_fitted_alone():
+    """Seed 42 case 85: a dead zone (outside the vocabulary) on the piezo recording. The whole-record line sits
+    at a drive harmonic with one phase in both records: no disturbance but the base's own misfit there, which
+    shows as a rival of the partial clip (``selection.not_specific``). Its held-out residual against a slow
+    reference: per fold the base fitted on the other record alone (``screen.solve``), the line's amplitude the
+    rms of that record's amplitude at the frequency in the base's training residual (numpy lstsq of a sin and a
+    cos), its phase fitted on the held-out record's scored rows. With session 40's joint line the base took up
+    part of its own misfit, the line understated it, and the clip was named (wrong); so scored, the misfit
+    locked to the drive predicts about as well and the verdict is `unexplained`."""
+    ds, _ = _piezo_dead_zone()
+    d = diagnose(ds, seed=0, experiments=False)
+    s, folds = d.screen, Folds.of(d.screen)
+    c = next(c for c in d.candidates if c.cause == "interference")
+    assert c.limit == DRIVE_LOCKED
+    f = c.params["interference_frequency"]
+    A = s.design(s.base, {k: c.params[k] for k in s.base_nl_names})
+    starts = np.cumsum([0] + [p.rows.size for p in s.parts])
+    times = [p.rows * p.record.dt for p in s.parts]
+    expected = np.zeros(s.n)
+    for m in range(folds.n):
+        test = folds.test(m)
+        theta, _ = s.solve(A[~test], s.y[~test])
+        residual = s.y - A @ theta
+        amps = [math.hypot(*np.linalg.lstsq(_sinusoid(times[k], f), residual[starts[k]:starts[k + 1]], rcond=None)[0])
+                for k in range(folds.n) if k != m]
+        a = math.sqrt(np.mean(np.square(amps)))
+        rows = folds.head(m)
+        r, t = residual[rows], times[m][:rows.stop - rows.start]
+        ab = np.linalg.lstsq(_sinusoid(t, f), r, rcond=None)[0]
+        expected[rows] = r - _sinusoid(t, f) @ (a * ab / math.hypot(*ab))
+    got, _ = heldout_errors(s, folds, c)
+    assert np.allclose(got, expected, rtol=0, atol=1e-9 * np.abs(s.y).max())
+    assert d.cause == "unexplained", d.verdict.reason
+    assert "a misfit locked to the drive" in d.verdict.reason

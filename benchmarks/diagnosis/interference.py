@@ -25,7 +25,11 @@ a harmonic of some drives, strong in one record and weak in another, loses to
 a line of one amplitude. So does the fit on every identification record,
 whose frequency is the one reported. The validation records confirm it the
 same way. On top of a clip (not linear) the line is fitted on its residual
-(``fold_frequencies``, ``on_top``).
+(``fold_frequencies``, ``on_top``), and so is a line locked to the drive (no
+disturbance: the base's own misfit at a harmonic, shown as a rival of a
+partial cause, ``selection.not_specific``): fitted jointly, the base takes
+up part of its misfit there, which the base fitted alone, as it predicts a
+held-out record, does not, and the line understated it (session 41).
 """
 
 from __future__ import annotations
@@ -178,6 +182,14 @@ def sinusoid_fit(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> np
 def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:
     """Least-squares amplitude of a sinusoid of this frequency in ``residual`` (phase free)."""
     return float(math.hypot(*sinusoid_fit(residual, t, frequency_hz)))
+
+
+def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Fold ``m``'s training residual with a sinusoid of this frequency fitted in each of its records."""
+    times = [p.rows * p.record.dt for k, p in enumerate(screen.parts) if k != m]
+    parts = training_parts(screen, m, train_residual)
+    out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
+    return np.concatenate(out)
 
 
 def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:

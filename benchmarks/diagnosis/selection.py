@@ -89,7 +89,7 @@ from scipy import stats
 
 from .candidates import CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, MIN_EXPLAINED, Candidate, is_log
 from .delay import refit_delay
-from .interference import joint_line
+from .interference import fold_amplitude, fold_frequencies, joint_line, lines_removed, on_top
 from .saturation import columns_of, fit_level, shows_clip, unclipped
 
 N_BLOCKS = 8  # blocks per left-out record for the standard error
@@ -194,8 +194,20 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     list that receives, per fold, the fit's residual on its training rows; ``designs``: one that receives, per
     fold, the stacked design it was solved with (not for a clip or an interference: not linear)."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record
+    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record;
+        # a line locked to the drive is none: it stands for the base's misfit at a harmonic, so it is fitted on
+        # the residual of the base as the base predicts a held-out record (fitted alone), as before session 40
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
+        if c.limit == DRIVE_LOCKED:  # no disturbance: the base's own misfit at a harmonic, on its residual
+            base_train = []
+            e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
+            f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
+            fold_est = [{"interference_frequency": f[m]} if refit else {} for m in range(folds.n)]
+            for m, est in enumerate(fold_est):
+                est["amplitude"] = fold_amplitude(screen, m, base_train[m], f[m])
+            if train_residuals is not None:
+                train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
+            return on_top(screen, folds, e_base, base_train, f), fold_est
         lines = joint_line(screen, folds, lambda m: base_rows,
                            None if refit else [nl["interference_frequency"]] * folds.n)
         fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
