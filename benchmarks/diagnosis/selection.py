@@ -194,11 +194,9 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     list that receives, per fold, the fit's residual on its training rows; ``designs``: one that receives, per
     fold, the stacked design it was solved with (not for a clip or an interference: not linear)."""
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record;
-        # a line locked to the drive is none: it stands for the base's misfit at a harmonic, so it is fitted on
-        # the residual of the base as the base predicts a held-out record (fitted alone), as before session 40
+    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
-        if c.limit == DRIVE_LOCKED:  # no disturbance: the base's own misfit at a harmonic, on its residual
+        if c.limit == DRIVE_LOCKED:  # no disturbance but the base's misfit at a harmonic: on the base's residual
             base_train = []
             e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
             f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
