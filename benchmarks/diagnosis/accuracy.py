@@ -40,7 +40,8 @@ Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out r
 2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
 pooled, their detection limits checked on other runs, ``pooled``; ``--own-leads DIR ...``: earlier runs'
 delay cases given the base's own lead, ``add_own_leads``; ``--kept-evidence DIR ...``: earlier runs given the
-ceiling readings on top of everything kept, ``add_kept_evidence``).
+ceiling readings on top of everything kept, ``add_kept_evidence``; ``--again DIR ... --note TEXT``: every case of earlier runs diagnosed again with this
+code, ``diagnose_again``).
 """
 
 from __future__ import annotations
@@ -690,6 +691,55 @@ def add_kept_evidence(folder: str | Path, workers: ProcessPoolExecutor | None = 
     return {"rerun": len(todo), "same": len(todo) - len(differs), "differs": differs}
 
 
+def _verdict_text(r: dict) -> str:
+    return f"{r['verdict']} (also {', '.join(r['also']) or '-'})"
+
+
+def changes_note(old: list[dict], new: list[dict], what: str) -> str:
+    """The paragraph a rerun appends to a report's note: ``what``, then each case whose verdict or "also" changed."""
+    changed = [(i, a, b) for i, (a, b) in enumerate(zip(old, new))
+               if (a["verdict"], a["also"]) != (b["verdict"], b["also"])]
+    cases = "; ".join(f"case {i} {_verdict_text(a)} -> {_verdict_text(b)}"
+                      + ("" if a["right"] == b["right"] else (", right now" if b["right"] else ", wrong now"))
+                      for i, a, b in changed)
+    right = (sum(r["right"] for r in old), sum(r["right"] for r in new))
+    return (f"{what}: every case diagnosed again and its row replaced; {len(changed)} verdicts or also lists changed, "
+            f"{right[0]} -> {right[1]} right" + (f": {cases}." if cases else "."))
+
+
+def diagnose_again(folders: list[str | Path], what: str, workers: ProcessPoolExecutor | None = None, jobs: int = 1,
+                   progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Every case of earlier runs diagnosed again with this code (``run_case``), its row replaced, and the report
+    rewritten with ``changes_note`` appended to its note; a folder is written as soon as its last case is done
+    (the cases of all folders share ``workers``, ``jobs`` processes, so the cores stay busy between folders; a
+folder's wall time is counted from the previous folder's end). Returns per folder
+    {folder, right_before, right_after, changed}."""
+    say = progress or (lambda m: None)
+    paths = [Path(f) / "diagnosis_accuracy.json" for f in folders]
+    datas = [json.loads(p.read_text()) for p in paths]  # every folder read first: a bad one stops before any run
+    todo = [{k: r[k] for k in ("kinds", "base", "drive", "seed", *(("dataset", "own") if "dataset" in r else ()))}
+            for d in datas for r in d["cases"]]
+    results = (workers.map if workers else map)(run_case, todo)
+    done, t0 = [], time.perf_counter()
+    for folder, path, data in zip(folders, paths, datas):
+        load_start, rows = os.getloadavg()[0], []
+        for _ in data["cases"]:
+            rows.append(next(results))
+        old, s = data["cases"], data["summary"]
+        note = changes_note(old, rows, what)
+        s["note"] = "\n\n".join(x for x in (s.get("note") or _note_in(path.with_suffix(".md")), note) if x)
+        s["machine"] = {"cpu_count": os.cpu_count(), "load_start": load_start, "load_end": os.getloadavg()[0],
+                        "jobs": jobs if workers else 1}
+        data["cases"] = rows
+        write_json(path, data)
+        rewrite(folder, wall_s=time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        done.append({"folder": str(folder), "right_before": sum(r["right"] for r in old),
+                     "right_after": sum(r["right"] for r in rows), "changed": note})
+        say(f"{folder}: {note}")
+    return done
+
+
 def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
     """Rewrite the report from the JSON of an earlier run (same cases, current report layout, its note kept)."""
     data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
@@ -734,7 +784,21 @@ def main(argv=None) -> int:
     parser.add_argument("--kept-evidence", nargs="+", metavar="DIR",
                         help="add the third ceiling reading (on top of everything kept) to earlier runs, diagnosing "
                              "again only the cases that kept more than the named cause (no new run)")
+    parser.add_argument("--again", nargs="+", metavar="DIR",
+                        help="diagnose every case of earlier runs again with this code, replace their rows and "
+                             "append what changed to each report's note (--note names the code; no new plan)")
     args = parser.parse_args(argv)
+    if args.again:
+        if not args.note:
+            parser.error("--again needs --note: what code the cases are diagnosed with (it heads the change list)")
+        try:
+            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
+            with forked or contextlib.nullcontext() as workers:
+                diagnose_again(args.again, args.note, workers, args.jobs, progress=lambda m: print(m, flush=True))
+        except (OSError, ValueError, KeyError, HysbenchError) as e:
+            print(f"hysbench accuracy: {e}", file=sys.stderr)
+            return 2
+        return 0
     if args.kept_evidence:
         try:
             forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
@@ -770,7 +834,7 @@ def main(argv=None) -> int:
             return 2
         return 0
     if args.report or args.note or args.check:
-        parser.error("--report, --note and --check go with --pool")
+        parser.error("--report and --check go with --pool, --note with --pool or --again")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
     if (args.model is not None or args.segments is not None or args.thorough) and not args.on:
