@@ -333,3 +333,53 @@ def test_the_third_reading_is_added_to_an_earlier_run_by_diagnosing_again_only_w
     e = data["summary"]["evidence"]
     assert (e["kept_ceiling_right"], e["kept_rerun_differs"]) == (1 + 4 + 0, 1)  # the null, four with it, none right without
     assert "1 case(s) diagnosed again for this reading came back" in (tmp_path / "diagnosis_accuracy.md").read_text()
+
+
+def test_diagnosing_again_replaces_every_row_in_order_and_notes_each_change_by_hand(tmp_path, monkeypatch, capsys):
+    """``diagnose_again``: every case of every folder is run again (folders in turn, cases in order), its row
+    replaced, and the note lists exactly the cases whose verdict or "also" changed, with their right-or-wrong
+    change; the note before it is kept."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    _plan(a, 2, [True, False, True])
+    _plan(b, 3, [False, True])
+    accuracy.rewrite(a)
+    data = json.loads((a / "diagnosis_accuracy.json").read_text())
+    data["summary"]["note"] = "First scored with the old code."
+    (a / "diagnosis_accuracy.json").write_text(json.dumps(data))
+    stride = accuracy.PLAN_STRIDE
+    new = {2 * stride + 1: ("delay", [], True), 2 * stride + 2: ("none", ["creep"], True),
+           3 * stride: ("none", [], False), 3 * stride + 1: ("relaxation", ["delay"], False)}
+    asked = []
+
+    def again(case):
+        asked.append(case["seed"])
+        verdict, also, right = new.get(case["seed"], ("none", [], True))
+        return {**_row(case["kinds"], right), "seed": case["seed"], "verdict": verdict, "also": also}
+
+    monkeypatch.setattr(accuracy, "run_case", again)
+    done = accuracy.diagnose_again([a, b], "With the new code")
+    assert asked == [2 * stride, 2 * stride + 1, 2 * stride + 2, 3 * stride, 3 * stride + 1]
+    assert [(d["right_before"], d["right_after"]) for d in done] == [(2, 3), (1, 0)]
+    note_a = json.loads((a / "diagnosis_accuracy.json").read_text())["summary"]["note"]
+    assert note_a == ("First scored with the old code.\n\nWith the new code: every case diagnosed again and its row "
+                      "replaced; 2 verdicts or also lists changed, 2 -> 3 right: case 1 none (also -) -> delay "
+                      "(also -), right now; case 2 none (also -) -> none (also creep).")
+    note_b = json.loads((b / "diagnosis_accuracy.json").read_text())["summary"]["note"]
+    assert note_b.endswith("1 verdicts or also lists changed, 1 -> 0 right: case 1 none (also -) -> relaxation "
+                           "(also delay), wrong now.")
+    rows = json.loads((b / "diagnosis_accuracy.json").read_text())["cases"]
+    assert [r["verdict"] for r in rows] == ["none", "relaxation"]
+    assert (a / "diagnosis_accuracy.md").read_text().startswith(
+        "# Accuracy of `hysbench diagnose` on planted effects\n\nFirst scored with the old code.\n\nWith the new code")
+
+
+def test_diagnosing_again_reads_every_folder_before_running_any_case_and_needs_a_note(tmp_path, monkeypatch, capsys):
+    _plan(tmp_path / "a", 2, [True])
+    before = (tmp_path / "a" / "diagnosis_accuracy.json").read_text()
+    monkeypatch.setattr(accuracy, "run_case", lambda case: pytest.fail("a case was run"))
+    assert accuracy.main(["--again", str(tmp_path / "a"), str(tmp_path / "missing"), "--note", "x", "--jobs", "1"]) == 2
+    assert "missing" in capsys.readouterr().err
+    assert (tmp_path / "a" / "diagnosis_accuracy.json").read_text() == before
+    with pytest.raises(SystemExit) as e:
+        accuracy.main(["--again", str(tmp_path / "a")])
+    assert e.value.code == 2 and "--again needs --note" in capsys.readouterr().err

@@ -834,7 +834,7 @@ def main(argv=None) -> int:
             return 2
         return 0
     if args.report or args.note or args.check:
-        parser.error("--report and --check go with --pool, --note with --pool or --again")
+        parser.error("--report, --note and --check go with --pool (--note also with --again)")
     if args.cases < 1 or args.jobs < 1:
         parser.error("--cases and --jobs must be positive integers")
     if (args.model is not None or args.segments is not None or args.thorough) and not args.on:
