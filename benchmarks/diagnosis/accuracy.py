@@ -73,6 +73,7 @@ from .own_timing import lead_of_case, needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
 from .pooled import pool, pooled_markdown, write_pooled
+from .stated_limits import CHOSEN_ON, MIN_CASES, in_scope, minimum_strengths, out_of_scope
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_validation, ceiling, confirmed_counts,
                      detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of, span_text,
                      wilson_interval, within_tolerance)
@@ -90,7 +91,9 @@ COMBINATIONS = (("mrpim", "sines"), ("virtual-dea", "triangles"), ("piezo", "sin
                 ("mrpim", "sines"), ("virtual-dea", "sines"), ("mrpim", "triangles"), ("piezo", "sines"),
                 ("mrpim", "sines"), ("virtual-dea", "multisines"), ("mrpim", "sines"), ("piezo", "sines"))
 SLOT_SPREAD = 5  # consecutive slots of one effect start this far apart in COMBINATIONS
-PLAN_DESIGNS = ("balanced", "slot-tied")
+PLAN_DESIGNS = ("balanced", "slot-tied", "within-limits")
+ATTEMPT_STRIDE = 1000  # within-limits: a redraw's seed is the case's seed + this times the attempt
+MAX_ATTEMPTS = PLAN_STRIDE // ATTEMPT_STRIDE - 1  # the redraws stay within the plan's seeds
 
 
 def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: str = "balanced") -> list[dict]:
@@ -98,7 +101,10 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: st
     PATTERN's slot j takes COMBINATIONS[(k + SLOT_SPREAD j) mod 12], so every effect meets every base and
     drive. ``slot-tied`` (plans before 2026-11-27; results/diagnosis-accuracy-seed1..17): the drive was fixed
     by the slot, so relaxation, resonance, interference, the white nulls and three more effects were planted
-    on sines only. A base that is not here (the piezo recording) gives its turns to the next combination."""
+    on sines only. ``within-limits``: as balanced, but a vocabulary effect is planted only on a base where it
+    has a stated limit (``stated_limits``) and is drawn at or above it (``planted_within``). A base that is not
+    here (the piezo recording), or without a stated limit for the slot's effects, gives its turns to the next
+    combination."""
     if design not in PLAN_DESIGNS:
         raise ValueError(f"unknown plan design {design!r}; choose one of {', '.join(PLAN_DESIGNS)}")
     bases = tuple(b for b in bases if b != "piezo" or piezo_available())
@@ -111,16 +117,41 @@ def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: st
             drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
             out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
         return out
+    limited = design == "within-limits"
+    if limited and n_cases > ATTEMPT_STRIDE:
+        raise ValueError(f"a within-limits plan has at most {ATTEMPT_STRIDE} cases")
+
+    def usable(kinds, base) -> bool:
+        return base in bases and (not limited or in_scope(kinds, base))
+
     if not any(b in bases for b, _ in COMBINATIONS):
         raise ValueError(f"no base of {list(bases)} is available")
+    for kinds in PATTERN:
+        if not any(usable(kinds, b) for b, _ in COMBINATIONS):
+            raise ValueError(f"no base of {list(bases)} has a stated limit for {'+'.join(kinds)}")
     for i in range(n_cases):
         slot, k = i % len(PATTERN), i // len(PATTERN)
         n = (k + SLOT_SPREAD * slot) % len(COMBINATIONS)
-        while COMBINATIONS[n][0] not in bases:
+        while not usable(PATTERN[slot], COMBINATIONS[n][0]):
             n = (n + 1) % len(COMBINATIONS)
         base, drive = COMBINATIONS[n]
-        out.append({"kinds": PATTERN[slot], "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
+        out.append({"kinds": PATTERN[slot], "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i,
+                    **({"min_strength_pct": minimum_strengths(PATTERN[slot], base)} if limited else {})})
     return out
+
+
+def planted_within(case: dict) -> tuple[Dataset, dict, int, int]:
+    """(dataset, truth, seed, attempts): the case planted with its seed; with ``min_strength_pct`` (a
+    within-limits plan) redrawn with seed + ATTEMPT_STRIDE * a, a = 1, 2, ..., until every effect's own
+    strength is at or above its minimum. HysbenchError after MAX_ATTEMPTS draws."""
+    least = case.get("min_strength_pct") or {}
+    for a in range(MAX_ATTEMPTS if least else 1):
+        seed = case["seed"] + ATTEMPT_STRIDE * a
+        ds, truth = planted_case(case["kinds"], case["base"], case["drive"], seed, dataset=case.get("dataset"))
+        if all(truth["strength_by_effect_pct"][k] >= v for k, v in least.items()):
+            return ds, truth, seed, a + 1
+    raise HysbenchError(f"no draw of {'+'.join(case['kinds'])} on {case['base']} reached its stated limits "
+                        f"{least} in {MAX_ATTEMPTS} attempts (case seed {case['seed']})")
 
 
 def plan_on(n_cases: int, seed: int, dataset: Dataset, model: str = "mrpim", own: str | None = None,
@@ -191,7 +222,7 @@ def _validation_gain(d) -> dict:
 
 
 def run_case(case: dict) -> dict:
-    ds, truth = planted_case(case["kinds"], case["base"], case["drive"], case["seed"], dataset=case.get("dataset"))
+    ds, truth, seed, attempts = planted_within(case)
     t0 = time.perf_counter()
     d = diagnose(ds, model=case.get("model", "mrpim"), experiments=False, segments=case.get("segments"),
                  thorough=case.get("thorough", False))
@@ -209,8 +240,11 @@ def run_case(case: dict) -> dict:
                  "also_parameter_errors_planted_alone": {c.cause: parameter_errors(truth, c.cause, c.estimates)
                                                          for c in d.also if c.cause in case["kinds"]}}
     per_effect = effect_evidence(d, truth)
-    return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
-            "strength_pct": truth["strength_pct"], "effects": truth["effects"], "verdict": d.cause,
+    return {"kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": seed,
+            "strength_pct": truth["strength_pct"], "strength_by_effect_pct": truth["strength_by_effect_pct"],
+            **({"min_strength_pct": case["min_strength_pct"], "attempts": attempts}
+               if case.get("min_strength_pct") else {}),
+            "effects": truth["effects"], "verdict": d.cause,
             "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also,
             "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
@@ -333,6 +367,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
         *_on_lines(on),
+        *_within_limits_lines(rows, s),
         "## Targets", "",
         "| measure | measured | target |", "|---|---|---|",
         f"| verdict right | {s['right']} / {s['cases']} = **{100 * s['right_share']:.1f} %**"
@@ -440,6 +475,24 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
                          f"{r['verdict']} | {', '.join(r['ambiguous_with']) or '-'} | {', '.join(r['also']) or '-'} | "
                          f"{_evidence_cell(r)} |")
     return "\n".join(lines) + "\n"
+
+
+def _within_limits_lines(rows: list[dict], s: dict) -> list[str]:
+    """What a within-limits plan drew (nothing for another design)."""
+    if s.get("plan_design") != "within-limits":
+        return []
+    redraws = sum(r.get("attempts", 1) - 1 for r in rows)
+    seeds = f"{CHOSEN_ON[0]}-{CHOSEN_ON[-1]}"
+    held_out = all(r["seed"] // PLAN_STRIDE > CHOSEN_ON[-1] for r in rows)
+    return [f"**Within the stated limits** (`hysbench.benchmarks.diagnosis.stated_limits`, stated from the "
+            f"balanced plans of seeds {seeds}, at least {MIN_CASES} cases at or above each): every vocabulary effect "
+            "is drawn at or above its stated limit on its base (each effect's own strength; a draw below it is "
+            f"drawn again with the next seed: {redraws} redraws in this plan), and a cause is planted only on a base "
+            "where it has a limit. Not planted, having none: "
+            + ", ".join(f"{c} on the {b}" for c, b in out_of_scope())
+            + ". Nulls and out-of-vocabulary effects as in the balanced plans. "
+            + (f"This plan took no part in stating the limits (its seed is above {CHOSEN_ON[-1]})." if held_out else
+               f"**This plan's seed is among those the limits were stated from: it does not measure them.**"), ""]
 
 
 def _on_options(on: dict | None) -> str:

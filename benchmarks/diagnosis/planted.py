@@ -40,7 +40,8 @@ a multisine's fade-in may lower its peak).
 p2p: the 0.5 - 99.5 % quantile range of the identification outputs (MRPIM's q V''
 term spikes at a triangle's corners). Noise: white, sd p2p x uniform [0.001, 0.003]; the nulls also with AR(1)
 noise, phi uniform [0.9, 0.99], the same marginal sd. ``strength``: the rms
-of (effect - plain plant) over the identification records, in % of p2p.
+of (effect - plain plant) over the identification records, in % of p2p (``strength_by_effect_pct``: each
+effect's own, what it added to the output before it).
 """
 
 from __future__ import annotations
@@ -311,6 +312,7 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
     if recorded and kinds[0] in NULLS:  # a null on a recording: its own noise, plus white or coloured noise
         sd = p2p * float(rng.uniform(*NOISE))
     records, eff_ss, n_id = [], 0.0, 0
+    each_ss = dict.fromkeys(kinds, 0.0)  # per effect: what it added, over the identification records
     signals = {k: {} for k in kinds}  # per effect and record: what it added (after the effects before it)
     for i, (t, u, y, role, f) in enumerate(recs):
         dt = float(t[1] - t[0])
@@ -325,6 +327,8 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
             signals[k][file] = out - before
         if role == "identification":
             eff_ss += float(np.sum((out - y) ** 2))
+            for k in kinds:
+                each_ss[k] += float(np.sum(signals[k][file] ** 2))
             n_id += y.size
         stats["offset_s"] += t[-1] + dt
         out = out + (noise(rng, y.size, sd, ar1) if sd > 0 else 0.0)
@@ -341,6 +345,7 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
                      output_unit="um" if base == "piezo" else "mm", description=f"{base} driven by {drive}, {how}")
     truth = {"kinds": list(kinds), "effects": drawn, "base": base, "drive": drive, "seed": int(seed), "noise_sd": sd,
              "p2p": p2p, "strength_pct": 100 * math.sqrt(eff_ss / max(n_id, 1)) / p2p, "longest_s": stats["longest_s"],
+             "strength_by_effect_pct": {k: 100 * math.sqrt(v / max(n_id, 1)) / p2p for k, v in each_ss.items()},
              "signals": signals}
     if "saturation" in kinds:
         truth["saturation_level"] = top - drawn["saturation"]["clipped_fraction"] * p2p

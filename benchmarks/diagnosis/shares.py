@@ -51,15 +51,15 @@ def effect_label(r: dict) -> str:
     return "+".join(r["kinds"])
 
 
-def detection_limit(rows: list[dict], cause: str) -> dict:
-    """The smallest strength s such that, among single-cause cases of at least s, >= 95 % are right; with the
-    range of strengths drawn (None without cases)."""
+def detection_limit(rows: list[dict], cause: str, min_cases: int = 3) -> dict:
+    """The smallest strength s such that, among single-cause cases of at least s (at least ``min_cases`` of
+    them), >= 95 % are right; with the range of strengths drawn (None without cases)."""
     cases = sorted([r for r in rows if r["kinds"] == [cause]], key=lambda r: r["strength_pct"])
     drawn = {"cases": len(cases),
              "strengths_pct": [cases[0]["strength_pct"], cases[-1]["strength_pct"]] if cases else None}
     for i, r in enumerate(cases):
         rest = cases[i:]
-        if len(rest) >= 3 and sum(x["right"] for x in rest) >= RIGHT_SHARE * len(rest):
+        if len(rest) >= min_cases and sum(x["right"] for x in rest) >= RIGHT_SHARE * len(rest):
             return {"strength_pct": r["strength_pct"], "cases_above": len(rest),
                     "right_above": sum(x["right"] for x in rest), **drawn}
     return {"strength_pct": None, "cases_above": 0, "right_above": 0, **drawn}
