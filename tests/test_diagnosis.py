@@ -36,6 +36,7 @@ from hysbench.benchmarks.diagnosis.planted import (
     piezo_available,
     planted_case,
 )
+from hysbench.benchmarks.diagnosis.stated_limits import LIMITS_PCT, stated_limit
 from hysbench.benchmarks.diagnosis.report import verdict_lines
 from hysbench.benchmarks.diagnosis.saturation import shows_clip, slope_where_clipped
 from hysbench.benchmarks.diagnosis.residuals import (
@@ -755,37 +756,29 @@ def test_a_delay_on_the_real_piezo_recordings_is_named_despite_an_unidentified_r
     assert d.to_json()["one_drive_caution"] == d.one_drive_caution
 
 
-POOLED = Path(__file__).resolve().parents[1] / "results" / "diagnosis_accuracy_pooled.json"
-MIN_CASES_ABOVE = 10  # a limit resting on fewer cases is too uncertain to test against
 # the bases other than the plant the base model represents, one drive each (the limits pool the drives)
 BEYOND_MRPIM = [("delay", "virtual-dea", "triangles"), ("interference", "virtual-dea", "multisines"),
-                ("relaxation", "piezo", "sines"), ("resonance", "piezo", "sines"), ("creep", "piezo", "sines"),
-                ("interference", "piezo", "sines"), ("saturation", "piezo", "sines")]
+                ("relaxation", "piezo", "sines"), ("delay", "piezo", "sines"), ("resonance", "piezo", "sines"),
+                ("creep", "piezo", "sines"), ("interference", "piezo", "sines"), ("saturation", "piezo", "sines")]
 
 
 @pytest.mark.parametrize("cause, base, drive", BEYOND_MRPIM)
-def test_an_effect_at_or_above_the_pooled_detection_limit_of_its_base_is_named(cause, base, drive):
-    """The first seeded draw (from 7,000,000, no plan's seed) at or above the cause's detection limit on that
-    base in the pooled report (results/diagnosis_accuracy_pooled.json: ten plans, checked on a fresh one), on a
-    plant other than the Table 2 MRPIM, must be right by the benchmark's rule. Every such limit resting on at
-    least ten cases is here; the virtual DEA's clip limit (five cases) failed its first draw (session 28: a
-    clip at 1.89 % under sines, which only the 0.1 Hz record reaches, named relaxation)."""
+def test_an_effect_at_or_above_the_stated_detection_limit_of_its_base_is_named(cause, base, drive):
+    """The first seeded draw (from 7,000,000, no plan's seed) at or above the cause's stated detection limit on
+    that base (``stated_limits``: seeds 35-62, at least 20 cases at or above it), on a plant other than the
+    Table 2 MRPIM, must be right by the benchmark's rule."""
     if base == "piezo" and not piezo_available():
         pytest.skip("the accuracy benchmark's piezo recording is not present")
-    limit = json.loads(POOLED.read_text())["detection_limits"][cause][base]
-    assert limit["strength_pct"] is not None and limit["cases_above"] >= MIN_CASES_ABOVE, limit
-    ds, truth = _draw_above((cause,), limit["strength_pct"], base, drive, start=7_000_000)
+    limit = stated_limit(cause, base)
+    ds, truth = _draw_above((cause,), limit, base, drive, start=7_000_000)
     d = diagnose(ds, seed=0, experiments=False)
     also = [c.cause for c in d.also]
     assert judge(truth, d.cause, also), (truth["seed"], truth["strength_pct"], d.cause, also, d.verdict.reason)
 
 
-def test_the_pooled_limits_tested_here_are_every_one_on_enough_cases_beyond_the_mrpim_plant():
-    """BEYOND_MRPIM holds every (cause, base) off the MRPIM plant whose pooled limit rests on enough cases."""
-    limits = json.loads(POOLED.read_text())["detection_limits"]
-    enough = {(c, b) for c, per in limits.items() for b, q in per.items()
-              if b != "mrpim" and q["strength_pct"] is not None and q["cases_above"] >= MIN_CASES_ABOVE}
-    assert enough == {(c, b) for c, b, _ in BEYOND_MRPIM}
+def test_every_stated_limit_beyond_the_mrpim_plant_is_tested_here():
+    stated = {(c, b) for (c, b), v in LIMITS_PCT.items() if b != "mrpim" and v is not None}
+    assert stated == {(c, b) for c, b, _ in BEYOND_MRPIM}
 
 
 @pytest.mark.parametrize("kind,seed", [("null-white", 0), ("null-ar1", 1), ("null-ar1", 2)])

@@ -770,14 +770,15 @@ folder's wall time is counted from the previous folder's end). Returns per folde
     say = progress or (lambda m: None)
     paths = [Path(f) / "diagnosis_accuracy.json" for f in folders]
     datas = [json.loads(p.read_text()) for p in paths]  # every folder read first: a bad one stops before any run
-    todo = [{k: r[k] for k in ("kinds", "base", "drive", "seed", *(("dataset", "own") if "dataset" in r else ()))}
+    todo = [{k: r[k] for k in ("kinds", "base", "drive", "seed", *(("dataset", "own") if "dataset" in r else ()),
+                               *(("min_strength_pct",) if "min_strength_pct" in r else ()))}
             for d in datas for r in d["cases"]]
     results = (workers.map if workers else map)(run_case, todo)
     done, t0 = [], time.perf_counter()
     for folder, path, data in zip(folders, paths, datas):
         load_start, rows = os.getloadavg()[0], []
-        for _ in data["cases"]:
-            rows.append(next(results))
+        for r in data["cases"]:  # a within-limits row keeps its redraws (its seed is the accepted draw's)
+            rows.append({**next(results), **({"attempts": r["attempts"]} if "attempts" in r else {})})
         old, s = data["cases"], data["summary"]
         note = changes_note(old, rows, what)
         s["note"] = "\n\n".join(x for x in (s.get("note") or _note_in(path.with_suffix(".md")), note) if x)
