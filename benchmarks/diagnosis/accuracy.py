@@ -489,7 +489,7 @@ def _within_limits_lines(rows: list[dict], s: dict) -> list[str]:
             "is drawn at or above its stated limit on its base (each effect's own strength; a draw below it is "
             f"drawn again with the next seed: {redraws} redraws in this plan), and a cause is planted only on a base "
             "where it has a limit. Not planted, having none: "
-            + ", ".join(f"{c} on the {b}" for c, b in out_of_scope())
+            + ", ".join(f"{c} on {b}" for c, b in out_of_scope())
             + ". Nulls and out-of-vocabulary effects as in the balanced plans. "
             + (f"This plan took no part in stating the limits (its seed is above {CHOSEN_ON[-1]})." if held_out else
                f"**This plan's seed is among those the limits were stated from: it does not measure them.**"), ""]
