@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.diagnosis import accuracy, pooled
-from hysbench.benchmarks.diagnosis.planted import RECORDED, planted_case
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled
+from hysbench.benchmarks.diagnosis_accuracy.planted import RECORDED, planted_case
 from hysbench.data.dataset import Dataset, Record, load_dataset, save_dataset
 from hysbench.data.protocol import paper_voltage
 from hysbench.models import get_model
@@ -137,7 +137,7 @@ def test_a_mode_planted_on_a_long_record_solves_its_ode(monkeypatch):
     tight tolerances on the same ODE, the input linear between samples."""
     from scipy.integrate import solve_ivp
 
-    from hysbench.benchmarks.diagnosis import planted
+    from hysbench.benchmarks.diagnosis_accuracy import planted
 
     monkeypatch.setattr(planted, "ADAPTIVE_MODE_SAMPLES", 2000)  # a shorter record takes the same branch
     dt, n, fn, zeta = 1e-3, 5000, 8.0, 0.1

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.benchmarks.diagnosis import accuracy, pooled
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled
 from hysbench.models.errors import HysbenchError
 
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 import pytest
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.planted import planted_case
+from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import verdict_lines
 from hysbench.benchmarks.diagnosis.selection import Z_CONFIRM
-from hysbench.benchmarks.diagnosis.shares import also_on_validation
+from hysbench.benchmarks.diagnosis_accuracy.shares import also_on_validation
 
 
 def test_an_unplanted_cause_kept_under_also_that_fails_on_validation_is_said_to():

@@ -18,7 +18,7 @@ from scipy import signal, stats
 
 from hysbench.benchmarks.diagnosis import validation
 from hysbench.benchmarks.diagnosis.extensions import gain
-from hysbench.benchmarks.diagnosis.planted import planted_case
+from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.residuals import FLOOR_HALF_WIDTH, gain_z, noise_floor
 
 

@@ -1,6 +1,6 @@
 """The diagnosis: extension blocks against slow references, the decision rule, and planted effects.
 
-Planted tests draw their data from ``hysbench.benchmarks.diagnosis.planted``,
+Planted tests draw their data from ``hysbench.benchmarks.diagnosis_accuracy.planted``,
 whose effects use functional forms and numerical methods of their own (FFT
 convolution, a frequency-domain delay, scipy's RK45 mode, a logarithmic
 creep, ...), never the extension code that detects them. Each draw is seeded
@@ -27,16 +27,16 @@ from hypothesis import strategies as st
 from scipy import signal
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.accuracy import judge, parameter_errors
+from hysbench.benchmarks.diagnosis_accuracy.accuracy import judge, parameter_errors
 from hysbench.benchmarks.diagnosis.experiment import predict, probe_sine, separation, suggest
-from hysbench.benchmarks.diagnosis.planted import (
+from hysbench.benchmarks.diagnosis_accuracy.planted import (
     fractional_delay,
     low_pass_convolution,
     mode_ode,
     piezo_available,
     planted_case,
 )
-from hysbench.benchmarks.diagnosis.stated_limits import LIMITS_PCT, stated_limit
+from hysbench.benchmarks.diagnosis_accuracy.stated_limits import LIMITS_PCT, stated_limit
 from hysbench.benchmarks.diagnosis.report import verdict_lines
 from hysbench.benchmarks.diagnosis.saturation import shows_clip, slope_where_clipped
 from hysbench.benchmarks.diagnosis.residuals import (
@@ -1585,7 +1585,7 @@ def test_the_accuracy_report_counts_virtual_dea_verdicts_that_the_nulls_give_too
     (the delay under "also"): what its nulls give. The report counts such cases and how many of them
     recovered the planted time constant or delay (the one under "also" within 25 %), so the headline cannot
     hide verdicts that show no detection."""
-    from hysbench.benchmarks.diagnosis.accuracy import judge, markdown, summary
+    from hysbench.benchmarks.diagnosis_accuracy.accuracy import judge, markdown, summary
 
     def row(kinds, base, verdict, also=(), within=False, also_error=None):
         truth = {"kinds": list(kinds), "base": base}
@@ -1612,7 +1612,7 @@ def test_planted_signals_are_what_each_effect_added():
     """``truth["signals"]``: per effect and record, what the effect added before the noise. Here a creep,
     its logarithmic law written out again; what is left of the output is the plant plus white noise of the
     stated sd."""
-    from hysbench.benchmarks.diagnosis.planted import DT as PLANT_DT
+    from hysbench.benchmarks.diagnosis_accuracy.planted import DT as PLANT_DT
     ds, truth = planted_case(("creep",), "mrpim", "sines", 5)
     e = truth["effects"]["creep"]
     model = get_model("mrpim")
@@ -1629,7 +1629,7 @@ def test_planted_signals_are_what_each_effect_added():
 def test_the_evidence_ceiling_sees_a_planted_effect_only_when_it_is_there(weight, shown):
     """The planted effect's own waveform as a regressor passes the diagnosis's held-out test when the
     effect is strong (1 s relaxation, 0.3 mm/kV) and not when it is 10^4 times weaker (below the noise)."""
-    from hysbench.benchmarks.diagnosis.evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
+    from hysbench.benchmarks.diagnosis_accuracy.evidence_ceiling import effect_evidence, extension_could_show, shows_evidence
     ds, truth = planted_case(("relaxation",), "mrpim", "sines", 3,
                              effects={"relaxation": {"tau_s": 1.0, "weight": weight}})
     d = diagnose(ds, seed=0, experiments=False, extend=False)
@@ -1715,7 +1715,7 @@ def test_records_without_a_nominal_frequency_scale_the_causes_by_their_drive_ban
 def test_the_accuracy_report_states_the_ceiling_that_the_planted_effects_allow():
     """Vocabulary cases whose planted effect shows no held-out evidence by itself bound the verdict share:
     every other case right, and of those only the ones already right."""
-    from hysbench.benchmarks.diagnosis.accuracy import ceiling, markdown, summary
+    from hysbench.benchmarks.diagnosis_accuracy.accuracy import ceiling, markdown, summary
 
     def row(kinds, right, shown):
         return {"kinds": list(kinds), "base": "mrpim", "drive": "sines", "seed": 7, "strength_pct": 1.0,
@@ -1756,7 +1756,7 @@ def test_the_third_ceiling_reading_is_on_top_of_everything_kept_unless_a_planted
     and where everything kept is a reference, against it too."""
     from types import SimpleNamespace as NS
 
-    from hysbench.benchmarks.diagnosis.evidence_ceiling import kept_composite, shows_on_kept
+    from hysbench.benchmarks.diagnosis_accuracy.evidence_ceiling import kept_composite, shows_on_kept
 
     def cand(*parts):
         return NS(cause=parts[-1], model=NS(components=parts))
@@ -1780,7 +1780,7 @@ def test_the_strictest_ceiling_reading_asks_the_extension_on_the_base_or_named_a
     """``extension_could_show``: a mode by its extension at the planted values on the base or the named cause
     (not on what was kept), an effect without such an extension by its waveform; ``extension_on_kept``: that,
     and on top of everything kept by the same rule, per effect."""
-    from hysbench.benchmarks.diagnosis.evidence_ceiling import extension_could_show, extension_on_kept
+    from hysbench.benchmarks.diagnosis_accuracy.evidence_ceiling import extension_could_show, extension_on_kept
 
     yes, no = {"evidence": True}, {"evidence": False}
     mode = {"base": yes, "extension_at_truth_on_base": no, "named": no, "extension_at_truth_on_named": yes}
@@ -1799,7 +1799,7 @@ def test_the_strictest_ceiling_reading_asks_the_extension_on_the_base_or_named_a
 
 
 def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):
-    from hysbench.benchmarks.diagnosis import accuracy
+    from hysbench.benchmarks.diagnosis_accuracy import accuracy
 
     monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
     cases = accuracy.plan(200, 0)
@@ -1822,7 +1822,7 @@ def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(
 
 def test_the_accuracy_report_says_when_the_piezo_recording_is_missing(monkeypatch, tmp_path):
     """Without ../shared/datasets the plan has no piezo cases: said in the progress, the JSON and the report."""
-    from hysbench.benchmarks.diagnosis import accuracy
+    from hysbench.benchmarks.diagnosis_accuracy import accuracy
 
     monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
     monkeypatch.setattr(accuracy, "run_case", lambda case: {
@@ -1992,7 +1992,7 @@ def test_the_own_lead_is_the_output_delay_at_which_the_base_model_fits_the_recor
     form, written here). The base model alone fits best with the output delayed by L, so a planted delay d
     shows beyond it as d - L. Nothing planted here (the delay's signal is zero)."""
     from hysbench.benchmarks.diagnosis.diagnose import build_screen
-    from hysbench.benchmarks.diagnosis.own_timing import own_lead
+    from hysbench.benchmarks.diagnosis_accuracy.own_timing import own_lead
     from hysbench.data.dataset import Dataset
 
     mrpim, base, rng, dt = get_model("mrpim"), get_model("classical-pi"), np.random.default_rng(11), 1e-3
@@ -2027,8 +2027,8 @@ def test_the_own_lead_is_the_output_delay_at_which_the_base_model_fits_the_recor
 
 
 def test_a_delay_is_judged_against_the_planted_delay_less_the_base_s_own_lead():
-    from hysbench.benchmarks.diagnosis.accuracy import with_own_lead
-    from hysbench.benchmarks.diagnosis.own_timing import needs_lead
+    from hysbench.benchmarks.diagnosis_accuracy.accuracy import with_own_lead
+    from hysbench.benchmarks.diagnosis_accuracy.own_timing import needs_lead
 
     truth = {"kinds": ["delay"], "effects": {"delay": {"delay_s": 0.0214}}}
     assert with_own_lead(truth, None) is truth and with_own_lead(truth, 0.0) is truth

@@ -15,8 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
-from hysbench.benchmarks.diagnosis.planted import planted_case
+from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
+from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import not_held_out_lines
 from hysbench.benchmarks.diagnosis.interference import on_top
 from hysbench.benchmarks.diagnosis.screen import BEYOND_RANGE, beyond_others, held_out_windows

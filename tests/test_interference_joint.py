@@ -15,10 +15,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
+from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED
 from hysbench.benchmarks.diagnosis.interference import JointLine, fold_frequencies
-from hysbench.benchmarks.diagnosis.planted import piezo_available, planted_case
+from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available, planted_case
 from hysbench.benchmarks.diagnosis.selection import Folds, heldout_errors, heldout_null
 
 

@@ -11,8 +11,8 @@ from types import SimpleNamespace
 import pytest
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
-from hysbench.benchmarks.diagnosis.planted import piezo_available, planted_case
+from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
+from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available, planted_case
 from hysbench.benchmarks.diagnosis.selection import PARTIAL_SE, identified, loose_note
 
 

@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.diagnosis import accuracy, stated_limits
-from hysbench.benchmarks.diagnosis.planted import BASES, VOCABULARY, piezo_available, planted_case
-from hysbench.benchmarks.diagnosis.pooled import _read_plans
-from hysbench.benchmarks.diagnosis.shares import PLAN_STRIDE
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, stated_limits
+from hysbench.benchmarks.diagnosis_accuracy.planted import BASES, VOCABULARY, piezo_available, planted_case
+from hysbench.benchmarks.diagnosis_accuracy.pooled import _read_plans
+from hysbench.benchmarks.diagnosis_accuracy.shares import PLAN_STRIDE
 from hysbench.models.errors import HysbenchError
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"

@@ -6,7 +6,7 @@ noise and a gain modulation, neither made with an extension's code)."""
 from __future__ import annotations
 
 from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis.planted import planted_case
+from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import verdict_lines
 from hysbench.benchmarks.diagnosis.selection import Z_CONFIRM
 

@@ -16,7 +16,7 @@ import pytest
 import numpy as np
 
 from hysbench.benchmarks.cli import main as hysbench
-from hysbench.benchmarks.diagnosis.planted import low_pass_convolution
+from hysbench.benchmarks.diagnosis_accuracy.planted import low_pass_convolution
 from hysbench.data import save_dataset
 from hysbench.data.dataset import Dataset, Record
 from hysbench.data.virtual_dea import default_dataset_path

@@ -4,14 +4,14 @@ Not a CI test: 200 cases take 9-27 min with one process per core (as here) on th
 sessions 23-26 (README, "Measured").
 ``HYSBENCH_ACCURACY_CASES`` sets the number of cases (default 200); the
 report goes to results/diagnosis_accuracy.md. The same run as a command:
-``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 40``
+``python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --cases 200 --out results --seed 40``
 (``HEADLINE_SEED``).
 """
 
 import os
 from pathlib import Path
 
-from hysbench.benchmarks.diagnosis.accuracy import HEADLINE_SEED, run_accuracy
+from hysbench.benchmarks.diagnosis_accuracy.accuracy import HEADLINE_SEED, run_accuracy
 
 RESULTS = Path(__file__).resolve().parents[2] / "results"
 

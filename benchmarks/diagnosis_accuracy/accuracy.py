@@ -32,7 +32,7 @@ delay on a base other than the Table 2 MRPIM: against the planted delay less
 the base's own lead on the base model, ``own_timing``, the error against the
 planted delay alone kept beside it).
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 45``
+Command: ``python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --cases 200 --out results --seed 45``
 (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
 (``--on DATASET [--model NAME] [--segments K] [--thorough]``: PATTERN's effects planted on a user's dataset,
 ``plan_on``)
@@ -66,7 +66,7 @@ from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
-from .diagnose import diagnose
+from hysbench.benchmarks.diagnosis.diagnose import diagnose
 from . import evidence_ceiling
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence, shows_on_kept
 from .own_timing import lead_of_case, needs_lead, own_lead
@@ -360,10 +360,10 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     model = on["model"] if on else "mrpim"
     other_than_own = "a cause other than the dataset's own verdict"
     lines += [
-        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis.accuracy --seed {plan_seed_of(rows)}"
+        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --seed {plan_seed_of(rows)}"
         f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}"
         f"{_on_options(on)}`), base model {'MRPIM' if model == 'mrpim' else model}; generators "
-        "`hysbench.benchmarks.diagnosis.planted` (functional forms independent of the extensions: FFT convolution, "
+        "`hysbench.benchmarks.diagnosis_accuracy.planted` (functional forms independent of the extensions: FFT convolution, "
         "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
         *_on_lines(on),
@@ -484,7 +484,7 @@ def _within_limits_lines(rows: list[dict], s: dict) -> list[str]:
     redraws = sum(r.get("attempts", 1) - 1 for r in rows)
     seeds = f"{CHOSEN_ON[0]}-{CHOSEN_ON[-1]}"
     held_out = all(r["seed"] // PLAN_STRIDE > CHOSEN_ON[-1] for r in rows)
-    return [f"**Within the stated limits** (`hysbench.benchmarks.diagnosis.stated_limits`, stated from the "
+    return [f"**Within the stated limits** (`hysbench.benchmarks.diagnosis_accuracy.stated_limits`, stated from the "
             f"balanced plans of seeds {seeds}, at least {MIN_CASES} cases at or above each): every vocabulary effect "
             "is drawn at or above its stated limit on its base (each effect's own strength; a draw below it is "
             f"drawn again with the next seed: {redraws} redraws in this plan), and a cause is planted only on a base "

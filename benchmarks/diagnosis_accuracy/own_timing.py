@@ -26,7 +26,7 @@ from scipy.optimize import minimize_scalar
 from hysbench.data.segments import own_samples
 from hysbench.models import get_model
 
-from .diagnose import build_screen
+from hysbench.benchmarks.diagnosis.diagnose import build_screen
 from .planted import fractional_delay, planted_case
 
 MAX_LEAD_S = 0.030  # the planted delays' upper end

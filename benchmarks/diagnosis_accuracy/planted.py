@@ -337,7 +337,7 @@ def planted_case(kinds: tuple[str, ...], base: str = "mrpim", drive: str = "sine
         else:
             records.append(Record(file=file, t=t, u=u, y=out, role=role, frequency_hz=f))
     name = f"planted-{'+'.join(kinds)}-{base}-{drive}-{seed}"
-    how = f"planted {', '.join(kinds)} (seed {seed}); hysbench.benchmarks.diagnosis.planted"
+    how = f"planted {', '.join(kinds)} (seed {seed}); hysbench.benchmarks.diagnosis_accuracy.planted"
     if user is not None:
         ds = dataclasses.replace(user, name=name, records=records, description=f"{user.name}, {how}", path=None)
     else:
