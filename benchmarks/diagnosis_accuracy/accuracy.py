@@ -32,27 +32,17 @@ delay on a base other than the Table 2 MRPIM: against the planted delay less
 the base's own lead on the base model, ``own_timing``, the error against the
 planted delay alone kept beside it).
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --cases 200 --out results --seed 45``
-(``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md)
-(``--on DATASET [--model NAME] [--segments K] [--thorough]``: PATTERN's effects planted on a user's dataset,
-``plan_on``)
-(``--jobs N``: cases in N processes, default every core; ``--plan slot-tied``: the plans before
-2026-11-27, see ``plan``; ``--pool DIR ... [--check DIR ...] [--report FILE.md]``: earlier runs' reports
-pooled, their detection limits checked on other runs, ``pooled``; ``--own-leads DIR ...``: earlier runs'
-delay cases given the base's own lead, ``add_own_leads``; ``--kept-evidence DIR ...``: earlier runs given the
-ceiling readings on top of everything kept, ``add_kept_evidence``; ``--again DIR ... --note TEXT``: every case of earlier runs diagnosed again with this
-code, ``diagnose_again``).
+Command: ``hysbench accuracy run --seed 45`` (``HEADLINE_SEED``, the plan of results/diagnosis_accuracy.md);
+``hysbench accuracy run --on DATASET`` plants PATTERN's effects on a user's dataset (``plan_on``). Every plan's
+rows go to one file (``rows``); ``hysbench accuracy report``, ``pool``, ``limits`` and ``again`` work on it
+(benchmarks/diagnosis_accuracy/README.md).
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
-import json
 import math
 import os
-import re
-import sys
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -67,13 +57,13 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
-from . import evidence_ceiling
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence, shows_on_kept
-from .own_timing import lead_of_case, needs_lead, own_lead
-from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
+from .own_timing import needs_lead, own_lead
+from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
-from .pooled import pool, pooled_markdown, write_pooled
-from .stated_limits import CHOSEN_ON, MIN_CASES, in_scope, minimum_strengths, out_of_scope
+from .pooled import plan_span
+from .rows import ROWS_FILE, plan_id, plan_rows, read_plans, store_plan
+from .stated_limits import in_scope, minimum_strengths, out_of_scope, stated_from
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_validation, ceiling, confirmed_counts,
                      detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of, span_text,
                      wilson_interval, within_tolerance)
@@ -81,7 +71,7 @@ from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_va
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
            + [("relaxation", "interference"), ("delay", "creep"), ("resonance", "creep"), ("saturation", "relaxation")])
-HEADLINE_SEED = 45  # the plan of results/diagnosis_accuracy.md (fresh, scored once with session 28's code)
+HEADLINE_SEED = 45  # the plan of results/diagnosis_accuracy.md
 
 
 # (base, drive) in the order the plan visits them: half MRPIM, a quarter each the virtual DEA and the real
@@ -91,32 +81,21 @@ COMBINATIONS = (("mrpim", "sines"), ("virtual-dea", "triangles"), ("piezo", "sin
                 ("mrpim", "sines"), ("virtual-dea", "sines"), ("mrpim", "triangles"), ("piezo", "sines"),
                 ("mrpim", "sines"), ("virtual-dea", "multisines"), ("mrpim", "sines"), ("piezo", "sines"))
 SLOT_SPREAD = 5  # consecutive slots of one effect start this far apart in COMBINATIONS
-PLAN_DESIGNS = ("balanced", "slot-tied", "within-limits")
+PLAN_DESIGNS = ("balanced", "within-limits")
 ATTEMPT_STRIDE = 1000  # within-limits: a redraw's seed is the case's seed + this times the attempt
 MAX_ATTEMPTS = PLAN_STRIDE // ATTEMPT_STRIDE - 1  # the redraws stay within the plan's seeds
 
 
 def plan(n_cases: int, seed: int = 0, bases: tuple[str, ...] = BASES, design: str = "balanced") -> list[dict]:
-    """A fixed plan of cases: PATTERN's effects in turn. ``balanced`` (since 2026-11-27): the k-th case of
-    PATTERN's slot j takes COMBINATIONS[(k + SLOT_SPREAD j) mod 12], so every effect meets every base and
-    drive. ``slot-tied`` (plans before 2026-11-27; results/diagnosis-accuracy-seed1..17): the drive was fixed
-    by the slot, so relaxation, resonance, interference, the white nulls and three more effects were planted
-    on sines only. ``within-limits``: as balanced, but a vocabulary effect is planted only on a base where it
-    has a stated limit (``stated_limits``) and is drawn at or above it (``planted_within``). A base that is not
-    here (the piezo recording), or without a stated limit for the slot's effects, gives its turns to the next
-    combination."""
+    """A fixed plan of cases: PATTERN's effects in turn. ``balanced``: the k-th case of PATTERN's slot j takes
+    COMBINATIONS[(k + SLOT_SPREAD j) mod 12], so every effect meets every base and drive. ``within-limits``: as
+    balanced, but a vocabulary effect is planted only on a base where it has a stated limit (``stated_limits``)
+    and is drawn at or above it (``planted_within``). A base that is not here (the piezo recording), or without a
+    stated limit for the slot's effects, gives its turns to the next combination."""
     if design not in PLAN_DESIGNS:
         raise ValueError(f"unknown plan design {design!r}; choose one of {', '.join(PLAN_DESIGNS)}")
     bases = tuple(b for b in bases if b != "piezo" or piezo_available())
     out = []
-    if design == "slot-tied":
-        cycle = [b for b in ("mrpim", "mrpim", "virtual-dea", "piezo") if b in bases] or list(bases)
-        for i in range(n_cases):
-            kinds = PATTERN[i % len(PATTERN)]
-            base = cycle[(i // len(PATTERN) + i) % len(cycle)]
-            drive = "sines" if base == "piezo" else DRIVES[(i // 2) % len(DRIVES)] if i % 2 else "sines"
-            out.append({"kinds": kinds, "base": base, "drive": drive, "seed": seed * PLAN_STRIDE + i})
-        return out
     limited = design == "within-limits"
     if limited and n_cases > ATTEMPT_STRIDE:
         raise ValueError(f"a within-limits plan has at most {ATTEMPT_STRIDE} cases")
@@ -360,11 +339,9 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
     model = on["model"] if on else "mrpim"
     other_than_own = "a cause other than the dataset's own verdict"
     lines += [
-        f"{s['cases']} cases (`python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --seed {plan_seed_of(rows)}"
-        f"{'' if s.get('plan_design', 'balanced') == 'balanced' else ' --plan ' + s['plan_design']}"
-        f"{_on_options(on)}`), base model {'MRPIM' if model == 'mrpim' else model}; generators "
-        "`hysbench.benchmarks.diagnosis_accuracy.planted` (functional forms independent of the extensions: FFT convolution, "
-        "frequency-domain delay, RK45 mode, logarithmic creep, ...). "
+        f"{s['cases']} cases (`{plan_command(s, rows)}`), base model {'MRPIM' if model == 'mrpim' else model}; "
+        "generators `hysbench.benchmarks.diagnosis_accuracy.planted` (functional forms independent of the "
+        "extensions: FFT convolution, frequency-domain delay, RK45 mode, logarithmic creep, ...). "
         f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
         *_on_lines(on),
         *_within_limits_lines(rows, s),
@@ -482,17 +459,26 @@ def _within_limits_lines(rows: list[dict], s: dict) -> list[str]:
     if s.get("plan_design") != "within-limits":
         return []
     redraws = sum(r.get("attempts", 1) - 1 for r in rows)
-    seeds = f"{CHOSEN_ON[0]}-{CHOSEN_ON[-1]}"
-    held_out = all(r["seed"] // PLAN_STRIDE > CHOSEN_ON[-1] for r in rows)
+    source = stated_from()
+    seeds = source["seeds"]
+    held_out = all(r["seed"] // PLAN_STRIDE > seeds[-1] for r in rows)
     return [f"**Within the stated limits** (`hysbench.benchmarks.diagnosis_accuracy.stated_limits`, stated from the "
-            f"balanced plans of seeds {seeds}, at least {MIN_CASES} cases at or above each): every vocabulary effect "
-            "is drawn at or above its stated limit on its base (each effect's own strength; a draw below it is "
-            f"drawn again with the next seed: {redraws} redraws in this plan), and a cause is planted only on a base "
-            "where it has a limit. Not planted, having none: "
+            f"plans {plan_span(source['plans'])}, at least {source['min_cases']} cases at or above each): every "
+            "vocabulary effect is drawn at or above its stated limit on its base (each effect's own strength; a draw "
+            f"below it is drawn again with the next seed: {redraws} redraws in this plan), and a cause is planted only "
+            "on a base where it has a limit. Not planted, having none: "
             + ", ".join(f"{c} on {b}" for c, b in out_of_scope())
             + ". Nulls and out-of-vocabulary effects as in the balanced plans. "
-            + (f"This plan took no part in stating the limits (its seed is above {CHOSEN_ON[-1]})." if held_out else
-               f"**This plan's seed is among those the limits were stated from: it does not measure them.**"), ""]
+            + (f"This plan took no part in stating the limits (its seed is above {seeds[-1]})." if held_out else
+               "**This plan's seed is among those the limits were stated from: it does not measure them.**"), ""]
+
+
+def plan_command(s: dict, rows: list[dict]) -> str:
+    """The command that runs a plan (``s``: its summary; ``rows``: its cases)."""
+    seed = s.get("plan_seed", plan_seed_of(rows))
+    return (f"hysbench accuracy run --seed {seed} --cases {s.get('planned_cases', s['cases'])}"
+            + ("" if s.get("plan_design", "balanced") == "balanced" or s.get("on") else f" --plan {s['plan_design']}")
+            + _on_options(s.get("on")))
 
 
 def _on_options(on: dict | None) -> str:
@@ -582,10 +568,6 @@ def _ceiling_lines(s: dict) -> list[str]:
                           "parameters, on top of the base or the named cause and on top of everything kept): "
                           f"{e['strict_cases']} vocabulary cases (of them right {e['strict_cases_right']}); ceiling "
                           f"**{e['strict_ceiling_right']} / {s['cases']} = {100 * e['strict_ceiling_share']:.1f} %**.")
-        if e.get("kept_rerun_differs"):
-            lines[-1] += (f" This reading was added later (`accuracy --kept-evidence`: the cases that kept more than "
-                          f"the named cause diagnosed again); {e['kept_rerun_differs']} case(s) diagnosed again for "
-                          "this reading came back with another verdict and keep the readings without it.")
     return lines
 
 
@@ -596,14 +578,22 @@ def missing_bases(bases: tuple[str, ...]) -> dict[str, str]:
     return {}
 
 
-def write(rows: list[dict], out: Path, wall_s: float, note: str = "", machine: dict | None = None,
-          missing: dict[str, str] | None = None, design: str = "balanced", on: dict | None = None) -> dict:
-    """The report and its JSON; ``on``: a run on a user's dataset (its path, name, model and own verdict)."""
-    s = {**summary(rows), "wall_s": wall_s, "machine": machine, "missing_bases": dict(missing or {}),
-         "plan_design": design, "note": note, **({"on": on} if on else {})}
-    write_json(out / "diagnosis_accuracy.json", json.loads(json.dumps({"summary": s, "cases": rows},
-                                                                     default=lambda o: o.tolist())))
-    write_atomic(out / "diagnosis_accuracy.md", markdown(rows, s, wall_s, note))
+def plan_summary(plan: dict) -> dict:
+    """A stored plan's summary (``summary`` of its rows) with how it was run (its meta line, ``rows``)."""
+    meta = plan["meta"]
+    return {**summary(plan["rows"]), "plan": plan["id"], "plan_seed": meta["seed"], "planned_cases": meta["cases"],
+            "wall_s": meta.get("wall_s"), "machine": meta.get("machine"),
+            "missing_bases": dict(meta.get("missing_bases") or {}), "plan_design": meta["design"],
+            "note": meta.get("note", ""), **({"on": meta["on"]} if meta.get("on") else {})}
+
+
+def write_report(plan: dict, report: str | Path) -> dict:
+    """A stored plan's report (markdown at ``report``) and its summary (the same name, .json); returns it."""
+    report = Path(report)
+    ensure_dir(report.parent)
+    s = plan_summary(plan)
+    write_json(report.with_suffix(".json"), {"summary": s})
+    write_atomic(report, markdown(plan["rows"], s, s["wall_s"] or s["seconds"], s["note"]))
     return s
 
 
@@ -611,16 +601,18 @@ def _one_thread() -> None:
     numba.set_num_threads(1)  # the processes share the cores, not each process's kernels
 
 
-def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results", bases: tuple[str, ...] = BASES,
+def run_accuracy(n_cases: int = 200, seed: int = 0, rows_file: str | Path = ROWS_FILE,
+                 report: str | Path | None = None, bases: tuple[str, ...] = BASES,
                  progress: Callable[[str], None] | None = None, write_every: int = 10, jobs: int = 1,
                  design: str = "balanced", dataset: str | Path | Dataset | None = None, model: str = "mrpim",
                  segments: int | None = None, thorough: bool = False) -> dict:
     """Run the plan (``plan``'s ``design``; with ``dataset``, ``plan_on`` with ``model`` as the base model and
-    ``segments`` and ``thorough`` as ``diagnose`` takes them) and
-    write the report (also every ``write_every`` cases, so a stopped run leaves its largest honest part).
-    ``jobs`` > 1 runs the cases in that many processes (one numba thread each); the cases are independent and
-    seeded, so the rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with
-    raises HysbenchError before anything is written."""
+    ``segments`` and ``thorough`` as ``diagnose`` takes them), store its rows in ``rows_file`` (replacing that
+    plan's rows, ``rows.store_plan``) and write its report to ``report`` (None: none); both also every
+    ``write_every`` cases, so a stopped run leaves its largest honest part, its note saying so. ``jobs`` > 1
+    runs the cases in that many processes (one numba thread each); the cases are independent and seeded, so the
+    rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with raises
+    HysbenchError before anything is written."""
     say = progress or (lambda s: None)
     with contextlib.ExitStack() as stack:
         # the workers are forked before the parent runs any numba kernel (forking after OpenMP is unsafe)
@@ -634,7 +626,6 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
             say(f"its own verdict: {own['verdict']}")
             on = {"dataset": str(ds.path), "name": ds.name, "model": model, "own": own,
                   **({"segments": segments} if segments else {}), **({"thorough": True} if thorough else {})}
-        out = ensure_dir(out)
         rows, t0 = [], time.perf_counter()
         machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
         cases = (plan_on(n_cases, seed, ds, model, own["verdict"], segments, thorough) if on
@@ -642,17 +633,22 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
         missing = missing_bases(bases) if not on else {}
         for base, why in missing.items():
             say(f"no {base} cases: {why}")
+        pid = plan_id(design, seed, on)
 
         def keep(note: str) -> dict:
-            return write(rows, out, time.perf_counter() - t0, note=note, missing=missing, design=design, on=on,
-                         machine={**machine, "load_end": os.getloadavg()[0]})
+            meta = {"design": design, "seed": seed, "cases": len(cases), "wall_s": time.perf_counter() - t0,
+                    "machine": {**machine, "load_end": os.getloadavg()[0]}, "missing_bases": missing,
+                    **({"note": note} if note else {}), **({"on": on} if on else {})}
+            store_plan(rows_file, pid, meta, rows)
+            plan_ = {"id": pid, "meta": meta, "rows": rows}
+            return write_report(plan_, report) if report is not None else plan_summary(plan_)
 
         try:
             for i, r in enumerate(pool.map(run_case, cases) if pool else map(run_case, cases)):
                 rows.append(r)
                 say(f"{i + 1}/{len(cases)} {'+'.join(r['kinds'])} {r['base']} {r['drive']}: {r['verdict']} "
                     f"({'right' if r['right'] else 'WRONG'}, {r['seconds']:.1f} s)")
-                if (i + 1) % write_every == 0:
+                if (i + 1) % write_every == 0 and i + 1 < len(cases):
                     keep(f"Partial run: {i + 1} of {len(cases)} cases.")
         except HysbenchError as e:  # a failing case: the cases before it are kept
             if rows:
@@ -661,253 +657,58 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, out: str | Path = "results",
         return keep("")
 
 
-def _note_in(report: Path) -> str:
-    """The note at the head of an earlier report (between its title and the plan's line; "" if none)."""
-    if not report.is_file():
-        return ""
-    head = []
-    for line in report.read_text().splitlines()[1:]:
-        if re.match(r"\d+ cases \(`python3 -m", line) or line.startswith(("**No ", "## ")):
-            break
-        head.append(line)
-    return "\n".join(head).strip()
+def _case_of(row: dict, meta: dict) -> dict:
+    """The case a stored row was diagnosed from (``plan``'s or ``plan_on``'s form)."""
+    case = {k: row[k] for k in ("kinds", "base", "drive", "seed")}
+    if "min_strength_pct" in row:
+        case["min_strength_pct"] = row["min_strength_pct"]
+    on = meta.get("on")
+    if on:
+        case.update({"dataset": on["dataset"], "model": on.get("model", "mrpim"), "own": on["own"]["verdict"],
+                     **({"segments": on["segments"]} if on.get("segments") else {}),
+                     **({"thorough": True} if on.get("thorough") else {})})
+    return case
 
 
-def add_own_leads(folder: str | Path, workers: ProcessPoolExecutor | None = None) -> int:
-    """An earlier run's delay cases on a base other than the Table 2 MRPIM (``own_timing.needs_lead``) judged
-    as ``run_case`` now judges them: the base's own lead measured, and where it is positive a named delay's
-    error taken against the planted delay less it; a delay under "also" (its estimate not in the row) is
-    diagnosed again, and its verdict must come back the same. The report is rewritten. Returns the number of
-    cases measured. ``workers``: processes forked before this process ran any numba kernel (``run_accuracy``)."""
-    path = Path(folder) / "diagnosis_accuracy.json"
-    data = json.loads(path.read_text())
-    todo = [i for i, r in enumerate(data["cases"]) if needs_lead(r) and "own_lead_s" not in r]
-    leads = list((workers.map if workers else map)(lead_of_case, [data["cases"][i] for i in todo]))
-    for i, lead in zip(todo, leads):
-        r = data["cases"][i]
-        r["own_lead_s"] = lead
-        if not lead:
-            continue
-        if "delay" not in r["also"]:  # a named delay: its estimate is in the row
-            truth = {"effects": r["effects"]}
-            r["parameter_errors_planted_alone"] = r["parameter_errors"]
-            r["also_parameter_errors_planted_alone"] = r.get("also_parameter_errors", {})
-            r["parameter_errors"] = parameter_errors(with_own_lead(truth, lead), "delay", r["parameters"])
-            r["parameters_within"] = within_tolerance(r["parameter_errors"])
-            continue
-        again = run_case({k: r[k] for k in ("kinds", "base", "drive", "seed")})  # estimates under "also"
-        if (again["verdict"], again["also"]) != (r["verdict"], r["also"]):
-            raise ValueError(f"{path}: case {r['seed']} came back as {again['verdict']} {again['also']}, "
-                             f"not {r['verdict']} {r['also']}")
-        for k in ("own_lead_s", "parameter_errors", "parameters_within", "also_parameter_errors",
-                  "parameter_errors_planted_alone", "also_parameter_errors_planted_alone"):
-            r[k] = again[k]
-    write_json(path, data)
-    rewrite(folder)
-    return len(todo)
+def verdict_changes(old: list[dict], new: list[dict]) -> list[str]:
+    """Per case whose verdict or "also" differs between two scorings of a plan: one line saying how."""
+    def text(r: dict) -> str:
+        return f"{r['verdict']} (also {', '.join(r['also']) or '-'})"
+
+    return [f"{effect_label(a)} on {a['base']} (case seed {a['seed']}): {text(a)} -> {text(b)}"
+            + ("" if a["right"] == b["right"] else (", right now" if b["right"] else ", wrong now"))
+            for a, b in zip(old, new) if (a["verdict"], a["also"]) != (b["verdict"], b["also"])]
 
 
-def keeps_more(r: dict) -> bool:
-    """``evidence_ceiling.keeps_more`` from a row: the rows whose ``shows_on_kept`` needs the diagnosis again."""
-    kept = [r["verdict"], *r["also"]] if r["verdict"] in VOCABULARY else list(r["also"])
-    return evidence_ceiling.keeps_more(kept, r["kinds"])
-
-
-def add_kept_evidence(folder: str | Path, workers: ProcessPoolExecutor | None = None) -> dict:
-    """An earlier run's third ceiling reading (``evidence_ceiling.shows_on_kept``): a vocabulary case whose
-    diagnosis kept nothing more than the named cause takes ``shows_on_kept`` from its row (it is then
-    ``effect_shows_evidence``); one that kept more (``keeps_more``) and whose effect shows evidence is diagnosed
-    again. If that comes back with the same verdict and ``also``, its reading is taken; if not, the case keeps
-    the first reading (``shows_evidence``: the ceiling is not lowered by a rerun that kept something else) and
-    is listed under ``kept_rerun_differs``. The report is rewritten. Returns {rerun, same, differs}."""
-    path = Path(folder) / "diagnosis_accuracy.json"
-    data = json.loads(path.read_text())
-    rows = data["cases"]
-    vocab = [r for r in rows if r["kinds"][0] in VOCABULARY and "shows_on_kept" not in r]
-    todo = [r for r in vocab if r.get("effect_shows_evidence") and keeps_more(r)]
-    again = list((workers.map if workers else map)(run_case, [{k: r[k] for k in ("kinds", "base", "drive", "seed")}
-                                                               for r in todo]))
-    differs = []
-    for r in vocab:
-        r["shows_on_kept"] = bool(r.get("effect_shows_evidence"))
-    for r, a in zip(todo, again):
-        if (a["verdict"], a["also"]) != (r["verdict"], r["also"]):
-            r["kept_rerun_differs"] = {"verdict": a["verdict"], "also": a["also"]}
-            differs.append(r["seed"])
-            continue
-        r["shows_on_kept"] = a["shows_on_kept"]
-        for kind, refs in a["effect_evidence"].items():
-            r.setdefault("effect_evidence", {}).setdefault(kind, {}).update(
-                {ref: v for ref, v in refs.items() if ref.endswith("kept")})
-    write_json(path, data)
-    rewrite(folder)
-    return {"rerun": len(todo), "same": len(todo) - len(differs), "differs": differs}
-
-
-def _verdict_text(r: dict) -> str:
-    return f"{r['verdict']} (also {', '.join(r['also']) or '-'})"
-
-
-def changes_note(old: list[dict], new: list[dict], what: str) -> str:
-    """The paragraph a rerun appends to a report's note: ``what``, then each case whose verdict or "also" changed."""
-    changed = [(i, a, b) for i, (a, b) in enumerate(zip(old, new))
-               if (a["verdict"], a["also"]) != (b["verdict"], b["also"])]
-    cases = "; ".join(f"case {i} {_verdict_text(a)} -> {_verdict_text(b)}"
-                      + ("" if a["right"] == b["right"] else (", right now" if b["right"] else ", wrong now"))
-                      for i, a, b in changed)
-    right = (sum(r["right"] for r in old), sum(r["right"] for r in new))
-    return (f"{what}: every case diagnosed again and its row replaced; {len(changed)} verdicts or also lists changed, "
-            f"{right[0]} -> {right[1]} right" + (f": {cases}." if cases else "."))
-
-
-def diagnose_again(folders: list[str | Path], what: str, workers: ProcessPoolExecutor | None = None, jobs: int = 1,
-                   progress: Callable[[str], None] | None = None) -> list[dict]:
-    """Every case of earlier runs diagnosed again with this code (``run_case``), its row replaced, and the report
-    rewritten with ``changes_note`` appended to its note; a folder is written as soon as its last case is done
-    (the cases of all folders share ``workers``, ``jobs`` processes, so the cores stay busy between folders; a
-folder's wall time is counted from the previous folder's end). Returns per folder
-    {folder, right_before, right_after, changed}."""
+def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
+          progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Every case of the stored plans ``ids`` diagnosed again with the installed code (``run_case``) and the plans'
+    rows replaced, each plan stored as soon as its last case is done (the cases of all plans share ``jobs``
+    processes). A within-limits row keeps its redraw count. Returns per plan {plan, right_before, right_after,
+    changes} (``verdict_changes``)."""
     say = progress or (lambda m: None)
-    paths = [Path(f) / "diagnosis_accuracy.json" for f in folders]
-    datas = [json.loads(p.read_text()) for p in paths]  # every folder read first: a bad one stops before any run
-    todo = [{k: r[k] for k in ("kinds", "base", "drive", "seed", *(("dataset", "own") if "dataset" in r else ()),
-                               *(("min_strength_pct",) if "min_strength_pct" in r else ()))}
-            for d in datas for r in d["cases"]]
-    results = (workers.map if workers else map)(run_case, todo)
-    done, t0 = [], time.perf_counter()
-    for folder, path, data in zip(folders, paths, datas):
-        load_start, rows = os.getloadavg()[0], []
-        for r in data["cases"]:  # a within-limits row keeps its redraws (its seed is the accepted draw's)
-            rows.append({**next(results), **({"attempts": r["attempts"]} if "attempts" in r else {})})
-        old, s = data["cases"], data["summary"]
-        note = changes_note(old, rows, what)
-        s["note"] = "\n\n".join(x for x in (s.get("note") or _note_in(path.with_suffix(".md")), note) if x)
-        s["machine"] = {"cpu_count": os.cpu_count(), "load_start": load_start, "load_end": os.getloadavg()[0],
-                        "jobs": jobs if workers else 1}
-        data["cases"] = rows
-        write_json(path, data)
-        rewrite(folder, wall_s=time.perf_counter() - t0)
+    plans = plan_rows(read_plans(rows_file), ids, rows_file)  # every plan read first: a missing one stops before any run
+    todo = [_case_of(r, p["meta"]) for p in plans for r in p["rows"]]
+    done = []
+    with contextlib.ExitStack() as stack:
+        pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread)) if jobs > 1 else None
+        results = pool.map(run_case, todo) if pool else map(run_case, todo)
         t0 = time.perf_counter()
-        done.append({"folder": str(folder), "right_before": sum(r["right"] for r in old),
-                     "right_after": sum(r["right"] for r in rows), "changed": note})
-        say(f"{folder}: {note}")
+        for p in plans:
+            load_start, rows = os.getloadavg()[0], []
+            for r in p["rows"]:
+                rows.append({**next(results), **({"attempts": r["attempts"]} if "attempts" in r else {})})
+            meta = {**p["meta"], "wall_s": time.perf_counter() - t0,
+                    "machine": {"cpu_count": os.cpu_count(), "load_start": load_start, "load_end": os.getloadavg()[0],
+                                "jobs": jobs}}
+            meta.pop("note", None)
+            store_plan(rows_file, p["id"], meta, rows)
+            t0 = time.perf_counter()
+            changes = verdict_changes(p["rows"], rows)
+            done.append({"plan": p["id"], "right_before": sum(r["right"] for r in p["rows"]),
+                         "right_after": sum(r["right"] for r in rows), "changes": changes})
+            say(f"{p['id']}: {done[-1]['right_before']} -> {done[-1]['right_after']} right, "
+                f"{len(changes)} verdict(s) or also list(s) changed")
+            for line in changes:
+                say(f"  {line}")
     return done
-
-
-def rewrite(folder: str | Path, wall_s: float | None = None) -> dict:
-    """Rewrite the report from the JSON of an earlier run (same cases, current report layout, its note kept)."""
-    data = json.loads((Path(folder) / "diagnosis_accuracy.json").read_text())
-    wall = wall_s if wall_s is not None else data["summary"].get("wall_s", data["summary"]["seconds"])
-    note = data["summary"].get("note")
-    if note is None:  # reports written before the note was kept in the JSON
-        note = _note_in(Path(folder) / "diagnosis_accuracy.md")
-    return write(data["cases"], Path(folder), wall, note=note, machine=data["summary"].get("machine"),
-                 missing=data["summary"].get("missing_bases"),
-                 design=data["summary"].get("plan_design", "slot-tied"),  # runs before 2026-11-27
-                 on=data["summary"].get("on"))
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--cases", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default=None,
-                        help="folder of the report (default: results; with --on: diagnosis-accuracy-NAME)")
-    parser.add_argument("--on", metavar="DATASET",
-                        help="plant the effects on this dataset's records (a folder with dataset.toml) instead of "
-                             "the fixed bases")
-    parser.add_argument("--model", default=None, help="with --on: the base model diagnosed (default: mrpim)")
-    parser.add_argument("--segments", type=int, default=None, metavar="K",
-                        help="with --on: cut each identification record into K records, as diagnose --segments")
-    parser.add_argument("--thorough", action="store_true", help="with --on: as diagnose --thorough")
-    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
-                        help="processes running cases at once (default: every core)")
-    parser.add_argument("--plan", choices=PLAN_DESIGNS, default="balanced",
-                        help="balanced: every effect on every base and drive (default); slot-tied: the plans "
-                             "before 2026-11-27, whose drive was fixed by the effect's slot")
-    parser.add_argument("--pool", nargs="+", metavar="DIR",
-                        help="pool the reports of earlier runs in these folders (no new run)")
-    parser.add_argument("--check", nargs="+", metavar="DIR",
-                        help="with --pool: check the pooled detection limits on these other runs (held out)")
-    parser.add_argument("--report", metavar="FILE.md",
-                        help="with --pool: write the pooled report here (and FILE.json) instead of printing it")
-    parser.add_argument("--note", default="", help="with --pool --report: a paragraph under the title")
-    parser.add_argument("--own-leads", nargs="+", metavar="DIR",
-                        help="add the base's own lead (own_timing) to earlier runs' delay cases and rewrite their "
-                             "reports (no new run)")
-    parser.add_argument("--kept-evidence", nargs="+", metavar="DIR",
-                        help="add the third ceiling reading (on top of everything kept) to earlier runs, diagnosing "
-                             "again only the cases that kept more than the named cause (no new run)")
-    parser.add_argument("--again", nargs="+", metavar="DIR",
-                        help="diagnose every case of earlier runs again with this code, replace their rows and "
-                             "append what changed to each report's note (--note names the code; no new plan)")
-    args = parser.parse_args(argv)
-    if args.again:
-        if not args.note:
-            parser.error("--again needs --note: what code the cases are diagnosed with (it heads the change list)")
-        try:
-            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
-            with forked or contextlib.nullcontext() as workers:
-                diagnose_again(args.again, args.note, workers, args.jobs, progress=lambda m: print(m, flush=True))
-        except (OSError, ValueError, KeyError, HysbenchError) as e:
-            print(f"hysbench accuracy: {e}", file=sys.stderr)
-            return 2
-        return 0
-    if args.kept_evidence:
-        try:
-            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
-            with forked or contextlib.nullcontext() as workers:
-                for folder in args.kept_evidence:
-                    n = add_kept_evidence(folder, workers)
-                    print(f"{folder}: {n['rerun']} case(s) diagnosed again, {n['same']} the same; differ: "
-                          f"{n['differs'] or 'none'}", flush=True)
-        except (OSError, ValueError, KeyError, HysbenchError) as e:
-            print(f"hysbench accuracy: {e}", file=sys.stderr)
-            return 2
-        return 0
-    if args.own_leads:
-        try:  # the processes forked first: a delay under "also" is diagnosed again in this one
-            forked = ProcessPoolExecutor(args.jobs, initializer=_one_thread) if args.jobs > 1 else None
-            with forked or contextlib.nullcontext() as workers:
-                for folder in args.own_leads:
-                    n = add_own_leads(folder, workers)
-                    print(f"{folder}: own lead measured in {n} case(s)", flush=True)
-        except (OSError, ValueError, KeyError, HysbenchError) as e:
-            print(f"hysbench accuracy: {e}", file=sys.stderr)
-            return 2
-        return 0
-    if args.pool:
-        try:
-            p = pool(args.pool, check=args.check)
-            if args.report:
-                write_pooled(p, args.report, note=args.note)
-            else:
-                print(pooled_markdown(p), end="")
-        except (HysbenchError, OSError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        return 0
-    if args.report or args.note or args.check:
-        parser.error("--report, --note and --check go with --pool (--note also with --again)")
-    if args.cases < 1 or args.jobs < 1:
-        parser.error("--cases and --jobs must be positive integers")
-    if (args.model is not None or args.segments is not None or args.thorough) and not args.on:
-        parser.error("--model, --segments and --thorough go with --on (the fixed bases are scored as they were)")
-    if args.segments is not None and args.segments < 2:
-        parser.error("--segments must be an integer >= 2")
-    if args.on and args.plan != "balanced":
-        parser.error("--plan goes with the fixed bases, not --on")
-    out = args.out or (f"diagnosis-accuracy-{Path(args.on).name}" if args.on else "results")
-    try:
-        s = run_accuracy(args.cases, args.seed, out, progress=lambda m: print(m, flush=True), jobs=args.jobs,
-                         design=args.plan, dataset=args.on, model=args.model or "mrpim", segments=args.segments,
-                         thorough=args.thorough)
-    except HysbenchError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    print(json.dumps({k: v for k, v in s.items() if k != "detection_limits"}, indent=1))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -23,11 +23,7 @@ from typing import Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from hysbench.data.segments import own_samples
-from hysbench.models import get_model
-
-from hysbench.benchmarks.diagnosis.diagnose import build_screen
-from .planted import fractional_delay, planted_case
+from .planted import fractional_delay
 
 MAX_LEAD_S = 0.030  # the planted delays' upper end
 GRID_STEP_S = 0.0025
@@ -77,10 +73,3 @@ def needs_lead(row: Mapping) -> bool:
     return ("delay" in row["kinds"] and row["base"] != "mrpim"
             and (row["verdict"] == "delay" or "delay" in row["also"]))
 
-
-def lead_of_case(row: Mapping) -> float | None:
-    """``own_lead`` for an earlier run's case (``needs_lead``): its data drawn again and the base model
-    identified and screened as ``diagnose`` does (its nonlinear parameters refitted per delay)."""
-    ds, truth = planted_case(tuple(row["kinds"]), row["base"], row["drive"], row["seed"])
-    screen = build_screen(own_samples(ds), get_model(row.get("model", "mrpim")), 0)[-1]
-    return own_lead(screen, truth["signals"])

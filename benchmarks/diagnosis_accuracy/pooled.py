@@ -18,7 +18,6 @@ Command: ``python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --pool DIR
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
 from pathlib import Path
@@ -33,26 +32,19 @@ from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detecti
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
 
 
-def _read(folder: str | Path) -> tuple[list[dict], dict]:
-    path = Path(folder) / "diagnosis_accuracy.json"
-    if not path.is_file():
-        raise HysbenchError(f"no accuracy report in {folder} (expected {path.name})")
-    try:
-        data = json.loads(path.read_text())
-        rows, s = data["cases"], data["summary"]
-        missing = [k for k in ("cases", "right") if k not in s]
-    except (ValueError, KeyError, TypeError) as e:
-        raise HysbenchError(f"{path} is not an accuracy report ({e})") from None
-    if missing:
-        raise HysbenchError(f"{path} is not an accuracy report (its summary has no {', '.join(missing)})")
-    for i, r in enumerate(rows if isinstance(rows, list) else [None]):
+def _checked_rows(plan: dict) -> list[dict]:
+    """A stored plan's rows (``rows.plan_rows``), each checked for the fields pooling needs."""
+    rows = plan["rows"]
+    if not rows:
+        raise HysbenchError(f"plan {plan['id']} has no rows")
+    for i, r in enumerate(rows):
         bad = [k for k in _CASE_KEYS if k not in r] if isinstance(r, dict) else ["fields"]
         if not bad and not (isinstance(r["seed"], int) and isinstance(r["kinds"], list)
                             and isinstance(r["strength_pct"], (int, float))):
             bad = ["seed, kinds or strength_pct of the right type"]
         if bad:
-            raise HysbenchError(f"{path}: case {i} has no {', '.join(bad)}")
-    return rows, s
+            raise HysbenchError(f"plan {plan['id']}: case {i} has no {', '.join(bad)}")
+    return rows
 
 
 def _share(rows: list[dict]) -> dict:
@@ -67,20 +59,21 @@ def _effect_order(label: str) -> tuple:
     return group, label
 
 
-def _read_plans(folders: list[str | Path], seen: set, why: str = "") -> tuple[list[dict], list[dict]]:
-    """(per plan its folder, seed, cases, right and totals; all their cases); a plan seed in ``seen`` (or given
-    twice) raises HysbenchError (``why``: added to its message)."""
-    plans, rows = [], []
-    for folder in folders:
-        plan_rows, s = _read(folder)
+def _read_plans(plans: list[dict], seen: set, why: str = "") -> tuple[list[dict], list[dict]]:
+    """(per plan its id, seed, cases, right and totals; all their cases) of stored plans (``rows.plan_rows``); a
+    plan seed in ``seen`` (or given twice) raises HysbenchError (``why``: added to its message)."""
+    out, rows = [], []
+    for plan in plans:
+        plan_rows = _checked_rows(plan)
         seed = plan_seed_of(plan_rows)
         if seed in seen:
-            raise HysbenchError(f"plan seed {seed} is given twice ({folder}){why}")
+            raise HysbenchError(f"plan seed {seed} is given twice ({plan['id']}){why}")
         seen.add(seed)
-        plans.append({"folder": str(folder), "seed": seed, "cases": s["cases"], "right": s["right"],
-                      **confirmed_counts(plan_rows), **_ceilings(plan_rows)})  # counted as this code counts
+        out.append({"plan": plan["id"], "seed": seed, "cases": len(plan_rows),
+                    "right": sum(bool(r["right"]) for r in plan_rows),
+                    **confirmed_counts(plan_rows), **_ceilings(plan_rows)})
         rows += plan_rows
-    return plans, rows
+    return out, rows
 
 
 # the ceiling readings (``shares.ceiling``): its keys for the ceiling, the cases with the evidence, of them right,
@@ -132,15 +125,15 @@ def check_limits(limits: dict, rows: list[dict]) -> dict:
             "interval": list(wilson_interval(right_all, above_all))}
 
 
-def pool(folders: list[str | Path], check: list[str | Path] | None = None) -> dict:
-    """Several plans' reports pooled: per plan its seed, cases and verdicts right; over all of them the
+def pool(plans: list[dict], check: list[dict] | None = None) -> dict:
+    """Several stored plans (``rows.plan_rows``) pooled: per plan its seed, cases and verdicts right; over all of them the
     share right with its interval (the cases taken as independent draws from one design; pool plans scored
     with the same rule), per effect and base and per base and drive the share right, and per vocabulary
     cause and base the detection limit; with ``check``, those limits checked on these other plans
-    (``check_limits``). Raises HysbenchError for a folder without a report or a plan given twice (also: both
-    pooled and checked, which would not be held out)."""
+    (``check_limits``). Raises HysbenchError for a plan without rows or given twice (also: both pooled and
+    checked, which would not be held out)."""
     seen: set = set()
-    plans, rows = _read_plans(folders, seen)
+    plans, rows = _read_plans(plans, seen)
     checked = _read_plans(check, seen, ": a plan pooled for the limits cannot check them") if check else None
     cases, right = sum(p["cases"] for p in plans), sum(p["right"] for p in plans)
     by_effect, by_drive = defaultdict(lambda: defaultdict(list)), defaultdict(lambda: defaultdict(list))
@@ -256,11 +249,6 @@ def _pooled_ceiling_lines(p: dict) -> list[str]:
         lines.append(f"| {i}. {label} | {e[cases]} of {e['vocabulary_cases']} | {e[right]} | "
                      f"**{e[k]} / {n} = {100 * e[k] / n:.1f} %** | {100 * lo:.1f}-{100 * hi:.1f} % |")
     lines += ["", f"Right now: {p['right']} / {n} = {100 * p['right_share']:.1f} %; the target is 90 %."]
-    if e.get("kept_rerun_differs"):
-        k = e["kept_rerun_differs"]
-        lines[-1] += (f" Readings 3 and 4 need the diagnosis of the cases that kept more than the named cause "
-                      f"run again; {k} of them came back with another verdict and keep{'s' if k == 1 else ''} readings "
-                      "1 and 2 (a rerun that kept something else does not lower the ceiling).")
     lines += ["", "By base, the vocabulary cases right and at most right by each reading:", "",
               "| base | vocabulary cases | right | " + " | ".join(f"reading {i}" for i, _ in readings) + " |",
               "|---|---|---|" + "---|" * len(readings)]
@@ -293,9 +281,8 @@ def _checked_lines(c: dict) -> list[str]:
         lines += ["", f"Every cause and base with a limit: {c['right_above']} of {c['above']} cases at or above "
                       f"their limit right = **{100 * c['right_above'] / c['above']:.1f} %**"
                       f"{interval_text(c['interval'])}."]
-    if "all_cases" in c:  # reports written before 2026-12-03 have no overall share of the held-out plans
-        a = c["all_cases"]
-        lines += ["", f"Every case of these plans, at any strength: {a['right']} / {a['cases']} right = "
+    a = c["all_cases"]
+    lines += ["", f"Every case of these plans, at any strength: {a['right']} / {a['cases']} right = "
                       f"**{100 * a['right'] / a['cases']:.1f} %**{interval_text(a['interval'])}; confirmed causes "
                       f"on nulls {c['confirmed_on_nulls']} of {c['nulls_checked']}, out-of-vocabulary effects given "
                       f"a confirmed vocabulary cause {c['oov_given_confirmed_vocabulary']} of {c['oov']}."]
@@ -303,10 +290,36 @@ def _checked_lines(c: dict) -> list[str]:
 
 
 def write_pooled(p: dict, report: str | Path, title: str = "Accuracy of `hysbench diagnose`, plans pooled",
-                 note: str = "") -> None:
-    """The pooled report as markdown (``report``) and JSON (same name, .json), each written whole."""
+                 note: str = "", command: str = "") -> None:
+    """The pooled report as markdown (``report``) and JSON (same name, .json), each written whole; under the
+    title the plans pooled and checked, ``command`` (the one that writes it) and ``note``."""
     report = Path(report)
     ensure_dir(report.parent)
-    head = [f"# {title}", ""] + ([note.rstrip(), ""] if note else [])
-    write_json(report.with_suffix(".json"), p)
+    pooled = f"Plans pooled: {plan_span([q['plan'] for q in p['plans']])} ({p['cases']} cases)"
+    if "checked" in p:
+        pooled += (f"; the detection limits checked on {plan_span([q['plan'] for q in p['checked']['plans']])}, "
+                   "pooled nowhere above")
+    head = [f"# {title}", "", pooled + "." + (f" Command: `{command}`." if command else ""), ""]
+    head += [note.rstrip(), ""] if note else []
+    write_json(report.with_suffix(".json"), {**p, "command": command})
     write_atomic(report, "\n".join(head) + "\n" + pooled_markdown(p))
+
+
+def plan_span(ids: list[str]) -> str:
+    """Plan ids with runs of consecutive seeds of one design shortened: ``balanced-35..44, within-limits-63``."""
+    out, run = [], []
+    for pid in ids + [None]:
+        name, _, seed = (pid or "").rpartition("-")
+        if run and pid is not None and seed.isdigit() and name == run[-1][0] and int(seed) == run[-1][1] + 1:
+            run.append((name, int(seed)))
+            continue
+        if run:
+            out.append(f"{run[0][0]}-{run[0][1]}" + (f"..{run[-1][1]}" if len(run) > 1 else ""))
+            run = []
+        if pid is None:
+            break
+        if seed.isdigit() and name:
+            run = [(name, int(seed))]
+        else:
+            out.append(pid)
+    return ", ".join(out)

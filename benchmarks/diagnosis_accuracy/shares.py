@@ -33,8 +33,8 @@ def confirmed_counts(rows: list[dict]) -> dict:
 
 
 def also_on_validation(rows: list[dict]) -> dict | None:
-    """The causes kept under "also" checked on the validation records (rows scored since session 36), split by
-    whether the cause was planted: borne out, and checked (None: no row has the check)."""
+    """The causes kept under "also" checked on the validation records, split by whether the cause was planted:
+    borne out, and checked (None: no row has the check)."""
     if not any("also_on_validation" in r for r in rows):
         return None
     checked = [(a, r) for r in rows for a in r.get("also_on_validation", []) if a["checked"]]
@@ -110,9 +110,9 @@ def ceiling(rows: list[dict]) -> dict:
     (``evidence_ceiling``), and the best verdict share a rule that names causes only on such evidence could
     reach: every other case right, and among the rest only those already right (by a verdict the base gives
     anyway); the same with the vocabulary's own extensions at the planted parameters (``extension_*``), on
-    top of everything the diagnosis kept (``kept_*``; ``kept_rerun_differs``: cases whose later reading came
-    back with another verdict and kept the first, ``accuracy.add_kept_evidence``), and both at once, the
-    strictest (``strict_*``, ``evidence_ceiling.extension_on_kept``). Empty for rows from before the check."""
+    top of everything the diagnosis kept (``kept_*``), and both at once, the strictest (``strict_*``,
+    ``evidence_ceiling.extension_on_kept``). Empty if a vocabulary row has no ``effect_shows_evidence``; a reading
+    is left out if a vocabulary row lacks its field."""
     vocab = [r for r in rows if r["kinds"][0] in VOCABULARY]
     if not vocab or any("effect_shows_evidence" not in r for r in vocab):
         return {}
@@ -144,6 +144,4 @@ def ceiling(rows: list[dict]) -> dict:
             for b, v in out["by_base"].items():
                 n, right, rest = reach([r for r in vocab if r["base"] == b], has)
                 v.update({f"{name}_cases": n, f"{name}_cases_right": right, f"{name}_without_right": rest})
-    if "kept_cases" in out:
-        out["kept_rerun_differs"] = sum("kept_rerun_differs" in r for r in vocab)
     return {"evidence": out}

@@ -1,51 +1,90 @@
-"""The detection limits the diagnosis states, per cause and base, and the plan drawn within them.
+"""The detection limits the diagnosis states, per cause and base: measured data, stated from stored plans.
 
 A detection limit (``shares.detection_limit``) is the smallest strength of a planted effect (rms over the
 identification records, % of the output's peak-to-peak) above which the verdict is right in >= 95 % of the
-single-cause cases. Here it is stated once, from the 28 balanced plans of seeds 35-62 (5600 cases, every row
-diagnosed with session 41's code), with at least ``MIN_CASES`` cases at or above it; a cause and base with no
-such strength in the drawn range has no limit: the diagnosis cannot be trusted to find that cause on such a
-plant, at any strength drawn.
+single-cause cases, with at least ``MIN_CASES`` cases at or above it. ``state`` computes the table from stored
+plans' rows (``hysbench accuracy limits``, by default from the balanced plans 35-62) and ``write_limits`` writes it
+to ``LIMITS_FILE`` (stated_limits.json beside this module, installed with the package), together with the plans it
+was stated from. A cause and base with no such strength in the drawn range has no limit (null): the diagnosis
+cannot be trusted to find that cause on such a plant, at any strength drawn.
 
 The ``within-limits`` plan (``accuracy.plan``) draws each vocabulary effect at or above its stated limit and
-plants a cause only on a base where it has one; nulls and out-of-vocabulary effects are drawn as always. Its
-accuracy is measured only on plans with seeds above ``CHOSEN_ON[-1]``: plans that took no part in stating the
-limits. ``tests/test_stated_limits.py`` recomputes the table from those 28 plans' reports.
+plants a cause only on a base where it has one; its accuracy is measured on plans whose seeds are above those the
+limits were stated from.
 """
 
 from __future__ import annotations
 
-from .planted import VOCABULARY
+import json
+from pathlib import Path
 
-CHOSEN_ON = tuple(range(35, 63))  # the plan seeds the limits were stated from
+from hysbench.data.files import write_json
+from hysbench.models.errors import HysbenchError
+
+from .planted import BASES, VOCABULARY
+from .shares import PLAN_STRIDE, RIGHT_SHARE, detection_limit
+
+LIMITS_FILE = Path(__file__).with_name("stated_limits.json")
 MIN_CASES = 20  # single-cause cases at or above a stated limit, at least
+STATING_PLANS = ["balanced-35..62"]  # the plans ``hysbench accuracy limits`` states them from by default
 
-# (cause, base): limit in % of p2p, or None (no strength in the drawn range has >= 95 % of >= MIN_CASES right)
-LIMITS_PCT = {
-    ("relaxation", "mrpim"): 1.0647013134632228,  # 301 of 308 right at or above; 308 cases
-    ("relaxation", "virtual-dea"): None,  # 140 cases
-    ("relaxation", "piezo"): 0.7333719073757233,  # 32 of 33; 140 cases
-    ("delay", "mrpim"): 0.1981945475169865,  # 280 of 280; 280 cases
-    ("delay", "virtual-dea"): 1.162435213534414,  # 84 of 88; 168 cases
-    ("delay", "piezo"): 4.571999200785541,  # 51 of 53; 140 cases
-    ("resonance", "mrpim"): 0.4565315196665961,  # 306 of 308; 308 cases
-    ("resonance", "virtual-dea"): None,  # 140 cases (6.13 with 6 of 6 above: fewer than MIN_CASES)
-    ("resonance", "piezo"): 2.631676183007996,  # 93 of 97; 140 cases
-    ("creep", "mrpim"): 0.5674244020669907,  # 271 of 280; 280 cases
-    ("creep", "virtual-dea"): None,  # 140 cases
-    ("creep", "piezo"): 0.6107298226905497,  # 168 of 168; 168 cases
-    ("interference", "mrpim"): 0.14327379790951258,  # 307 of 308; 308 cases
-    ("interference", "virtual-dea"): 0.25205305077028844,  # 119 of 125; 140 cases
-    ("interference", "piezo"): 0.16828246751804826,  # 133 of 140; 140 cases
-    ("saturation", "mrpim"): 0.2828015083562644,  # 279 of 280; 280 cases
-    ("saturation", "virtual-dea"): None,  # 168 cases
-    ("saturation", "piezo"): 0.4364339876941183,  # 140 of 140; 140 cases
-}
+
+def state(plans: list[dict], min_cases: int = MIN_CASES) -> dict:
+    """The limits stated from ``plans`` (``rows.plan_rows``: {"id", "meta", "rows"} each), per vocabulary cause
+    and fixed base: {"plans", "seeds", "min_cases", "right_share", "limits": [{cause, base, limit_pct (None: not
+    reached), cases, cases_above, right_above}]}."""
+    rows = [r for p in plans for r in p["rows"]]
+    limits = []
+    for cause in VOCABULARY:
+        for base in BASES:
+            q = detection_limit([r for r in rows if r["base"] == base], cause, min_cases=min_cases)
+            limits.append({"cause": cause, "base": base, "limit_pct": q["strength_pct"], "cases": q["cases"],
+                           "cases_above": q["cases_above"], "right_above": q["right_above"]})
+    return {"plans": [p["id"] for p in plans], "seeds": sorted({r["seed"] // PLAN_STRIDE for r in rows}),
+            "min_cases": min_cases, "right_share": RIGHT_SHARE, "limits": limits}
+
+
+def write_limits(data: dict, path: str | Path = LIMITS_FILE) -> None:
+    """Write the table (``state``'s) as JSON; the limits read from then on are these if ``path`` is LIMITS_FILE."""
+    write_json(path, data)
+    _loaded.clear()
+
+
+def load(path: str | Path = LIMITS_FILE) -> dict:
+    """The stated limits as written by ``write_limits``; HysbenchError if the file is missing or not one."""
+    try:
+        data = json.loads(Path(path).read_text())
+        table = {(q["cause"], q["base"]): q["limit_pct"] for q in data["limits"]}
+        data["seeds"], data["plans"], data["min_cases"]  # noqa: B018 (present)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise HysbenchError(f"cannot read the stated limits from {path} ({e})") from None
+    return {**data, "table": table}
+
+
+_loaded: dict = {}
+
+
+def _stated() -> dict:
+    """LIMITS_FILE, read once (a command that cannot find it fails where a limit is needed, not at import)."""
+    if "data" not in _loaded:
+        _loaded["data"] = load()
+    return _loaded["data"]
+
+
+def __getattr__(name: str):
+    if name == "LIMITS_PCT":  # {(cause, base): limit in % of p2p, or None}, as LIMITS_FILE states them
+        return _stated()["table"]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def stated_from() -> dict:
+    """What the limits were stated from: {"plans", "seeds", "min_cases"}."""
+    return {k: _stated()[k] for k in ("plans", "seeds", "min_cases")}
 
 
 def stated_limit(cause: str, base: str) -> float | None:
     """The stated limit of a vocabulary cause on a base (None: none stated)."""
-    return LIMITS_PCT.get((cause, base))
+    return _stated()["table"].get((cause, base))
 
 
 def in_scope(kinds, base: str) -> bool:
@@ -61,4 +100,4 @@ def minimum_strengths(kinds, base: str) -> dict[str, float]:
 
 def out_of_scope() -> list[tuple[str, str]]:
     """(cause, base) pairs without a stated limit: not planted by the within-limits plan."""
-    return [key for key, v in LIMITS_PCT.items() if v is None]
+    return [key for key, v in _stated()["table"].items() if v is None]
