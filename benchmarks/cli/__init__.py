@@ -33,6 +33,8 @@ COMMANDS = {
                                                  "bouc-wen, calibrate-virtual-dea"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
+    "accuracy": ("hysbench.benchmarks.cli.accuracy",
+                 "the diagnosis's accuracy on planted effects: run plans, pool them, state the detection limits"),
     "compensate": ("hysbench.benchmarks.cli.compensate",
                    "invert models and score how well the virtual DEA tracks references (writes compensation.md)"),
 }

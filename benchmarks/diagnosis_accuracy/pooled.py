@@ -26,6 +26,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
+from .stated_limits import stated_from
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
 
@@ -299,7 +300,14 @@ def write_pooled(p: dict, report: str | Path, title: str = "Accuracy of `hysbenc
     if "checked" in p:
         pooled += (f"; the detection limits checked on {plan_span([q['plan'] for q in p['checked']['plans']])}, "
                    "pooled nowhere above")
-    head = [f"# {title}", "", pooled + "." + (f" Command: `{command}`." if command else ""), ""]
+    head = [f"# {title}", "", pooled + "." + (f" Command: `{command}`." if command else ""), "",
+            "The cases are taken as independent draws from one design; what counts as right is stated in each "
+            "plan's report (`hysbench accuracy report PLAN`).", ""]
+    if any(q["plan"].startswith("within-limits-") for q in p["plans"]):
+        source = stated_from()
+        head += [f"Each vocabulary effect is drawn at or above its stated limit (stated from the plans "
+                 f"{plan_span(source['plans'])}: `hysbench accuracy limits`, stated_limits.json) and planted only on "
+                 "a base that has one. The detection limits below are these plans' own, not the stated ones.", ""]
     head += [note.rstrip(), ""] if note else []
     write_json(report.with_suffix(".json"), {**p, "command": command})
     write_atomic(report, "\n".join(head) + "\n" + pooled_markdown(p))

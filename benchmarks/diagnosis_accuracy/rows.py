@@ -71,7 +71,7 @@ def plan_rows(plans: dict[str, dict], ids: list[str], path: str | os.PathLike = 
     """The stored plans ``ids`` ({"id", "meta", "rows"} each); a missing one raises HysbenchError naming it."""
     missing = [i for i in ids if i not in plans]
     if missing:
-        raise HysbenchError(f"no plan {', '.join(missing)} in {path} (stored: {', '.join(plans) or 'none'})")
+        raise HysbenchError(f"no plan {', '.join(missing)} in {path} ({len(plans)} stored: hysbench accuracy list)")
     return [{"id": i, **plans[i]} for i in ids]
 
 
