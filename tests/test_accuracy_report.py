@@ -1,14 +1,16 @@
-"""The accuracy report's intervals and the pooling of several plans (``benchmarks.diagnosis.accuracy``)."""
+"""The accuracy study's reports: intervals, a plan's report, pooled plans, the ceiling (``diagnosis_accuracy``)."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled
+from hysbench.benchmarks.cli import main as hysbench
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled, rows as row_file
 from hysbench.models.errors import HysbenchError
 
 
@@ -60,88 +62,66 @@ def test_confirmed_causes_are_counted_on_the_nulls_of_the_mrpim_and_the_piezo_re
         accuracy.markdown(rows, s, 1.0))
 
 
-def test_pooled_reports_count_confirmed_nulls_from_their_cases_whatever_their_summary_says(tmp_path):
-    """A report written before the counting changed (summary key ``nulls_mrpim``, the MRPIM's nulls only)
-    pools with the counts this code gives its cases: a confirmed cause on a piezo null counts."""
+def stored(rows, design="balanced", **meta):
+    """A plan as the row file holds it (``rows.plan_rows``), its id from its cases' plan seed."""
+    seed = rows[0]["seed"] // accuracy.PLAN_STRIDE
+    return {"id": f"{design}-{seed}", "meta": {"design": design, "seed": seed, "cases": len(rows), "wall_s": 1.0,
+                                                "machine": None, "missing_bases": {}, **meta}, "rows": rows}
+
+
+def test_pooled_plans_count_confirmed_nulls_from_their_cases():
+    """A confirmed cause on a piezo null counts; the pooled count is the cases' own."""
     r = _row(["null-white"], False)
     r.update(base="piezo", verdict="delay", confirmed=True)
-    rows = [r, _row(["null-ar1"], True), _row(["delay"], True)]
-    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
-    path = tmp_path / "diagnosis_accuracy.json"
-    data = json.loads(path.read_text())
-    data["summary"].pop("nulls_checked")
-    data["summary"].update(nulls_mrpim=1, confirmed_on_nulls=0)
-    path.write_text(json.dumps(data))
-    p = pooled.pool([tmp_path])
+    p = pooled.pool([stored([r, _row(["null-ar1"], True), _row(["delay"], True)])])
     assert (p["confirmed_on_nulls"], p["nulls_checked"]) == (1, 2)
 
 
-def _plan(folder, seed, rights):
+def _plan(seed, rights):
     rows = []
     for i, right in enumerate(rights):
         r = _row(["delay"] if i % 2 else ["null-white"], right)
         r["seed"] = seed * accuracy.PLAN_STRIDE + i
         rows.append(r)
-    accuracy.write(rows, accuracy.ensure_dir(folder), 1.0)
-    return rows
+    return stored(rows)
 
 
-def test_the_report_gives_the_verdict_share_with_its_interval(tmp_path):
-    _plan(tmp_path, 3, [True] * 7 + [False] * 3)
-    text = (tmp_path / "diagnosis_accuracy.md").read_text()
+def test_the_report_gives_the_verdict_share_with_its_interval_and_the_command_of_its_plan(tmp_path):
+    accuracy.write_report(_plan(3, [True] * 7 + [False] * 3), tmp_path / "r.md")
+    text = (tmp_path / "r.md").read_text()
     lo, hi = accuracy.wilson_interval(7, 10)
     assert f"7 / 10 = **70.0 %** (95 % interval {100 * lo:.1f}-{100 * hi:.1f} %)" in text
-    s = json.loads((tmp_path / "diagnosis_accuracy.json").read_text())["summary"]
-    assert s["right_interval"] == pytest.approx([lo, hi])
+    assert "10 cases (`hysbench accuracy run --seed 3 --cases 10`)" in text
+    s = json.loads((tmp_path / "r.json").read_text())["summary"]
+    assert s["right_interval"] == pytest.approx([lo, hi]) and s["plan"] == "balanced-3"
 
 
-def test_pooled_plans_add_their_cases_and_refuse_a_plan_twice_or_a_folder_without_a_report(tmp_path, capsys):
-    a, b = tmp_path / "a", tmp_path / "b"
-    _plan(a, 1, [True] * 8 + [False] * 2)
-    _plan(b, 2, [True] * 5 + [False] * 5)
+def test_pooled_plans_add_their_cases_and_refuse_a_plan_twice_or_a_row_without_its_fields(tmp_path, capsys):
+    a, b = _plan(1, [True] * 8 + [False] * 2), _plan(2, [True] * 5 + [False] * 5)
     p = pooled.pool([a, b])
     assert (p["cases"], p["right"], [q["seed"] for q in p["plans"]]) == (20, 13, ["1", "2"])
+    assert [q["plan"] for q in p["plans"]] == ["balanced-1", "balanced-2"]
     assert p["right_interval"] == pytest.approx(accuracy.wilson_interval(13, 20))
     assert "13 / 20 = **65.0 %**" in pooled.pooled_markdown(p)
     with pytest.raises(HysbenchError, match="plan seed 1 is given twice"):
         pooled.pool([a, a])
-    with pytest.raises(HysbenchError, match="no accuracy report"):
-        pooled.pool([a, tmp_path / "missing"])
-    assert accuracy.main(["--pool", str(a), str(tmp_path / "missing")]) == 2
+    del b["rows"][3]["seed"]
+    with pytest.raises(HysbenchError, match="case 3 has no seed"):
+        pooled.pool([a, b])
+    with pytest.raises(HysbenchError, match="has no rows"):
+        pooled.pool([{**a, "rows": []}])
+    file = tmp_path / "rows.jsonl.gz"
+    row_file.write_plans(file, {a["id"]: a})
+    assert hysbench(["accuracy", "pool", "balanced-1", "balanced-9", "--rows", str(file)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "no accuracy report" in err
-    data = json.loads((b / "diagnosis_accuracy.json").read_text())
-    del data["cases"][3]["seed"]
-    (b / "diagnosis_accuracy.json").write_text(json.dumps(data))
-    assert accuracy.main(["--pool", str(a), str(b)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "case 3 has no seed" in err
-    data["cases"] = "not a list"
-    (b / "diagnosis_accuracy.json").write_text(json.dumps(data))
-    with pytest.raises(HysbenchError, match="case 0 has no fields"):
-        pooled.pool([b])
-
-
-def test_a_rewritten_report_keeps_its_note_also_from_a_report_written_before_the_note_was_stored(tmp_path):
-    rows = _plan(tmp_path, 4, [True, False, True])
-    accuracy.write(rows, tmp_path, 1.0, note="Rerun with the fixed generator.\n\nSecond paragraph.")
-    accuracy.rewrite(tmp_path)
-    text = (tmp_path / "diagnosis_accuracy.md").read_text()
-    assert text.startswith("# Accuracy of `hysbench diagnose` on planted effects\n\nRerun with the fixed generator."
-                           "\n\nSecond paragraph.\n\n3 cases")
-    data = json.loads((tmp_path / "diagnosis_accuracy.json").read_text())
-    del data["summary"]["note"]  # an older report: the note only in its markdown
-    (tmp_path / "diagnosis_accuracy.json").write_text(json.dumps(data))
-    accuracy.rewrite(tmp_path)
-    assert (tmp_path / "diagnosis_accuracy.md").read_text() == text
+    assert err.count("\n") == 1 and "no plan balanced-9" in err
 
 
 def _case(seed, kinds, base, drive, strength, right):
     return {**_row(kinds, right), "seed": seed, "base": base, "drive": drive, "strength_pct": strength}
 
 
-def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_by_base(tmp_path):
-    a, b = tmp_path / "a", tmp_path / "b"
+def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_by_base():
     stride = accuracy.PLAN_STRIDE
     piezo = [(0.1, False), (0.2, False), (0.5, True), (1.0, True), (2.0, True)]  # limit 0.5, 3 cases above it
     rows_a = [_case(5 * stride + i, ["relaxation"], "piezo", "sines", s, r) for i, (s, r) in enumerate(piezo[:3])]
@@ -149,9 +129,7 @@ def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_
     rows_b = [_case(6 * stride + i, ["relaxation"], "piezo", "sines", s, r) for i, (s, r) in enumerate(piezo[3:])]
     rows_b += [_case(6 * stride + 5 + i, ["relaxation"], "mrpim", "sines", s, True) for i, s in enumerate((0.3, 0.4))]
     rows_b += [_case(6 * stride + 8, ["delay", "creep"], "mrpim", "sines", 1.0, False)]
-    accuracy.write(rows_a, accuracy.ensure_dir(a), 1.0)
-    accuracy.write(rows_b, accuracy.ensure_dir(b), 1.0)
-    p = pooled.pool([a, b])
+    p = pooled.pool([stored(rows_a), stored(rows_b)])
     assert p["bases"] == ["mrpim", "piezo"]
     assert p["by_effect_and_base"]["relaxation"]["piezo"]["cases"] == 5
     assert p["by_effect_and_base"]["relaxation"]["piezo"]["right"] == 3
@@ -169,14 +147,13 @@ def test_pooled_plans_give_the_share_by_effect_and_base_and_the_detection_limit_
     assert "| relaxation | 2/2 (100 %, 34-100) | 3/5 (60 %, 23-88) |" in text
     assert "**0.5** (3 of 5 cases at or above it, 3 of 3 right; drawn 0.1-2)" in text
     rows_b += [_case(6 * stride + 7, ["relaxation"], "mrpim", "sines", 0.2, True)]
-    accuracy.write(rows_b, b, 1.0)
-    q = pooled.pool([a, b])["detection_limits"]["relaxation"]["mrpim"]
+    q = pooled.pool([stored(rows_a), stored(rows_b)])["detection_limits"]["relaxation"]["mrpim"]
     assert (q["strength_pct"], q["cases_above"], q["cases"]) == (0.2, 3, 3)
     assert "**<= 0.2** (every case at or above it: 3 of 3 right; drawn 0.2-0.4)" in pooled.pooled_markdown(
-        pooled.pool([a, b]))
+        pooled.pool([stored(rows_a), stored(rows_b)]))
 
 
-def test_pooled_parameters_within_25_percent_count_the_right_vocabulary_verdicts_that_name_parameters(tmp_path):
+def test_pooled_parameters_within_25_percent_count_the_right_vocabulary_verdicts_that_name_parameters():
     rows = []
     for i, (kinds, right, errors, within) in enumerate([(["delay"], True, {"delay_s": 0.1}, True),
                                                         (["delay"], True, {"delay_s": 0.4}, False),
@@ -185,56 +162,52 @@ def test_pooled_parameters_within_25_percent_count_the_right_vocabulary_verdicts
                                                         (["creep"], True, {"drift": 0.2}, True)]):
         rows.append({**_case(8 * accuracy.PLAN_STRIDE + i, kinds, "mrpim", "sines", 1.0, right),
                      "parameter_errors": errors, "parameters_within": within})
-    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
-    p = pooled.pool([tmp_path])
+    p = pooled.pool([stored(rows)])
     assert (p["parameters_judged"], p["parameters_within"]) == (3, 2)
     assert "within 25 %: 2 / 3 = **66.7 %**" in pooled.pooled_markdown(p)
 
 
-def test_a_pooled_report_is_written_whole_and_its_options_need_pool(tmp_path, capsys):
-    _plan(tmp_path / "a", 7, [True, False, True])
+def test_a_pooled_report_is_written_whole_with_its_plans_its_command_and_its_note(tmp_path):
+    file = tmp_path / "rows.jsonl.gz"
+    a, b = _plan(7, [True, False, True]), _plan(8, [True, True])
+    row_file.write_plans(file, {a["id"]: a, b["id"]: b})
     report = tmp_path / "out" / "pooled.md"
-    assert accuracy.main(["--pool", str(tmp_path / "a"), "--report", str(report), "--note", "Three cases."]) == 0
-    assert report.read_text().startswith("# Accuracy of `hysbench diagnose`, plans pooled\n\nThree cases.\n\n| plan")
-    assert json.loads(report.with_suffix(".json").read_text())["right"] == 2
-    with pytest.raises(SystemExit) as e:
-        accuracy.main(["--report", str(report)])
-    assert e.value.code == 2 and "--report, --note and --check go with --pool" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as e:
-        accuracy.main(["--check", str(tmp_path / "a")])
-    assert e.value.code == 2 and "go with --pool" in capsys.readouterr().err
+    assert hysbench(["accuracy", "pool", "balanced-7..8", "--rows", str(file), "--report", str(report),
+                     "--note", "Three cases."]) == 0
+    text = report.read_text()
+    assert text.startswith("# Accuracy of `hysbench diagnose`, plans pooled\n\nPlans pooled: balanced-7..8 (5 cases). "
+                           f"Command: `hysbench accuracy pool balanced-7..8 --report {report} --rows {file}`.")
+    assert "\n\nThree cases.\n\n| plan seed |" in text
+    assert json.loads(report.with_suffix(".json").read_text())["right"] == 4
 
 
-
-def test_a_limit_at_the_weakest_drawn_strength_says_how_many_of_its_cases_are_right(tmp_path):
+def test_a_limit_at_the_weakest_drawn_strength_says_how_many_of_its_cases_are_right():
     """95 % of 20 is 19: one miss above the weakest case still puts the limit there, and the report must not
-    call every case right (session 27 found that in its first pooled report)."""
+    call every case right."""
     rows = [_case(9 * accuracy.PLAN_STRIDE + i, ["creep"], "mrpim", "sines", 0.5 + 0.1 * i, i != 7) for i in range(20)]
-    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
-    q = pooled.pool([tmp_path])["detection_limits"]["creep"]["mrpim"]
+    p = pooled.pool([stored(rows)])
+    q = p["detection_limits"]["creep"]["mrpim"]
     assert (q["strength_pct"], q["cases_above"], q["right_above"]) == (0.5, 20, 19)
-    assert "**<= 0.5** (every case at or above it: 19 of 20 right; drawn 0.5-2.4)" in pooled.pooled_markdown(
-        pooled.pool([tmp_path]))
+    assert "**<= 0.5** (every case at or above it: 19 of 20 right; drawn 0.5-2.4)" in pooled.pooled_markdown(p)
 
 
-def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand(tmp_path, capsys):
+def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand():
     """The limits chosen on plan 1 (creep on MRPIM: 0.5; delay on MRPIM: 2; resonance: none reached) checked on
     plan 2: its creep cases at or above 0.5 (0.5, 0.9, 2.0: two right, an interval short of 95 %) and below it
     (0.3, right); its delay case at 9 (right). A plan both pooled and checked is refused: not held out."""
     stride = accuracy.PLAN_STRIDE
-    fit, held = tmp_path / "fit", tmp_path / "held"
     rows = [_case(stride + i, ["creep"], "mrpim", "sines", s, r)
             for i, (s, r) in enumerate([(0.2, False), (0.5, True), (0.7, True), (1.0, True)])]
     rows += [_case(stride + 4 + i, ["delay"], "mrpim", "sines", s, s > 1) for i, s in enumerate((1.0, 2.0, 3.0, 4.0))]
     rows += [_case(stride + 8 + i, ["resonance"], "mrpim", "sines", s, False) for i, s in enumerate((1.0, 2.0, 3.0))]
-    accuracy.write(rows, accuracy.ensure_dir(fit), 1.0)
+    fit = stored(rows)
     rows = [_case(2 * stride + i, ["creep"], "mrpim", "triangles", s, r)
             for i, (s, r) in enumerate([(0.3, True), (0.5, True), (0.9, False), (2.0, True)])]
     rows += [_case(2 * stride + 4, ["creep"], "piezo", "sines", 5.0, False),  # no limit on the piezo base
              _case(2 * stride + 5, ["delay"], "mrpim", "sines", 9.0, True),
              _case(2 * stride + 6, ["resonance"], "mrpim", "sines", 9.0, True),
              _case(2 * stride + 7, ["delay", "creep"], "mrpim", "sines", 9.0, False)]
-    accuracy.write(rows, accuracy.ensure_dir(held), 1.0)
+    held = stored(rows)
     p = pooled.pool([fit], check=[held])
     c = p["checked"]
     assert [q["seed"] for q in c["plans"]] == ["2"]
@@ -256,8 +229,6 @@ def test_detection_limits_are_checked_on_held_out_plans_counted_by_hand(tmp_path
     assert "Every case of these plans, at any strength: 5 / 8 right = **62.5 %**" in text
     with pytest.raises(HysbenchError, match="cannot check them"):
         pooled.pool([fit, held], check=[held])
-    assert accuracy.main(["--pool", str(fit), "--check", str(fit)]) == 2
-    assert "cannot check them" in capsys.readouterr().err
 
 
 def _evidence_case(seed, kinds, base, right, shown, extension, verdict="none", also=()):
@@ -265,7 +236,7 @@ def _evidence_case(seed, kinds, base, right, shown, extension, verdict="none", a
             "effect_evidence": {}, "effect_shows_evidence": shown, "extension_could_show": extension}
 
 
-def test_the_pooled_report_gives_the_ceiling_of_every_plan_and_pooled_counted_by_hand(tmp_path):
+def test_the_pooled_report_gives_the_ceiling_of_every_plan_and_pooled_counted_by_hand():
     """Ceiling: nulls and out-of-vocabulary cases, plus the vocabulary cases with evidence, plus those without it
     that are right anyway. Plan 1: 1 null + (2 with evidence) + (1 right without) = 4 of 5 by the waveform,
     1 + 1 + 1 = 3 by the extensions; plan 2: 1 + 1 + 0 = 2 of 3 by both."""
@@ -278,9 +249,7 @@ def test_the_pooled_report_gives_the_ceiling_of_every_plan_and_pooled_counted_by
     two = [_evidence_case(2 * stride, ["resonance"], "virtual-dea", False, True, True),
            _evidence_case(2 * stride + 1, ["resonance"], "virtual-dea", False, False, False),
            _evidence_case(2 * stride + 2, ["dead-zone"], "mrpim", False, False, False)]
-    for folder, rows in (("one", one), ("two", two)):
-        accuracy.write(rows, accuracy.ensure_dir(tmp_path / folder), 1.0)
-    p = pooled.pool([tmp_path / "one", tmp_path / "two"])
+    p = pooled.pool([stored(one), stored(two)])
     assert [(q["ceiling_right"], q["extension_ceiling_right"]) for q in p["plans"]] == [(4, 3), (2, 2)]
     e = p["ceiling"]
     assert (e["ceiling_right"], e["extension_ceiling_right"], e["with_evidence"], e["with_evidence_right"]) == (6, 5, 3, 1)
@@ -295,91 +264,4 @@ def test_the_pooled_report_gives_the_ceiling_of_every_plan_and_pooled_counted_by
     assert "on top of everything the diagnosis kept" not in text  # no plan has the third reading
     for r in one + two:
         r.pop("effect_shows_evidence")
-    accuracy.write(one + two, tmp_path / "one", 1.0)
-    assert pooled.pool([tmp_path / "one"])["ceiling"] == {}  # plans from before the check: no ceiling
-
-
-def test_the_third_reading_is_added_to_an_earlier_run_by_diagnosing_again_only_what_kept_more(tmp_path, monkeypatch):
-    """``add_kept_evidence``: a case that kept nothing more than its named cause takes its first reading; one that
-    kept more (none of it planted, no line or clip) and shows evidence is diagnosed again; if that comes back
-    otherwise it keeps the first reading and is listed."""
-    stride = accuracy.PLAN_STRIDE
-    rows = [_evidence_case(stride, ["resonance"], "virtual-dea", False, True, True, "relaxation", ["delay"]),
-            _evidence_case(stride + 1, ["creep"], "virtual-dea", False, True, True, "relaxation", ["delay"]),
-            _evidence_case(stride + 2, ["delay"], "virtual-dea", True, True, True, "relaxation", ["delay"]),
-            _evidence_case(stride + 3, ["creep"], "mrpim", False, True, True, "relaxation"),
-            _evidence_case(stride + 4, ["creep"], "mrpim", False, False, False, "relaxation", ["delay"]),
-            _evidence_case(stride + 5, ["saturation"], "mrpim", False, True, True, "relaxation", ["saturation"]),
-            _evidence_case(stride + 6, ["null-white"], "mrpim", True, False, False)]
-    assert [accuracy.keeps_more(r) for r in rows] == [True, True, False, False, True, False, False]
-    accuracy.write(rows, accuracy.ensure_dir(tmp_path), 1.0)
-    asked = []
-
-    def again(case):
-        asked.append(case["seed"])
-        on_kept = {"resonance": {"kept": {"gain": -0.1, "z": -1.0, "folds_improved": 1, "n_folds": 3, "evidence": False}}}
-        if case["seed"] == stride:
-            return {"verdict": "relaxation", "also": ["delay"], "shows_on_kept": False, "effect_evidence": on_kept}
-        return {"verdict": "relaxation", "also": ["creep"], "shows_on_kept": False, "effect_evidence": {}}
-
-    monkeypatch.setattr(accuracy, "run_case", again)
-    assert accuracy.add_kept_evidence(tmp_path) == {"rerun": 2, "same": 1, "differs": [stride + 1]}
-    assert asked == [stride, stride + 1]
-    data = json.loads((tmp_path / "diagnosis_accuracy.json").read_text())
-    got = [r.get("shows_on_kept") for r in data["cases"]]
-    assert got == [False, True, True, True, False, True, None]  # the second: another verdict, the first reading
-    assert data["cases"][0]["effect_evidence"]["resonance"]["kept"]["evidence"] is False
-    assert data["cases"][1]["kept_rerun_differs"] == {"verdict": "relaxation", "also": ["creep"]}
-    e = data["summary"]["evidence"]
-    assert (e["kept_ceiling_right"], e["kept_rerun_differs"]) == (1 + 4 + 0, 1)  # the null, four with it, none right without
-    assert "1 case(s) diagnosed again for this reading came back" in (tmp_path / "diagnosis_accuracy.md").read_text()
-
-
-def test_diagnosing_again_replaces_every_row_in_order_and_notes_each_change_by_hand(tmp_path, monkeypatch, capsys):
-    """``diagnose_again``: every case of every folder is run again (folders in turn, cases in order), its row
-    replaced, and the note lists exactly the cases whose verdict or "also" changed, with their right-or-wrong
-    change; the note before it is kept."""
-    a, b = tmp_path / "a", tmp_path / "b"
-    _plan(a, 2, [True, False, True])
-    _plan(b, 3, [False, True])
-    accuracy.rewrite(a)
-    data = json.loads((a / "diagnosis_accuracy.json").read_text())
-    data["summary"]["note"] = "First scored with the old code."
-    (a / "diagnosis_accuracy.json").write_text(json.dumps(data))
-    stride = accuracy.PLAN_STRIDE
-    new = {2 * stride + 1: ("delay", [], True), 2 * stride + 2: ("none", ["creep"], True),
-           3 * stride: ("none", [], False), 3 * stride + 1: ("relaxation", ["delay"], False)}
-    asked = []
-
-    def again(case):
-        asked.append(case["seed"])
-        verdict, also, right = new.get(case["seed"], ("none", [], True))
-        return {**_row(case["kinds"], right), "seed": case["seed"], "verdict": verdict, "also": also}
-
-    monkeypatch.setattr(accuracy, "run_case", again)
-    done = accuracy.diagnose_again([a, b], "With the new code")
-    assert asked == [2 * stride, 2 * stride + 1, 2 * stride + 2, 3 * stride, 3 * stride + 1]
-    assert [(d["right_before"], d["right_after"]) for d in done] == [(2, 3), (1, 0)]
-    note_a = json.loads((a / "diagnosis_accuracy.json").read_text())["summary"]["note"]
-    assert note_a == ("First scored with the old code.\n\nWith the new code: every case diagnosed again and its row "
-                      "replaced; 2 verdicts or also lists changed, 2 -> 3 right: case 1 none (also -) -> delay "
-                      "(also -), right now; case 2 none (also -) -> none (also creep).")
-    note_b = json.loads((b / "diagnosis_accuracy.json").read_text())["summary"]["note"]
-    assert note_b.endswith("1 verdicts or also lists changed, 1 -> 0 right: case 1 none (also -) -> relaxation "
-                           "(also delay), wrong now.")
-    rows = json.loads((b / "diagnosis_accuracy.json").read_text())["cases"]
-    assert [r["verdict"] for r in rows] == ["none", "relaxation"]
-    assert (a / "diagnosis_accuracy.md").read_text().startswith(
-        "# Accuracy of `hysbench diagnose` on planted effects\n\nFirst scored with the old code.\n\nWith the new code")
-
-
-def test_diagnosing_again_reads_every_folder_before_running_any_case_and_needs_a_note(tmp_path, monkeypatch, capsys):
-    _plan(tmp_path / "a", 2, [True])
-    before = (tmp_path / "a" / "diagnosis_accuracy.json").read_text()
-    monkeypatch.setattr(accuracy, "run_case", lambda case: pytest.fail("a case was run"))
-    assert accuracy.main(["--again", str(tmp_path / "a"), str(tmp_path / "missing"), "--note", "x", "--jobs", "1"]) == 2
-    assert "missing" in capsys.readouterr().err
-    assert (tmp_path / "a" / "diagnosis_accuracy.json").read_text() == before
-    with pytest.raises(SystemExit) as e:
-        accuracy.main(["--again", str(tmp_path / "a")])
-    assert e.value.code == 2 and "--again needs --note" in capsys.readouterr().err
+    assert pooled.pool([stored(one + two)])["ceiling"] == {}  # rows without the evidence check: no ceiling

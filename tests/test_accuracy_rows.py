@@ -1,0 +1,239 @@
+"""The accuracy study's row file, its command, and the committed reports regenerated from the committed rows."""
+
+import gzip
+import json
+from pathlib import Path
+
+import pytest
+
+from hysbench.benchmarks.cli import main as hysbench
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, rows
+from hysbench.models.errors import HysbenchError
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results"
+STRIDE = accuracy.PLAN_STRIDE
+
+
+def row(seed, kinds=("delay",), right=True, verdict="none", also=()):
+    return {"kinds": list(kinds), "base": "mrpim", "drive": "sines", "seed": seed, "strength_pct": 1.0,
+            "effects": {"delay": {"delay_s": 0.01}} if "delay" in kinds else {}, "verdict": verdict, "confirmed": None,
+            "also": list(also), "ambiguous_with": [], "remainder": None, "parameters": {}, "parameter_errors": {},
+            "parameters_within": False, "right": right, "seconds": 0.5}
+
+
+def meta(seed, design="balanced"):
+    return {"design": design, "seed": seed, "cases": 2, "wall_s": 1.0, "machine": None, "missing_bases": {}}
+
+
+def test_rows_written_are_read_back_the_same_and_storing_a_plan_replaces_only_its_rows(tmp_path):
+    path = tmp_path / "rows.jsonl.gz"
+    one = {"meta": meta(1), "rows": [row(STRIDE), row(STRIDE + 1, ("null-white",), verdict="delay", right=False)]}
+    two = {"meta": meta(2), "rows": [row(2 * STRIDE, also=("creep",)), row(2 * STRIDE + 1)]}
+    two["rows"][0]["parameter_errors"] = {"delay_s": float("inf")}  # not computed: stored as null (strict JSON)
+    rows.write_plans(path, {"balanced-1": one, "balanced-2": two})
+    back = rows.read_plans(path)
+    assert list(back) == ["balanced-1", "balanced-2"]
+    assert back["balanced-1"] == one
+    assert back["balanced-2"]["rows"][0]["parameter_errors"] == {"delay_s": None}
+    lines = gzip.decompress(path.read_bytes()).decode().splitlines()
+    assert [json.loads(x)["plan"] for x in lines] == ["balanced-1"] * 3 + ["balanced-2"] * 3
+    assert all(("meta" in json.loads(x)) != ("row" in json.loads(x)) for x in lines)
+    before = path.read_bytes()
+    rows.write_plans(path, rows.read_plans(path))
+    assert path.read_bytes() == before  # the same plans: the same bytes (no time stamp)
+    new_one = [row(STRIDE, verdict="delay")]
+    rows.store_plan(path, "balanced-1", meta(1), new_one)
+    after = rows.read_plans(path)
+    assert list(after) == ["balanced-1", "balanced-2"] and after["balanced-1"]["rows"] == new_one
+    assert after["balanced-2"] == back["balanced-2"]
+    rows.store_plan(path, "within-limits-3", meta(3, "within-limits"), [row(3 * STRIDE)])
+    assert list(rows.read_plans(path)) == ["balanced-1", "balanced-2", "within-limits-3"]
+    assert [p["id"] for p in rows.plan_rows(rows.read_plans(path), ["within-limits-3", "balanced-1"])] == [
+        "within-limits-3", "balanced-1"]
+    with pytest.raises(HysbenchError, match="no plan balanced-9"):
+        rows.plan_rows(rows.read_plans(path), ["balanced-9"], path)
+    assert rows.read_plans(tmp_path / "none.jsonl.gz") == {}
+
+
+def test_a_damaged_row_file_is_refused_in_one_message(tmp_path):
+    path = tmp_path / "rows.jsonl.gz"
+    path.write_bytes(gzip.compress(b'{"plan": "balanced-1", "row": {}}\nnot json\n'))
+    with pytest.raises(HysbenchError, match="not an accuracy row file"):
+        rows.read_plans(path)
+    path.write_bytes(b"plain text")
+    with pytest.raises(HysbenchError, match="not an accuracy row file"):
+        rows.read_plans(path)
+
+
+def test_plan_ids_and_ranges():
+    assert rows.plan_id("balanced", 45) == "balanced-45"
+    assert rows.plan_id("balanced", 1, {"name": "virtual-dea", "model": "mrpim", "thorough": True}) == (
+        "on-virtual-dea-1-thorough")
+    assert rows.plan_id("balanced", 2, {"name": "pzt", "model": "classical-pi", "segments": 4}) == (
+        "on-pzt-2-classical-pi-segments4")
+    assert rows.expand(["balanced-35..37", "on-x-1"]) == ["balanced-35", "balanced-36", "balanced-37", "on-x-1"]
+    with pytest.raises(HysbenchError, match="NAME-A..B"):
+        rows.expand(["balanced-40..3"])
+
+
+def _committed_numbers(path):
+    """A pooled report's JSON without what names the run (its command)."""
+    data = json.loads(path.read_text())
+    data.pop("command", None)
+    return data
+
+
+@pytest.mark.parametrize("report,args", [
+    ("diagnosis_accuracy_pooled", ["balanced-35..44", "--check", "balanced-45..62"]),
+    ("diagnosis_accuracy_within_limits", ["within-limits-63..65"]),
+])
+def test_the_committed_pooled_reports_are_regenerated_from_the_committed_rows(tmp_path, report, args):
+    out = tmp_path / f"{report}.md"
+    assert hysbench(["accuracy", "pool", *args, "--rows", str(RESULTS / rows.ROWS_FILE.name),
+                     "--report", str(out)]) == 0
+    assert _committed_numbers(out.with_suffix(".json")) == _committed_numbers(RESULTS / f"{report}.json")
+    tables = [p.read_text().split("| plan seed |", 1)[1] for p in (out, RESULTS / f"{report}.md")]
+    assert tables[0] == tables[1]
+
+
+def test_the_committed_headline_report_is_regenerated_from_the_committed_rows(tmp_path):
+    out = tmp_path / "diagnosis_accuracy.md"
+    assert hysbench(["accuracy", "report", f"balanced-{accuracy.HEADLINE_SEED}",
+                     "--rows", str(RESULTS / rows.ROWS_FILE.name), "--report", str(out)]) == 0
+    assert out.read_text() == (RESULTS / "diagnosis_accuracy.md").read_text()
+    assert json.loads(out.with_suffix(".json").read_text()) == json.loads(
+        (RESULTS / "diagnosis_accuracy.json").read_text())
+
+
+def stand_in(case):
+    """``run_case`` without a diagnosis: right unless the case seed is odd."""
+    return {**row(case["seed"], case["kinds"], right=case["seed"] % 2 == 0), "base": case["base"],
+            "drive": case["drive"]}
+
+
+def test_a_run_stores_its_plan_in_the_row_file_and_a_rerun_of_it_replaces_its_rows(tmp_path, monkeypatch):
+    monkeypatch.setattr(accuracy, "run_case", stand_in)
+    path, report = tmp_path / "rows.jsonl.gz", tmp_path / "r.md"
+    s = accuracy.run_accuracy(6, 4, path, report, write_every=4)
+    assert (s["plan"], s["cases"], s["right"]) == ("balanced-4", 6, 3)
+    stored = rows.read_plans(path)["balanced-4"]
+    assert [r["seed"] for r in stored["rows"]] == [4 * STRIDE + i for i in range(6)]
+    assert stored["meta"]["design"] == "balanced" and "note" not in stored["meta"]  # the partial write replaced
+    assert "6 cases (`hysbench accuracy run --seed 4 --cases 6`)" in report.read_text()
+    accuracy.run_accuracy(3, 5, path, None)
+    accuracy.run_accuracy(2, 4, path, None)
+    plans = rows.read_plans(path)
+    assert list(plans) == ["balanced-4", "balanced-5"] and len(plans["balanced-4"]["rows"]) == 2
+
+
+def test_a_run_stopped_by_a_failing_case_keeps_the_cases_before_it_and_says_so(tmp_path, monkeypatch):
+    def failing(case):
+        if case["seed"] % STRIDE == 3:
+            raise HysbenchError("a refused case")
+        return stand_in(case)
+
+    monkeypatch.setattr(accuracy, "run_case", failing)
+    with pytest.raises(HysbenchError, match="a refused case"):
+        accuracy.run_accuracy(5, 6, tmp_path / "rows.jsonl.gz", tmp_path / "r.md")
+    plan = rows.read_plans(tmp_path / "rows.jsonl.gz")["balanced-6"]
+    assert len(plan["rows"]) == 3 and plan["meta"]["note"].startswith("Stopped after 3 of 5 cases")
+    assert "Stopped after 3 of 5 cases: a refused case" in (tmp_path / "r.md").read_text()
+
+
+def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
+    cases = accuracy.plan(200, 0)
+    every = {("mrpim", d) for d in ("sines", "triangles", "multisines")} | {
+        ("virtual-dea", d) for d in ("sines", "triangles", "multisines")} | {("piezo", "sines")}
+    for cause in accuracy.VOCABULARY:
+        assert {(c["base"], c["drive"]) for c in cases if c["kinds"] == (cause,)} == every, cause
+    drives = [c["drive"] for c in cases]
+    assert 0.6 < drives.count("sines") / 200 < 0.72 and drives.count("triangles") > 25 and drives.count("multisines") > 25
+    assert [c["seed"] for c in cases] == list(range(200))
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
+    without = accuracy.plan(200, 0)
+    assert all(c["base"] != "piezo" for c in without) and len(without) == 200
+    with pytest.raises(ValueError, match="plan design"):
+        accuracy.plan(10, 0, design="random")
+
+
+def test_the_report_says_when_the_piezo_recording_is_missing(monkeypatch, tmp_path):
+    """Without ../shared/datasets the plan has no piezo cases: said in the progress, the stored plan and the
+    report."""
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
+    monkeypatch.setattr(accuracy, "run_case", stand_in)
+    said = []
+    s = accuracy.run_accuracy(8, 0, tmp_path / "rows.jsonl.gz", tmp_path / "r.md", progress=said.append)
+    assert "piezo" in s["missing_bases"] and any(m.startswith("no piezo cases") for m in said)
+    assert "piezo" in rows.read_plans(tmp_path / "rows.jsonl.gz")["balanced-0"]["meta"]["missing_bases"]
+    text = (tmp_path / "r.md").read_text()
+    assert "**No piezo cases:**" in text and str(accuracy.PIEZO) in text
+    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
+    assert accuracy.missing_bases(("mrpim", "piezo")) == {}
+
+
+def test_diagnosing_again_replaces_every_row_in_order_and_lists_each_change_by_hand(tmp_path, monkeypatch):
+    path = tmp_path / "rows.jsonl.gz"
+    first = [row(2 * STRIDE), row(2 * STRIDE + 1, right=False), row(2 * STRIDE + 2)]
+    within = [{**row(3 * STRIDE + 1000), "min_strength_pct": {"delay": 0.2}, "attempts": 2}, row(3 * STRIDE + 1)]
+    rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": first},
+                            "within-limits-3": {"meta": {**meta(3, "within-limits"), "note": "x"}, "rows": within},
+                            "balanced-4": {"meta": meta(4), "rows": [row(4 * STRIDE)]}})
+    new = {2 * STRIDE + 1: ("delay", [], True), 2 * STRIDE + 2: ("none", ["creep"], True),
+           3 * STRIDE + 1: ("relaxation", ["delay"], False)}
+    asked = []
+
+    def again(case):
+        asked.append(case)
+        verdict, also, right = new.get(case["seed"], ("none", [], True))
+        return {**row(case["seed"], case["kinds"], right), "verdict": verdict, "also": also}
+
+    monkeypatch.setattr(accuracy, "run_case", again)
+    done = accuracy.again(["balanced-2", "within-limits-3"], path)
+    assert [c["seed"] for c in asked] == [2 * STRIDE, 2 * STRIDE + 1, 2 * STRIDE + 2, 3 * STRIDE + 1000,
+                                          3 * STRIDE + 1]
+    assert asked[3]["min_strength_pct"] == {"delay": 0.2}  # drawn as the plan drew it
+    assert [(d["right_before"], d["right_after"]) for d in done] == [(2, 3), (2, 1)]
+    assert done[0]["changes"] == [
+        f"delay on mrpim (case seed {2 * STRIDE + 1}): none (also -) -> delay (also -), right now",
+        f"delay on mrpim (case seed {2 * STRIDE + 2}): none (also -) -> none (also creep)"]
+    assert done[1]["changes"] == [
+        f"delay on mrpim (case seed {3 * STRIDE + 1}): none (also -) -> relaxation (also delay), wrong now"]
+    plans = rows.read_plans(path)
+    assert [r["verdict"] for r in plans["balanced-2"]["rows"]] == ["none", "delay", "none"]
+    assert plans["within-limits-3"]["rows"][0]["attempts"] == 2 and "note" not in plans["within-limits-3"]["meta"]
+    assert plans["balanced-4"]["rows"] == [row(4 * STRIDE)]  # not asked for: untouched
+
+
+def test_the_command_refuses_bad_input_in_one_line_before_any_case_runs(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(accuracy, "run_case", lambda case: pytest.fail("a case was run"))
+    path = tmp_path / "rows.jsonl.gz"
+    rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": [row(2 * STRIDE)]}})
+    before = path.read_bytes()
+    for argv, message in [
+        (["again", "balanced-2", "balanced-7", "--jobs", "1"], "no plan balanced-7"),
+        (["run", "--thorough"], "go with --on"),
+        (["run", "--on", str(tmp_path / "missing")], "missing"),
+        (["run", "--plan", "within-limits", "--cases", "2000"], "at most 1000 cases"),
+        (["report", "balanced-3"], "no plan balanced-3"),
+        (["limits", "balanced-2..x"], "NAME-A..B"),
+    ]:
+        assert hysbench(["accuracy", *argv, "--rows", str(path)]) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, (argv, err)
+    assert path.read_bytes() == before
+
+
+def test_every_action_s_help_ends_with_an_example(capsys):
+    for action in ("", "run", "report", "pool", "limits", "again", "list"):
+        assert hysbench(["accuracy", *([action] if action else []), "--help"]) == 0
+        out = capsys.readouterr().out.rstrip().splitlines()
+        assert out[-2] == "example:" and out[-1].strip().startswith("hysbench accuracy"), action
+
+
+def test_list_names_every_stored_plan(tmp_path, capsys):
+    path = tmp_path / "rows.jsonl.gz"
+    rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": [row(2 * STRIDE), row(2 * STRIDE + 1, right=False)]}})
+    assert hysbench(["accuracy", "list", "--rows", str(path)]) == 0
+    assert capsys.readouterr().out == "balanced-2: 2 cases, 1 right\n"
