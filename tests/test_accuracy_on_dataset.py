@@ -1,12 +1,13 @@
-"""The accuracy benchmark on a user's dataset (``accuracy --on DATASET``): effects planted on its records as they
-are, judged against its own verdict."""
+"""The accuracy study on a user's dataset (``hysbench accuracy run --on DATASET``): effects planted on its records
+as they are, judged against its own verdict."""
 
 import json
 
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled
+from hysbench.benchmarks.cli import main as hysbench
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled, rows as row_file
 from hysbench.benchmarks.diagnosis_accuracy.planted import RECORDED, planted_case
 from hysbench.data.dataset import Dataset, Record, load_dataset, save_dataset
 from hysbench.data.protocol import paper_voltage
@@ -76,38 +77,39 @@ def test_a_verdict_on_a_dataset_is_judged_against_its_own_verdict(kinds, verdict
     assert accuracy.judge({"kinds": list(kinds), "base": "bench-user"}, verdict, also, own) is right
 
 
-def test_the_benchmark_runs_on_a_dataset_and_its_report_states_the_dataset_own_verdict(user_folder, tmp_path):
-    out = tmp_path / "acc"
-    assert accuracy.main(["--on", str(user_folder), "--cases", "2", "--jobs", "1", "--out", str(out)]) == 0
-    data = json.loads((out / "diagnosis_accuracy.json").read_text())
-    on = data["summary"]["on"]
+def test_the_study_runs_on_a_dataset_and_its_report_states_the_dataset_own_verdict(user_folder, tmp_path):
+    path, report = tmp_path / "rows.jsonl.gz", tmp_path / "r.md"
+    assert hysbench(["accuracy", "run", "--on", str(user_folder), "--cases", "2", "--seed", "1", "--jobs", "1",
+                     "--rows", str(path), "--report", str(report)]) == 0
+    plans = row_file.read_plans(path)
+    assert list(plans) == ["on-bench-user-1"]
+    on = plans["on-bench-user-1"]["meta"]["on"]
     assert on["name"] == "bench-user" and on["model"] == "mrpim"
+    assert json.loads(report.with_suffix(".json").read_text())["summary"]["on"] == on
     own = on["own"]["verdict"]
     assert own in ("none", "unexplained", *accuracy.VOCABULARY)
-    rows = data["cases"]
+    rows = plans["on-bench-user-1"]["rows"]
     assert [r["kinds"] for r in rows] == [list(k) for k in accuracy.PATTERN[:2]]
     for r in rows:
         assert r["base"] == "bench-user" and r["drive"] == RECORDED and r["own"] == own
         assert r["right"] == accuracy.judge(r, r["verdict"], r["also"], own)
-    text = (out / "diagnosis_accuracy.md").read_text()
+    text = report.read_text()
     assert f"--on {user_folder}" in text and f"verdict **{own}**" in text
     # pooled: the dataset is a base of its own, its drive the recorded one
-    p = pooled.pool([out])
+    p = pooled.pool(row_file.plan_rows(plans, ["on-bench-user-1"]))
     assert p["bases"] == ["bench-user"] and list(p["by_base_and_drive"]["bench-user"]) == [RECORDED]
 
 
 def test_a_dataset_the_diagnosis_cannot_use_gets_one_line_and_exit_2_and_nothing_written(tmp_path, capsys):
     one = _user_dataset(tmp_path / "one_ident", {0.5: "identification", 1.0: "validation"})
+    path, report = tmp_path / "rows.jsonl.gz", tmp_path / "r.md"
     for argv in (["--on", str(tmp_path / "missing")], ["--on", str(one)],
-                 ["--on", str(one), "--model", "no-such-model"]):
-        out = tmp_path / "acc"
-        assert accuracy.main([*argv, "--cases", "1", "--jobs", "1", "--out", str(out)]) == 2
+                 ["--on", str(one), "--model", "no-such-model"], ["--model", "mrpim"]):
+        assert hysbench(["accuracy", "run", *argv, "--cases", "1", "--jobs", "1", "--rows", str(path),
+                         "--report", str(report)]) == 2, argv
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and err[0].startswith("error: ")
-        assert not out.exists()
-    with pytest.raises(SystemExit) as e:
-        accuracy.main(["--model", "mrpim", "--cases", "1"])
-    assert e.value.code == 2
+        assert len(err) == 1 and "error: " in err[0], err
+        assert not path.exists() and not report.exists()
 
 
 def test_a_run_stopped_by_a_case_keeps_the_cases_before_it(user_folder, tmp_path, monkeypatch, capsys):
@@ -124,12 +126,13 @@ def test_a_run_stopped_by_a_case_keeps_the_cases_before_it(user_folder, tmp_path
     monkeypatch.setattr(accuracy, "run_case", run_case)
     monkeypatch.setattr(accuracy, "own_verdict", lambda *a: {"verdict": "none", "also": [], "reason": "r",
                                                              "confirmed": None})
-    out = tmp_path / "acc"
-    assert accuracy.main(["--on", str(user_folder), "--cases", "3", "--jobs", "1", "--out", str(out)]) == 2
-    assert capsys.readouterr().err.strip() == "error: a record went non-finite"
-    data = json.loads((out / "diagnosis_accuracy.json").read_text())
-    assert len(data["cases"]) == 1
-    assert data["summary"]["note"] == "Stopped after 1 of 3 cases: a record went non-finite"
+    path = tmp_path / "rows.jsonl.gz"
+    assert hysbench(["accuracy", "run", "--on", str(user_folder), "--cases", "3", "--seed", "0", "--jobs", "1",
+                     "--rows", str(path), "--report", str(tmp_path / "r.md")]) == 2
+    assert capsys.readouterr().err.strip() == "hysbench accuracy: error: a record went non-finite"
+    plan = row_file.read_plans(path)["on-bench-user-0"]
+    assert len(plan["rows"]) == 1
+    assert plan["meta"]["note"] == "Stopped after 1 of 3 cases: a record went non-finite"
 
 
 def test_a_mode_planted_on_a_long_record_solves_its_ode(monkeypatch):
