@@ -36,6 +36,7 @@ BAD = {
     "diagnose": (["diagnose", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "compensate": (["compensate", "--models", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "report": (["report", "baselines", "--models", "no-such-model", "--out", "{tmp}/b.md"], "no-such-model"),
+    "accuracy": (["accuracy", "report", "no-such-plan", "--rows", "{tmp}/rows.jsonl.gz"], "no-such-plan"),
 }
 
 

@@ -1798,47 +1798,6 @@ def test_the_strictest_ceiling_reading_asks_the_extension_on_the_base_or_named_a
                                                                  "kept": yes, "extension_at_truth_on_kept": yes}})
 
 
-def test_the_balanced_plan_puts_every_vocabulary_effect_on_every_base_and_drive(monkeypatch):
-    from hysbench.benchmarks.diagnosis_accuracy import accuracy
-
-    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
-    cases = accuracy.plan(200, 0)
-    every = {("mrpim", d) for d in ("sines", "triangles", "multisines")} | {
-        ("virtual-dea", d) for d in ("sines", "triangles", "multisines")} | {("piezo", "sines")}
-    for cause in CAUSES:
-        assert {(c["base"], c["drive"]) for c in cases if c["kinds"] == (cause,)} == every, cause
-    drives = [c["drive"] for c in cases]
-    assert 0.6 < drives.count("sines") / 200 < 0.72 and drives.count("triangles") > 25 and drives.count("multisines") > 25
-    assert [c["seed"] for c in cases] == list(range(200))
-    # the plans before 2026-11-27: a relaxation was planted on sines only
-    tied = accuracy.plan(200, 0, design="slot-tied")
-    assert {c["drive"] for c in tied if c["kinds"] == ("relaxation",)} == {"sines"}
-    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
-    without = accuracy.plan(200, 0)
-    assert all(c["base"] != "piezo" for c in without) and len(without) == 200
-    with pytest.raises(ValueError, match="plan design"):
-        accuracy.plan(10, 0, design="random")
-
-
-def test_the_accuracy_report_says_when_the_piezo_recording_is_missing(monkeypatch, tmp_path):
-    """Without ../shared/datasets the plan has no piezo cases: said in the progress, the JSON and the report."""
-    from hysbench.benchmarks.diagnosis_accuracy import accuracy
-
-    monkeypatch.setattr(accuracy, "piezo_available", lambda: False)
-    monkeypatch.setattr(accuracy, "run_case", lambda case: {
-        "kinds": list(case["kinds"]), "base": case["base"], "drive": case["drive"], "seed": case["seed"],
-        "strength_pct": 1.0, "effects": {}, "verdict": "none", "confirmed": None, "also": [], "ambiguous_with": [],
-        "remainder": None, "parameters": {}, "parameter_errors": {}, "parameters_within": False, "right": True,
-        "seconds": 0.1})
-    said = []
-    s = accuracy.run_accuracy(8, 0, tmp_path, progress=said.append)
-    assert "piezo" in s["missing_bases"] and any(m.startswith("no piezo cases") for m in said)
-    text = (tmp_path / "diagnosis_accuracy.md").read_text()
-    assert "**No piezo cases:**" in text and str(accuracy.PIEZO) in text
-    monkeypatch.setattr(accuracy, "piezo_available", lambda: True)
-    assert accuracy.missing_bases(("mrpim", "piezo")) == {}
-
-
 @given(st.integers(0, 10_000), st.sampled_from(["upper", "lower"]), st.floats(-1.0, 2.0))
 def test_slope_where_clipped_is_the_least_squares_slope_on_the_cut_samples(seed, side, true_slope):
     rng = np.random.default_rng(seed)

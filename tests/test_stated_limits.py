@@ -1,18 +1,20 @@
-"""The stated detection limits and the plan drawn within them (``stated_limits``, ``accuracy --plan within-limits``)."""
+"""The stated detection limits and the plan drawn within them (``stated_limits``, ``hysbench accuracy run --plan
+within-limits``)."""
 
+import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hysbench.benchmarks.diagnosis_accuracy import accuracy, stated_limits
+from hysbench.benchmarks.cli import main as hysbench
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, rows, stated_limits
 from hysbench.benchmarks.diagnosis_accuracy.planted import BASES, VOCABULARY, piezo_available, planted_case
-from hysbench.benchmarks.diagnosis_accuracy.pooled import _read_plans
 from hysbench.benchmarks.diagnosis_accuracy.shares import PLAN_STRIDE
 from hysbench.models.errors import HysbenchError
 
-RESULTS = Path(__file__).resolve().parents[1] / "results"
+ROWS = Path(__file__).resolve().parents[1] / "results" / rows.ROWS_FILE.name
 
 
 def limit_by_hand(rows, cause, base, min_cases):
@@ -26,13 +28,43 @@ def limit_by_hand(rows, cause, base, min_cases):
 
 
 def test_the_stated_limits_are_those_of_the_plans_they_were_stated_from():
-    """Recomputed from the reports of seeds 35-62 as they stand: a rerun of those plans that moves a limit makes
-    this fail, so the table is stated again (and the within-limits plans scored again) on purpose."""
-    _, rows = _read_plans([RESULTS / f"diagnosis-accuracy-seed{s}" for s in stated_limits.CHOSEN_ON], set())
-    assert {r["seed"] // PLAN_STRIDE for r in rows} == set(stated_limits.CHOSEN_ON)
+    """Recomputed by hand from the stored rows of the plans the file names: a rerun of those plans that moves a
+    limit makes this fail, so the limits are stated again (and the within-limits plans scored again) on purpose."""
+    source = stated_limits.stated_from()
+    assert source["plans"] == rows.expand(stated_limits.STATING_PLANS)
+    plans = rows.plan_rows(rows.read_plans(ROWS), source["plans"])
+    stored = [r for p in plans for r in p["rows"]]
+    assert sorted({r["seed"] // PLAN_STRIDE for r in stored}) == source["seeds"]
     assert set(stated_limits.LIMITS_PCT) == {(c, b) for c in VOCABULARY for b in BASES}
     for (cause, base), stated in stated_limits.LIMITS_PCT.items():
-        assert limit_by_hand(rows, cause, base, stated_limits.MIN_CASES) == stated, (cause, base)
+        assert limit_by_hand(stored, cause, base, source["min_cases"]) == stated, (cause, base)
+
+
+def test_the_command_writes_the_limits_it_states_and_they_are_read_back(tmp_path, monkeypatch):
+    """``hysbench accuracy limits`` on two small stored plans: the file holds what the slow reference gives, and
+    pointed at that file the within-limits plan draws at those limits."""
+    stride = PLAN_STRIDE
+    cases = [{"kinds": ["creep"], "base": "mrpim", "drive": "sines", "seed": stride * (1 + i // 5) + i,
+              "strength_pct": 0.1 * (i + 1), "right": i not in (0, 2)} for i in range(10)]
+    plans = {f"balanced-{k}": {"meta": {"design": "balanced", "seed": k, "cases": 5},
+                                "rows": [c for c in cases if c["seed"] // stride == k]} for k in (1, 2)}
+    path, out = tmp_path / "rows.jsonl.gz", tmp_path / "limits.json"
+    rows.write_plans(path, plans)
+    assert hysbench(["accuracy", "limits", "balanced-1..2", "--min-cases", "3", "--rows", str(path),
+                     "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert (data["plans"], data["seeds"], data["min_cases"]) == (["balanced-1", "balanced-2"], [1, 2], 3)
+    table = {(q["cause"], q["base"]): q for q in data["limits"]}
+    assert set(table) == {(c, b) for c in VOCABULARY for b in BASES}
+    creep = table[("creep", "mrpim")]
+    assert creep["limit_pct"] == limit_by_hand(cases, "creep", "mrpim", 3) == pytest.approx(0.4)
+    assert (creep["cases"], creep["cases_above"], creep["right_above"]) == (10, 7, 7)
+    assert table[("delay", "mrpim")] == {"cause": "delay", "base": "mrpim", "limit_pct": None, "cases": 0,
+                                          "cases_above": 0, "right_above": 0}
+    monkeypatch.setattr(stated_limits, "LIMITS_FILE", out)
+    monkeypatch.setattr(stated_limits, "_loaded", {})
+    assert stated_limits.stated_limit("creep", "mrpim") == creep["limit_pct"]
+    assert stated_limits.stated_limit("delay", "mrpim") is None and not stated_limits.in_scope(["delay"], "mrpim")
 
 
 def test_a_within_limits_plan_plants_each_cause_only_where_it_has_a_limit_and_says_its_minimum():

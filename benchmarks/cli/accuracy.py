@@ -12,7 +12,10 @@ from __future__ import annotations
 import argparse
 import os
 
+from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled, rows, stated_limits
+from hysbench.data.dataset import load_dataset
 from hysbench.data.files import check_output_file, shown_path
+from hysbench.models import get_model
 
 from .common import CommandError, OneLineParser, integer_at_least, nonnegative_int, positive_int
 
@@ -87,9 +90,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def default_report(pid: str) -> str:
-    from hysbench.benchmarks.diagnosis_accuracy.accuracy import HEADLINE_SEED
-
-    return HEADLINE_REPORT if pid == f"balanced-{HEADLINE_SEED}" else f"results/diagnosis_accuracy_{pid}.md"
+    """The report a plan's run or ``report`` writes by default."""
+    return HEADLINE_REPORT if pid == f"balanced-{accuracy.HEADLINE_SEED}" else f"results/diagnosis_accuracy_{pid}.md"
 
 
 def _say(message: str) -> None:
@@ -97,12 +99,10 @@ def _say(message: str) -> None:
 
 
 def main(args) -> int:
-    from hysbench.benchmarks.diagnosis_accuracy import accuracy, pooled, rows, stated_limits
-
     if args.action in ("run", "again"):
         check_output_file(args.rows)
     if args.action == "run":
-        return _run(args, accuracy, rows)
+        return _run(args)
     plans = rows.read_plans(args.rows)
     if args.action == "list":
         for pid, plan in plans.items():
@@ -145,7 +145,7 @@ def main(args) -> int:
     return 0
 
 
-def _run(args, accuracy, rows) -> int:
+def _run(args) -> int:
     if (args.model is not None or args.segments is not None or args.thorough) and not args.on:
         raise CommandError("--model, --segments and --thorough go with --on (the fixed bases are scored as they are)")
     if args.on and args.plan != "balanced":
@@ -154,9 +154,6 @@ def _run(args, accuracy, rows) -> int:
         raise CommandError(f"a within-limits plan has at most {accuracy.ATTEMPT_STRIDE} cases")
     dataset, on = None, None
     if args.on:
-        from hysbench.data.dataset import load_dataset
-        from hysbench.models import get_model
-
         get_model(args.model or "mrpim")  # an unknown model fails here, before any work
         dataset = load_dataset(args.on)
         on = {"name": dataset.name, "model": args.model or "mrpim", "segments": args.segments,

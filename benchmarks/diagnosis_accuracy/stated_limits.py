@@ -44,18 +44,21 @@ def state(plans: list[dict], min_cases: int = MIN_CASES) -> dict:
             "min_cases": min_cases, "right_share": RIGHT_SHARE, "limits": limits}
 
 
-def write_limits(data: dict, path: str | Path = LIMITS_FILE) -> None:
-    """Write the table (``state``'s) as JSON; the limits read from then on are these if ``path`` is LIMITS_FILE."""
-    write_json(path, data)
+def write_limits(data: dict, path: str | Path | None = None) -> None:
+    """Write the table (``state``'s) as JSON to ``path`` (default LIMITS_FILE: the limits read from then on)."""
+    write_json(path or LIMITS_FILE, data)
     _loaded.clear()
 
 
-def load(path: str | Path = LIMITS_FILE) -> dict:
+def load(path: str | Path | None = None) -> dict:
     """The stated limits as written by ``write_limits``; HysbenchError if the file is missing or not one."""
+    path = path or LIMITS_FILE
     try:
         data = json.loads(Path(path).read_text())
         table = {(q["cause"], q["base"]): q["limit_pct"] for q in data["limits"]}
-        data["seeds"], data["plans"], data["min_cases"]  # noqa: B018 (present)
+        missing = [k for k in ("plans", "seeds", "min_cases") if k not in data]
+        if missing:
+            raise KeyError(", ".join(missing))
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise HysbenchError(f"cannot read the stated limits from {path} ({e})") from None
     return {**data, "table": table}
