@@ -398,7 +398,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
             "`none`, `unexplained` or that verdict."), "",
         f"Intervals: {100 * CONFIDENCE:.0f} % Wilson score intervals, the cases taken as independent draws from "
         "the plan's design (one plan's share can differ from the design's by about this much; "
-        "`--pool` pools several plans).", "",
+        "`hysbench accuracy pool` pools several plans).", "",
         "## Confusion matrix (true effect x verdict, counts)", ""]
     verdicts = ["none", "unexplained", *VOCABULARY]
     lines += ["| true \\ verdict | " + " | ".join(verdicts) + " | right |", "|---" * (len(verdicts) + 2) + "|"]

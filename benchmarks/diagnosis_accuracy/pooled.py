@@ -13,7 +13,8 @@ choosing it: their single-cause cases at or above their cause and base's limit, 
 The benchmark's ceiling (``shares.ceiling``) is pooled too: per reading of the planted effects' own held-out
 evidence, the share a rule that names causes only on such evidence could reach at most, with its interval.
 
-Command: ``python3 -m hysbench.benchmarks.diagnosis_accuracy.accuracy --pool DIR ... [--check DIR ...] [--report FILE.md]``.
+Command: ``hysbench accuracy pool PLAN ... [--check PLAN ...] [--report FILE.md]`` (the plans' rows read from
+the row file, ``rows``).
 """
 
 from __future__ import annotations
