@@ -515,7 +515,7 @@ def _evidence_cell(r: dict) -> str:
                 else f"waveform on {ref}")
 
     def one(ref: str, v: dict) -> str:
-        z = "–" if v["z"] is None else f"{v['z']:.1f}"  # null in JSON: -inf from before the z was clipped
+        z = "–" if v["z"] is None else f"{v['z']:.1f}"  # null in JSON: a non-finite z
         return (f"{label(ref)} {'yes' if v['evidence'] else 'no'} (gain {100 * v['gain']:.1f} %, z {z}, "
                 f"{v['folds_improved']}/{v['n_folds']})")
 
