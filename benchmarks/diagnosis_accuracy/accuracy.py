@@ -537,8 +537,8 @@ def _ceiling_lines(s: dict) -> list[str]:
              "(virtual DEA: its own relaxation). For delay, resonance and saturation the waveform is the true "
              "plant output transformed, so it also carries part of what the base model misses: a generous bound "
              "there. An estimate, not a "
-             "proof: the evidence is checked against the base and the named cause only (the third estimate below: against "
-             "everything kept).", "",
+             "proof: the evidence is checked against the base and the named cause only"
+             + (" (the third estimate below: against everything kept)." if "kept_ceiling_right" in e else "."), "",
              "| base | vocabulary cases | effect shows evidence | of them right | no evidence | of them right |",
              "|---|---|---|---|---|---|"]
     for b, v in e["by_base"].items():
