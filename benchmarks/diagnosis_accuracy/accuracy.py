@@ -5,8 +5,8 @@ cause alone, two at once, the out-of-vocabulary effects, nulls with white
 and AR(1) noise -- over three bases (the Table 2 MRPIM, the virtual DEA's
 physics, the real piezo recording when ../shared/datasets has it) and
 three drives (the protocol's sines, triangles, multisines), runs
-``diagnose`` (base model MRPIM) on each and writes
-``diagnosis_accuracy.md`` / ``.json``: the confusion matrix (true effect x
+``diagnose`` (base model MRPIM) on each, stores the rows (``rows``) and
+writes the plan's report (``write_report``): the confusion matrix (true effect x
 verdict), each named parameter's error, per cause the detection limit, and
 the benchmark's ceiling (``evidence_ceiling``, ``shares.ceiling``).
 
