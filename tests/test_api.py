@@ -74,10 +74,10 @@ def test_run_matrix_scores_a_cell_as_identify_does(classical_pi_fit, tmp_path):
 
 
 def test_diagnose_passes_the_default_dataset_and_settings(monkeypatch):
-    import hysbench.benchmarks.diagnosis as diagnosis
+    import hysbench.benchmarks.api as api
 
     seen = {}
-    monkeypatch.setattr(diagnosis, "diagnose", lambda ds, model, **kw: seen.update(ds=ds, model=model, **kw))
+    monkeypatch.setattr(api, "diagnose_model", lambda ds, model, **kw: seen.update(ds=ds, model=model, **kw))
     hb.diagnose(model="classical-pi", seed=3, segments=2)
     assert seen["ds"].content_hash() == hb.load_dataset().content_hash()
     assert (seen["model"], seen["seed"], seen["segments"]) == ("classical-pi", 3, 2)

@@ -1,23 +1,8 @@
-"""hysbench: the benchmark suite for rate-dependent hysteresis models, as a Python API.
+"""The functions behind ``import hysbench as hb``: ``load_dataset``, ``get_model``, ``list_models``,
+``identify``, ``run_matrix`` and ``diagnose``, each with the shipped virtual DEA as its default dataset.
 
-``import hysbench as hb`` gives the handful of names a user needs::
-
-    import hysbench as hb
-
-    ds = hb.load_dataset()                    # the shipped virtual DEA (or a folder holding dataset.toml)
-    print(hb.list_models())                   # registry names
-    fit = hb.identify("mrpim", ds, method="varpro", seed=0)
-    for score in fit.records:                 # e_m and e_rms (%) per record, as in the paper
-        print(score.file, score.role, round(score.e_rms, 2))
-
-Everything else lives in the four layers: ``hysbench.models``, ``hysbench.data``,
-``hysbench.identification`` and ``hysbench.benchmarks``. This module imports from them only inside
-its functions, so ``import hysbench.models`` (which runs this file first, as the parent package)
-stays cheap and no layer imports from here.
-
-This file is installed as the package ``hysbench`` (``package-dir`` in pyproject.toml maps
-``hysbench`` to this folder); it sits inside the benchmarks folder because it is the top of the
-layers, like the command line.
+The package ``hysbench`` (benchmarks/hysbench/__init__.py) loads this module on first use of one of
+these names, so importing a layer (``hysbench.models``, ...) does not import the benchmarks.
 """
 
 from __future__ import annotations
@@ -25,19 +10,16 @@ from __future__ import annotations
 import os
 import tempfile
 
-__all__ = ["__version__", "diagnose", "get_model", "identify", "list_models", "load_dataset", "run_matrix"]
+from hysbench.benchmarks.diagnosis import diagnose as diagnose_model
+from hysbench.benchmarks.matrix.cells import method_options, plan_cells
+from hysbench.benchmarks.matrix.execute import run_matrix as run_cells
+from hysbench.benchmarks.matrix.store import CellStore
+from hysbench.data.dataset import load_dataset as load_folder
+from hysbench.data.virtual_dea import default_dataset_path
+from hysbench.identification.api import identify as identify_model
+from hysbench.models.registry import get_model as registry_model, list_models as registry_names
 
-
-def _package_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("hysbench")
-    except PackageNotFoundError:  # a source tree that is not installed
-        return "0+unknown"
-
-
-__version__ = _package_version()
+__all__ = ["diagnose", "get_model", "identify", "list_models", "load_dataset", "run_matrix"]
 
 
 def load_dataset(path: str | os.PathLike | None = None):
@@ -54,10 +36,7 @@ def load_dataset(path: str | os.PathLike | None = None):
         >>> [r.frequency_hz for r in ds.records if r.role == "validation"]
         [0.05, 0.2, 0.8]
     """
-    from hysbench.data.dataset import load_dataset as load
-    from hysbench.data.virtual_dea import default_dataset_path
-
-    return load(default_dataset_path() if path is None else path)
+    return load_folder(default_dataset_path() if path is None else path)
 
 
 def get_model(name: str, **hyperparameters):
@@ -71,9 +50,7 @@ def get_model(name: str, **hyperparameters):
         20
         >>> y = model.simulate(u, dt, model.preset("paper"))    # doctest: +SKIP
     """
-    from hysbench.models.registry import get_model as get
-
-    return get(name, **hyperparameters)
+    return registry_model(name, **hyperparameters)
 
 
 def list_models(matrix_only: bool = False) -> list[str]:
@@ -85,9 +62,7 @@ def list_models(matrix_only: bool = False) -> list[str]:
         >>> "mrpim" in hb.list_models(matrix_only=True)
         True
     """
-    from hysbench.models.registry import list_models as names
-
-    return names(matrix_only=matrix_only)
+    return registry_names(matrix_only=matrix_only)
 
 
 def identify(model, dataset=None, method: str = "auto", seed: int | None = 0, **options):
@@ -105,9 +80,7 @@ def identify(model, dataset=None, method: str = "auto", seed: int | None = 0, **
         >>> sorted({score.role for score in fit.records})
         ['identification', 'validation']
     """
-    from hysbench.identification.api import identify as fit_model
-
-    return fit_model(model, load_dataset() if dataset is None else dataset, method=method, seed=seed, **options)
+    return identify_model(model, load_dataset() if dataset is None else dataset, method=method, seed=seed, **options)
 
 
 def run_matrix(datasets=None, models: list[str] | None = None, methods: list[str] | None = None, seed: int = 0,
@@ -129,20 +102,14 @@ def run_matrix(datasets=None, models: list[str] | None = None, methods: list[str
         >>> [(r["model"], r["method"], r["status"]) for r in rows]
         [('classical-pi', 'varpro', 'ok')]
     """
-    from hysbench.benchmarks.matrix.cells import method_options as budgets, plan_cells
-    from hysbench.benchmarks.matrix.execute import run_matrix as execute
-    from hysbench.benchmarks.matrix.store import CellStore
-    from hysbench.data.dataset import load_dataset as load
-    from hysbench.data.virtual_dea import default_dataset_path
-
     if datasets is None:
         datasets = [default_dataset_path()]
     elif isinstance(datasets, (str, os.PathLike)):
         datasets = [datasets]
-    loaded = [(str(path), load(path)) for path in datasets]
-    cells = plan_cells(loaded, models, methods, seed, budgets(methods, dict(options or {}), False))
+    loaded = [(str(path), load_folder(path)) for path in datasets]
+    cells = plan_cells(loaded, models, methods, seed, method_options(methods, dict(options or {}), False))
     with tempfile.TemporaryDirectory(prefix="hysbench-matrix-") as scratch:
-        results = execute(cells, CellStore(scratch if out is None else out), jobs=jobs, quiet=True)
+        results = run_cells(cells, CellStore(scratch if out is None else out), jobs=jobs, quiet=True)
         return [results[cell.key] for cell in cells]
 
 
@@ -162,6 +129,4 @@ def diagnose(dataset=None, model: str = "mrpim", seed: int = 0, **settings):
         >>> diag.cause                                     # doctest: +SKIP
         'relaxation'
     """
-    from hysbench.benchmarks.diagnosis import diagnose as run
-
-    return run(load_dataset() if dataset is None else dataset, model, seed=seed, **settings)
+    return diagnose_model(load_dataset() if dataset is None else dataset, model, seed=seed, **settings)
