@@ -1,7 +1,7 @@
-"""The diagnosis's measured accuracy on planted effects (issue 14): ``accuracy.run_accuracy``.
+"""The diagnosis's measured accuracy on planted effects: ``accuracy.run_accuracy``.
 
-Not a CI test: 200 cases take 9-27 min with one process per core (as here) on the 2-core hosts of
-sessions 23-26 (README, "Measured").
+Not a CI test: 200 cases take 9-27 min with one process per core (as here) on 2-core hosts
+(docs/speed.md).
 ``HYSBENCH_ACCURACY_CASES`` sets the number of cases (default 200); the
 report goes to results/diagnosis_accuracy.md. The same run as a command:
 ``python3 -m hysbench.benchmarks.diagnosis.accuracy --cases 200 --out results --seed 40``
