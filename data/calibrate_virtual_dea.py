@@ -1,12 +1,12 @@
 """Calibrate the virtual DEA against the paper's figures: ``hysbench report calibrate-virtual-dea``.
 
-Targets (issue 3, from the paper's section 2.3), in the periodic steady state:
+Targets (from the paper's section 2.3), in the periodic steady state:
 peak-to-peak change from 0.02 to 1 Hz -27.3 % +- 2, loop width change +21.8 % +- 3,
 creep transition at 0.1 Hz 400 s +- 50; both changes monotone over the seven frequencies.
 
 Free parameters (in log space): mu, eta_v and every branch's mu_k and tau_k. Fixed:
 J, the geometry (prestretch, lengths, thickness) and eps_r (they trade off against the
-moduli; see the README). Three figures do not pin eight parameters, so the least-squares
+moduli; see docs/datasets.md). Three figures do not pin eight parameters, so the least-squares
 problem carries a weak pull towards the starting point:
 
     residuals = [(p2p change - target)/tol, (width change - target)/tol,

@@ -49,7 +49,7 @@ sample with the voltage linearly interpolated (``dea_physics``).
 
 Parameters (``TRUTH``) were calibrated by ``python -m hysbench.data.calibrate_virtual_dea``
 against the paper's figures (section 2.3): see ``CALIBRATION_TARGETS``. The lumped
-lengths are effective, not the platform geometry of the paper (see README).
+lengths are effective, not the platform geometry of the paper (see docs/datasets.md).
 
 Sensor: ``dea_sensor.LaserSensor`` (0-100 mm on 0-10 V, 16-bit ADC, white noise).
 Dataset: ``generate_dataset(seed)`` = the seven records of the paper's protocol,

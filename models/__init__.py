@@ -19,13 +19,13 @@ from .window import Window
 register(ClassicalPI.name, ClassicalPI)
 register(MRPIM.name, MRPIM)
 register(Viscoelastic.name, Viscoelastic)
-# baselines (issue 5)
+# baselines
 register(Elliptical.name, Elliptical)
 register(DualPolynomial.name, DualPolynomial)
 register(BoucWen.name, BoucWen)
 register(Preisach.name, Preisach)
 register(RateDependentPI.name, RateDependentPI)
-# the Bouc-Wen benchmark's structure (issue 16): force -> displacement, not a DEA model
+# the Bouc-Wen benchmark's structure: force -> displacement, not a DEA model
 register(BoucWenOscillator.name, BoucWenOscillator, in_matrix=False)
 # mrpim+relaxation, mrpim+delay, ... (see extended.py); the diagnosis names relaxation on the
 # default dataset (results/diagnosis.md), so that extension joins the default matrix.

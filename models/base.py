@@ -218,7 +218,7 @@ class HysteresisModel:
         return np.stack([self.windowed_regressors(u, dt, dict(zip(names, (float(v) for v in row))), window,
                                                   input_range=input_range) for row in sets])
 
-    # --- inverse (issue 15; see models/inverse.py) -----------------------
+    # --- inverse (see models/inverse.py) --------------------------------
     inverse_unavailable: ClassVar[str | None] = "no causal inverse is implemented for this model"
 
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None):

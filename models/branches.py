@@ -288,7 +288,7 @@ class BranchModel(KernelInvertible, HysteresisModel):
         # the time loop is input-only (in branch_regressors); the parameter sets are one product
         return P @ Phi.T
 
-    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(branch_steps)
 
     def step_arguments(self, vector, input_range) -> tuple:

@@ -191,7 +191,7 @@ class ExtendedModel(StepInvertible, HysteresisModel):
         """(n_relaxation * n_powers, T): L_tau_k[u^p], k-major, in the weights' order; with ``at`` (sorted,
         distinct sample indices) only those samples are kept: (..., at.size). ``cache``: the caller's
         {(tau, p): row} for this u, dt and ``at``, read and filled (each tau's filter runs alone, so a row
-        is the same computed now or before)."""
+        does not depend on which other rows were computed with it)."""
         if cache is not None and at is not None:
             powers = tuple(self.relaxation_powers)
             missing = list(dict.fromkeys(float(t) for t in taus if any((float(t), p) not in cache for p in powers)))

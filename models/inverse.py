@@ -1,4 +1,4 @@
-"""Causal inverses of the Prandtl-Ishlinskii family (issue 15).
+"""Causal inverses of the Prandtl-Ishlinskii family.
 
 The step structure. Every invertible model here computes its output one sample at a
 time from its state after the previous sample (k = 0, 1, ...; u = u(k)):

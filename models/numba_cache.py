@@ -1,9 +1,8 @@
 """Numba's on-disk cache, in a folder named by the source of every hysbench file that uses numba.
 
 numba's ``cache=True`` checks only the file that defines a kernel, not the files whose jitted
-functions it calls: after ``root_search.py`` changed, a Preisach kernel in ``preisach.py`` (not
-changed) was loaded from the cache compiled against the old search, and
-results/compensation.json's Preisach rows came from that stale kernel. Here the cache folder is
+functions it calls: after a change to ``root_search.py`` alone, a kernel in ``preisach.py`` that calls
+it would be loaded from the cache, compiled against the old search. Here the cache folder is
 ``<base>/numba-<hash>``, the hash over every such file under the four hysbench packages, so any
 change to any of them starts a fresh folder; ``<base>`` is $NUMBA_CACHE_DIR if set, else
 $XDG_CACHE_HOME/hysbench or ~/.cache/hysbench (the temporary folder if neither is writable).

@@ -224,7 +224,7 @@ class Preisach(KernelInvertible, HysteresisModel):
             Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
         return Phi
 
-    # inverse (issue 15; ``KernelInvertible``) ------------------------------
+    # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(preisach_steps)
 
     def step_arguments(self, vector, input_range) -> tuple:

@@ -176,7 +176,7 @@ class Viscoelastic(HysteresisModel):
         out = dea_physics.simulate_window_batch(u_kv, float(dt), phys, self.n_branches, start, stop, stride)
         return out if rows is None else np.ascontiguousarray(out[:, rows - start])
 
-    # --- inverse (issue 15) ------------------------------------------------
+    # --- inverse --------------------------------------------------------
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
                max_rate: float | None = None, u_start: float | None = None) -> Inversion:
         """The causal inverse (``dea_physics.invert_stretch``): the input within ``input_limits``

@@ -1,4 +1,4 @@
-"""Baselines (issue 5): elliptical, dual-polynomial, Bouc-Wen, Preisach, rate-dependent P-I.
+"""Baselines: elliptical, dual-polynomial, Bouc-Wen, Preisach, rate-dependent P-I.
 
 For each model: hand-checked cases, a slow obvious reference implementation
 compared with the numba kernel, batched == single, and regressors

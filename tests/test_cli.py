@@ -89,7 +89,7 @@ def test_a_destination_that_is_a_folder_is_refused_before_any_work(command, tmp_
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs a /proc file system")
 def test_an_output_folder_the_system_refuses_is_named_before_any_work(capsys):
-    # os.access says root may write /proc; the check now writes a probe file instead
+    # os.access says root may write /proc; the check writes a probe file instead
     assert main(["ablate", "--out", "/proc/hysbench-out"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "/proc is not writable" in err, err

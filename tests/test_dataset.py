@@ -245,7 +245,7 @@ def test_cli_reports_refusal_in_one_line(tmp_path):
 def test_refuses_frequency_at_or_above_nyquist(tmp_path, capsys, frequency):
     refuse(tmp_path, "r.csv: frequency_hz .* Hz is at or above the Nyquist frequency 500 Hz",
            record_toml=GOOD.replace("2.0", frequency))
-    assert main(["check", str(tmp_path)]) == 2  # the old default window was empty and check crashed
+    assert main(["check", str(tmp_path)]) == 2  # refused in one line: a default window would be empty
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "Nyquist" in err
 
@@ -268,7 +268,8 @@ def test_refuses_output_constant_in_scored_window(tmp_path):
 
 @pytest.mark.parametrize("column", ["u", "y"])
 def test_refuses_values_whose_squares_overflow(tmp_path, column):
-    """1e308 passed: max - min of the output was inf, and an input of 1e308 gave parameter bounds near 1e-306."""
+    """1e308 is refused: max - min of the output would be inf, and an input of 1e308 would give parameter bounds
+    near 1e-306."""
     t = np.arange(1000) * 1e-3
     u = np.sin(2 * np.pi * 2.0 * t)
     big = 1e308 * np.sign(u)
@@ -334,7 +335,7 @@ def test_refuses_a_complex_npz_column(tmp_path):
 
 def test_one_file_listed_twice_gives_two_records_each_scored_in_its_own_role(tmp_path):
     """One recording, an identification and a validation window (the shared piezo dataset's layout): a record's
-    file name is its key everywhere, so both were labelled identification in every score and report."""
+    file name is its key everywhere, so each window must get its own key and be scored in its own role."""
     from hysbench.identification import identify
     from hysbench.models import get_model
 

@@ -95,4 +95,4 @@ def test_a_loader_refusal_names_the_file_once(tmp_path, capsys):
     assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "unequal length" in err
-    assert err.count("ragged.csv") == 1, err  # was "DIR/ragged.csv: ragged.csv: columns of unequal length ..."
+    assert err.count("ragged.csv") == 1, err  # the file is named once, not once per layer

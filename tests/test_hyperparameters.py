@@ -74,8 +74,8 @@ def test_boolean_hyperparameters_take_true_and_false(model, key):
         1 if key in ("q_term", "offset") else 2)
 
 
-def test_q_term_no_no_longer_keeps_the_q_term():
-    """The sweep's bug: q_term="no" was stored and read as true (21 parameters)."""
+def test_q_term_takes_only_true_or_false():
+    """q_term="no" is refused, not read as true (which would keep 21 parameters)."""
     assert get_model("mrpim", q_term=False).n_params == 20
     with pytest.raises(ModelError, match="q_term must be true or false, got 'no'"):
         get_model("mrpim", q_term="no")
@@ -102,7 +102,7 @@ def test_integer_hyperparameters_are_bounded(model, key, lo, hi):
 
 
 def test_n_operators_has_an_upper_bound():
-    """classical-pi n_operators=100000000 was accepted and the fit killed for lack of memory."""
+    """n_operators=100000000 is refused before any memory is allocated for it."""
     for model in ("classical-pi", "mrpim", "rate-dependent-pi"):
         with pytest.raises(ModelError, match=r"n_operators must be an integer in 1\.\.1000, got 100000000"):
             get_model(model, n_operators=100_000_000)

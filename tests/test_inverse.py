@@ -161,7 +161,7 @@ def test_rate_limit_is_kept_and_counted():
 @pytest.mark.parametrize("name", ["classical-pi", "mrpim", "viscoelastic", "bouc-wen"])
 @pytest.mark.parametrize("bad", [True, 0.0, -1.0, float("nan"), float("inf"), "5"])
 def test_a_rate_limit_that_is_no_positive_number_is_refused(name, bad):
-    m = get_model(name)  # max_rate=True had been taken as 1.0 input unit per second
+    m = get_model(name)  # max_rate=True must not be read as 1.0 input unit per second
     with pytest.raises(ModelError, match="max_rate"):
         m.invert(np.ones(5), DT, m.default_params(), input_range=LIMITS, max_rate=bad)
 

@@ -112,8 +112,8 @@ def test_walkers_are_split_evenly_between_the_modes():
 
 
 def test_the_virtual_dea_posterior_has_two_modes_and_every_seed_finds_both():
-    """MRPIM on the shipped virtual DEA: sampler seeds 0-3 each started a single-mode chain in either
-    gamma > 0 or gamma < 0 before the mode search (issue 17's 0.8 Hz widths fell into two groups)."""
+    """MRPIM on the shipped virtual DEA has two separated modes (gamma > 0 and gamma < 0): the mode search
+    finds both from each sampler seed tried, so no chain starts in one mode only."""
     ds = load_dataset(ROOT / "data" / "virtual_dea")
     post = LogPosterior(get_model("mrpim"), ds.identification, noise="ar1", seed=0)
     nl0 = np.array([0.0, 0.0])

@@ -76,7 +76,7 @@ def test_reproduce_writes_report(tmp_path):
         p2p[f] = y.max() - y.min()
         assert r["frequencies"][f"{f:g}"]["p2p"] == pytest.approx(p2p[f], rel=1e-9)
     assert r["p2p_change_pct"] == pytest.approx(100 * (p2p[1.0] - p2p[0.02]) / p2p[0.02], rel=1e-9)
-    assert r["p2p_change_pct"] == pytest.approx(-40.3, abs=0.05)  # README's finding: the paper says -27.26
+    assert r["p2p_change_pct"] == pytest.approx(-40.3, abs=0.05)  # docs/interpretations.md: the paper says -27.26
     assert "width_change_pct" in r and (tmp_path / "paper_reproduction.md").is_file()
 
 

@@ -305,7 +305,7 @@ def predictive_text(s: dict, files: dict) -> list[str]:
           "held-out scale. With separated modes the scale column lists each mode's. \"scale x for 80 / 90 / 97 %\": "
           "the factor on the used scale at which this record's 90 % band would cover 80 / 90 / 97 % of its samples "
           "(1: the scale was what this record needed). The 90 % holds on average over records, not record by record: "
-          "a record's misfit is one smooth curve, so its coverage scatters widely about 90 % (README, \"One "
+          "a record's misfit is one smooth curve, so its coverage scatters widely about 90 % (docs/posterior.md, \"One "
           "record's coverage\").", "",
           "| record | f (Hz) | role | scale | 50 % coverage | 90 % coverage | 90 % width | 50 % width "
           "| 90 % coverage, scale 1 | 90 % width, scale 1 | scale x for 80 / 90 / 97 % | model-only 90 % coverage "
@@ -329,7 +329,7 @@ def predictive_text(s: dict, files: dict) -> list[str]:
         L += ["", f"**Outside the fitted frequency range: {', '.join(outside)}.** These bands are extrapolated and "
               "not calibrated: on development data fitted on 0.05-0.4 Hz and scored at 0.02, 0.8 and 1 Hz, such "
               "bands covered 72 % (planted relaxation) and 63 % (virtual DEA) of the samples on average, some "
-              "none (README, \"Outside the fitted frequency range\")."]
+              "none (docs/posterior.md, \"Outside the fitted frequency range\")."]
     nf = s.get("nonfinite_model_outputs", {})
     L += ["", f"Non-finite model outputs: {nf.get('log_posterior_evaluations', 0)} of "
           f"{nf.get('of_evaluations', 0)} log-posterior evaluations (rejected and counted); "

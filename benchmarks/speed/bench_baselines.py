@@ -1,7 +1,7 @@
 """Speed of the five baselines on the paper's protocol (seven frequencies, two
 periods each: 179,500 samples), one parameter set and batched over 64.
 
-No target is set by the issue; the figures go in README. Run with
+No target is set; the figures are in docs/speed.md. Run with
 `python -m pytest benchmarks/speed/bench_baselines.py --benchmark-only`.
 """
 

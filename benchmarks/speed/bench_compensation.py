@@ -1,4 +1,4 @@
-"""Speed of the inverse compensation (issue 15).
+"""Speed of the inverse compensation.
 
 Targets (2-core reference machine):
 * inverting a 100 s reference at 1 kHz (100,000 samples) with MRPIM identified on the
@@ -21,7 +21,7 @@ from hysbench.data.dataset import load_dataset
 from hysbench.data.virtual_dea import default_dataset_path
 
 DT = 1e-3
-# the issue's target for MRPIM; the issue states none for the others: these guard against regressions, set
+# MRPIM's target is the stated one; the others guard against regressions, set
 # from the medians measured at a load of 4.1 on the 2-core machine (MRPIM 0.12 s; elliptical 0.30 s and
 # dual-polynomial 0.31 s: about 8 evaluations per sample by secant steps, against MRPIM's Newton; Preisach
 # 0.015 s; Bouc-Wen 0.11 s)

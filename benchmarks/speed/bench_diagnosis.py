@@ -1,4 +1,4 @@
-"""Speed of ``hysbench diagnose`` (issue 9): a seven-record dataset in <= 60 s on this 2-core machine.
+"""Speed of ``hysbench diagnose``: a seven-record dataset in <= 60 s on this 2-core machine.
 
 Two seven-record datasets, each diagnosed once by the command (report and
 figures included, numba caches warm):

@@ -1,4 +1,4 @@
-"""Speed targets of the identifiers (issue 4); pytest-benchmark, not collected by CI.
+"""Speed targets of the identifiers; pytest-benchmark, not collected by CI.
 
     python -m pytest benchmarks/speed/bench_identification.py -p no:cacheprovider
 

@@ -1,6 +1,6 @@
 """Speed of the posterior sampler on the identification records of the default dataset.
 
-Target (issue 7, 2-core machine): >= 1000 effective samples for every
+Target (2-core machine): >= 1000 effective samples for every
 parameter (MRPIM's 21 and the noise's sigma, phi), with the chain after
 burn-in >= 50 autocorrelation times long, within <= 120 s wall after JIT
 warm-up. Timed: the whole ``sample_posterior`` call as ``hysbench posterior``
@@ -10,7 +10,7 @@ stopping once converged with the ESS target met); not the report.
 Discrepancy: the default (input relaxations, ``discrepancy="relaxation"``), so MRPIM's 21
 parameters plus the discrepancy's coefficients, all integrated out, must meet the target.
 
-The second benchmark is the full calibration check under misspecification (issue 17):
+The second benchmark is the full calibration check under misspecification:
 plain MRPIM (21 parameters) fitted to 10 data sets of the virtual DEA's physics with drawn
 relaxation times and moduli, and 10 of MRPIM plus a planted first-order relaxation (the
 generators of tests/test_posterior.py, at a 10 ms step over 3 periods); the mean held-out 90 %

@@ -1,4 +1,4 @@
-"""Speed of the virtual DEA (issue 3): simulating all seven records <= 20 s.
+"""Speed of the virtual DEA: simulating all seven records <= 20 s.
 
 The seven records of the default dataset hold 3,010,250 samples (t = 0 through the
 creep transition, then two stable periods). Also timed, without a target: generating the

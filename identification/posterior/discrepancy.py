@@ -30,8 +30,8 @@ linear-parameter variance + noise variance; with separated modes each mode at it
 ``modes``). c_out: the scale that covers, at 90 % on average, the end records (lowest and highest
 frequency) each held out in turn, the linear parameters (model and discrepancy) refitted on the
 others: prediction beyond the fitted range, like the records it is applied to. Chosen on development
-data (README, "Session 8: one pooled scale"): per-record in-sample scales interpolated in ln f and grown with the
-distance to the fitted frequencies (the previous rule; the growth from the interior records held out)
+data (docs/posterior.md): per-record in-sample scales interpolated in ln f and grown with the
+distance to the fitted frequencies (the growth from the interior records held out)
 over-covered the planted relaxation at the full setting (95.7 % on 60 development records, 97.8 % on
 the benchmark). Each short record's in-sample scale rests on about one effective sample (phi
 0.97-0.999: about one level per record), and a 3-record refit predicts about twice as badly as the

@@ -1,0 +1,105 @@
+"""README.md and docs/: the MkDocs build passes in strict mode, every relative link resolves, and
+every ``hysbench ...`` command they show runs with ``--help``."""
+
+import argparse
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hysbench.benchmarks.cli import build_parser, main
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
+CODE_SPAN = re.compile(r"`([^`\n]+)`")
+FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.S | re.M)
+
+
+def relative_links(text: str) -> list[str]:
+    return [t for t in LINK.findall(text) if not re.match(r"[a-z]+:", t) and not t.startswith("#")]
+
+
+def shown_commands(text: str) -> list[list[str]]:
+    """The argument lists of every ``hysbench ...`` command in a code span or on a line of a code block."""
+    lines = [span for span in CODE_SPAN.findall(FENCE.sub("", text))]
+    for block in FENCE.findall(text):
+        for line in block.splitlines():
+            lines.extend(part.strip() for part in line.split("&&"))
+    found = []
+    for line in lines:
+        line = line.strip().removeprefix("$ ")
+        if line.startswith("hysbench "):
+            found.append(line.split("#")[0].split()[1:])
+    return found
+
+
+def subcommand_path(args: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """The leading subcommand names of ``args`` (``['report', 'bouc-wen']``), checked against the parser."""
+    path = []
+    for token in args:
+        subparsers = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subparsers or token.startswith("-"):
+            break
+        if token.isupper() or token.startswith("["):  # a placeholder such as NAME: the parent's --help
+            break
+        assert token in subparsers[0].choices, f"hysbench {' '.join(path + [token])}: no such command"
+        path.append(token)
+        parser = subparsers[0].choices[token]
+    return path
+
+
+def test_the_readme_is_short():
+    assert len((ROOT / "README.md").read_text(encoding="utf-8").splitlines()) <= 250
+
+
+def test_the_docs_build_in_strict_mode(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--quiet",
+                           "-f", str(ROOT / "mkdocs.yml"), "-d", str(tmp_path / "site")],
+                          capture_output=True, text=True, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "site" / "index.html").is_file()
+
+
+def test_every_docs_page_is_in_the_navigation():
+    nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    assert [p.name for p in PAGES[1:] if f": {p.name}" not in nav] == []
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_every_relative_link_resolves(page):
+    dead = [t for t in relative_links(page.read_text(encoding="utf-8"))
+            if not (page.parent / t.split("#")[0]).exists()]
+    assert dead == []
+
+
+def test_the_link_check_sees_a_dead_link(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("[a](missing.md) [b](https://example.org) [c](#anchor) ![d](page.md)")
+    assert relative_links(page.read_text()) == ["missing.md", "page.md"]
+
+
+def test_the_command_scan_reads_spans_and_blocks():
+    text = "Run `hysbench fit --model m`.\n```bash\npip install . && hysbench run   # main job\n```\n`hysbench.models`"
+    assert shown_commands(text) == [["fit", "--model", "m"], ["run"]]
+
+
+def test_every_shown_command_runs_with_help(capsys):
+    parser = build_parser()
+    commands = {tuple(args[:1]) if args and args[0].startswith("-") else tuple(subcommand_path(args, parser))
+                for page in PAGES for args in shown_commands(page.read_text(encoding="utf-8"))}
+    assert ("run",) in commands and ("dataset", "init") in commands
+    failed = []
+    for command in sorted(commands):
+        argv = list(command) if command and command[0].startswith("-") else [*command, "--help"]
+        if main(argv) != 0:
+            failed.append(" ".join(argv))
+    capsys.readouterr()
+    assert failed == []
+
+
+def test_an_unknown_shown_command_is_caught():
+    with pytest.raises(AssertionError, match="no such command"):
+        subcommand_path(["report", "no-such-report"], build_parser())
