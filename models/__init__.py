@@ -9,6 +9,7 @@ from .dual_polynomial import DualPolynomial
 from .elliptical import Elliptical
 from .errors import HysbenchError, ModelError
 from .extended import CAUSES, ExtendedModel, register_extensions
+from .model_file import FittedModel, ModelFileError, load_model
 from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
@@ -37,6 +38,7 @@ __all__ = [
     "CAUSES",
     "ClassicalPI",
     "ExtendedModel",
+    "FittedModel",
     "DataScale",
     "DualPolynomial",
     "Elliptical",
@@ -44,6 +46,7 @@ __all__ = [
     "HysteresisModel",
     "MRPIM",
     "ModelError",
+    "ModelFileError",
     "PAPER_TABLE2",
     "Parameter",
     "Preisach",
@@ -52,5 +55,6 @@ __all__ = [
     "Window",
     "get_model",
     "list_models",
+    "load_model",
     "register",
 ]
