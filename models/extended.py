@@ -249,6 +249,10 @@ class ExtendedModel(StepInvertible, HysteresisModel):
 
     # --- the step structure (the causal inverse, models/inverse.py) -----
     @property
+    def time_varying_base(self) -> bool:
+        return self.has("creep") or self.has("interference")
+
+    @property
     def inverse_unavailable(self) -> str | None:
         if not isinstance(self.base_model, StepInvertible):
             return f"its base {self.base!r} has no step structure"

@@ -204,6 +204,15 @@ class Viscoelastic(HysteresisModel):
                                                    tol)
         return Inversion(u_kv / kv, clipped)
 
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
+        """The inverse one sample at a time (``inverse.ReplayInverseStepper``: the batch inverse over the
+        references so far; its reach tolerance follows their largest stretch, so the input can differ
+        from the batch inverse over a whole record by that tolerance, 1e-12 of the stretch)."""
+        from .inverse import ReplayInverseStepper
+        self.invert(np.zeros(1), dt, params, input_range, input_limits, **options)  # refuse bad options now
+        return ReplayInverseStepper(self, dt, lambda refs: self.invert(refs, dt, params, input_range, input_limits,
+                                                                       **options))
+
     # --- evaluation ------------------------------------------------------
     def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:
         K = self.n_branches
