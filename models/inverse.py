@@ -226,27 +226,6 @@ class StepInvertible:
                     "function of the inputs up to it (use derivative='backward')")
         return None
 
-    #: whether the step structure's offset changes with time (creep, interference)
-    time_varying_base = False
-
-    def stepper(self, dt: float, params, input_range=None):
-        """A constant-time ``PIStepper`` (models/pi_stepper.py) where the model has a step structure;
-        else the base class's replay stepper (mrpim+delay, +resonance, +saturation)."""
-        self._check_causal()
-        if self.inverse_unavailable:
-            return super().stepper(dt, params, input_range)
-        from .pi_stepper import PIStepper
-        return PIStepper(self, dt, params, input_range)
-
-    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
-        """The causal inverse one sample at a time (``PIInverseStepper``); options as ``invert``
-        (n_grid, max_rate, u_start) and ``reference_scale``."""
-        reason = self.inverse_unavailable
-        if reason:
-            raise ModelError(f"model {self.name!r} cannot be inverted: {reason}")
-        from .pi_stepper import PIInverseStepper
-        return PIInverseStepper(self, dt, params, input_range, input_limits, **options)
-
     def _structure(self, dt, params, input_range, n_samples) -> StepStructure:
         reason = self.inverse_unavailable
         if reason:

@@ -20,7 +20,7 @@ from numba import njit
 
 from .errors import ModelError
 from .kernels import KERNEL_FASTMATH
-from .inverse import DEFAULT_GRID, InverseArguments, StepStructure, invert_sample, step_commit
+from .inverse import DEFAULT_GRID, InverseArguments, StepInvertible, StepStructure, invert_sample, step_commit
 from .root_search import SEARCH_SIZE, search_clipped
 from .stepper import InverseStepper, Stepper, check_state_keys, check_step_input
 
@@ -208,3 +208,27 @@ class PIInverseStepper(_PIBase, InverseStepper):
         check_state_keys(self.model.name, state, self._keys())
         super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
         self.n_clipped = int(state["n_clipped"])
+
+
+class SteppableStructure(StepInvertible):
+    """A model with a step structure (``StepInvertible``) that also steps: the mixin of the P-I family."""
+
+    #: whether the step structure's offset changes with time (creep, interference)
+    time_varying_base = False
+
+    def stepper(self, dt: float, params, input_range=None):
+        """A constant-time ``PIStepper`` (models/pi_stepper.py) where the model has a step structure;
+        else the base class's replay stepper (mrpim+delay, +resonance, +saturation)."""
+        self._check_causal()
+        if self.inverse_unavailable:
+            return super().stepper(dt, params, input_range)
+        return PIStepper(self, dt, params, input_range)
+
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
+        """The causal inverse one sample at a time (``PIInverseStepper``); options as ``invert``
+        (n_grid, max_rate, u_start) and ``reference_scale``."""
+        reason = self.inverse_unavailable
+        if reason:
+            raise ModelError(f"model {self.name!r} cannot be inverted: {reason}")
+        return PIInverseStepper(self, dt, params, input_range, input_limits, **options)
+

@@ -48,7 +48,7 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import Inversion, check_max_rate
+from .inverse import Inversion, ReplayInverseStepper, check_max_rate
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -208,7 +208,6 @@ class Viscoelastic(HysteresisModel):
         """The inverse one sample at a time (``inverse.ReplayInverseStepper``: the batch inverse over the
         references so far; its reach tolerance follows their largest stretch, so the input can differ
         from the batch inverse over a whole record by that tolerance, 1e-12 of the stretch)."""
-        from .inverse import ReplayInverseStepper
         self.invert(np.zeros(1), dt, params, input_range, input_limits, **options)  # refuse bad options now
         return ReplayInverseStepper(self, dt, lambda refs: self.invert(refs, dt, params, input_range, input_limits,
                                                                        **options))
