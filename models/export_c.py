@@ -23,6 +23,7 @@ Exports: classical-pi, mrpim, rate-dependent-pi and the mrpim extensions with a 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -85,9 +86,10 @@ def _base_code(fitted: FittedModel) -> tuple[str, float]:
 
 def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha256: str = "", version: str = "",
              input_limits=None, max_rate: float | None = None, u_start: float | None = None,
-             reference_scale: float | None = None, n_grid: int = 32) -> tuple[str, str]:
+             reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "") -> tuple[str, str]:
     """(header, source) of the C export; the inverse options as ``PIInverseStepper``
-    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1)."""
+    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1);
+    ``inverse_note``: the inverse's check (``check_inverse``), written into the header."""
     if not prefix.isidentifier() or not prefix.isascii():
         raise ExportError(f"prefix must be a C identifier (letters, digits, _), got {prefix!r}")
     check_exportable(fitted)
@@ -108,6 +110,8 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
               f"input unit {fitted.metadata.get('input_unit', '')!r}, output unit "
               f"{fitted.metadata.get('output_unit', '')!r}.")
     header = f"""/* {origin}
+ *
+ * Inverse check: {inverse_note or 'not run'}
  *
  * {P}_step(s, u): the model's output at this sample for input u (call once per sample, every
  * {dt!r} s, after {P}_init). {P}_inverse_step(s, y_ref): the input within [{a.lo!r}, {a.hi!r}]
@@ -363,3 +367,56 @@ done:
 }}
 """
     return header, source
+
+
+@dataclass(frozen=True)
+class InverseCheck:
+    """Whether an inverse gives back the input of a reachable trajectory (``check_inverse``).
+
+    ``max_error``: the largest |u_inverse - u| over the samples the inverse did not clip, as a share
+    of the input span; ``first_sample``: the first sample where it exceeded ``tolerance`` (-1: none);
+    ``n_clipped``: samples clipped; ``stable``: max_error <= tolerance."""
+
+    max_error: float
+    first_sample: int
+    n_clipped: int
+    n_samples: int
+    tolerance: float
+    stable: bool
+
+    def message(self, name: str) -> str:
+        if self.stable:
+            return (f"{name}: the inverse gives back a reachable trajectory's input to {self.max_error:.1e} of the "
+                    f"input span ({self.n_samples} samples, {self.n_clipped} clipped)")
+        return (f"{name}: the inverse does not give back a reachable trajectory's input: its error grows to "
+                f"{self.max_error:.3g} of the input span (above {self.tolerance:g} from sample {self.first_sample} of "
+                f"{self.n_samples}; {self.n_clipped} clipped): the inverse recursion amplifies small errors or jumps "
+                "to another root, so it is not safe as a feedforward")
+
+
+def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2, **options) -> InverseCheck:
+    """Drive the model with sines over its input range, invert the model's own output with the
+    inverse's ``options`` (input_limits, max_rate, u_start, ...) and measure how far the inverse's
+    input strays from the sine's where it did not clip. The sines sweep a decade of drive periods
+    from the data scale's time (the shortest drive period the model was identified on) to ten
+    times it (three log-spaced, ``periods`` periods each), no faster than ``max_rate`` allows. A
+    stable inverse gives the input back to rounding; an unstable recursion (e.g. through q u'' with
+    rate-dependent envelopes) amplifies rounding errors until the input is lost. The worst sine counts."""
+    lo, hi = fitted.input_range
+    shortest = float((fitted.metadata.get("scale") or {}).get("time") or 1.0)
+    if options.get("max_rate"):
+        shortest = max(shortest, np.pi * (hi - lo) / float(options["max_rate"]))
+    span = hi - lo if hi > lo else 1.0
+    worst = None
+    for period in shortest * np.logspace(0.0, 1.0, 3):
+        t = np.arange(int(round(periods * period / fitted.sample_time))) * fitted.sample_time
+        u = 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(2.0 * np.pi * t / period)
+        inv = fitted.invert(fitted.simulate(u), **dict(options, u_start=options.get("u_start", float(u[0]))))
+        err = np.where(inv.clipped, 0.0, np.abs(inv.u - u)) / span
+        err = np.where(np.isfinite(err), err, np.inf)
+        over = np.flatnonzero(err > tolerance)
+        check = InverseCheck(float(np.max(err)), int(over[0]) if over.size else -1, inv.n_clipped, u.size, tolerance,
+                             float(np.max(err)) <= tolerance)
+        if worst is None or check.max_error > worst.max_error:
+            worst = check
+    return worst

@@ -155,3 +155,23 @@ def test_a_prefix_that_is_not_a_c_identifier_is_refused(tmp_path, capsys):
     assert code == 2 and "C identifier" in capsys.readouterr().err
     assert not (tmp_path / "c").exists()
     assert json.loads(path.read_text())["model"] == "mrpim"
+
+
+def test_the_inverse_check_passes_a_monotone_p_i_and_names_an_inverse_that_loses_the_input():
+    from hysbench.models.export_c import check_inverse
+    model = get_model("classical-pi")
+    params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
+    good = check_inverse(FittedModel(model, params, RANGE, DT, {}))
+    assert good.stable and good.max_error < 1e-12 and good.first_sample == -1
+    # Table 2's MRPIM: the sample-by-sample inverse through q u'' and the envelopes loses the input
+    bad = check_inverse(FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}))
+    assert not bad.stable and bad.max_error > 1e-3 and bad.first_sample > 0
+    assert "not safe as a feedforward" in bad.message("mrpim")
+
+
+def test_cli_export_warns_on_stderr_where_the_inverse_check_fails(tmp_path, capsys):
+    path = FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}).save(tmp_path / "m.json")
+    code = main(["export", str(path), "--out", str(tmp_path / "c"), "--prefix", "dea"])
+    err = capsys.readouterr().err
+    assert code == 0 and "warning: mrpim: the inverse does not give back" in err
+    assert "Inverse check: mrpim: the inverse does not give back" in (tmp_path / "c" / "dea.h").read_text()

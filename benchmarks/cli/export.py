@@ -7,16 +7,21 @@ in a comment at the top. Options of the inverse: ``--input-limits LO HI`` (defau
 input range), ``--max-rate`` (largest |du/dt|, input units per second; default none),
 ``--u-start`` (the input before the first sample; default the lower limit). A model that
 cannot be exported says so in one line (exit status 2) and nothing is written.
+
+Before writing, the inverse is checked (``export_c.check_inverse``: it must give back the input of
+sines over the input range that the model itself answers); where it does not, the export still
+writes both (the forward model is unaffected) and says so on stderr and in the header.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from hysbench.data.files import check_output_dir, ensure_dir, write_atomic
-from hysbench.models.export_c import check_exportable, export_c
+from hysbench.models.export_c import check_exportable, check_inverse, export_c
 from hysbench.models.model_file import file_sha256, load_model
 
 from .common import CommandError
@@ -47,11 +52,15 @@ def main(args) -> int:
     fitted = load_model(args.model_file)
     check_exportable(fitted)
     check_output_dir(args.out)
+    options = {"input_limits": args.input_limits, "max_rate": args.max_rate}
+    check = check_inverse(fitted, **options, **({} if args.u_start is None else {"u_start": args.u_start}))
+    note = check.message(fitted.name)
     header, source = export_c(fitted, args.prefix, model_file=Path(args.model_file).name,
-                              model_sha256=file_sha256(args.model_file), version=_version(),
-                              input_limits=args.input_limits, max_rate=args.max_rate, u_start=args.u_start)
+                              model_sha256=file_sha256(args.model_file), version=_version(), u_start=args.u_start,
+                              inverse_note=note, **options)
     out = ensure_dir(args.out)
     for name, text in ((f"{args.prefix}.h", header), (f"{args.prefix}.c", source)):
         write_atomic(out / name, text)
         print(f"wrote {out / name}")
+    print(note if check.stable else f"hysbench export: warning: {note}", file=None if check.stable else sys.stderr)
     return 0
