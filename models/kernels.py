@@ -176,20 +176,23 @@ def backward_rates(u, u1, u2, first, inv_dt, inv_dt2):
 
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
 def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-              fa, fb0, fb1, fpow, fw, commit, want_slope):
+              fa, fb0, fb1, fpow, fw, commit, want_slope, upper_offsets=True):
     """One sample of the P-I family's step structure (models/inverse.py): (y(k), dy/du).
 
     u: the input at this sample; a = |u'|, s = sign(u'), d2 = u'' (``backward_rates``, or a
     smoothed derivative's); u1 = u(k-1); the state w (plays), xf (filters) is that after
     sample k-1 and moves to sample k only when ``commit``. ``want_slope``: also dy/du (the
-    inverse's Newton steps). The one home of the P-I family's per-sample maths: the batch
+    inverse's Newton steps). ``upper_offsets=False``: r_hi is all zero and not read (the one-sided
+    plays of classical-pi and mrpim; the batch kernel's fast path, same result). The one home of the P-I family's per-sample maths: the batch
     kernels, the inverse, the steppers call it, and the exported C (models/export_c.py) is
     generated from the same expressions in the same order."""
     acc = 0.0
     dy = 0.0
     for i in range(r_lo.shape[0]):
         lower = u - g_lo * a - r_lo[i]
-        upper = u + g_hi * a + r_hi[i]
+        upper = u + g_hi * a
+        if upper_offsets:
+            upper += r_hi[i]
         v = play_update(w[i], lower, upper)
         if commit:
             w[i] = v
@@ -247,7 +250,7 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
             sgn = 0.0
             d2 = ddu[k]
         y, _ = pi_sample(uk, a_du, sgn, d2, k == 0, u1, inv_dt, offset, w, no_filter, thresholds, r_hi, gamma, lam,
-                         weights, poly, q, no_filter, no_filter, no_filter, no_power, no_filter, True, False)
+                         weights, poly, q, no_filter, no_filter, no_filter, no_power, no_filter, True, False, False)
         u2 = u1
         u1 = uk
         if k >= start:

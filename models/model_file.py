@@ -87,7 +87,8 @@ class FittedModel:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.params = self.model.unpack(self.model.pack(self.params))  # every parameter, in order
+        self._vector = self.model.pack(self.params)
+        self.params = self.model.unpack(self._vector)  # every parameter, in order
         self.input_range = (float(self.input_range[0]), float(self.input_range[1]))
 
     @property
@@ -99,7 +100,7 @@ class FittedModel:
 
     def simulate(self, u, dt: float | None = None) -> np.ndarray:
         """The model's output for input ``u`` (from rest), as the fit computed it."""
-        return self.model.simulate(u, self._dt(dt), self.params, input_range=self.input_range)
+        return self.model.simulate(u, self._dt(dt), self._vector, input_range=self.input_range)
 
     def stepper(self, dt: float | None = None) -> Stepper:
         return self.model.stepper(self._dt(dt), self.params, input_range=self.input_range)
