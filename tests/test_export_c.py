@@ -12,7 +12,7 @@ import pytest
 
 from hysbench.benchmarks.cli import main
 from hysbench.data.dataset import load_dataset
-from hysbench.models import MRPIM, FittedModel, get_model
+from hysbench.models import MRPIM, FittedModel, get_model, load_model
 from hysbench.models.export_c import ExportError, export_c
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -175,3 +175,21 @@ def test_cli_export_warns_on_stderr_where_the_inverse_check_fails(tmp_path, caps
     err = capsys.readouterr().err
     assert code == 0 and "warning: mrpim: the inverse does not give back" in err
     assert "Inverse check: mrpim: the inverse does not give back" in (tmp_path / "c" / "dea.h").read_text()
+
+
+@needs_cc
+def test_fit_save_export_compile_run_reproduces_the_prediction(tmp_path, capsys):
+    """The deployment path end to end on the shipped dataset (classical P-I, 5 plays: a quick fit)."""
+    model_file = tmp_path / "pi.json"
+    assert main(["fit", str(ROOT / "data" / "virtual_dea"), "--model", "classical-pi", "--method", "varpro",
+                 "--hyper", "n_operators=5", "--save", str(model_file)]) == 0
+    assert main(["export", str(model_file), "--out", str(tmp_path / "c"), "--prefix", "pi"]) == 0
+    (tmp_path / "c" / "driver.c").write_text(DRIVER.format(p="pi"))
+    exe = tmp_path / "run"
+    done = subprocess.run([CC, *FLAGS, "-o", str(exe), str(tmp_path / "c" / "pi.c"), str(tmp_path / "c" / "driver.c"),
+                           "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    record = load_dataset(ROOT / "data" / "virtual_dea").record("f0.2Hz.npz")
+    u = record.u[:50000]
+    y_c, _ = run(exe, 0, u)
+    assert close(y_c, load_model(model_file).simulate(u), 1e-9)
