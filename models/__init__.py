@@ -13,6 +13,7 @@ from .model_file import FittedModel, ModelFileError, load_model
 from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
+from .stepper import InverseStepper, Stepper
 from .registry import get_model, list_models, register
 from .viscoelastic import Viscoelastic
 from .window import Window
@@ -44,6 +45,7 @@ __all__ = [
     "Elliptical",
     "HysbenchError",
     "HysteresisModel",
+    "InverseStepper",
     "MRPIM",
     "ModelError",
     "ModelFileError",
@@ -51,6 +53,7 @@ __all__ = [
     "Parameter",
     "Preisach",
     "RateDependentPI",
+    "Stepper",
     "Viscoelastic",
     "Window",
     "get_model",
