@@ -28,6 +28,7 @@ from hysbench.data.dataset import Record
 from hysbench.data.files import jsonable
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
+from hysbench.models.model_file import FittedModel
 
 from .errors import IdentificationError
 
@@ -87,6 +88,23 @@ class Fit:
     def simulate(self, u, dt: float) -> np.ndarray:
         """Output of the fitted model for a new input, from its first sample."""
         return self.model_instance().simulate(u, dt, self.params, input_range=self.input_range)
+
+    def fitted_model(self, sample_time: float, input_unit: str = "", output_unit: str = "") -> FittedModel:
+        """The fitted model with what its model file records (models/model_file.py): the dataset's
+        sample time and units, the data scale, the dataset's name and hash, the identifier and the
+        worst validation e_rms and e_m."""
+        if not self.success:
+            raise IdentificationError(f"fit of {self.model} failed ({self.message}): no model to save")
+        meta = {
+            "input_unit": input_unit, "output_unit": output_unit, "scale": dict(self.scale),
+            "dataset": {"name": self.dataset, "content_hash": self.dataset_hash},
+            "identifier": {"method": self.method, "seed": self.seed, "options": jsonable(self.options)},
+            "scores": {"validation_e_rms": self.worst("validation", "e_rms"),
+                       "validation_e_m": self.worst("validation", "e_m"),
+                       "records": [s.as_dict() for s in self.records]},
+            "hysbench_version": self.version,
+        }
+        return FittedModel(self.model_instance(), dict(self.params), tuple(self.input_range), float(sample_time), meta)
 
     def predict(self, record: Record) -> np.ndarray:
         return self.simulate(record.u, record.dt)

@@ -9,9 +9,11 @@ from .dual_polynomial import DualPolynomial
 from .elliptical import Elliptical
 from .errors import HysbenchError, ModelError
 from .extended import CAUSES, ExtendedModel, register_extensions
+from .model_file import FittedModel, ModelFileError, load_model
 from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
+from .stepper import InverseStepper, Stepper
 from .registry import get_model, list_models, register
 from .viscoelastic import Viscoelastic
 from .window import Window
@@ -37,20 +39,25 @@ __all__ = [
     "CAUSES",
     "ClassicalPI",
     "ExtendedModel",
+    "FittedModel",
     "DataScale",
     "DualPolynomial",
     "Elliptical",
     "HysbenchError",
     "HysteresisModel",
+    "InverseStepper",
     "MRPIM",
     "ModelError",
+    "ModelFileError",
     "PAPER_TABLE2",
     "Parameter",
     "Preisach",
     "RateDependentPI",
+    "Stepper",
     "Viscoelastic",
     "Window",
     "get_model",
     "list_models",
+    "load_model",
     "register",
 ]

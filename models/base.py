@@ -25,6 +25,7 @@ from typing import ClassVar, Mapping, Sequence
 import numpy as np
 
 from .errors import ModelError
+from .stepper import InverseStepper, ReplayStepper, Stepper
 from .window import Window
 
 
@@ -225,6 +226,32 @@ class HysteresisModel:
         """The input that makes the model output ``y_desired`` (an ``inverse.Inversion``); models
         that cannot be inverted raise ModelError naming ``inverse_unavailable``."""
         raise ModelError(f"model {self.name!r} cannot be inverted: {self.inverse_unavailable}")
+
+    # --- causal steppers (models/stepper.py) ----------------------------
+    @property
+    def noncausal_reason(self) -> str | None:
+        """Why the output at a sample depends on later inputs (then no stepper exists), or None."""
+        derivative = getattr(self, "derivative", "backward")
+        if derivative != "backward":
+            return (f"its {derivative!r} derivative uses later samples, so the output at a sample is not a "
+                    "function of the inputs up to it (use derivative='backward')")
+        return None
+
+    def stepper(self, dt: float, params, input_range=None) -> Stepper:
+        """A causal ``Stepper`` of this model at sample time ``dt`` (models/stepper.py). The base
+        class gives a ``ReplayStepper`` (exact, O(k) per step); models with a per-sample update
+        override this with a constant-time one."""
+        self._check_causal()
+        return ReplayStepper(self, dt, params, input_range)
+
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options) -> InverseStepper:
+        """A causal ``InverseStepper``: ``step(y_ref) -> u`` (models that cannot be inverted raise)."""
+        raise ModelError(f"model {self.name!r} cannot be inverted: {self.inverse_unavailable}")
+
+    def _check_causal(self) -> None:
+        reason = self.noncausal_reason
+        if reason:
+            raise ModelError(f"model {self.name!r} has no causal stepper: {reason}")
 
     # --- helpers for subclasses -----------------------------------------
     def _check_input(self, u, dt: float) -> np.ndarray:

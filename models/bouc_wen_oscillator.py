@@ -171,6 +171,13 @@ class BoucWenOscillator(HysteresisModel):
             params.append(Parameter("nu", 1.0, 1.0, NU_MAX, False, "Bouc-Wen exponent nu"))
         return params
 
+    @property
+    def noncausal_reason(self) -> str | None:
+        if self.input_interpolation == "fourier":
+            return ("its 'fourier' input interpolation uses the whole record, so the output at a sample depends "
+                    "on later inputs (use input_interpolation='linear' or 'hold' for a stepper)")
+        return None
+
     # --- simulation ------------------------------------------------------
     def _fine(self, u: np.ndarray) -> np.ndarray:
         key = (u.size, hash(u.tobytes()))

@@ -54,6 +54,7 @@ from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_choice, check_int, check_int_list
 from .inverse import StepInvertible, StepStructure
+from .pi_stepper import SteppableStructure
 from .filter_kernels import (
     first_order_foh,
     lowpass1_bank,
@@ -85,7 +86,7 @@ def extended_name(base: str, components: Sequence[str]) -> str:
     return "+".join([base, *components])
 
 
-class ExtendedModel(StepInvertible, HysteresisModel):
+class ExtendedModel(SteppableStructure, HysteresisModel):
     """A registered base model plus named components; see the module docstring."""
 
     name = "extended"
@@ -248,6 +249,10 @@ class ExtendedModel(StepInvertible, HysteresisModel):
             raise ModelError(f"{self.name}: damping_ratio must be positive, got {params['damping_ratio']!r}")
 
     # --- the step structure (the causal inverse, models/inverse.py) -----
+    @property
+    def time_varying_base(self) -> bool:
+        return self.has("creep") or self.has("interference")
+
     @property
     def inverse_unavailable(self) -> str | None:
         if not isinstance(self.base_model, StepInvertible):

@@ -15,8 +15,10 @@ time from its state after the previous sample (k = 0, 1, ...; u = u(k)):
     mrpim+creep            base(k) = offset + s (1 - exp(-t_k / T_c))
 
 ``step_output`` evaluates y(k) and dy/du for a candidate u without touching the
-state; ``step_advance`` commits a chosen u. ``step_simulate`` runs the model forward
-through them (the tests check it against each model's own forward kernel).
+state; ``step_commit`` commits a chosen u. Both are ``kernels.pi_sample``, the per-sample
+update the batch kernel (``kernels._pi_output_window``), the steppers (``pi_stepper``) and the
+exported C share. ``step_simulate`` runs the model forward through them (the tests check it
+against each model's own forward kernel).
 
 The numerical inverse (``invert_steps``; for the other models their own kernels, all
 through one root search, ``root_search.search_start`` / ``search_next``): at each sample,
@@ -36,7 +38,7 @@ is counted as clipped too.
 
 The search is reverse-communication (the model's kernel evaluates g where the search asks
 and hands it back), so each model keeps its own cached numba kernel and its own step
-function, the one its forward simulation runs: ``step_output`` / ``step_advance`` here for
+function, the one its forward simulation runs: ``step_output`` / ``step_commit`` here for
 the P-I family, ``branches.branch_step`` (elliptical, dual-polynomial),
 ``preisach.preisach_step`` (the relay rule ``relay_switch``), ``bouc_wen.bouc_wen_step``.
 
@@ -83,14 +85,15 @@ P_h[u] = max(u - h, min(u + h, P(k-1))), 0 < h_2 < ... and A_i = a0 + sum_{j<=i}
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
 
 from .errors import ModelError
 from .hyperparameters import check_int, check_number
-from .kernels import KERNEL_FASTMATH, play_update
+from .kernels import KERNEL_FASTMATH, backward_rates, pi_sample, play_update
+from .stepper import InverseStepper, check_state_keys, check_step_input
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
@@ -136,56 +139,25 @@ class Inversion:
 
 
 # --- the step kernel ----------------------------------------------------------------
-@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
 def step_output(u, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """(y(k), dy/du) for input u at this sample, the state (w, xf, u1 = u(k-1), u2 = u(k-2)) unchanged."""
-    if first:
-        a = 0.0
-        s = 0.0
-    else:
-        du = u - u1
-        a = abs(du) / dt
-        s = 1.0 if du > 0 else (-1.0 if du < 0 else 0.0)
-    y = base
-    dy = 0.0
-    for i in range(r_lo.shape[0]):
-        lower = u - g_lo * a - r_lo[i]
-        upper = u + g_hi * a + r_hi[i]
-        v = play_update(w[i], lower, upper)
-        y += weights[i] * v
-        if v == lower:
-            dy += weights[i] * (1.0 - g_lo * s / dt)
-        elif v == upper:
-            dy += weights[i] * (1.0 + g_hi * s / dt)
-    p = 0.0
-    dp = 0.0
-    for j in range(poly.shape[0] - 1, -1, -1):  # Horner: p = sum_j poly[j] u^(j+1), dp its derivative
-        t = p + poly[j]
-        dp = dp * u + t
-        p = t * u
-    y += p
-    dy += dp
-    if not first:
-        y += q * (u - 2.0 * u1 + u2) / (dt * dt)
-        dy += q / (dt * dt)
-        for j in range(fa.shape[0]):
-            pw = fpow[j]
-            y += fw[j] * (fa[j] * xf[j] + fb0[j] * u1**pw + fb1[j] * u**pw)
-            dy += fw[j] * fb1[j] * pw * u ** (pw - 1)
-    return y, dy
+    inv_dt = 1.0 / dt
+    a, s, d2 = backward_rates(u, u1, u2, first, inv_dt, inv_dt * inv_dt)
+    return pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                     fa, fb0, fb1, fpow, fw, False, True)
 
 
-@njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
-def step_advance(u, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow):
-    """Commit input u: the plays and filters move to sample k (in place)."""
-    a = 0.0 if first else abs(u - u1) / dt
-    for i in range(r_lo.shape[0]):
-        w[i] = play_update(w[i], u - g_lo * a - r_lo[i], u + g_hi * a + r_hi[i])
-    for j in range(fa.shape[0]):
-        xf[j] = 0.0 if first else fa[j] * xf[j] + fb0[j] * u1 ** fpow[j] + fb1[j] * u ** fpow[j]
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def step_commit(u, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """Commit input u: the plays and filters move to sample k (in place); returns y(k)."""
+    inv_dt = 1.0 / dt
+    a, s, d2 = backward_rates(u, u1, u2, first, inv_dt, inv_dt * inv_dt)
+    return pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                     fa, fb0, fb1, fpow, fw, True, False)[0]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
 def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """The model's output for input u, one sample at a time through the step kernel."""
     n = u.shape[0]
@@ -194,16 +166,28 @@ def step_simulate(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0
     xf = np.zeros(fa.shape[0])
     u1 = u2 = u[0]
     for k in range(n):
-        first = k == 0
-        out[k] = step_output(u[k], first, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                             fa, fb0, fb1, fpow, fw)[0]
-        step_advance(u[k], first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
-        u2 = u[k] if first else u1
+        out[k] = step_commit(u[k], k == 0, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                             fa, fb0, fb1, fpow, fw)
+        u2 = u1
         u1 = u[k]
     return out
 
 
-@njit(cache=True)
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def invert_sample(yd, first, u1, u2, dt, base, u_limit_lo, u_limit_hi, max_step, n_grid, tol, st, w, xf, r_lo, r_hi,
+                  g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """One sample of the causal inverse: the input x for desired output yd (the state, as after the
+    previous sample, is committed to x); whether it clipped is ``search_clipped(st)``."""
+    x = search_start(st, NO_INPUT, 0, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, tol)
+    while not search_done(st):
+        y, dy = step_output(x, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                            fa, fb0, fb1, fpow, fw)
+        x = search_next(st, y - yd, dy)
+    step_commit(x, first, u1, u2, dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
+    return x
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
 def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi, g_lo, g_hi,
                  weights, poly, q, fa, fb0, fb1, fpow, fw):
     """The causal numerical inverse (module docstring): (u, clipped) for desired outputs yd.
@@ -217,14 +201,10 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
     u1 = u2 = min(max(u_start, u_limit_lo), u_limit_hi)
     for k in range(n):
         first = k == 0
-        x = search_start(st, NO_INPUT, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, tol)
-        while not search_done(st):
-            y, dy = step_output(x, first, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                                fa, fb0, fb1, fpow, fw)
-            x = search_next(st, y - yd[k], dy)
+        x = invert_sample(yd[k], first, u1, u2, dt, base[k], u_limit_lo, u_limit_hi, max_step, n_grid, tol, st, w,
+                          xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
         u_out[k] = x
         clipped[k] = search_clipped(st)
-        step_advance(x, first, u1, dt, w, xf, r_lo, r_hi, g_lo, g_hi, fa, fb0, fb1, fpow)
         u2 = x if first else u1
         u1 = x
     return u_out, clipped
@@ -354,10 +334,56 @@ class KernelInvertible:
         """The causal numerical inverse (arguments as ``StepInvertible.invert``), searched
         derivative-free; each model's docstring says where it is not invertible."""
         a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        return self._kernel_inverse(a, params, a.tol)
+
+    def _kernel_inverse(self, a: "InverseArguments", params, tol: float) -> Inversion:
         vec, rng = self._step_setup(params, a.input_range)
         u, clipped, _ = self.step_kernel(a.yd, np.zeros(0), *self.step_arguments(vec, rng), a.lo, a.hi, a.u_start,
-                                         a.max_step, a.n_grid, a.tol, self.clip_tolerance(vec, rng, a.tol))
+                                         a.max_step, a.n_grid, tol, self.clip_tolerance(vec, rng, tol))
         return Inversion(u, clipped)
+
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, n_grid: int = DEFAULT_GRID,
+                        max_rate: float | None = None, u_start: float | None = None,
+                        reference_scale: float | None = None):
+        """The inverse one sample at a time, replayed through the model's step kernel
+        (``ReplayInverseStepper``); ``reference_scale`` as ``PIInverseStepper``."""
+        scale = abs(float(reference_scale)) if reference_scale is not None else 0.0
+        a = InverseArguments.check(self.name, [scale], dt, input_range, input_limits, n_grid, max_rate, u_start)
+        self._step_setup(params, a.input_range)
+        return ReplayInverseStepper(self, dt, lambda refs: self._kernel_inverse(replace(a, yd=refs), params, a.tol))
+
+
+class ReplayInverseStepper(InverseStepper):
+    """The inverse stepper of a model whose inverse has no per-sample form here (the
+    ``KernelInvertible`` models, viscoelastic): it keeps the references since ``reset`` and returns
+    the last input of the model's causal inverse over them (causal: the input the batch inverse
+    gives at that sample). Exact, O(k) per step: for tests and offline loops, not for a real-time
+    target. ``invert_prefix(references) -> Inversion`` is the model's inverse with its options bound."""
+
+    def __init__(self, model, dt: float, invert_prefix):
+        self.model, self.dt, self._invert = model, float(dt), invert_prefix
+        self.reset()
+
+    def reset(self) -> None:
+        self._refs: list[float] = []
+        self.clipped = False
+        self.n_clipped = 0
+
+    def step(self, y_ref: float) -> float:
+        self._refs.append(check_step_input(self.model.name, y_ref))
+        inv = self._invert(np.array(self._refs))
+        self.clipped = bool(inv.clipped[-1])
+        self.n_clipped += self.clipped
+        return float(inv.u[-1])
+
+    @property
+    def state(self) -> dict:
+        return {"references": list(self._refs), "n_clipped": int(self.n_clipped)}
+
+    def set_state(self, state: dict) -> None:
+        state = check_state_keys(self.model.name, state, ("references", "n_clipped"))
+        self._refs = [float(v) for v in state["references"]]
+        self.n_clipped = int(state["n_clipped"])
 
 
 # --- the analytic inverse of classical P-I -------------------------------------------

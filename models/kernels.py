@@ -164,15 +164,79 @@ def pi_output_window_batch(u, dt, backward, abs_du, ddu, gammas, lams, threshold
     return out
 
 
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def backward_rates(u, u1, u2, first, inv_dt, inv_dt2):
+    """(|u'|, sign(u'), u'') at a sample by backward differences from the two previous inputs;
+    all zero at the first sample (the input held at u(0) before the record)."""
+    if first:
+        return 0.0, 0.0, 0.0
+    du = u - u1
+    return abs(du) * inv_dt, (1.0 if du > 0 else (-1.0 if du < 0 else 0.0)), (u - 2.0 * u1 + u2) * inv_dt2
+
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+              fa, fb0, fb1, fpow, fw, commit, want_slope, upper_offsets=True):
+    """One sample of the P-I family's step structure (models/inverse.py): (y(k), dy/du).
+
+    u: the input at this sample; a = |u'|, s = sign(u'), d2 = u'' (``backward_rates``, or a
+    smoothed derivative's); u1 = u(k-1); the state w (plays), xf (filters) is that after
+    sample k-1 and moves to sample k only when ``commit``. ``want_slope``: also dy/du (the
+    inverse's Newton steps). ``upper_offsets=False``: r_hi is all zero and not read (the one-sided
+    plays of classical-pi and mrpim; the batch kernel's fast path, same result). The one home of the P-I family's per-sample maths: the batch
+    kernels, the inverse, the steppers call it, and the exported C (models/export_c.py) is
+    generated from the same expressions in the same order."""
+    acc = 0.0
+    dy = 0.0
+    for i in range(r_lo.shape[0]):
+        lower = u - g_lo * a - r_lo[i]
+        upper = u + g_hi * a
+        if upper_offsets:
+            upper += r_hi[i]
+        v = play_update(w[i], lower, upper)
+        if commit:
+            w[i] = v
+        acc += weights[i] * v
+        if want_slope:
+            if v == lower:
+                dy += weights[i] * (1.0 - g_lo * s * inv_dt)
+            elif v == upper:
+                dy += weights[i] * (1.0 + g_hi * s * inv_dt)
+    p = 0.0
+    dp = 0.0
+    for j in range(poly.shape[0] - 1, -1, -1):  # Horner: p = sum_j poly[j] u^(j+1), dp its derivative
+        t = p + poly[j]
+        dp = dp * u + t
+        p = t * u
+    y = acc + p + q * d2 + base
+    if want_slope:
+        dy += dp
+        if not first:
+            dy += q * inv_dt * inv_dt
+    for j in range(fa.shape[0]):
+        x = 0.0
+        if not first:
+            pw = fpow[j]
+            x = fa[j] * xf[j] + fb0[j] * u1**pw + fb1[j] * u**pw
+            y += fw[j] * x
+            if want_slope:
+                dy += fw[j] * fb1[j] * pw * u ** (pw - 1)
+        if commit:
+            xf[j] = x
+    return y, dy
+
+
 @njit(cache=True, fastmath=KERNEL_FASTMATH, nogil=True)
 def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weights, poly, q, offset, w0, start, out):
-    """``_pi_output`` storing only samples [start, start + out.size)."""
+    """``_pi_output`` storing only samples [start, start + out.size): ``pi_sample`` over the record."""
     n_op = thresholds.shape[0]
-    n_poly = poly.shape[0]
     stop = start + out.shape[0]
     w = np.empty(n_op)
     for i in range(n_op):
         w[i] = w0
+    r_hi = np.zeros(n_op)
+    no_filter = np.zeros(0)
+    no_power = np.zeros(0, dtype=np.int64)
     u1 = u[0]
     u2 = u[0]
     inv_dt = 1.0 / dt
@@ -180,25 +244,17 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
     for k in range(stop):
         uk = u[k]
         if backward:
-            a_du = abs(uk - u1) * inv_dt
-            d2 = (uk - 2.0 * u1 + u2) * inv_dt2
-            u2 = u1
-            u1 = uk
+            a_du, sgn, d2 = backward_rates(uk, u1, u2, k == 0, inv_dt, inv_dt2)
         else:
             a_du = abs_du[k]
+            sgn = 0.0
             d2 = ddu[k]
-        hl = uk - gamma * a_du
-        hr = uk + lam * a_du
-        acc = 0.0
-        for i in range(n_op):
-            v = play_update(w[i], hl - thresholds[i], hr)
-            w[i] = v
-            acc += weights[i] * v
+        y, _ = pi_sample(uk, a_du, sgn, d2, k == 0, u1, inv_dt, offset, w, no_filter, thresholds, r_hi, gamma, lam,
+                         weights, poly, q, no_filter, no_filter, no_filter, no_power, no_filter, True, False, False)
+        u2 = u1
+        u1 = uk
         if k >= start:
-            p = 0.0
-            for j in range(n_poly - 1, -1, -1):
-                p = (p + poly[j]) * uk
-            out[k - start] = acc + p + q * d2 + offset
+            out[k - start] = y
 
 
 @njit(cache=True, nogil=True)

@@ -22,7 +22,8 @@ from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, backward_second_difference_at, derivatives
 from .errors import ModelError
 from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
-from .inverse import StepInvertible, StepStructure
+from .inverse import StepStructure
+from .pi_stepper import SteppableStructure
 from .kernels import (
     pi_output,
     pi_output_batch,
@@ -41,7 +42,7 @@ ENVELOPE_BOUND = 0.1  # |gamma|, |lambda| <= ENVELOPE_BOUND * time  (seconds)
 _NO_ROWS = np.empty(0, dtype=np.int64)  # the play kernels' "a contiguous window"
 
 
-class PlayOperatorModel(StepInvertible, HysteresisModel):
+class PlayOperatorModel(SteppableStructure, HysteresisModel):
     """Shared implementation; use ``ClassicalPI`` or ``MRPIM``."""
 
     def __init__(

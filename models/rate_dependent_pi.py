@@ -42,7 +42,8 @@ from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, derivatives
 from .errors import ModelError
 from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
-from .inverse import StepInvertible, StepStructure
+from .inverse import StepStructure
+from .pi_stepper import SteppableStructure
 from .kernels import KERNEL_FASTMATH, play_update
 
 POLY_BOUND = 5.0  # |p_j| <= POLY_BOUND * y / u**j
@@ -133,7 +134,7 @@ def rd_pi_batch(u, abs_du, r0, betas, weights, polys, offsets, w0):
     return out
 
 
-class RateDependentPI(StepInvertible, HysteresisModel):
+class RateDependentPI(SteppableStructure, HysteresisModel):
     """P-I with thresholds growing with |du/dt|; see the module docstring."""
 
     name = "rate-dependent-pi"

@@ -48,7 +48,7 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import Inversion, check_max_rate
+from .inverse import Inversion, ReplayInverseStepper, check_max_rate
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -203,6 +203,14 @@ class Viscoelastic(HysteresisModel):
         u_kv, clipped = dea_physics.invert_stretch(dlam, float(dt), self.physical_vectors(P)[0], K, lo, hi, start, step,
                                                    tol)
         return Inversion(u_kv / kv, clipped)
+
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
+        """The inverse one sample at a time (``inverse.ReplayInverseStepper``: the batch inverse over the
+        references so far; its reach tolerance follows their largest stretch, so the input can differ
+        from the batch inverse over a whole record by that tolerance, 1e-12 of the stretch)."""
+        self.invert(np.zeros(1), dt, params, input_range, input_limits, **options)  # refuse bad options now
+        return ReplayInverseStepper(self, dt, lambda refs: self.invert(refs, dt, params, input_range, input_limits,
+                                                                       **options))
 
     # --- evaluation ------------------------------------------------------
     def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:

@@ -33,6 +33,7 @@ BAD = {
     "reproduce": (["reproduce", "--out", "{tmp}/file/sub"], "{tmp}/file"),
     "ablate": (["ablate", "--orders", "1,x", "--out", "{tmp}"], "--orders"),
     "fit": (["fit", "--model", "mrpim", "--method", "no-such-method"], "no-such-method"),
+    "export": (["export", "{tmp}/no-such-model.json", "--out", "{tmp}/c", "--prefix", "dea"], "no-such-model.json"),
     "diagnose": (["diagnose", "--model", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "compensate": (["compensate", "--models", "no-such-model", "--out", "{tmp}"], "no-such-model"),
     "report": (["report", "baselines", "--models", "no-such-model", "--out", "{tmp}/b.md"], "no-such-model"),
@@ -70,6 +71,7 @@ def test_the_default_dataset_is_the_shipped_virtual_dea():
 
 DESTINATION_IS_A_FOLDER = {
     "fit": ["fit", "--model", "classical-pi", "--json", "{tmp}"],
+    "fit --save": ["fit", "--model", "classical-pi", "--save", "{tmp}"],
     "diagnose": ["diagnose", "--out", "{tmp}/new", "--json", "{tmp}"],
     "posterior": ["posterior", "--model", "classical-pi", "--out", "{tmp}/new", "--json", "{tmp}"],
     "ablate": ["ablate", "--out", "{tmp}/new", "--json", "{tmp}"],

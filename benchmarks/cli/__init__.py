@@ -29,6 +29,7 @@ COMMANDS = {
     "reproduce": ("hysbench.benchmarks.cli.reproduce", "simulate the paper's Table 2 MRPIM over the seven frequencies"),
     "ablate": ("hysbench.benchmarks.cli.ablate", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
+    "export": ("hysbench.benchmarks.cli.export", "C99 code for a fitted model and its inverse (from fit --save)"),
     "report": ("hysbench.benchmarks.cli.report", "regenerate a report: identification, baselines, virtual-dea, "
                                                  "bouc-wen, calibrate-virtual-dea"),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",

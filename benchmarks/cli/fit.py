@@ -6,7 +6,8 @@ parameters). ``--json`` writes the Fit (keys ``model``, ``method``,
 more; see ``Fit.to_dict``). ``--hyper key=value`` sets model
 hyperparameters, ``--option key=value`` identifier options (values are read
 as JSON, e.g. ``--option n_starts=4 --option 'bounds={"gamma": [0, 0.1]}'``,
-falling back to a plain string).
+falling back to a plain string). ``--save MODEL.json`` writes the model file
+(models/model_file.py): what ``hysbench.models.load_model`` and ``hysbench export`` read.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from hysbench.data.dataset import load_dataset
 from hysbench.data.files import check_output_file, ensure_dir, write_json
 from hysbench.models import get_model
 
@@ -33,6 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "linear part, else lsq)")
     add_seed_argument(parser, what="the identifier")
     parser.add_argument("--json", metavar="FILE", help="write the fit as JSON to FILE")
+    parser.add_argument("--save", metavar="MODEL.json",
+                        help="write the fitted model as a model file (load with hysbench.models.load_model)")
     parser.add_argument("--hyper", metavar="KEY=VALUE", action="append", default=[],
                         help="model hyperparameter, e.g. --hyper offset=false (repeatable)")
     parser.add_argument("--option", metavar="KEY=VALUE", action="append", default=[],
@@ -44,9 +48,11 @@ def main(args) -> int:
     options = parse_key_values(args.option, "--option")
     dataset = dataset_paths(args.dataset)[0]
     model = get_model(args.model, **hyper)
-    if args.json:  # refuse an unwritable destination before spending time on the fit
-        check_output_file(args.json)
-    fit = identify(model, dataset, method=args.method, seed=args.seed, **options)
+    for out in (args.json, args.save):  # refuse an unwritable destination before spending time on the fit
+        if out:
+            check_output_file(out)
+    data = load_dataset(dataset) if args.save else dataset
+    fit = identify(model, data, method=args.method, seed=args.seed, **options)
     print(fit.summary())
     if args.json:
         ensure_dir(Path(args.json).resolve().parent)
@@ -54,5 +60,16 @@ def main(args) -> int:
         print(f"\nwrote {args.json}")
     if not fit.success:
         print(f"hysbench fit: {fit.message}", file=sys.stderr)
+        if args.save:
+            print(f"hysbench fit: no model file written ({args.save})", file=sys.stderr)
         return 1
+    if args.save:
+        dts = [r.dt for r in data.identification]
+        if max(dts) - min(dts) > 1e-9 * max(dts):
+            print(f"hysbench fit: note: the identification records' sample times differ ({min(dts):g} to "
+                  f"{max(dts):g} s); the model file records the first, {dts[0]:g} s", file=sys.stderr)
+        fitted = fit.fitted_model(dts[0], data.input_unit, data.output_unit)
+        ensure_dir(Path(args.save).resolve().parent)
+        write_json(args.save, fitted.to_dict())
+        print(f"wrote {args.save}")
     return 0

@@ -1,0 +1,422 @@
+"""C code for a fitted P-I-family model and its inverse (``hysbench export``).
+
+``export_c(fitted, prefix, ...)`` returns the text of PREFIX.h and PREFIX.c: plain C99, no
+allocation, only <math.h>:
+
+    typedef struct {...} PREFIX_state;
+    void   PREFIX_init(PREFIX_state *s);                    /* the state before the first sample */
+    double PREFIX_step(PREFIX_state *s, double u);          /* output at this sample */
+    double PREFIX_inverse_step(PREFIX_state *s, double y_ref);  /* input for this desired output */
+
+One state serves the forward model or the inverse (use one or the other on a state). The
+per-sample update is ``kernels.pi_sample`` written out in C with the same operations in the
+same order (so it agrees with Python to rounding; the tests require 1e-9 relative), and the
+inverse is ``root_search``'s walk-and-refine search at one sample, as ``inverse.invert_sample``
+runs it; ``PREFIX_state.clipped`` / ``n_clipped`` report the samples whose reference was out of
+reach. Parameters, thresholds and the sample time are constants; the sample time is the model
+file's: the generated code is valid only at that rate.
+
+Exports: classical-pi, mrpim, rate-dependent-pi and the mrpim extensions with a step structure
+(+relaxation, +creep, +interference). Others raise ``ExportError`` naming why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import HysbenchError
+from .inverse import InverseArguments, StepInvertible
+from .model_file import FittedModel
+from .root_search import NEWTON_ITERATIONS
+
+
+class ExportError(HysbenchError):
+    """A model that cannot be exported as C (yet), or bad export options."""
+
+
+def _num(x: float) -> str:
+    """A double literal that reads back as exactly x (the shortest round-trip repr)."""
+    x = float(x)
+    if math.isinf(x):
+        return "HUGE_VAL" if x > 0 else "(-HUGE_VAL)"
+    if math.isnan(x):
+        raise ExportError("a constant of the model is NaN")
+    r = repr(x)
+    return r if ("e" in r or "." in r) else r + ".0"
+
+
+def _array(name: str, values, ctype: str = "double") -> str:
+    values = list(values)
+    if not values:
+        values = [0]  # C99 has no empty arrays; the loops over it run zero times
+    body = ", ".join(_num(v) if ctype == "double" else str(int(v)) for v in values)
+    return f"static const {ctype} {name}[{len(values)}] = {{{body}}};"
+
+
+def check_exportable(fitted: FittedModel) -> None:
+    model = fitted.model
+    if not isinstance(model, StepInvertible):
+        raise ExportError(f"model {model.name!r} cannot be exported as C (yet): only the P-I family "
+                          "(classical-pi, mrpim, rate-dependent-pi, mrpim+relaxation/+creep/+interference) exports")
+    reason = model.inverse_unavailable
+    if reason:
+        raise ExportError(f"model {model.name!r} cannot be exported as C (yet): {reason}")
+
+
+def _base_code(fitted: FittedModel) -> tuple[str, float]:
+    """(C expression of the offset at sample k, the constant offset)."""
+    model, p = fitted.model, fitted.params
+    if not getattr(model, "time_varying_base", False):
+        s = model._structure(fitted.sample_time, p, fitted.input_range, 1)
+        return "BASE", float(s.base[0])
+    base_model = model.base_model
+    s = base_model._structure(fitted.sample_time, {k: p[k] for k in model.base_names}, fitted.input_range, 1)
+    expr = "BASE"
+    if model.has("creep"):  # as ExtendedModel._creep_column: -expm1(-(k dt) / T_c)
+        expr = f"({expr} + {_num(p['creep_size'])} * -expm1(-(0.0 + (double)k * DT) / {_num(p['creep_time'])}))"
+    if model.has("interference"):  # as ExtendedModel.interference_columns: phase = 2 pi f dt k
+        w = 2.0 * math.pi * p["interference_frequency"] * fitted.sample_time
+        expr = (f"({expr} + ({_num(p['interference_sin'])} * sin({_num(w)} * (double)k) + "
+                f"{_num(p['interference_cos'])} * cos({_num(w)} * (double)k)))")
+    return expr, float(s.base[0])
+
+
+def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha256: str = "", version: str = "",
+             input_limits=None, max_rate: float | None = None, u_start: float | None = None,
+             reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "") -> tuple[str, str]:
+    """(header, source) of the C export; the inverse options as ``PIInverseStepper``
+    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1);
+    ``inverse_note``: the inverse's check (``check_inverse``), written into the header."""
+    if not prefix.isidentifier() or not prefix.isascii():
+        raise ExportError(f"prefix must be a C identifier (letters, digits, _), got {prefix!r}")
+    check_exportable(fitted)
+    model, dt = fitted.model, fitted.sample_time
+    if reference_scale is None:
+        reference_scale = float((fitted.metadata.get("scale") or {}).get("y") or 1.0)
+    a = InverseArguments.check(model.name, [abs(float(reference_scale))], dt, fitted.input_range, input_limits,
+                               n_grid, max_rate, u_start)
+    s = model._structure(dt, fitted.params, fitted.input_range, 1)
+    r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
+    base_expr, base0 = _base_code(fitted)
+    n, m, f = r_lo.size, poly.size, fa.size
+    P = prefix
+    guard = f"{P.upper()}_H"
+    origin = (f"Generated by hysbench {version or '(unknown version)'} (hysbench export) from the model file\n"
+              f" * {model_file or '(not from a file)'}\n * sha256 {model_sha256 or '-'}\n"
+              f" * model {model.name}, sample time {dt!r} s, input range {list(fitted.input_range)!r}, "
+              f"input unit {fitted.metadata.get('input_unit', '')!r}, output unit "
+              f"{fitted.metadata.get('output_unit', '')!r}.")
+    header = f"""/* {origin}
+ *
+ * Inverse check: {inverse_note or 'not run'}
+ *
+ * {P}_step(s, u): the model's output at this sample for input u (call once per sample, every
+ * {dt!r} s, after {P}_init). {P}_inverse_step(s, y_ref): the input within [{a.lo!r}, {a.hi!r}]
+ * that makes the model output y_ref at this sample; s->clipped says the reference was out of
+ * reach (the nearest reachable output was taken), s->n_clipped counts those. Use one state
+ * for either the forward model or the inverse.
+ */
+#ifndef {guard}
+#define {guard}
+
+#define {P.upper()}_N_PLAYS {n}
+#define {P.upper()}_N_FILTERS {max(f, 1)}
+#define {P.upper()}_SAMPLE_TIME {_num(dt)}
+
+typedef struct {{
+    int first;        /* 1 before the first sample */
+    long k;           /* samples since init */
+    double u1, u2;    /* the input one and two samples ago */
+    double w[{P.upper()}_N_PLAYS];     /* play operators */
+    double xf[{P.upper()}_N_FILTERS];  /* relaxation filters */
+    int clipped;      /* inverse: the last reference was out of reach */
+    long n_clipped;   /* inverse: references out of reach since init */
+}} {P}_state;
+
+void {P}_init({P}_state *s);
+double {P}_step({P}_state *s, double u);
+double {P}_inverse_step({P}_state *s, double y_ref);
+
+#endif
+"""
+    source = f"""/* {origin} */
+#include <math.h>
+#include "{P}.h"
+
+#define N_PLAYS {n}
+#define N_POLY {m}
+#define N_FILTERS {f}
+#define DT {_num(dt)}
+#define INV_DT {_num(1.0 / dt)}
+#define G_LO {_num(g_lo)}
+#define G_HI {_num(g_hi)}
+#define Q {_num(q)}
+#define BASE {_num(base0)}
+#define U_LO {_num(a.lo)}
+#define U_HI {_num(a.hi)}
+#define U_START {_num(a.u_start)}
+#define MAX_STEP {_num(a.max_step)}
+#define WALK_STEP {_num((a.hi - a.lo) / a.n_grid)}
+#define TOL {_num(a.tol)}
+#define NEWTON_ITERATIONS {NEWTON_ITERATIONS}
+
+{_array("R_LO", r_lo)}
+{_array("R_HI", r_hi)}
+{_array("WEIGHTS", weights)}
+{_array("POLY", poly)}
+{_array("FA", fa)}
+{_array("FB0", fb0)}
+{_array("FB1", fb1)}
+{_array("FW", fw)}
+{_array("FPOW", fpow, "int")}
+
+static double ipow(double x, int p)
+{{
+    double r = 1.0;
+    int i;
+    for (i = 0; i < p; i++) r *= x;
+    return r;
+}}
+
+/* One sample (hysbench.models.kernels.pi_sample): the output for input u from the state after
+   the previous sample; the plays and filters move to this sample when commit is set; *slope
+   receives dy/du when not NULL. */
+static double sample({P}_state *s, double u, int commit, double *slope)
+{{
+    const long k = s->k;
+    double a = 0.0, sg = 0.0, d2 = 0.0, acc = 0.0, dy = 0.0, p = 0.0, dp = 0.0, y;
+    int i, j;
+    (void)k;
+    if (!s->first) {{
+        const double du = u - s->u1;
+        a = fabs(du) * INV_DT;
+        sg = du > 0 ? 1.0 : (du < 0 ? -1.0 : 0.0);
+        d2 = (u - 2.0 * s->u1 + s->u2) * (INV_DT * INV_DT);
+    }}
+    for (i = 0; i < N_PLAYS; i++) {{
+        const double lower = u - G_LO * a - R_LO[i];
+        const double upper = u + G_HI * a + R_HI[i];
+        double v = upper < s->w[i] ? upper : s->w[i];
+        v = v > lower ? v : lower;
+        if (commit) s->w[i] = v;
+        acc += WEIGHTS[i] * v;
+        if (slope) {{
+            if (v == lower) dy += WEIGHTS[i] * (1.0 - G_LO * sg * INV_DT);
+            else if (v == upper) dy += WEIGHTS[i] * (1.0 + G_HI * sg * INV_DT);
+        }}
+    }}
+    for (j = N_POLY - 1; j >= 0; j--) {{
+        const double t = p + POLY[j];
+        dp = dp * u + t;
+        p = t * u;
+    }}
+    y = acc + p + Q * d2 + {base_expr};
+    dy += dp;
+    if (!s->first) dy += Q * INV_DT * INV_DT;
+    for (j = 0; j < N_FILTERS; j++) {{
+        double x = 0.0;
+        if (!s->first) {{
+            x = FA[j] * s->xf[j] + FB0[j] * ipow(s->u1, FPOW[j]) + FB1[j] * ipow(u, FPOW[j]);
+            y += FW[j] * x;
+            dy += FW[j] * FB1[j] * FPOW[j] * ipow(u, FPOW[j] - 1);
+        }}
+        if (commit) s->xf[j] = x;
+    }}
+    if (slope) *slope = dy;
+    return y;
+}}
+
+static void advance({P}_state *s, double u)
+{{
+    s->u2 = s->first ? u : s->u1;
+    s->u1 = u;
+    s->first = 0;
+    s->k++;
+}}
+
+void {P}_init({P}_state *s)
+{{
+    int i;
+    s->first = 1;
+    s->k = 0;
+    s->u1 = s->u2 = U_START;
+    for (i = 0; i < {P.upper()}_N_PLAYS; i++) s->w[i] = 0.0;
+    for (i = 0; i < {P.upper()}_N_FILTERS; i++) s->xf[i] = 0.0;
+    s->clipped = 0;
+    s->n_clipped = 0;
+}}
+
+double {P}_step({P}_state *s, double u)
+{{
+    const double y = sample(s, u, 1, 0);
+    advance(s, u);
+    return y;
+}}
+
+/* hysbench.models.root_search at one sample: walk out from the previous input, up and down
+   alternately in steps of WALK_STEP, to the first sign change of g = y(u) - y_ref; refine it by
+   safeguarded Newton steps (bisection when a step leaves the bracket or does not halve |g|);
+   with no sign change take the visited input of smallest |g| and report the sample clipped. */
+double {P}_inverse_step({P}_state *s, double y_ref)
+{{
+    const double start = s->u1;
+    const double lo = U_LO > start - MAX_STEP ? U_LO : start - MAX_STEP;
+    const double hi = U_HI < start + MAX_STEP ? U_HI : start + MAX_STEP;
+    double x = start, g, dy, best_u, best_g, up_x, up_g, dn_x, dn_g, px = 0.0, pg = 0.0;
+    double xa, ga, xb, gb, g_prev, j = 1.0;
+    int up_done, dn_done, side = 0, bracket = 0, clipped = 0, iter;
+    g = sample(s, x, 0, &dy) - y_ref;
+    best_u = x;
+    best_g = fabs(g);
+    if (fabs(g) <= TOL) goto done;
+    up_x = dn_x = x;
+    up_g = dn_g = g;
+    up_done = x >= hi;
+    dn_done = x <= lo;
+    for (;;) {{  /* the walk */
+        for (;;) {{
+            if (up_done && dn_done) {{
+                x = best_u;
+                clipped = best_g > TOL;
+                goto done;
+            }}
+            if (side >= 2) {{
+                side = 0;
+                j += 1.0;
+            }}
+            if ((side == 0 && up_done) || (side == 1 && dn_done)) {{
+                side++;
+                continue;
+            }}
+            break;
+        }}
+        if (side == 0) {{
+            x = start + j * WALK_STEP;
+            x = x < hi ? x : hi;
+        }} else {{
+            x = start - j * WALK_STEP;
+            x = x > lo ? x : lo;
+        }}
+        g = sample(s, x, 0, &dy) - y_ref;
+        if (fabs(g) < best_g) {{
+            best_u = x;
+            best_g = fabs(g);
+        }}
+        px = side == 0 ? up_x : dn_x;
+        pg = side == 0 ? up_g : dn_g;
+        if (fabs(g) <= TOL) goto done;
+        if ((g > 0) != (pg > 0)) {{
+            bracket = 1;
+            break;
+        }}
+        if (side == 0) {{
+            up_x = x;
+            up_g = g;
+            up_done = x >= hi;
+        }} else {{
+            dn_x = x;
+            dn_g = g;
+            dn_done = x <= lo;
+        }}
+        side++;
+    }}
+    if (bracket) {{  /* refine [xa, xb] from its better end */
+        xa = px;
+        ga = pg;
+        xb = x;
+        gb = g;
+        g_prev = HUGE_VAL;
+        x = fabs(pg) < fabs(g) ? px : x;
+        for (iter = 0;;) {{
+            double l, h, xn, x_next;
+            g = sample(s, x, 0, &dy) - y_ref;
+            if (fabs(g) <= TOL) break;
+            if ((g > 0) == (ga > 0)) {{
+                xa = x;
+                ga = g;
+            }} else {{
+                xb = x;
+                gb = g;
+            }}
+            l = xa < xb ? xa : xb;
+            h = xa < xb ? xb : xa;
+            if (h - l <= 1e-15 * (fabs(l) + fabs(h) + 1e-300)) {{
+                x = fabs(ga) < fabs(gb) ? xa : xb;
+                break;
+            }}
+            xn = dy != 0.0 ? x - g / dy : 0.5 * (l + h);
+            x_next = (l < xn && xn < h && fabs(g) <= 0.5 * g_prev) ? xn : 0.5 * (l + h);
+            g_prev = fabs(g);
+            iter++;
+            if (iter >= NEWTON_ITERATIONS) {{
+                x = fabs(ga) < fabs(gb) ? xa : xb;
+                break;
+            }}
+            x = x_next;
+        }}
+    }}
+done:
+    sample(s, x, 1, 0);
+    advance(s, x);
+    s->clipped = clipped;
+    s->n_clipped += clipped;
+    return x;
+}}
+"""
+    return header, source
+
+
+@dataclass(frozen=True)
+class InverseCheck:
+    """Whether an inverse gives back the input of a reachable trajectory (``check_inverse``).
+
+    ``max_error``: the largest |u_inverse - u| over the samples the inverse did not clip, as a share
+    of the input span; ``first_sample``: the first sample where it exceeded ``tolerance`` (-1: none);
+    ``n_clipped``: samples clipped; ``stable``: max_error <= tolerance."""
+
+    max_error: float
+    first_sample: int
+    n_clipped: int
+    n_samples: int
+    tolerance: float
+    stable: bool
+
+    def message(self, name: str) -> str:
+        if self.stable:
+            return (f"{name}: the inverse gives back a reachable trajectory's input to {self.max_error:.1e} of the "
+                    f"input span ({self.n_samples} samples, {self.n_clipped} clipped)")
+        return (f"{name}: the inverse does not give back a reachable trajectory's input: its error grows to "
+                f"{self.max_error:.3g} of the input span (above {self.tolerance:g} from sample {self.first_sample} of "
+                f"{self.n_samples}; {self.n_clipped} clipped): the inverse recursion amplifies small errors or jumps "
+                "to another root, so it is not safe as a feedforward")
+
+
+def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2, **options) -> InverseCheck:
+    """Drive the model with sines over its input range, invert the model's own output with the
+    inverse's ``options`` (input_limits, max_rate, u_start, ...) and measure how far the inverse's
+    input strays from the sine's where it did not clip. The sines sweep a decade of drive periods
+    from the data scale's time (the shortest drive period the model was identified on) to ten
+    times it (three log-spaced, ``periods`` periods each), no faster than ``max_rate`` allows. A
+    stable inverse gives the input back to rounding; an unstable recursion (e.g. through q u'' with
+    rate-dependent envelopes) amplifies rounding errors until the input is lost. The worst sine counts."""
+    lo, hi = fitted.input_range
+    shortest = float((fitted.metadata.get("scale") or {}).get("time") or 1.0)
+    if options.get("max_rate"):
+        shortest = max(shortest, np.pi * (hi - lo) / float(options["max_rate"]))
+    span = hi - lo if hi > lo else 1.0
+    worst = None
+    for period in shortest * np.logspace(0.0, 1.0, 3):
+        t = np.arange(int(round(periods * period / fitted.sample_time))) * fitted.sample_time
+        u = 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(2.0 * np.pi * t / period)
+        inv = fitted.invert(fitted.simulate(u), **dict(options, u_start=options.get("u_start", float(u[0]))))
+        err = np.where(inv.clipped, 0.0, np.abs(inv.u - u)) / span
+        err = np.where(np.isfinite(err), err, np.inf)
+        over = np.flatnonzero(err > tolerance)
+        check = InverseCheck(float(np.max(err)), int(over[0]) if over.size else -1, inv.n_clipped, u.size, tolerance,
+                             float(np.max(err)) <= tolerance)
+        if worst is None or check.max_error > worst.max_error:
+            worst = check
+    return worst

@@ -1,0 +1,214 @@
+"""The model file: a fitted model saved as one versioned, human-readable JSON file.
+
+``hysbench fit DATASET --model M --save MODEL.json`` writes it; ``load_model(path)`` reads it
+back into a ``FittedModel`` whose ``simulate`` gives exactly the fitted model's output (floats are
+written with Python's shortest round-trip repr, so every parameter comes back bit for bit).
+No pickle: the file names the model by its registry name and hyperparameters and rebuilds it.
+
+Fields (all required; ``FORMAT_VERSION`` is the version this code writes and the newest it reads):
+
+    format               "hysbench-model"
+    format_version       integer
+    model                registry name, e.g. "mrpim"
+    hyperparameters      the constructor arguments
+    params               name -> value, every parameter of the model
+    input_range          [u_min, u_max] of the identification records: fixes play thresholds, grids
+    input_unit, output_unit   the dataset's units ("" when it states none)
+    sample_time          the identification records' sample time (s): the dt to step the model at
+    scale                the data scale {u, y, time} the default bounds were scaled with
+    dataset              {name, content_hash}
+    identifier           {method, seed, options}
+    scores               {validation_e_rms, validation_e_m (worst validation record, percent), records}
+    hysbench_version     the hysbench that wrote the file
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .base import HysteresisModel
+from .errors import HysbenchError, ModelError
+from .registry import get_model
+from .stepper import InverseStepper, Stepper
+
+FORMAT = "hysbench-model"
+FORMAT_VERSION = 1
+REQUIRED = ("format", "format_version", "model", "hyperparameters", "params", "input_range", "input_unit",
+            "output_unit", "sample_time", "scale", "dataset", "identifier", "scores", "hysbench_version")
+
+
+class ModelFileError(HysbenchError):
+    """A model file that cannot be read: missing, malformed, of a newer format, or naming an unknown model."""
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("hysbench")
+    except PackageNotFoundError:  # a source tree that is not installed
+        return "0+unknown"
+
+
+def _plain(obj):
+    """JSON-ready: numpy scalars and arrays as Python values, tuples as lists, non-finite floats as None."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in (obj.tolist() if isinstance(obj, np.ndarray) else obj)]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(float(obj)) else None
+    return obj
+
+
+@dataclass
+class FittedModel:
+    """A model with its identified parameters and the input range that fixes its structure.
+
+    ``simulate(u, dt=None)``, ``stepper(dt=None)``, ``inverse_stepper(dt=None, ...)`` and ``invert``
+    default ``dt`` to ``sample_time``; ``metadata`` holds the model file's other fields (units,
+    dataset, identifier, scores, version) as read or as the identification gave them."""
+
+    model: HysteresisModel
+    params: dict[str, float]
+    input_range: tuple[float, float]
+    sample_time: float
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self._vector = self.model.pack(self.params)
+        self.params = self.model.unpack(self._vector)  # every parameter, in order
+        self.input_range = (float(self.input_range[0]), float(self.input_range[1]))
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+    def _dt(self, dt) -> float:
+        return float(self.sample_time if dt is None else dt)
+
+    def simulate(self, u, dt: float | None = None) -> np.ndarray:
+        """The model's output for input ``u`` (from rest), as the fit computed it."""
+        return self.model.simulate(u, self._dt(dt), self._vector, input_range=self.input_range)
+
+    def stepper(self, dt: float | None = None) -> Stepper:
+        return self.model.stepper(self._dt(dt), self.params, input_range=self.input_range)
+
+    def inverse_stepper(self, dt: float | None = None, input_limits=None, **options) -> InverseStepper:
+        return self.model.inverse_stepper(self._dt(dt), self.params, input_range=self.input_range,
+                                          input_limits=input_limits, **options)
+
+    def invert(self, y_desired, dt: float | None = None, input_limits=None, **options):
+        return self.model.invert(y_desired, self._dt(dt), self.params, input_range=self.input_range,
+                                 input_limits=input_limits, **options)
+
+    # --- the file ----------------------------------------------------------
+    def to_dict(self) -> dict:
+        meta = self.metadata
+        return _plain({
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "model": self.model.name,
+            "hyperparameters": self.model.get_hyperparameters(),
+            "params": self.params,
+            "input_range": list(self.input_range),
+            "input_unit": meta.get("input_unit", ""),
+            "output_unit": meta.get("output_unit", ""),
+            "sample_time": self.sample_time,
+            "scale": meta.get("scale", {}),
+            "dataset": meta.get("dataset", {"name": "", "content_hash": ""}),
+            "identifier": meta.get("identifier", {"method": "", "seed": None, "options": {}}),
+            "scores": meta.get("scores", {"validation_e_rms": None, "validation_e_m": None, "records": []}),
+            "hysbench_version": meta.get("hysbench_version") or _version(),
+        })
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the model file atomically (a temporary sibling renamed: never half-written)."""
+        path = Path(path)
+        text = self.to_json()
+        folder = path.resolve().parent
+        if not folder.is_dir():
+            raise ModelFileError(f"cannot write {path}: folder {folder} does not exist")
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            os.replace(tmp, path)
+        except OSError as exc:
+            Path(tmp).unlink(missing_ok=True)
+            raise ModelFileError(f"cannot write {path}: {exc.strerror or exc}") from None
+        return path
+
+    @classmethod
+    def from_dict(cls, d, where: str = "model file") -> "FittedModel":
+        if not isinstance(d, dict) or d.get("format") != FORMAT:
+            raise ModelFileError(f"{where}: not a hysbench model file (no \"format\": {FORMAT!r})")
+        version = d.get("format_version")
+        if not isinstance(version, int) or isinstance(version, bool):
+            raise ModelFileError(f"{where}: format_version must be an integer, got {version!r}")
+        if version > FORMAT_VERSION:
+            raise ModelFileError(f"{where}: format version {version} is newer than this hysbench reads "
+                                 f"({FORMAT_VERSION}); upgrade hysbench")
+        missing = [k for k in REQUIRED if k not in d]
+        if missing:
+            raise ModelFileError(f"{where}: missing field(s) {', '.join(missing)}")
+        if not isinstance(d["hyperparameters"], dict) or not isinstance(d["params"], dict):
+            raise ModelFileError(f"{where}: hyperparameters and params must be JSON objects")
+        try:
+            model = get_model(d["model"], **d["hyperparameters"])
+        except ModelError as exc:
+            raise ModelFileError(f"{where}: {exc}") from None
+        try:
+            params = {str(k): float(v) for k, v in d["params"].items()}
+            lo, hi = (float(v) for v in d["input_range"])
+            dt = float(d["sample_time"])
+        except (TypeError, ValueError) as exc:
+            raise ModelFileError(f"{where}: params, input_range and sample_time must be numbers ({exc})") from None
+        if not all(math.isfinite(v) for v in params.values()):
+            raise ModelFileError(f"{where}: a parameter is not finite (null in the file)")
+        if not (math.isfinite(lo) and math.isfinite(hi) and hi >= lo):
+            raise ModelFileError(f"{where}: input_range must be two finite numbers low <= high, got {d['input_range']!r}")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ModelFileError(f"{where}: sample_time must be positive, got {d['sample_time']!r}")
+        try:
+            model.pack(params)
+        except ModelError as exc:
+            raise ModelFileError(f"{where}: {exc}") from None
+        meta = {k: d[k] for k in ("input_unit", "output_unit", "scale", "dataset", "identifier", "scores",
+                                  "hysbench_version")}
+        return cls(model, params, (lo, hi), dt, meta)
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's bytes (the generated C names its model file by it)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def load_model(path: str | os.PathLike) -> FittedModel:
+    """The ``FittedModel`` a model file holds; ModelFileError (one line) when it cannot be read."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ModelFileError(f"model file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"cannot read model file {path}: {exc}") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    return FittedModel.from_dict(d, where=str(path))
