@@ -17,9 +17,10 @@ from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data.dataset import load_dataset as load_folder
 from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.identification.api import identify as identify_model
+from hysbench.models.model_file import load_model as load_model_file
 from hysbench.models.registry import get_model as registry_model, list_models as registry_names
 
-__all__ = ["diagnose", "get_model", "identify", "list_models", "load_dataset", "run_matrix"]
+__all__ = ["diagnose", "get_model", "identify", "list_models", "load_dataset", "load_model", "run_matrix"]
 
 
 def load_dataset(path: str | os.PathLike | None = None):
@@ -130,3 +131,20 @@ def diagnose(dataset=None, model: str = "mrpim", seed: int = 0, **settings):
         'relaxation'
     """
     return diagnose_model(load_dataset() if dataset is None else dataset, model, seed=seed, **settings)
+
+
+def load_model(path: str | os.PathLike):
+    """A fitted model saved by ``hysbench fit ... --save MODEL.json`` (or ``FittedModel.save``).
+
+    Returns a ``hysbench.models.FittedModel``: ``simulate(u, dt)`` gives the fitted model's output
+    bit for bit, ``stepper(dt)`` and ``inverse_stepper(dt)`` advance it one sample at a time.
+    A file of a newer format version or with a missing field raises ``ModelFileError`` in one line.
+
+    Example::
+
+        >>> import hysbench as hb
+        >>> model = hb.load_model("m.json")                   # doctest: +SKIP
+        >>> s = model.stepper()                               # doctest: +SKIP
+        >>> y = [s.step(v) for v in u]                        # doctest: +SKIP
+    """
+    return load_model_file(path)

@@ -4,6 +4,7 @@ import subprocess
 import sys
 from importlib.metadata import version
 
+import numpy as np
 import pytest
 
 import hysbench as hb
@@ -81,3 +82,11 @@ def test_diagnose_passes_the_default_dataset_and_settings(monkeypatch):
     hb.diagnose(model="classical-pi", seed=3, segments=2)
     assert seen["ds"].content_hash() == hb.load_dataset().content_hash()
     assert (seen["model"], seen["seed"], seen["segments"]) == ("classical-pi", 3, 2)
+
+
+def test_load_model_gives_back_the_saved_fit(classical_pi_fit, tmp_path):
+    record = hb.load_dataset().records[0]
+    dt = float(record.t[1] - record.t[0])
+    path = classical_pi_fit.fitted_model(dt).save(tmp_path / "m.json")
+    loaded = hb.load_model(path)
+    assert np.array_equal(loaded.simulate(record.u), classical_pi_fit.simulate(record.u, dt))

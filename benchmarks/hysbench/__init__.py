@@ -21,7 +21,7 @@ This file is installed as the package ``hysbench`` (``package-dir`` in pyproject
 from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
 
-API = ("load_dataset", "get_model", "list_models", "identify", "run_matrix", "diagnose")
+API = ("load_dataset", "get_model", "list_models", "identify", "run_matrix", "diagnose", "load_model")
 __all__ = ["__version__", *API]
 
 try:
