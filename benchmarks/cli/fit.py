@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hysbench.data.files import check_output_file, ensure_dir, write_json
+from hysbench.data.files import STDOUT, check_output_file, ensure_dir, write_json
 from hysbench.models import get_model
 
 from hysbench.identification.api import identify, list_methods
@@ -32,7 +32,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"identifier: {', '.join(list_methods())} (default: auto = varpro when the model has a "
                              "linear part, else lsq)")
     add_seed_argument(parser, what="the identifier")
-    parser.add_argument("--json", metavar="FILE", help="write the fit as JSON to FILE")
+    parser.add_argument("--json", metavar="FILE",
+                        help="write the fit as JSON to FILE ('-': standard output, the table then goes to stderr); "
+                             "a symbolic link is followed (its target is replaced), an existing folder, device, "
+                             "FIFO or socket is refused")
     parser.add_argument("--hyper", metavar="KEY=VALUE", action="append", default=[],
                         help="model hyperparameter, e.g. --hyper offset=false (repeatable)")
     parser.add_argument("--option", metavar="KEY=VALUE", action="append", default=[],
@@ -47,8 +50,11 @@ def main(args) -> int:
     if args.json:  # refuse an unwritable destination before spending time on the fit
         check_output_file(args.json)
     fit = identify(model, dataset, method=args.method, seed=args.seed, **options)
-    print(fit.summary())
-    if args.json:
+    to_stdout = args.json == STDOUT
+    print(fit.summary(), file=sys.stderr if to_stdout else sys.stdout)
+    if to_stdout:
+        write_json(STDOUT, fit.to_dict())
+    elif args.json:
         ensure_dir(Path(args.json).resolve().parent)
         write_json(args.json, fit.to_dict())
         print(f"\nwrote {args.json}")
