@@ -30,11 +30,26 @@ class OutputError(HysbenchError):
     """An output folder or file that cannot be written."""
 
 
+CREATED_FOLDERS: list[Path] = []  # folders ``ensure_dir`` created in this process, outermost first
+
+
+def remove_created_empty_folders() -> None:
+    """Remove the folders ``ensure_dir`` created that are still empty (a command refused after making its
+    output folder leaves nothing behind), innermost first."""
+    while CREATED_FOLDERS:
+        try:
+            CREATED_FOLDERS.pop().rmdir()  # only an empty folder is removed
+        except OSError:
+            pass
+
+
 def ensure_dir(path: str | os.PathLike) -> Path:
     """Create ``path`` if needed and check that it is a writable folder."""
     path = Path(path)
+    missing = [p for p in (path, *path.parents) if not os.path.lexists(p)][::-1]
     try:
         path.mkdir(parents=True, exist_ok=True)
+        CREATED_FOLDERS.extend(missing)
     except OSError as exc:
         raise OutputError(f"cannot create output folder {path}: {exc.strerror or exc}") from None
     return _writable_folder(path)
