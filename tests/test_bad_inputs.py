@@ -195,9 +195,10 @@ def test_json_through_a_symlink_replaces_its_target_and_keeps_the_link(tmp_path,
     assert target.read_text().startswith("{")
 
 
-def test_json_dash_is_standard_output(tmp_path, capsys):
+def test_json_dash_is_standard_output(tmp_path, capsys, monkeypatch):
     import json
 
+    monkeypatch.chdir(tmp_path)
     assert cli(["fit", _tiny(tmp_path), "--model", "classical-pi", "--json", "-"]) == 0
     out = capsys.readouterr()
     assert json.loads(out.out)["model"] == "classical-pi" and "fitness" in out.err
