@@ -33,6 +33,7 @@ import hashlib
 import io
 import math
 import os
+import re
 import shutil
 import stat
 import tempfile
@@ -401,8 +402,7 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         raise DatasetError(f"{where}: columns of unequal length (data row {k + 1} has {counts[k]} fields, "
                            f"{names_from} names {len(header)})")
     try:
-        data = None if any("_" in ln for ln in body) else np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter,
-                                                     usecols=wanted, ndmin=2)
+        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
     except ValueError:
         data = None
     if data is None:
@@ -417,18 +417,19 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     return [data[:, k].copy() for k in range(len(columns))]
 
 
+# a decimal number in ASCII digits (float() would also take '1_0' as 10, and digits of other scripts)
+CSV_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.ASCII | re.IGNORECASE)
+
+
 def _csv_number(cell: str, where: str, row: int, column: str) -> float:
     """A CSV cell as a float, strictly: Python's float() would also read '1_0' as 10; an empty cell is NaN
     (refused by ``check_series``). The cell's text is not echoed."""
     cell = cell.strip()
     if not cell:
         return np.nan
-    try:
-        if "_" in cell:
-            raise ValueError
-        return float(cell)
-    except ValueError:
-        raise DatasetError(f"{where}: non-numeric value in data row {row + 1}, column {column}") from None
+    if not CSV_NUMBER.fullmatch(cell):
+        raise DatasetError(f"{where}: non-numeric value in data row {row + 1}, column {column}")
+    return float(cell)
 
 
 def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
