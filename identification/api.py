@@ -33,7 +33,7 @@ from typing import Mapping
 
 import numpy as np
 
-from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.data.dataset import Dataset, fitting_problems, load_dataset
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
@@ -142,6 +142,9 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         raise IdentificationError(f"dataset must be a Dataset or a folder, got {type(dataset).__name__}")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
         raise IdentificationError(f"seed must be a non-negative integer, got {seed!r}")
+    if options.get("fit_on") is None and dataset.identification:  # (none at all: the identifier names the method)
+        for problem in fitting_problems(dataset):  # fitted on the identification records: they must vary
+            raise IdentificationError(f"dataset {dataset.name!r}: {problem}")
     identifier = build_identifier(method, model, options)
     common = {k: options[k] for k in COMMON_OPTIONS if k in options}
     return identifier.fit(model, dataset, seed, **common)

@@ -89,7 +89,7 @@ class LinearSolution:
 
     linear: np.ndarray  # linear parameters in ``model.linear_names`` order
     fitness: float  # eq. 9
-    residuals: np.ndarray  # weighted, stacked over records
+    residuals: np.ndarray  # weighted, stacked over records, divided by the problem's output_scale (order one)
     condition_number: float  # of the column-scaled weighted design matrix
     regularised: bool
     ridge: float  # alpha / s_max (0 when not regularised)
@@ -116,12 +116,15 @@ class SeparableProblem:
         self.nonlinear_names = model.nonlinear_names
         self.lin_idx = np.array([names.index(n) for n in self.linear_names], dtype=int)
         self.nl_idx = np.array([names.index(n) for n in self.nonlinear_names], dtype=int)
-        self.lin_lower = problem.lower[self.lin_idx]
-        self.lin_upper = problem.upper[self.lin_idx]
+        # solved at order one: outputs, linear parameters and their bounds divided by the power of two
+        # problem.output_scale (1 at ordinary scales); linear parameters and fitness are returned unscaled
+        self.output_scale = problem.output_scale
+        self.lin_lower = problem.lower[self.lin_idx] / self.output_scale
+        self.lin_upper = problem.upper[self.lin_idx] / self.output_scale
         self.nl_lower = problem.lower[self.nl_idx]
         self.nl_upper = problem.upper[self.nl_idx]
         w = problem.row_weights
-        self._ys = [np.ascontiguousarray(r.y[r.scored]) for r in problem.records]
+        self._ys = [np.ascontiguousarray(r.y[r.scored]) / self.output_scale for r in problem.records]
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
 
     # --- design matrices ---------------------------------------------------
@@ -215,7 +218,8 @@ class SeparableProblem:
                 top = np.argsort(-np.abs(load))[:4]
                 weak.append((math.sqrt(ev[k] / ev_max) if ev_max > 0 else 0.0,
                              {self.linear_names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
-        return LinearSolution(x, fit, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
+        scale = self.output_scale
+        return LinearSolution(x * scale, fit * scale * scale, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
                               bounded, weak)
 
     def _Atb(self, blocks):
@@ -347,7 +351,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                              n_evaluations=problem.n_evaluations - n0)
                 searches.append(entry)
                 continue
-            f = float(2.0 * res.cost)
+            f = float(2.0 * res.cost) * sep.output_scale**2
             end = full(res.x)
             entry.update(end=[float(v) for v in from_s(end)], fitness=f, status=int(res.status),
                          message=str(res.message), n_evaluations=problem.n_evaluations - n0)

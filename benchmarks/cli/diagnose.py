@@ -12,7 +12,9 @@ the extended model.
 from __future__ import annotations
 
 import argparse
+import math
 
+from hysbench.data.dataset import load_dataset, output_scale, scaled_output
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, dataset_paths,
                                             integer_at_least, positive_int, timed_progress)
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
@@ -46,10 +48,19 @@ def main(args) -> int:
     check_outputs(args)
     say = timed_progress(args.quiet)
 
-    diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
+    dataset = load_dataset(dataset_paths(args.dataset)[0])
+    scale = output_scale(dataset)  # 1 at ordinary scales; else diagnosed at order one (exact power of two)
+    note = args.note
+    if scale != 1.0:
+        dataset = scaled_output(dataset, scale)
+        note = " ".join(filter(None, [note, f"The output was divided by 2^{math.frexp(scale)[1] - 1} (exact) to be "
+                                            "diagnosed at order one: amounts in the output's unit below are in units "
+                                            f"of 2^{math.frexp(scale)[1] - 1} {dataset.output_unit or 'output units'}; "
+                                            "percentages and verdicts are unchanged by it."]))
+    diag = diagnose(dataset, model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
                     segments=args.segments, progress=say, thorough=args.thorough)
     say("writing the report")
-    write_report(diag, args.out, args.json, note=args.note)
+    write_report(diag, args.out, args.json, note=note)
     print(verdict(diag))
     return 0
 
