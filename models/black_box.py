@@ -302,7 +302,7 @@ class SparseNARX(LaggedBlackBox):
     name = "narx-sparse"
 
     def __init__(self, sample_time: float | None = None, n_output_lags: int = 2, n_input_lags: int = 2,
-                 degree: int = 3, n_thresholds: int = 8, max_threshold: float = 0.1, ridge: float = 1e-6,
+                 degree: int = 3, n_thresholds: int = 8, max_threshold: float = 1.0, ridge: float = 1e-6,
                  max_iter: int = 20):
         owner = f"model {self.name!r}"
         self._check_common(sample_time, n_output_lags, n_input_lags)

@@ -107,8 +107,9 @@ class CellResult:
         return cls(**d)
 
 
-# The default matrix runs the three identifiers; chains such as varpro+lsq are run when named.
-DEFAULT_METHODS = ("varpro", "mpso", "lsq")
+# The default matrix runs the three identifiers, and "native" (the only method of the black-box learners,
+# which train with their own library); chains such as varpro+lsq are run when named.
+DEFAULT_METHODS = ("varpro", "mpso", "lsq", "native")
 
 # The matrix's default budget per cell, so that every model x identifier on the virtual DEA fits in
 # well under five minutes on two cores: mpso gets 400 model evaluations (20 particles x 20 iterations),
