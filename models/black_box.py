@@ -137,10 +137,33 @@ def resolve_sample_time(records: Sequence[tuple], drive_period: float) -> float:
     return dt * max(1, int(drive_period / POINTS_PER_PERIOD / dt + 1e-9))
 
 
-def lagged_rows(u: np.ndarray, y: np.ndarray, k: int, n_out: int, n_in: int) -> tuple[np.ndarray, np.ndarray]:
-    """One-step regression rows of a record sampled every k samples (offset 0): (X, target), the
-    rows whose lags all lie inside the record."""
-    uc, yc = u[::k], y[::k]
+def smoothed(x: np.ndarray, k: int) -> np.ndarray:
+    """x averaged over a centred window of about one model step (2 (k // 2) + 1 samples; edges held),
+    before it is sampled every k samples for training: at a model step of many record samples the
+    step-to-step change of a slow drive is of the order of a sensor's quantisation, which the
+    average removes without delay. The identity for k = 1."""
+    if k <= 1:
+        return np.asarray(x, dtype=float)
+    half = k // 2
+    padded = np.pad(np.asarray(x, dtype=float), half, mode="edge")
+    c = np.concatenate(([0.0], np.cumsum(padded)))
+    return (c[2 * half + 1:] - c[:-2 * half - 1]) / (2 * half + 1)
+
+
+PREFILTERS = ("step-mean", "none")
+
+
+def training_samples(x: np.ndarray, k: int, prefilter: str) -> np.ndarray:
+    """A record's column as the learner sees it: every k-th sample, after ``smoothed`` when the
+    prefilter is "step-mean" (for drives slow against the model step), as is when "none"."""
+    return (smoothed(x, k) if prefilter == "step-mean" else np.asarray(x, dtype=float))[::k]
+
+
+def lagged_rows(u: np.ndarray, y: np.ndarray, k: int, n_out: int, n_in: int,
+                prefilter: str = "none") -> tuple[np.ndarray, np.ndarray]:
+    """One-step regression rows of a record sampled every k samples (offset 0, ``training_samples``):
+    (X, target), the rows whose lags all lie inside the record."""
+    uc, yc = training_samples(u, k, prefilter), training_samples(y, k, prefilter)
     first = max(n_out, n_in - 1)
     n = uc.size - first
     if n <= 0:
@@ -207,8 +230,9 @@ class LaggedBlackBox(HysteresisModel):
     kind: ClassVar[str] = "black-box"
     inverse_unavailable = "a black-box model has no causal inverse"
 
-    def _check_common(self, sample_time, n_output_lags, n_input_lags):
+    def _check_common(self, sample_time, n_output_lags, n_input_lags, prefilter):
         owner = f"model {self.name!r}"
+        self.prefilter = check_choice(owner, "prefilter", prefilter, PREFILTERS)
         self.sample_time = None if sample_time is None else check_number(owner, "sample_time", sample_time,
                                                                           positive=True)
         self.n_output_lags = check_int(owner, "n_output_lags", n_output_lags, 1, MAX_LAGS)
@@ -278,7 +302,7 @@ class LaggedBlackBox(HysteresisModel):
             k = lag_step(sample_time, dt)
             x, t = lagged_rows((np.asarray(u) - scaling["u_center"]) / scaling["u_scale"],
                                (np.asarray(y) - scaling["y_center"]) / scaling["y_scale"], k,
-                               self.n_output_lags, self.n_input_lags)
+                               self.n_output_lags, self.n_input_lags, self.prefilter)
             X.append(x)
             T.append(t)
         X, T = np.concatenate(X), np.concatenate(T)
@@ -302,10 +326,10 @@ class SparseNARX(LaggedBlackBox):
     name = "narx-sparse"
 
     def __init__(self, sample_time: float | None = None, n_output_lags: int = 2, n_input_lags: int = 2,
-                 degree: int = 3, n_thresholds: int = 8, max_threshold: float = 1.0, ridge: float = 1e-6,
-                 max_iter: int = 20):
+                 prefilter: str = "step-mean", degree: int = 3, n_thresholds: int = 8, max_threshold: float = 1.0,
+                 ridge: float = 1e-6, max_iter: int = 20):
         owner = f"model {self.name!r}"
-        self._check_common(sample_time, n_output_lags, n_input_lags)
+        self._check_common(sample_time, n_output_lags, n_input_lags, prefilter)
         self.degree = check_int(owner, "degree", degree, 1, 5)
         self.n_thresholds = check_int(owner, "n_thresholds", n_thresholds, 1, 100)
         self.max_threshold = check_number(owner, "max_threshold", max_threshold, positive=True)
@@ -391,10 +415,10 @@ class NeuralNARX(LaggedBlackBox):
     name = "narx-mlp"
 
     def __init__(self, sample_time: float | None = None, n_output_lags: int = 2, n_input_lags: int = 2,
-                 width: int = 16, depth: int = 1, max_epochs: int = 200, max_rows: int = 50_000,
+                 prefilter: str = "step-mean", width: int = 16, depth: int = 1, max_epochs: int = 200, max_rows: int = 50_000,
                  solver: str = "lbfgs", learning_rate: float = 1e-3, l2: float = 1e-5, seed: int = 0):
         owner = f"model {self.name!r}"
-        self._check_common(sample_time, n_output_lags, n_input_lags)
+        self._check_common(sample_time, n_output_lags, n_input_lags, prefilter)
         self.width = check_int(owner, "width", width, 1, MAX_WIDTH)
         self.depth = check_int(owner, "depth", depth, 1, 8)
         self.max_epochs = check_int(owner, "max_epochs", max_epochs, 1, 100_000)

@@ -21,7 +21,7 @@ from typing import Mapping
 import numpy as np
 from numba import njit
 
-from .black_box import MAX_WIDTH, LaggedBlackBox, lag_step
+from .black_box import MAX_WIDTH, LaggedBlackBox, lag_step, training_samples
 from .errors import ModelError
 from .hyperparameters import check_int, check_number
 
@@ -117,10 +117,10 @@ class RecurrentNetwork(LaggedBlackBox):
 
     name = "gru"
 
-    def __init__(self, sample_time: float | None = None, width: int = 16, window: int = 400, washout: int = 100,
+    def __init__(self, sample_time: float | None = None, prefilter: str = "step-mean", width: int = 16, window: int = 400, washout: int = 100,
                  max_epochs: int = 150, learning_rate: float = 1e-2, seed: int = 0):
         owner = f"model {self.name!r}"
-        self._check_common(sample_time, 1, 1)
+        self._check_common(sample_time, 1, 1, prefilter)
         self.width = check_int(owner, "width", width, 1, MAX_WIDTH)
         self.window = check_int(owner, "window", window, 2, 1_000_000)
         self.washout = check_int(owner, "washout", washout, 0, 1_000_000)
@@ -175,8 +175,8 @@ class RecurrentNetwork(LaggedBlackBox):
         stride = max(1, (self.window - self.washout) // 2)
         for u, y, dt, _ in records:
             k = lag_step(sample_time, dt)
-            uc = (np.asarray(u)[::k] - scaling["u_center"]) / scaling["u_scale"]
-            yc = (np.asarray(y)[::k] - scaling["y_center"]) / scaling["y_scale"]
+            uc = (training_samples(u, k, self.prefilter) - scaling["u_center"]) / scaling["u_scale"]
+            yc = (training_samples(y, k, self.prefilter) - scaling["y_center"]) / scaling["y_scale"]
             starts = list(range(0, max(1, uc.size - self.window + 1), stride))
             if uc.size >= self.window and starts[-1] != uc.size - self.window:
                 starts.append(uc.size - self.window)

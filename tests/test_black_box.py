@@ -15,7 +15,7 @@ from hysbench.data.dataset import Dataset, Record
 from hysbench.identification import Fit, IdentificationError, identify
 from hysbench.identification.api import applicable_methods
 from hysbench.models import ModelError, get_model
-from hysbench.models.black_box import lag_step, resolve_sample_time
+from hysbench.models.black_box import lag_step, resolve_sample_time, training_samples
 from hysbench.models.recurrent import torch_available
 
 DT = 0.01
@@ -92,8 +92,18 @@ def test_sparse_narx_recovers_a_known_polynomial_narx_exactly(sparse_fit, narx_d
 def test_sparse_narx_on_a_coarser_step_runs_interleaved_chains():
     """sample_time = 3 dt: the known system at lag spacing 3 is recovered exactly."""
     ds = _dataset(lambda u: reference_narx(u, k=3))
-    fit = identify(get_model("narx-sparse", sample_time=3 * DT, degree=2), ds, "native")
+    fit = identify(get_model("narx-sparse", sample_time=3 * DT, degree=2, prefilter="none"), ds, "native")
     assert _validation_erms(fit) < 1e-6
+
+
+def test_the_step_mean_prefilter_is_a_centred_average_over_one_step():
+    x = np.arange(10.0) ** 2
+    got = training_samples(x, 4, "step-mean")
+    padded = np.concatenate(([x[0]] * 2, x, [x[-1]] * 2))
+    want = np.array([padded[i:i + 5].mean() for i in range(10)])[::4]
+    np.testing.assert_allclose(got, want)
+    np.testing.assert_array_equal(training_samples(x, 4, "none"), x[::4])
+    np.testing.assert_array_equal(training_samples(x, 1, "step-mean"), x)
 
 
 def test_neural_narx_recovers_a_linear_system_to_noise_level():
@@ -180,6 +190,7 @@ def test_sample_time_none_is_fixed_at_fit_from_the_drive_period():
     ("narx-mlp", {"seed": -1}, "seed must be an integer"),
     ("gru", {"width": "8"}, "width must be an integer"),
     ("narx-mlp", {"hidden": 3}, "bad hyperparameters for model 'narx-mlp'"),
+    ("narx-mlp", {"prefilter": "lowpass"}, "prefilter must be one of step-mean, none"),
 ])
 def test_bad_hyperparameters_are_one_line(name, hyper, text):
     with pytest.raises(ModelError, match=text) as info:
