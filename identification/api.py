@@ -51,27 +51,27 @@ from .varpro import Varpro
 
 STAGES = {"varpro": varpro, "mpso": mpso, "lsq": lsq, "native": native}
 IDENTIFIERS = {"varpro": Varpro, "mpso": ParticleSwarm, "lsq": LeastSquares, "native": Native}
-METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq", "native")
+METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq")  # the parameter searches
+NATIVE = "native"  # a model's own training (the black-box learners); the only method for them
 COMMON_OPTIONS = ("fit_on", "bounds", "start")
 # smallest allowed value of each numeric option (integers where the default is one)
 OPTION_MINIMUM = {"n_candidates": 0, "inertia_end": 0.0, "inertia_start": 0.0, "c1": 0.0, "c2": 0.0}
 
 
 def list_methods() -> list[str]:
-    return list(METHODS) + ["auto"]
+    return list(METHODS) + [NATIVE, "auto"]
 
 
 def applicable_methods(model: HysteresisModel | str) -> list[str]:
-    """The methods of ``METHODS`` that can identify this model."""
+    """The methods that can identify this model: ``METHODS`` that apply, or ``native`` alone."""
     model = get_model(model) if isinstance(model, str) else model
     if is_native(model):
-        return ["native"]
-    searches = [m for m in METHODS if m != "native"]
+        return [NATIVE]
     if model.n_params == 0:
         return []
     if model.has_linear_part:
-        return searches
-    return [m for m in searches if "varpro" not in m.split("+")]
+        return list(METHODS)
+    return [m for m in METHODS if "varpro" not in m.split("+")]
 
 
 def resolve_method(method: str, model: HysteresisModel) -> list[str]:
