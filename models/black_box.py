@@ -173,10 +173,39 @@ def lagged_rows(u: np.ndarray, y: np.ndarray, k: int, n_out: int, n_in: int,
     return np.column_stack(cols), yc[first:first + n].copy()
 
 
-class BlackBoxStepper:
+class SteppingBase:
+    """What the black-box steppers share (the stepper API of every model: ``dt``, ``step(u) -> y``,
+    ``reset()``, ``state`` (JSON-able), ``set_state(state)``, ``run(values)``)."""
+
+    _state_keys: tuple[str, ...] = ()
+
+    def run(self, values) -> np.ndarray:
+        """``step`` over a 1-D array of inputs."""
+        return np.array([self.step(v) for v in np.asarray(values, dtype=float).ravel()])
+
+    def _input(self, u) -> float:
+        try:
+            v = float(u)
+        except (TypeError, ValueError):
+            v = math.nan
+        if not math.isfinite(v):
+            raise ModelError(f"model {self.model.name!r} stepper: input must be a finite number, got {u!r}")
+        return v
+
+    def _checked_state(self, state) -> dict:
+        if not isinstance(state, dict) or set(state) != set(self._state_keys):
+            got = sorted(state) if isinstance(state, dict) else type(state).__name__
+            raise ModelError(f"model {self.model.name!r} stepper: a state has keys {', '.join(self._state_keys)}, "
+                             f"got {got}")
+        return state
+
+
+class BlackBoxStepper(SteppingBase):
     """Sample-by-sample evaluation of a lagged black-box model: ``step(u) -> y``, ``reset()``,
-    ``state`` (the scaled input and output history). ``step`` repeated over a record gives
-    exactly ``simulate``."""
+    ``state`` (the scaled input and output history), ``set_state``. ``step`` repeated over a record
+    gives exactly ``simulate``."""
+
+    _state_keys = ("n", "u_first", "u_scaled", "y_scaled")
 
     def __init__(self, model: "LaggedBlackBox", dt: float, params: Mapping[str, float]):
         if not (dt > 0 and math.isfinite(dt)):
@@ -198,14 +227,26 @@ class BlackBoxStepper:
 
     @property
     def state(self) -> dict:
-        """Samples stepped, and the scaled input and output history, oldest first."""
+        """Samples stepped, the first scaled input, and the scaled input and output history (the last
+        ``span`` samples, oldest first)."""
         order = [(self._n - self._span + j) % self._span for j in range(self._span)]
-        return {"n": self._n, "u_scaled": self._us[order].tolist(), "y_scaled": self._ys[order].tolist()}
+        return {"n": self._n, "u_first": self._u_first, "u_scaled": self._us[order].tolist(),
+                "y_scaled": self._ys[order].tolist()}
+
+    def set_state(self, state: dict) -> None:
+        state = self._checked_state(state)
+        us, ys = np.asarray(state["u_scaled"], dtype=float), np.asarray(state["y_scaled"], dtype=float)
+        if us.shape != (self._span,) or ys.shape != (self._span,):
+            raise ModelError(f"model {self.model.name!r} stepper: a state holds {self._span} samples of history")
+        self._n = int(state["n"])
+        self._u_first = float(state["u_first"])
+        order = [(self._n - self._span + j) % self._span for j in range(self._span)]
+        self._us[order], self._ys[order] = us, ys
 
     def step(self, u: float) -> float:
         m, p, k, span = self.model, self._p, self.k, self._span
         i = self._n
-        us = (float(u) - p["u_center"]) / p["u_scale"]
+        us = (self._input(u) - p["u_center"]) / p["u_scale"]
         if i == 0:
             self._u_first = us
         self._us[i % span] = us

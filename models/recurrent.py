@@ -21,7 +21,7 @@ from typing import Mapping
 import numpy as np
 from numba import njit
 
-from .black_box import MAX_WIDTH, LaggedBlackBox, lag_step, training_samples
+from .black_box import MAX_WIDTH, LaggedBlackBox, SteppingBase, lag_step, training_samples
 from .errors import ModelError
 from .hyperparameters import check_int, check_number
 
@@ -78,13 +78,16 @@ def gru_simulate(us, k, w_ih, w_hh, b_ih, b_hh, readout, readout_bias):
     return ys
 
 
-class GRUStepper:
-    """``step(u) -> y``, ``reset()``, ``state`` (the k state chains); equals ``simulate``."""
+class GRUStepper(SteppingBase):
+    """``step(u) -> y``, ``reset()``, ``state`` (the k state chains), ``set_state``; equals ``simulate``."""
+
+    _state_keys = ("n", "chains")
 
     def __init__(self, model: "RecurrentNetwork", dt: float, params):
         if not (dt > 0 and math.isfinite(dt)):
             raise ModelError(f"model {model.name!r}: time step must be positive, got {dt!r}")
         self.model = model
+        self.dt = float(dt)
         self._p = model.unpack(model.pack(params)) if isinstance(params, Mapping) else model.unpack(params)
         self.k = lag_step(self._p["sample_time"], dt)
         self._w = model.gru_weights(self._p)
@@ -99,11 +102,21 @@ class GRUStepper:
     def state(self) -> dict:
         return {"n": self._n, "chains": self._chains.tolist()}
 
+    def set_state(self, state: dict) -> None:
+        state = self._checked_state(state)
+        chains = np.asarray(state["chains"], dtype=float)
+        if chains.shape != self._chains.shape:
+            raise ModelError(f"model {self.model.name!r} stepper: a state holds {self.k} chains of "
+                             f"{self.model.width} units")
+        self._n = int(state["n"])
+        self._chains = chains.copy()
+
     def step(self, u: float) -> float:
         p = self._p
         w_ih, w_hh, b_ih, b_hh, readout, readout_bias = self._w
         c = self._n % self.k
-        gru_update(self._chains[c], (float(u) - p["u_center"]) / p["u_scale"], w_ih, w_hh, b_ih, b_hh, self._new)
+        x = (self._input(u) - p["u_center"]) / p["u_scale"]
+        gru_update(self._chains[c], x, w_ih, w_hh, b_ih, b_hh, self._new)
         self._chains[c] = self._new
         self._n += 1
         y = readout_bias

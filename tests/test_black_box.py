@@ -6,6 +6,7 @@ and wrong methods are refused in one line. The recurrent network's training need
 optional extra [neural] (PyTorch); those tests skip, naming it, when it is not installed.
 """
 
+import json
 import math
 
 import numpy as np
@@ -140,9 +141,18 @@ def test_stepper_equals_simulate(name, hyper, k):
     stepped = np.array([stepper.step(v) for v in u])
     np.testing.assert_allclose(stepped, whole, rtol=1e-12, atol=1e-12)
     stepper.reset()
-    again = np.array([stepper.step(v) for v in u[:50]])
+    again = stepper.run(u[:50])
     np.testing.assert_allclose(again, whole[:50], rtol=1e-12, atol=1e-12)
-    assert stepper.state["n"] == 50
+    assert stepper.state["n"] == 50 and stepper.dt == DT
+    # a snapshot (through JSON) continues identically, in a fresh stepper too
+    snapshot = json.loads(json.dumps(stepper.state))
+    other = model.stepper(DT, params)
+    other.set_state(snapshot)
+    np.testing.assert_allclose(other.run(u[50:120]), whole[50:120], rtol=1e-12, atol=1e-12)
+    with pytest.raises(ModelError, match="finite"):
+        other.step(float("nan"))
+    with pytest.raises(ModelError, match="a state has keys"):
+        other.set_state({"n": 0})
 
 
 # --- reproducibility, JSON ---------------------------------------------------------
