@@ -38,6 +38,7 @@ from numba import njit
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_choice, check_int, check_number
+from .stepper import Stepper, check_state_keys, check_step_input
 
 # With sample_time=None the lag spacing is set at fit: this many samples per shortest drive period.
 POINTS_PER_PERIOD = 50
@@ -173,31 +174,16 @@ def lagged_rows(u: np.ndarray, y: np.ndarray, k: int, n_out: int, n_in: int,
     return np.column_stack(cols), yc[first:first + n].copy()
 
 
-class SteppingBase:
-    """What the black-box steppers share (the stepper API of every model: ``dt``, ``step(u) -> y``,
-    ``reset()``, ``state`` (JSON-able), ``set_state(state)``, ``run(values)``)."""
+class SteppingBase(Stepper):
+    """What the black-box steppers share beyond the ``Stepper`` API: input and state checks."""
 
     _state_keys: tuple[str, ...] = ()
 
-    def run(self, values) -> np.ndarray:
-        """``step`` over a 1-D array of inputs."""
-        return np.array([self.step(v) for v in np.asarray(values, dtype=float).ravel()])
-
     def _input(self, u) -> float:
-        try:
-            v = float(u)
-        except (TypeError, ValueError):
-            v = math.nan
-        if not math.isfinite(v):
-            raise ModelError(f"model {self.model.name!r} stepper: input must be a finite number, got {u!r}")
-        return v
+        return check_step_input(f"model {self.model.name!r} stepper", u)
 
     def _checked_state(self, state) -> dict:
-        if not isinstance(state, dict) or set(state) != set(self._state_keys):
-            got = sorted(state) if isinstance(state, dict) else type(state).__name__
-            raise ModelError(f"model {self.model.name!r} stepper: a state has keys {', '.join(self._state_keys)}, "
-                             f"got {got}")
-        return state
+        return check_state_keys(f"model {self.model.name!r} stepper", state, self._state_keys)
 
 
 class BlackBoxStepper(SteppingBase):

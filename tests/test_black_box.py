@@ -151,7 +151,7 @@ def test_stepper_equals_simulate(name, hyper, k):
     np.testing.assert_allclose(other.run(u[50:120]), whole[50:120], rtol=1e-12, atol=1e-12)
     with pytest.raises(ModelError, match="finite"):
         other.step(float("nan"))
-    with pytest.raises(ModelError, match="a state has keys"):
+    with pytest.raises(ModelError, match="state keys do not match"):
         other.set_state({"n": 0})
 
 
