@@ -9,7 +9,7 @@ import pytest
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import verdict_lines
-from hysbench.benchmarks.diagnosis.selection import Z_CONFIRM
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.shares import also_on_validation
 
 
@@ -38,7 +38,7 @@ def test_a_planted_cause_kept_under_also_is_borne_out_on_validation(kinds, drive
     assert d.cause == named and kept in [c.cause for c in d.also]
     check = next(a for a in d.also_check if a["cause"] == kept)
     assert check["checked"] and check["borne_out"], check
-    assert check["explained_whole"] > 0 and check["z_whole"] >= Z_CONFIRM
+    assert check["explained_whole"] > 0 and check["z_whole"] >= Policy().z_confirm
     if kept == "interference":
         assert check["interference_check"]["same_amplitude"]
 

@@ -18,6 +18,7 @@ from scipy import signal, stats
 
 from hysbench.benchmarks.diagnosis import validation
 from hysbench.benchmarks.diagnosis.extensions import gain
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.planted import planted_case
 from hysbench.benchmarks.diagnosis.residuals import FLOOR_HALF_WIDTH, gain_z, noise_floor
 
@@ -103,8 +104,8 @@ def test_a_relaxation_found_in_coloured_noise_is_not_confirmed():
         validation.refit_base_whole(d, lambda s: None)
     _, after, _ = validation.fit_extension(d, relaxation, lambda s: None)
     v = gain(d.base_whole, after, "validation")
-    assert v["explained_whole"] > 0 and v["z_whole"] < validation.Z_CONFIRM
-    assert not validation.borne_out(v, "relaxation", {})
+    assert v["explained_whole"] > 0 and v["z_whole"] < Policy().z_confirm
+    assert not validation.borne_out(v, "relaxation", {}, Policy())
     assert d.confirmed is not True
     if d.cause != "none":
         assert d.confirmed is False and "beyond their noise" in d.warning

@@ -48,9 +48,10 @@ from hysbench.benchmarks.diagnosis.residuals import (
     periodic_structure,
     spectral_peaks,
 )
-from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, MIN_EXPLAINED, NO_CUT, Candidate
+from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, NO_CUT, Candidate
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.screen import Screen
-from hysbench.benchmarks.diagnosis.selection import Z_SAME, Folds, decide, heldout_errors, heldout_null, score
+from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, score
 from hysbench.benchmarks.diagnosis.interference import (fold_frequencies, frequencies_agree, on_top,
                                                       same_line)
 from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree, replacements, strongest_first
@@ -63,6 +64,7 @@ from hysbench.models.filter_kernels import (first_order_foh, lowpass1, lowpass1_
 from measured_data import pzt_dataset
 
 DT = 1e-3
+POLICY = Policy()
 
 
 # --- blocks against slow references --------------------------------------------------
@@ -366,7 +368,7 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
     e_null = s1 + s2 + noise
     e_a = 0.6 * s1 + s2 + noise  # removes part of one component: 39 % of the misfit
     e_b = s1 + 0.22 * s2 + noise  # another slice of about the same size (37 %)
-    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, creep_min=20.0)
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, creep_min=20.0, policy=POLICY)
     a = _scored("delay", folds, e_null, e_a, {"delay": {"se": 1e-4, "folds": [0.010, 0.0101, 0.0099]}})
     errors = {id(a): e_a}
     v = decide(screen, folds, [a], [], errors, e_null, structured=True)
@@ -442,7 +444,7 @@ def test_a_relaxation_slower_than_every_drive_period_that_creep_predicts_as_well
     e_null = drift + noise
     e_relax, e_creep = sorted([0.05 * drift + noise, 0.05 * drift + rng.normal(0, 0.01, t.size)],
                               key=lambda e: float(e @ e))  # as good; the relaxation by a hair
-    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.01, creep_min=20.0)
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.01, creep_min=20.0, policy=POLICY)
     for tau, named in ((25.0, "creep"), (4.0, "relaxation")):
         relax, creep = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_creep)
         relax.estimates, creep.estimates = {"tau_s": [tau]}, {"size": 0.3, "time_scale_s": 20.0}
@@ -456,10 +458,10 @@ def test_a_relaxation_slower_than_every_drive_period_that_creep_predicts_as_well
 def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_than_every_drive_period():
     """The composite (faster time constants + creep) is built only for a named relaxation of two or more time
     constants whose slowest is longer than the longest drive period (creep_min / CREEP_PERIODS); it is called
-    as good when it passes and the relaxation does not predict better by z >= Z_SAME."""
+    as good when it passes and the relaxation does not predict better by z >= z_same (the policy)."""
     from hysbench.benchmarks.diagnosis.slow_part import predicts_as_well, slow_part_composite
 
-    screen = SimpleNamespace(creep_min=20.0)  # longest drive period 10 s
+    screen = SimpleNamespace(creep_min=20.0, policy=POLICY)  # longest drive period 10 s
     relax = Candidate("relaxation", "relaxation", get_model("mrpim"), {}, 25, 1.0, 10)
     one = Candidate("relaxation", "relaxation", get_model("mrpim"), {}, 23, 1.0, 10, estimates={"tau_s": [0.5]})
     creep = Candidate("creep", "creep", get_model("mrpim"), {}, 23, 1.0, 10)
@@ -533,7 +535,7 @@ def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 
 
 def test_an_interference_at_a_drive_harmonic_with_one_phase_in_every_record_is_drive_locked():
     rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
-    fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2)
+    fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2, policy=POLICY)
     fake.drive_harmonic = lambda f, tol: Screen.drive_harmonic(fake, f, tol)
     locked = lambda f, phases: Screen.drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
     fake.null_residuals = lambda: _sine_residuals(9.0, noise=0.02)  # a misfit the drive repeats
@@ -654,7 +656,7 @@ def test_a_clip_on_top_is_clipped_in_the_suggested_experiments_probes():
 
 
 def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with_their_fits():
-    """``secondary._choose`` keeps the simplest of the causes on top that the best does not beat by z >= Z_SAME;
+    """``secondary._choose`` keeps the simplest of the causes on top that the best does not beat by z >= z_same;
     it returns those as good (the best among them), whose fits the report shows and the suggested experiment
     separates; a cause the best beats clearly is not among them."""
     rng = np.random.default_rng(3)
@@ -672,7 +674,7 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     e1, e2 = 0.1 * misfit + noise, 0.1 * misfit + rng.normal(0, 0.05, 12000)
     e_mode, e_delay = sorted((e1, e2), key=lambda e: float(e @ e))  # the mode a little better, by chance
     delay, mode = tried("delay", 1, e_delay), tried("resonance", 2, e_mode)
-    assert score(folds, e_delay, e_mode)["z"] < Z_SAME
+    assert score(folds, e_delay, e_mode)["z"] < POLICY.z_same
     creep = tried("creep", 1, 0.8 * misfit + noise)  # clearly worse than the mode
     pick, alike = _choose(screen, folds, [mode, creep, delay], kept)
     assert pick is delay and alike == [mode[0]]
@@ -980,7 +982,7 @@ def test_an_interference_on_top_reports_and_checks_the_frequencies_it_was_scored
 def test_one_line_means_frequencies_within_the_coarsest_folds_resolution_and_amplitudes_within_a_quarter():
     spans = [(20.0, 0.01), (5.0, 0.01), (2.0, 0.01)]  # (duration s, dt): fold 0 trains on 5 s at most
     parts = [SimpleNamespace(record=SimpleNamespace(t=np.zeros(int(T / dt)), dt=dt)) for T, dt in spans]
-    fake = SimpleNamespace(parts=parts)
+    fake = SimpleNamespace(parts=parts, policy=POLICY)
     est = lambda fs, amps: [{"interference_frequency": f, "amplitude": a} for f, a in zip(fs, amps)]  # noqa: E731
     assert same_line(fake, est([30.0, 30.19, 30.1], [1.0, 1.1, 0.9]))
     assert not same_line(fake, est([30.0, 30.21, 30.1], [1.0, 1.1, 0.9]))  # beyond 1 / 5 s
@@ -1001,7 +1003,7 @@ def test_a_line_below_the_gain_floor_is_named_with_the_rest_unexplained():
     d = diagnose(ds, seed=0, experiments=False)
     assert d.cause == "interference", d.verdict.reason
     h = d.chosen.heldout
-    assert h["same_line"] and h["refit_per_fold"] and 0 < h["gain"] < MIN_EXPLAINED
+    assert h["same_line"] and h["refit_per_fold"] and 0 < h["gain"] < POLICY.min_explained
     assert d.verdict.remainder is not None and d.verdict.remainder > 0.9
     assert parameter_errors(truth, "interference", d.parameters)["frequency_hz"] < 1e-3
 
@@ -1118,13 +1120,13 @@ def test_the_backward_steps_creep_standing_in_follows_the_secondary_causes_stron
     as without it (strongest first), and only when the slowest time constant is past every drive period."""
     own = {c: SimpleNamespace(heldout_gain=g) for c, g in (("delay", 0.2), ("resonance", 0.6), ("creep", 0.4))}
     slow = SimpleNamespace(cause="relaxation", estimates={"tau_s": [0.05, 13.0]})
-    assert replacements(slow, own, ["delay", "resonance"], creep_min=20.0) == [
+    assert replacements(slow, own, ["delay", "resonance"], creep_min=20.0, policy=POLICY) == [
         ["resonance", "delay"], ["resonance", "delay", "creep"]]
     fast = SimpleNamespace(cause="relaxation", estimates={"tau_s": [0.05, 9.0]})
-    assert replacements(fast, own, ["delay", "resonance"], creep_min=20.0) == [["resonance", "delay"]]
-    assert replacements(slow, own, ["creep", "delay"], creep_min=20.0) == [["creep", "delay"]]
+    assert replacements(fast, own, ["delay", "resonance"], creep_min=20.0, policy=POLICY) == [["resonance", "delay"]]
+    assert replacements(slow, own, ["creep", "delay"], creep_min=20.0, policy=POLICY) == [["creep", "delay"]]
     named_delay = SimpleNamespace(cause="delay", estimates={"delay_s": 0.02})
-    assert replacements(named_delay, own, ["resonance"], creep_min=20.0) == [["resonance"]]
+    assert replacements(named_delay, own, ["resonance"], creep_min=20.0, policy=POLICY) == [["resonance"]]
 
 
 @given(lo=st.floats(1e-3, 1.0), ratio=st.floats(2.0, 1e4), dt=st.floats(1e-4, 1e-3))
@@ -1207,7 +1209,7 @@ def test_a_named_level_must_cut_the_prediction_as_a_clip_on_top_must():
     """The base's own saturation candidate answers to the same meaning as a clip on top: a level that cuts
     fewer than three samples of the prediction (no slope where clipped can be measured) is no clip; before
     2026-11-27 only the clip on top was checked."""
-    fake = SimpleNamespace()
+    fake = SimpleNamespace(policy=POLICY)
     assert Screen.limit_of(fake, "saturation", {"level": 1.0, "side": "upper"}) == NO_CUT
     assert Screen.limit_of(fake, "saturation", {"level": 1.0, "side": "upper", "slope_where_clipped": 0.02}) == ""
     assert "not a clip" in Screen.limit_of(fake, "saturation",
@@ -1332,7 +1334,7 @@ def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_recor
     weak[8000:] *= 0.6  # the promising cause alone: better on one record only
     p = _scored("delay", folds, e_null, weak + noise)
     p.heldout["folds_improved"] = 2  # and slightly on another: most records, no evidence
-    assert promising(p) and not evidence(p.heldout)
+    assert promising(p, POLICY) and not evidence(p.heldout, POLICY)
     left = {"on every record": 0.1 * signal_,
             "on one record": np.where(t >= 8000 * DT, 0.1, 0.998) * signal_,  # evidence, but that record's
             "a third of the misfit": np.sqrt(0.67) * signal_}[case]
@@ -1847,9 +1849,9 @@ def test_slope_where_clipped_is_the_least_squares_slope_on_the_cut_samples(seed,
     cut = pred > level if side == "upper" else pred < level
     y = np.where(cut, level + true_slope * (pred - level), pred) + rng.normal(0.0, 0.01, pred.size)
     reference = np.polyfit(pred[cut], y[cut], 1)[0]  # the obvious way
-    assert slope_where_clipped(pred, y, side, level) == pytest.approx(reference, rel=1e-9, abs=1e-12)
+    assert slope_where_clipped(pred, y, side, level, POLICY.min_clipped_samples) == pytest.approx(reference, rel=1e-9, abs=1e-12)
     assert abs(reference - true_slope) < 0.05
-    assert math.isnan(slope_where_clipped(pred, y, side, 10.0 if side == "upper" else -10.0))  # never cut
+    assert math.isnan(slope_where_clipped(pred, y, side, 10.0 if side == "upper" else -10.0, POLICY.min_clipped_samples))  # never cut
 
 
 def test_a_gain_modulation_is_not_named_a_clip():
@@ -1868,7 +1870,7 @@ def test_a_gain_modulation_is_not_named_a_clip():
 def test_shows_clip_only_where_the_output_is_flat_at_the_level():
     """A line y = a + b t, clipped at a level: the rows show the clip at that level; unclipped rows do not show
     one at a level below their peak (the output still rises with the model there), nor at a level above it."""
-    screen = SimpleNamespace(noise_sd=0.01, n_evaluations=0, solve=Screen.solve)
+    screen = SimpleNamespace(noise_sd=0.01, n_evaluations=0, solve=Screen.solve, policy=POLICY)
     rng = np.random.default_rng(0)
     t = np.linspace(0.0, 1.0, 400)
     A = np.column_stack([np.ones_like(t), np.sin(2 * np.pi * t)])
@@ -1888,7 +1890,7 @@ def test_a_clip_must_be_flat_either_way():
     accuracy plan, seed 0, case 172, which had been named `saturation` as a partial cause) is no clip, as one
     that still rises with it is not; a flat top is."""
     for slope, ok in ((-1.84, False), (-0.6, False), (0.03, True), (-0.3, True), (0.81, False)):
-        limit = Screen.limit_of(SimpleNamespace(), "saturation", {"slope_where_clipped": slope})
+        limit = Screen.limit_of(SimpleNamespace(policy=POLICY), "saturation", {"slope_where_clipped": slope})
         assert (limit == "") == ok, (slope, limit)
     ds, _ = planted_case(("null-ar1",), "mrpim", "sines", 172)
     d = diagnose(ds, seed=0, experiments=False)

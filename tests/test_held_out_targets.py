@@ -19,8 +19,11 @@ from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import not_held_out_lines
 from hysbench.benchmarks.diagnosis.interference import on_top
-from hysbench.benchmarks.diagnosis.screen import BEYOND_RANGE, beyond_others, held_out_windows
+from hysbench.benchmarks.diagnosis.policy import Policy
+from hysbench.benchmarks.diagnosis.screen import beyond_others, held_out_windows
 from hysbench.benchmarks.diagnosis.selection import Folds, carried_by_one_record, score
+
+BEYOND_RANGE = Policy().beyond_range
 
 ranges = st.lists(st.tuples(st.floats(-5, 5), st.floats(0.01, 5)), min_size=1, max_size=5)
 
@@ -49,7 +52,7 @@ def test_how_far_a_record_goes_beyond_the_others_against_a_slow_reference(spec):
 
 def _slow_windows(inputs: list[np.ndarray]) -> list[int]:
     """Sample by sample: a record is predicted until its input first leaves the others' range widened by
-    ``BEYOND_RANGE`` of the span of all (whole if it never does, or if fewer than two never do)."""
+    ``beyond_range`` of the span of all (whole if it never does, or if fewer than two never do)."""
     everything = np.concatenate(inputs)
     span = everything.max() - everything.min()
     out = []
@@ -71,17 +74,17 @@ shapes = st.lists(st.tuples(st.floats(-5, 5), st.floats(0.01, 5), st.integers(0,
 @given(shapes)
 def test_how_much_of_each_record_is_predicted_against_a_slow_reference(spec):
     inputs = [lo + width * np.random.default_rng(seed).random(40) for lo, width, seed in spec]
-    assert held_out_windows(inputs) == _slow_windows(inputs)
+    assert held_out_windows(inputs, BEYOND_RANGE) == _slow_windows(inputs)
 
 
 def test_a_record_beyond_the_others_range_is_predicted_up_to_where_it_first_leaves_it():
     narrow, middle = np.linspace(0.5, 1.9, 50), np.linspace(0.7, 2.3, 50)
     wide = np.linspace(0.5, 2.5, 50)  # 0.2 above 2.3 at its end (10 % of the span)
     first = int(np.argmax(wide > 2.3 + BEYOND_RANGE * 2.0))
-    assert held_out_windows([narrow, wide, middle]) == [50, first, 50]
+    assert held_out_windows([narrow, wide, middle], BEYOND_RANGE) == [50, first, 50]
     assert 0 < first < 50
-    assert held_out_windows([wide, wide + 0.05]) == [50, 50]  # two records: both stay whole
-    assert held_out_windows([narrow, middle, wide[::-1]]) == [50, 50, 0]  # beyond from its first sample
+    assert held_out_windows([wide, wide + 0.05], BEYOND_RANGE) == [50, 50]  # two records: both stay whole
+    assert held_out_windows([narrow, middle, wide[::-1]], BEYOND_RANGE) == [50, 50, 0]  # beyond from its first sample
 
 
 @settings(max_examples=50, deadline=None)

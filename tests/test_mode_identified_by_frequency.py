@@ -13,7 +13,11 @@ import pytest
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.planted import piezo_available, planted_case
-from hysbench.benchmarks.diagnosis.selection import PARTIAL_SE, identified, loose_note
+from hysbench.benchmarks.diagnosis.policy import Policy
+from hysbench.benchmarks.diagnosis.selection import identified, loose_note
+
+POLICY = Policy()
+PARTIAL_SE = POLICY.partial_se
 
 
 def _candidate(cause: str, **spread) -> SimpleNamespace:
@@ -26,22 +30,22 @@ def _candidate(cause: str, **spread) -> SimpleNamespace:
     (0.05, 0.05, True), (0.05, 0.6, True), (0.6, 0.05, False), (0.6, 0.6, False)])
 def test_a_mode_is_identified_by_its_frequency_alone(frequency_se, damping_se, expected):
     c = _candidate("resonance", natural_frequency=frequency_se, damping_ratio=damping_se)
-    assert identified(c) is expected
+    assert identified(c, POLICY) is expected
 
 
 def test_other_causes_need_every_fold_refitted_parameter_to_agree():
-    assert identified(_candidate("relaxation", tau1=0.05, tau2=0.05))
-    assert not identified(_candidate("relaxation", tau1=0.05, tau2=2 * PARTIAL_SE))
-    assert not identified(_candidate("resonance"))  # nothing refitted per fold: agreement not shown
+    assert identified(_candidate("relaxation", tau1=0.05, tau2=0.05), POLICY)
+    assert not identified(_candidate("relaxation", tau1=0.05, tau2=2 * PARTIAL_SE), POLICY)
+    assert not identified(_candidate("resonance"), POLICY)  # nothing refitted per fold: agreement not shown
 
 
 def test_the_reason_says_when_a_mode_s_damping_is_not_identified_and_claims_agreement_only_where_it_holds():
-    assert loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.1)) == ""
-    note = loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.6))
+    assert loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.1), POLICY) == ""
+    note = loose_note(_candidate("resonance", natural_frequency=0.05, damping_ratio=0.6), POLICY)
     assert "damping_ratio (fold spread ±60 %) not identified" in note and "agree on natural_frequency" in note
-    note = loose_note(_candidate("resonance", natural_frequency=0.6, damping_ratio=0.6))
+    note = loose_note(_candidate("resonance", natural_frequency=0.6, damping_ratio=0.6), POLICY)
     assert "not identified" in note and "agree" not in note  # a mode named whole: its frequency was not checked
-    assert loose_note(_candidate("delay", delay=0.9)) == ""
+    assert loose_note(_candidate("delay", delay=0.9), POLICY) == ""
 
 
 def test_a_mode_on_the_piezo_recording_is_named_although_its_damping_differs_between_the_folds():

@@ -8,7 +8,7 @@ from __future__ import annotations
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import verdict_lines
-from hysbench.benchmarks.diagnosis.selection import Z_CONFIRM
+from hysbench.benchmarks.diagnosis.policy import Policy
 
 
 def test_coloured_noise_whose_partial_evidence_fails_on_validation_is_none():
@@ -21,7 +21,7 @@ def test_coloured_noise_whose_partial_evidence_fails_on_validation_is_none():
     u = d.unexplained_check
     assert d.cause == "none", d.verdict.reason
     assert u is not None and u["checked"] and not u["borne_out"], u
-    assert u["z_whole"] < Z_CONFIRM and d.verdict.partial is not None and u["cause"] == d.verdict.partial.cause
+    assert u["z_whole"] < Policy().z_confirm and d.verdict.partial is not None and u["cause"] == d.verdict.partial.cause
     assert "not borne out" in d.verdict.reason
     assert d.confirmed is None and d.extended_fit is None and d.parameters == {}
     assert any("not borne out" in line for line in verdict_lines(d))
@@ -37,7 +37,7 @@ def test_an_unexplained_residual_whose_partial_evidence_holds_on_validation_stay
     u = d.unexplained_check
     assert d.cause == "unexplained", d.verdict.reason
     assert u is not None and u["checked"] and u["borne_out"], u
-    assert u["z_whole"] >= Z_CONFIRM and u["explained_whole"] > 0 and u["explained_window"] > 0
+    assert u["z_whole"] >= Policy().z_confirm and u["explained_whole"] > 0 and u["explained_window"] > 0
     assert d.confirmed is None and d.extended_fit is None
     assert any("borne out: the verdict stays unexplained" in line for line in verdict_lines(d))
 

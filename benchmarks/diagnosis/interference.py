@@ -45,8 +45,6 @@ from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
 from .screen import column_basis
 
-LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
-
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
     phase = 2.0 * np.pi * frequency_hz * t
@@ -126,10 +124,10 @@ def fit_interference(screen, n_peaks: int = 5) -> Candidate:
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
     """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
     within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within ``LINE_AMPLITUDE`` (relative to their mean)."""
+    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
-    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
+    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
 
 
 def fold_tolerance_hz(screen) -> float:
