@@ -79,7 +79,7 @@ from .secondary import complete_partial, complete_promising, drop_redundant_prim
 from .slow_part import predicts_as_well, slow_part_composite
 from .validation import borne_out, check_also, check_unexplained, fit_extension, refit_base_whole
 from .policy import Policy
-from .selection import Verdict, decide
+from .selection import Verdict, decide, step
 
 FORMAT = "hysbench-diagnosis/2"
 
@@ -123,6 +123,7 @@ class Diagnosis:
     also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    trace: list = field(default_factory=list)  # every rule that decided or changed the verdict, in order (``step``)
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
@@ -309,6 +310,7 @@ class Diagnosis:
                                            "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
                                           for a in alike] for cause, alike in as_good.items()},
             "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
+            "trace": self.trace,
             "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))
@@ -325,7 +327,14 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
                                result["relaxation_variants"])
     diag.slow_part = comp
     taken = {c.cause for c in (*v.ambiguous_with, *diag.also)}
-    if comp is None or "creep" in taken or not predicts_as_well(result["folds"], result["errors"], v.chosen, comp):
+    if comp is None:
+        return
+    as_well = predicts_as_well(result["folds"], result["errors"], v.chosen, comp)
+    ambiguous = as_well and "creep" not in taken
+    diag.trace.append(step("slow-part-twin", "creep ambiguous" if ambiguous else "relaxation alone",
+                           composite=comp.label, gain=comp.heldout.get("gain"), z=comp.heldout.get("z"),
+                           predicts_as_well=as_well, creep_already=sorted(taken & {"creep"})))
+    if not ambiguous:
         return
     v.ambiguous_with.append(comp)
     v.reason += (f"; its slowest time constant ({max(v.chosen.estimates['tau_s']):.3g} s) is longer than the longest "
@@ -437,6 +446,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
+                     trace=list(verdict.trace),
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
                                "not_held_out": _held_out_in_part(screen),
@@ -480,6 +490,11 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     t1 = time.perf_counter()
     diag.extended_fit, diag.after, diag.interference_check = fit_extension(diag, diag.chosen, say)
     timings["extended_fit"] = time.perf_counter() - t1
+    v = diag.gain().get("validation") or {}
+    diag.trace.append(step("validation", "confirmed" if diag.confirmed else "not confirmed", cause=diag.cause,
+                           **{k: v.get(k) for k in ("explained_whole", "explained_window", "z_whole")},
+                           **({"same_amplitude": diag.interference_check.get("same_amplitude")}
+                              if diag.cause == "interference" else {})))
     if diag.also:
         t1 = time.perf_counter()
         check_also(diag, say)

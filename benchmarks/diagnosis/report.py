@@ -368,6 +368,25 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     return lines
 
 
+def _inputs_text(value) -> str:
+    """A trace entry's inputs in one line: numbers to 3 significant digits, a candidate's score by its cause."""
+    if isinstance(value, dict):
+        if "cause" in value and "gain" in value:
+            return f"{value['cause']} (gain {_fmt(value['gain'], 3)}, z {_fmt(value.get('z'), 3)})"
+        return ", ".join(f"{k} {_inputs_text(v)}" for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_inputs_text(v) for v in value) + "]"
+    if isinstance(value, float):
+        return _fmt(value, 3)
+    return str(value)
+
+
+def trace_lines(d) -> list[str]:
+    """The rules that decided the verdict, in order (``Diagnosis.trace``): rule id, outcome, inputs."""
+    return [f"{i}. `{t['rule']}` -> **{t['outcome']}**" + (f" ({_inputs_text(t['inputs'])})" if t["inputs"] else "")
+            for i, t in enumerate(d.trace, start=1)]
+
+
 def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     d = diag
     lines = [f"# Diagnosis: {d.model} on {d.dataset.name}", ""]
@@ -389,6 +408,9 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         lines += ["Every cause was tried afresh on top of the named one (`--thorough`), also on these long records.", ""]
     lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
+    lines += ["", "## Why: the rules that decided, in order", "",
+              "Each rule of docs/diagnosis.md (\"The decision rule\") that decided or changed the verdict, with what "
+              f"it decided and on what ({d.policy.summary()}).", "", *trace_lines(d)]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "

@@ -30,7 +30,8 @@ from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agre
 from .saturation import clip_on_top
 from .policy import Policy
 from .selection import (OPEN_ENDED_NOTE, Verdict, at_bound, bound_flags, carried_by_one_record, evidence,
-                        fold_uncertainty, heldout_errors, own_nonlinear, passes, promising, score, share_of_misfit)
+                        fold_uncertainty, heldout_errors, own_nonlinear, passes, promising, score, share_of_misfit,
+                        step)
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
@@ -159,6 +160,14 @@ def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[C
 
 
 def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
+    """``_forward`` (below), its outcome added to the trace."""
+    tried = len(diag.secondary_tried)
+    _forward(diag, result, say)
+    diag.trace.append(step("also", ", ".join(c.cause for c in diag.also) or "nothing", on_top_of=diag.cause,
+                           tried=[c.cause for c in diag.secondary_tried[tried:]]))
+
+
+def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
@@ -234,6 +243,8 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     e_null = result["errors"][id(diag.screen.null)]
     null_sse = float(e_null @ e_null)
     share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
+    diag.trace.append(step("complete-partial", p.cause if share >= pol.explain_share else "unexplained",
+                           partial=p.cause, kept=[c.cause for c in diag.also], share_of_misfit=share))
     if share < pol.explain_share:
         diag.verdict, diag.also = v, []
         v.reason += ("" if not tried else
@@ -275,6 +286,9 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
         h = score(folds, e_null, e)
         share = share_of_misfit(screen, float(e_null @ e_null), h["sse"])
         named = evidence(h, pol) and share >= pol.explain_share and not carried_by_one_record(folds, e_null, e)
+    diag.trace.append(step("complete-promising", p.cause if named else "none", promising=p.cause,
+                           kept=[c.cause for c in diag.also],
+                           **({"gain": h["gain"], "z": h["z"], "share_of_misfit": share} if diag.also else {})))
     if not named:
         diag.verdict, diag.also = v, []
         if tried:
@@ -315,15 +329,25 @@ def _creep_time_unidentified(screen, c: Candidate) -> bool:
             and set(at_bound(screen, c)) <= {"creep_time"})
 
 
-def _pinned_creep(screen, chain: list[Candidate]) -> str:
-    """What the backward step says of a creep in ``chain`` whose time scale sits at an end ("" if none does)."""
+def _creep_end(screen, chain: list[Candidate]) -> dict | None:
+    """The first creep in ``chain`` whose time scale sits at an end (None if none does): ``end`` ``limit`` (the
+    fastest its meaning allows) or ``search`` (open-ended, the slowest searched), ``alone`` (creep first, before
+    the others were composed on top), ``creep_time_s``."""
     for c in chain:
         flags = bound_flags(screen, c)
         if "creep_time" in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
-            where = "its limit" if "creep_time" in flags["at_bound"] else "the end of its search"
-            alone = " alone" if c is chain[0] and len(chain) > 1 else ""
-            return f"creep's time scale{alone} sits at {where}, {float(c.params['creep_time']):.3g} s: not identified"
-    return ""
+            return {"end": "limit" if "creep_time" in flags["at_bound"] else "search",
+                    "alone": c is chain[0] and len(chain) > 1, "creep_time_s": float(c.params["creep_time"])}
+    return None
+
+
+def _pinned_creep(end: dict | None) -> str:
+    """What the backward step says of a creep whose time scale sits at an end (``_creep_end``; "" if none)."""
+    if end is None:
+        return ""
+    where = "its limit" if end["end"] == "limit" else "the end of its search"
+    return (f"creep's time scale{' alone' if end['alone'] else ''} sits at {where}, {end['creep_time_s']:.3g} s: "
+            "not identified")
 
 
 def not_identified(c: Candidate) -> str:
@@ -410,6 +434,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         if without["z"] < pol.z_same and evidence(score(folds, e_null, errors[-1]), pol) and explains:
             break
     else:
+        diag.trace.append(step("drop-redundant-primary", v.chosen.cause, also=causes))
         return
     old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
     first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
@@ -419,8 +444,11 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         also.append(c)
     diag.dropped = old
     diag.also = also
+    end = _creep_end(screen, chain)
+    diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
+                           creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
     v.chosen, v.cause = first, first.cause
-    pinned = _pinned_creep(screen, chain)
+    pinned = _pinned_creep(end)
     slow = ""
     if standing_in:
         slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "

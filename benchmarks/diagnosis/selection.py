@@ -410,6 +410,19 @@ class Verdict:
     not_identified: list[str] = field(default_factory=list)  # "cause: parameter (at bound)"
     partial: Candidate | None = None  # the best candidate when the verdict is unexplained
     remainder: float | None = None  # share of the held-out misfit (beyond noise) the named cause leaves
+    trace: list = field(default_factory=list)  # the rules that decided it, in order (``step``)
+
+
+def step(rule: str, outcome: str, **inputs) -> dict:
+    """One entry of a diagnosis's trace: the rule's id (docs/diagnosis.md, "The decision rule"), what it
+    decided (a cause, ``none``, ``unexplained``, or what it changed) and the inputs it decided on."""
+    return {"rule": rule, "outcome": outcome, "inputs": inputs}
+
+
+def _score_of(c: Candidate) -> dict:
+    h = c.heldout
+    return {"cause": c.cause, "label": c.label, "gain": h.get("gain"), "z": h.get("z"),
+            "share_of_misfit": h.get("share_of_misfit")}
 
 
 def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
@@ -466,14 +479,17 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     evidence = [c for c in candidates if (significant(c, pol) or c.heldout_gain >= pol.strong_gain)  # partly predicted
                 and not carried_by_one_record(folds, e_null, errors[id(c)])]
     if not ok:
+        seen = {"structured": structured, "evidence": [c.cause for c in evidence]}
         if structured or evidence:
             partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
             why = ("the residual is structured (it repeats from period to period)" if structured else
                    f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
                    "or not within its meaning")
             return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
-                           not_identified=not_identified, partial=partial)
-        return Verdict("none", None, reason=none_reason(candidates, pol), not_identified=not_identified)
+                           not_identified=not_identified, partial=partial,
+                           trace=[step("nothing-passes", "unexplained", **seen)])
+        return Verdict("none", None, reason=none_reason(candidates, pol), not_identified=not_identified,
+                       trace=[step("nothing-passes", "none", **seen)])
 
     def record_share(c: Candidate) -> None:
         c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
@@ -488,7 +504,12 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
         same += [c for c in ok if c is not best and pairwise_z(folds, errors, best, c) < pol.z_same
                  and same_slice(e_null, errors[id(best)], errors[id(c)], pol) and identified(c, pol)]
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
-    chosen = merge_duplicates(chosen, variants, folds, errors)
+    trace = [step("simplest-as-good", chosen.cause, best=_score_of(best), as_good=[_score_of(c) for c in same],
+                  passing=[c.cause for c in ok])]
+    merged = merge_duplicates(chosen, variants, folds, errors)
+    if merged is not chosen:
+        trace.append(step("merge-duplicates", merged.label, named=chosen.label, tau_s=chosen.estimates["tau_s"]))
+        chosen = merged
     others = {}
     for c in same:
         if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
@@ -502,6 +523,8 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                       f"({max(chosen.estimates['tau_s']):.3g} s) is longer than the longest drive period, so these "
                       "records do not show that it depends on the input, and a drift since the start predicts "
                       f"them as well (z < {pol.z_same:g})")
+        trace.append(step("slow-relaxation-twin", "creep", relaxation=_score_of(chosen), creep=_score_of(slow_twin),
+                          slowest_tau_s=max(chosen.estimates["tau_s"])))
         chosen = slow_twin
         if "share_of_misfit" not in chosen.heldout:
             record_share(chosen)
@@ -518,20 +541,25 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
             other = specific_part(folds, errors, ok, chosen, candidates, e_null)  # their shares recorded above
             if other is not None:
                 share = other.heldout["share_of_misfit"]
+                trace.append(step("specific-part", other.cause, partial=_score_of(chosen), named=_score_of(other),
+                                  not_specific=why_not))
                 return Verdict(other.cause, other, [], (
                     f"predicts the held-out identification records better than the base model refitted the same "
                     f"way (gain {100 * other.heldout_gain:.2f} %, z = {other.heldout['z']:.1f}); it removes "
                     f"{100 * share:.0f} % of the base model's held-out misfit beyond white noise: the other "
                     f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"
-                    + loose_note(other, pol)), not_identified, remainder=1.0 - share)
+                    + loose_note(other, pol)), not_identified, remainder=1.0 - share, trace=trace)
+            trace.append(step("partial-not-specific", "unexplained", partial=_score_of(chosen), not_specific=why_not))
             return Verdict("unexplained", None, reason=(
                 f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
-                f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen)
+                f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen,
+                trace=trace)
+        trace.append(step("partial-specific", chosen.cause, share_of_misfit=share))
         remainder = 1.0 - share
         reason += (f"; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
                    f"the other {100 * remainder:.0f} % is unexplained")
     return Verdict(chosen.cause, chosen, list(others.values()), reason + loose_note(chosen, pol), not_identified,
-                   remainder=remainder)
+                   remainder=remainder, trace=trace)
 
 
 def share_of_misfit(screen, reference_sse: float, sse: float) -> float:

@@ -22,7 +22,7 @@ from .extensions import gain, identify_whole, registered_extension, residuals_of
 from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual
 from .policy import Policy
-from .selection import Verdict
+from .selection import Verdict, step
 
 
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
@@ -102,6 +102,8 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
     diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": True, "borne_out": borne,
                               **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
                               **({"interference_check": check} if check else {})}
+    diag.trace.append(step("unexplained-check", "unexplained" if borne else "none", partial=p.cause,
+                           **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")}))
     if borne:
         return
     diag.verdict = Verdict("none", None, reason=(
