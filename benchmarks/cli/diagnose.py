@@ -46,7 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    model = get_model(args.model)  # an unknown name, a bad policy or an unwritable destination fails here, before any work
+    # an unknown model, a bad policy or an unwritable destination fails here, before any work
+    model = get_model(args.model)
     policy = Policy().with_overrides(args.policy)
     check_outputs(args)
     say = timed_progress(args.quiet)

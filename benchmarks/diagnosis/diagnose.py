@@ -229,7 +229,8 @@ class Diagnosis:
     def confirmed(self) -> bool | None:
         """Whether the named extension lowers the validation residual against the base model refitted
         on the same whole records, on the windows and by more than the records' noise explains (z >=
-        the policy's ``z_confirm``); an interference (phase fitted per validation record) by the same amplitude there."""
+        the policy's ``z_confirm``); an interference (phase fitted per validation record) by the same amplitude
+        there."""
         v = self.gain().get("validation")
         if not v:
             return None

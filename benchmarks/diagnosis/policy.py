@@ -173,11 +173,12 @@ class Policy:
                 raise PolicyError(f"--policy {a!r}: unknown policy field {key!r} (fields: "
                                   f"{', '.join(n for n in fields if n != 'version')})")
             f = fields[key]
+            count = f.metadata["kind"] == "count"
             try:
-                value = int(text) if f.metadata["kind"] == "count" else float(text)
+                value = int(text) if count else float(text)
             except ValueError:
-                raise PolicyError(f"--policy {a!r}: {key} takes a{'n integer' if f.metadata['kind'] == 'count' else ' number'},"
-                                  f" not {text.strip()!r}") from None
+                raise PolicyError(f"--policy {a!r}: {key} takes {'an integer' if count else 'a number'}, "
+                                  f"not {text.strip()!r}") from None
             changes[key] = value
         return dataclasses.replace(self, **changes)
 

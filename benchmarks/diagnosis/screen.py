@@ -484,7 +484,8 @@ class Screen:
         every record's drive whose phases in the records (each from its own start) agree within
         ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
         model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
-        ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the harmonic, closer
+        ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
+        harmonic, closer
         to it than the records resolve, not a misfit that the drive repeats."""
         phases = estimates.get("phase_rad_per_record") or []
         longest = max(p.record.t.size * p.record.dt for p in self.parts)

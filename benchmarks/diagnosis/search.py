@@ -76,7 +76,8 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             if j.heldout_gain > c.heldout_gain:
                 pool = variants if c in variants else cands
                 pool[pool.index(c)] = j
-    for c in [v for v in variants if promising(v, screen.policy)]:  # a time constant at its bound: one fewer, from the others
+    # a time constant at its bound: one fewer, from the others
+    for c in [v for v in variants if promising(v, screen.policy)]:
         r = without_pinned(screen, c, c.heldout["at_bound"])
         if r is None:
             continue

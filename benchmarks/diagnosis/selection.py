@@ -448,7 +448,8 @@ def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds: Fo
         se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
         ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
         width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
-        close = any(math.log(taus[i + 1] / taus[i]) < max(math.log(pol.duplicate_tau_ratio), 2 * max(width[i], width[i + 1]))
+        floor = math.log(pol.duplicate_tau_ratio)
+        close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
                     for i in range(len(taus) - 1))
         fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
                  and pairwise_z(folds, errors, chosen, v) < pol.z_same]
@@ -536,20 +537,22 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     reason += drift_note
     remainder = None
     if share < pol.explain_share:
-        why_not = not_specific(folds, errors, chosen, candidates, best, e_null)
+        verdict_on = why_not_specific(folds, errors, chosen, candidates, best, e_null)
+        why_not = verdict_on["text"]
+        not_named = {k: verdict_on[k] for k in ("why", "rivals")}
         if why_not:
             other = specific_part(folds, errors, ok, chosen, candidates, e_null)  # their shares recorded above
             if other is not None:
                 share = other.heldout["share_of_misfit"]
                 trace.append(step("specific-part", other.cause, partial=_score_of(chosen), named=_score_of(other),
-                                  not_specific=why_not))
+                                  not_specific=not_named))
                 return Verdict(other.cause, other, [], (
                     f"predicts the held-out identification records better than the base model refitted the same "
                     f"way (gain {100 * other.heldout_gain:.2f} %, z = {other.heldout['z']:.1f}); it removes "
                     f"{100 * share:.0f} % of the base model's held-out misfit beyond white noise: the other "
                     f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"
                     + loose_note(other, pol)), not_identified, remainder=1.0 - share, trace=trace)
-            trace.append(step("partial-not-specific", "unexplained", partial=_score_of(chosen), not_specific=why_not))
+            trace.append(step("partial-not-specific", "unexplained", partial=_score_of(chosen), not_specific=not_named))
             return Verdict("unexplained", None, reason=(
                 f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
                 f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen,
@@ -629,18 +632,27 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
 
 def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate],
                  best: Candidate | None = None, e_null: np.ndarray | None = None) -> str:
+    """Why a cause that removes only part of the misfit is not named, as text ("" if it is): ``why_not_specific``."""
+    return why_not_specific(folds, errors, chosen, candidates, best, e_null)["text"]
+
+
+def why_not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequence[Candidate],
+                     best: Candidate | None = None, e_null: np.ndarray | None = None) -> dict:
     """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
     pass the block test (z >= ``z_pass``, by the best predictor of that part), its parameters must agree across
     the folds, and every other passing cause that predicts about as well (z < ``z_same``), with its own parameters
     agreeing across the folds, must remove the same part (then it is ambiguous with it) -- when several causes
     each take a different slice of a misfit that is mostly something else, naming one of them would be a guess.
-    A drive-locked sinusoid with held-out evidence counts as such a rival: it shows misfit locked to the drive."""
+    A drive-locked sinusoid with held-out evidence counts as such a rival: it shows misfit locked to the drive.
+    Returns {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for such a
+    sinusoid); "text": the reason in words}."""
     best = best or chosen
     pol = folds.policy
     if best.heldout["z"] < pol.z_pass:
-        return f"its block test gives z = {best.heldout['z']:.1f} < {pol.z_pass:g}"
+        return {"why": "z", "rivals": [], "text": f"its block test gives z = {best.heldout['z']:.1f} < {pol.z_pass:g}"}
     if not identified(chosen, pol):
-        return f"its parameters differ between the folds by more than {100 * pol.partial_se:.0f} %"
+        return {"why": "folds", "rivals": [],
+                "text": f"its parameters differ between the folds by more than {100 * pol.partial_se:.0f} %"}
     rivals = [c for c in candidates if c.cause != chosen.cause and passes(c, pol) and identified(c, pol)]  # admissible
     # a sinusoid locked to the drive is no cause, but with evidence it shows a drive-locked misfit of its own
     rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and significant(c, pol)]
@@ -648,8 +660,10 @@ def not_specific(folds: Folds, errors: dict, chosen: Candidate, candidates: Sequ
              and (e_null is None or not same_slice(e_null, errors[id(chosen)], errors[id(c)], pol))]
     if close:
         names = sorted({"a misfit locked to the drive" if c.limit == DRIVE_LOCKED else c.cause for c in close})
-        return f"{', '.join(names)} predicts the held-out records about as well, removing another part"
-    return ""
+        rivals = sorted({"drive-locked" if c.limit == DRIVE_LOCKED else c.cause for c in close})
+        return {"why": "rivals", "rivals": rivals,
+                "text": f"{', '.join(names)} predicts the held-out records about as well, removing another part"}
+    return {"why": "", "rivals": [], "text": ""}
 
 
 def specific_part(folds: Folds, errors: dict, ok: Sequence[Candidate], partial: Candidate,

@@ -109,7 +109,8 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
     diag.verdict = Verdict("none", None, reason=(
         f"{v.reason}; but fitted on the identification records {p.label} does not predict the validation records "
         f"beyond their noise ({100 * g['explained_whole']:.1f} % of their residual removed, z = {g['z_whole']:.2f}, "
-        f"needs {diag.screen.policy.z_confirm:.3g}): the structure it pointed to is not borne out on data that took no part, so "
+        f"needs {diag.screen.policy.z_confirm:.3g}): the structure it pointed to is not borne out on data that took "
+        "no part, so "
         f"nothing is named"), not_identified=v.not_identified, partial=p)
 
 
