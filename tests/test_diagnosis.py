@@ -1847,7 +1847,7 @@ def test_a_delay_shorter_than_one_sample_is_not_a_delay():
     """An input late by less than a sample is the input plus a first difference of it (a rate term): such a
     delay is outside the cause's meaning. ``Screen.limit_of`` against the coarsest record's sample time."""
     fake = SimpleNamespace(parts=[SimpleNamespace(record=SimpleNamespace(dt=1e-3)),
-                                  SimpleNamespace(record=SimpleNamespace(dt=2e-3))])
+                                  SimpleNamespace(record=SimpleNamespace(dt=2e-3))], policy=POLICY)
     assert "shorter than one sample (2 ms)" in Screen.limit_of(fake, "delay", {"delay_s": 1.5e-3})
     assert Screen.limit_of(fake, "delay", {"delay_s": 2e-3}) == ""
 
