@@ -81,7 +81,7 @@ from .validation import borne_out, check_also, check_unexplained, fit_extension,
 from .policy import Policy
 from .selection import Verdict, decide, step
 
-FORMAT = "hysbench-diagnosis/2"
+FORMAT = "hysbench-diagnosis/3"  # 3: the thresholds in "policy" (not "settings"), the rule "trace"
 
 
 class DiagnosisError(HysbenchError):
