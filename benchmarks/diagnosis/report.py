@@ -410,7 +410,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Why: the rules that decided, in order", "",
               "Each rule of docs/diagnosis.md (\"The decision rule\") that decided or changed the verdict, with what "
-              f"it decided and on what ({d.policy.summary()}).", "", *trace_lines(d)]
+              "it decided and on what.", "", *trace_lines(d)]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
