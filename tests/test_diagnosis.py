@@ -1501,7 +1501,7 @@ def test_cli_writes_report_and_json(tmp_path):
     assert data["trace"][-1]["outcome"] == ("confirmed" if data["confirmed_on_validation"] else "not confirmed")
     assert set(data["before"]) == {r.file for r in ds.records} == set(data["after"])
     md = (out / "diagnosis.md").read_text()
-    assert "policy v1, changed from the default rule: max_secondary = 3" in md and "## Why" in md
+    assert "Policy v1, changed from the default rule: max_secondary = 3" in md and "## Why" in md
     for png in ("residual_time", "residual_input", "residual_phase", "residual_spectrum", "error_vs_frequency",
                 "whiteness", "candidates"):
         assert (out / f"diagnosis_{png}.png").stat().st_size > 1000

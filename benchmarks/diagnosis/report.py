@@ -415,7 +415,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
-              f"Rule: {d.decision_rule}.", "", f"Policy: {d.policy.summary()}; every field is in the JSON "
+              f"Rule: {d.decision_rule}.", "", f"P{d.policy.summary()[1:]}; every field is in the JSON "
               "(`policy`).", *not_held_out_lines(d), "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
