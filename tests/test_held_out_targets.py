@@ -188,10 +188,10 @@ def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_ot
 
 
 def test_the_report_names_a_record_held_out_in_part_with_its_own_time_or_not_predicted():
-    d = SimpleNamespace(settings={"not_held_out": [
+    d = SimpleNamespace(policy=Policy(), settings={"not_held_out": [
         {"record": "a.csv", "beyond_others_range": 0.093, "predicted_share": 0.5, "held_out_until_s": 107.5},
         {"record": "b.csv", "beyond_others_range": 0.2, "predicted_share": 0.0, "held_out_until_s": None}]})
     text = " ".join(not_held_out_lines(d))
     assert "a.csv (predicted up to t = 107.5 s, 50 % of it; beyond by 9 % of the input span)" in text
     assert "b.csv (not predicted; beyond by 20 % of the input span)" in text
-    assert not_held_out_lines(SimpleNamespace(settings={})) == []
+    assert not_held_out_lines(SimpleNamespace(policy=Policy(), settings={})) == []
