@@ -101,6 +101,7 @@ def test_workers_die_with_a_killed_parent(tmp_path):
         workers = _wait_for(lambda: [p for p in _children(proc.pid)
                                      if b"spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes()], 60,
                             "the worker processes")
+        assert workers
         family = _children(proc.pid)  # the workers and multiprocessing's resource tracker
         proc.kill()  # SIGKILL: the parent runs no code of its own
         proc.wait()
