@@ -179,6 +179,14 @@ class SteppingBase(Stepper):
 
     _state_keys: tuple[str, ...] = ()
 
+    def __init__(self, model, dt: float, params):
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ModelError(f"model {model.name!r}: time step must be positive, got {dt!r}")
+        self.model = model
+        self.dt = float(dt)
+        self._p = model.unpack(model.pack(params)) if isinstance(params, Mapping) else model.unpack(params)
+        self.k = lag_step(self._p["sample_time"], dt)
+
     def _input(self, u) -> float:
         return check_step_input(f"model {self.model.name!r} stepper", u)
 
@@ -194,12 +202,7 @@ class BlackBoxStepper(SteppingBase):
     _state_keys = ("n", "u_first", "u_scaled", "y_scaled")
 
     def __init__(self, model: "LaggedBlackBox", dt: float, params: Mapping[str, float]):
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ModelError(f"model {model.name!r}: time step must be positive, got {dt!r}")
-        self.model = model
-        self.dt = float(dt)
-        self._p = model.unpack(model.pack(params)) if isinstance(params, Mapping) else model.unpack(params)
-        self.k = lag_step(self._p["sample_time"], dt)
+        super().__init__(model, dt, params)
         self._evaluate = model.evaluator(self._p)
         self.reset()
 

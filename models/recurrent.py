@@ -16,7 +16,6 @@ scored and reloaded without the extra.
 from __future__ import annotations
 
 import math
-from typing import Mapping
 
 import numpy as np
 from numba import njit
@@ -84,12 +83,7 @@ class GRUStepper(SteppingBase):
     _state_keys = ("n", "chains")
 
     def __init__(self, model: "RecurrentNetwork", dt: float, params):
-        if not (dt > 0 and math.isfinite(dt)):
-            raise ModelError(f"model {model.name!r}: time step must be positive, got {dt!r}")
-        self.model = model
-        self.dt = float(dt)
-        self._p = model.unpack(model.pack(params)) if isinstance(params, Mapping) else model.unpack(params)
-        self.k = lag_step(self._p["sample_time"], dt)
+        super().__init__(model, dt, params)
         self._w = model.gru_weights(self._p)
         self.reset()
 
