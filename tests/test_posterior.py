@@ -6,13 +6,13 @@ Slow obvious references live here: dense multivariate normals with the AR(1)
 Toeplitz covariance, brute-force numerical integration over the linear
 parameters, NumPy Gram matrices, the base ``regressors`` interface.
 
-Calibration test, reduced to stay within CI's budget (same property checked):
-MRPIM with 4 operators and a quadratic polynomial (11 parameters instead of
-21), the four identification frequencies at a 20 ms step (instead of 1 ms)
-over two periods, 16 walkers run until the chain is >= 50 tau long with
->= 300 effective samples (instead of 1000); the independent-noise contrast on
-10 of the 20 data sets. Its truth is that reduced
-model's varpro fit to Table 2's noise-free output at a 10 ms step (rounded).
+Calibration check, reduced to stay within CI's budget (same property checked;
+the full study is in benchmarks/speed/bench_posterior.py): MRPIM with 4
+operators and a quadratic polynomial (11 parameters instead of 21), the four
+identification frequencies at a 20 ms step (instead of 1 ms) over two periods,
+16 walkers run until the chain is >= 50 tau long with >= 300 effective samples
+(instead of 1000). Its truth is that reduced model's varpro fit to Table 2's
+noise-free output at a 10 ms step (rounded).
 """
 
 import json
@@ -199,31 +199,41 @@ def test_a_walker_that_never_moves_gives_no_autocorrelation_time_and_no_warning(
 
 
 # --- calibration -------------------------------------------------------------------------
-N_DATASETS = 20
-N_IID = 10  # the independent-noise contrast on the first 10 (it is printed, and must be clearly off)
+# The suite's check: 6 data sets (72 pairs); the full study (20 data sets, 240 pairs, 80-97 %) is
+# benchmarks/speed/bench_posterior.py. Bounds for 72 pairs at a true 90 %: the binomial's 3-sd limits,
+# 0.90 -/+ 3 * sqrt(0.9 * 0.1 / 72) = 0.79 / 1.01, so only a clearly too-narrow interval fails, and the
+# independent-noise likelihood (47 % in the full study) must stay clearly below 80 %.
+N_DATASETS = 6
+N_IID = 3
 
 
-def test_credible_intervals_are_calibrated_under_ar1_noise():
-    """90 % intervals cover the truth for 80-97 % of (data set, parameter) pairs with the AR(1)
-    likelihood; the independent-noise likelihood on the same data is printed for contrast."""
+def credible_interval_coverage(n_datasets: int, n_iid: int) -> tuple[float, float, int, int]:
+    """Share of (data set, parameter) pairs whose 90 % interval holds the truth, with the AR(1) likelihood on
+    ``n_datasets`` simulated data sets and the independent-noise one on the first ``n_iid``; and the pair
+    counts."""
     model = get_model("mrpim", **SMALL)
     truth_ar1 = dict(TRUTH, sigma=SIGMA, phi=PHI)
     hits = {"ar1": [], "iid": []}
-    for k in range(N_DATASETS):
+    for k in range(n_datasets):
         ds = simulated_ar1_dataset(model, TRUTH, sigma=SIGMA, phi=PHI, seed=1000 + k, n_periods=2, dt=0.02,
                                    frequencies=tuple(IDENTIFICATION_WEIGHTS))
-        for noise in ("ar1", "iid") if k < N_IID else ("ar1",):
+        for noise in ("ar1", "iid") if k < n_iid else ("ar1",):
             run = sample_posterior(model, ds, noise=noise, n_walkers=16, max_steps=3000, min_ess=300, seed=k,
                                    progress=False, discrepancy="none", calibrate=False)
             assert run.conv.converged, (k, noise, run.conv.problems)
             table = run.parameter_table()
             truth = truth_ar1 if noise == "ar1" else TRUTH  # under iid, sigma is another quantity
             hits[noise] += [table[n]["q05"] <= v <= table[n]["q95"] for n, v in truth.items()]
-    ar1, iid = float(np.mean(hits["ar1"])), float(np.mean(hits["iid"]))
-    print(f"\n90 % interval coverage: AR(1) likelihood {ar1:.1%} ({N_DATASETS} data sets, {len(hits['ar1'])} "
-          f"pairs), independent-noise likelihood {iid:.1%} ({N_IID} data sets, {len(hits['iid'])} pairs)")
-    assert 0.80 <= ar1 <= 0.97
-    # the data are autocorrelated enough that ignoring it is visibly wrong (the check above has teeth)
+    return float(np.mean(hits["ar1"])), float(np.mean(hits["iid"])), len(hits["ar1"]), len(hits["iid"])
+
+
+def test_credible_intervals_are_calibrated_under_ar1_noise():
+    """90 % intervals hold the truth for at least 79 % of the pairs with the AR(1) likelihood; the
+    independent-noise likelihood on the same data is clearly off (the check has teeth)."""
+    ar1, iid, n_ar1, n_iid = credible_interval_coverage(N_DATASETS, N_IID)
+    print(f"\n90 % interval coverage: AR(1) likelihood {ar1:.1%} ({n_ar1} pairs), independent-noise likelihood "
+          f"{iid:.1%} ({n_iid} pairs)")
+    assert ar1 >= 0.79
     assert iid < 0.80
 
 

@@ -10,7 +10,10 @@ stopping once converged with the ESS target met); not the report.
 Discrepancy: the default (input relaxations, ``discrepancy="relaxation"``), so MRPIM's 21
 parameters plus the discrepancy's coefficients, all integrated out, must meet the target.
 
-The second benchmark is the full calibration check under misspecification:
+The second is the suite's credible-interval calibration check at full size (20 data sets
+simulated from a reduced MRPIM with AR(1) noise; tests/test_posterior.py runs 6).
+
+The third is the full calibration check under misspecification:
 plain MRPIM (21 parameters) fitted to 10 data sets of the virtual DEA's physics with drawn
 relaxation times and moduli, and 10 of MRPIM plus a planted first-order relaxation (the
 generators of tests/test_posterior.py, at a 10 ms step over 3 periods); the mean held-out 90 %
@@ -41,6 +44,7 @@ from hysbench.models import get_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 from misspecified_data import planted_relaxation_dataset, virtual_dea_dataset  # noqa: E402  (the tests' generators)
+from test_posterior import credible_interval_coverage  # noqa: E402  (the suite's check, at full size)
 
 DEFAULT_DATASET = default_dataset_path()
 TARGET_SECONDS = 120.0
@@ -86,6 +90,17 @@ def test_posterior_ess_per_second(benchmark, tmp_path):
     assert c.converged, c.problems
     assert np.min(ess) >= TARGET_ESS
     assert wall <= TARGET_SECONDS
+
+
+def test_credible_interval_coverage_under_ar1_noise(benchmark):
+    """The suite's calibration check at full size: 20 data sets (240 pairs), the independent-noise contrast on
+    10; the AR(1) coverage must lie within 80-97 % and the independent-noise one below 80 %."""
+    ar1, iid, n_ar1, n_iid = benchmark.pedantic(credible_interval_coverage, args=(20, 10), rounds=1, iterations=1)
+    benchmark.extra_info.update(coverage_ar1=ar1, pairs_ar1=n_ar1, coverage_iid=iid, pairs_iid=n_iid)
+    print(f"\n90 % interval coverage: AR(1) likelihood {ar1:.1%} ({n_ar1} pairs), independent-noise likelihood "
+          f"{iid:.1%} ({n_iid} pairs)")
+    assert 0.80 <= ar1 <= 0.97
+    assert iid < 0.80
 
 
 @pytest.mark.parametrize("generator", ["planted relaxation", "virtual DEA"])
