@@ -1086,6 +1086,8 @@ class Pin:
 
 
 NOT_A_CAUSE = ("none", "unexplained")
+# a test that reads a pinned case runs in the process that diagnosed it (pyproject: --dist loadgroup)
+same_worker = pytest.mark.xdist_group
 PINNED = {
     # a relaxation whose second time constant sits at its bound gives the variant of one fewer
     "relaxation-one-fewer-than-a-pinned-pair": Pin(("relaxation",), "mrpim", "sines", 3500182, extend=False,
@@ -1187,7 +1189,7 @@ PINNED = {
 }
 
 
-@pytest.mark.parametrize("name", list(PINNED))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=same_worker(n)) for n in PINNED])
 def test_a_pinned_planted_case_gives_its_verdict(name):
     pin = PINNED[name]
     d, truth = pin.diagnosed()
@@ -1217,11 +1219,13 @@ def pinned(name):
     return PINNED[name].diagnosed()
 
 
+@same_worker("relaxation-one-fewer-than-a-pinned-pair")
 def test_a_relaxation_of_one_fewer_time_constant_replaces_a_pair_with_one_pinned():
     d, _ = pinned("relaxation-one-fewer-than-a-pinned-pair")
     assert len(d.parameters["tau_s"]) == 1
 
 
+@same_worker("modulation-slower-than-the-records")
 def test_a_slow_modulation_is_outside_the_interferences_meaning():
     d, _ = pinned("modulation-slower-than-the-records")
     slow = [c for c in d.candidates if c.cause == "interference"
@@ -1229,12 +1233,14 @@ def test_a_slow_modulation_is_outside_the_interferences_meaning():
     assert all(c.limit for c in slow)
 
 
+@same_worker("line-below-the-gain-floor")
 def test_a_line_below_the_gain_floor_is_one_line_on_every_fold():
     d, _ = pinned("line-below-the-gain-floor")
     h = d.chosen.heldout
     assert h["same_line"] and h["refit_per_fold"] and 0 < h["gain"] < d.policy.min_explained
 
 
+@same_worker("relaxation-dropped-for-delay-with-creep-standing-in")
 def test_a_creep_replacing_a_relaxation_may_sit_at_either_end_of_its_time_scale():
     """Creep standing for a relaxation slower than every drive period: its time scale at the fastest its meaning
     allows or the slowest searched; reported as not identified, in the trace, the JSON and the also line."""
@@ -1257,6 +1263,7 @@ def test_a_creep_replacing_a_relaxation_may_sit_at_either_end_of_its_time_scale(
     assert d.to_json()["dropped_as_redundant"]["cause"] == "relaxation"
 
 
+@same_worker("creep-open-ended-named-with-a-mode-on-top")
 def test_a_creep_running_to_its_upper_bound_is_open_ended_not_at_bound():
     d, _ = pinned("creep-open-ended-named-with-a-mode-on-top")
     assert d.chosen.heldout["open_ended"] == ["creep_time"] and not d.chosen.heldout["at_bound"]
@@ -1266,6 +1273,7 @@ def test_a_creep_running_to_its_upper_bound_is_open_ended_not_at_bound():
     assert any(n.startswith("creep: creep_time (") for n in d.to_json()["not_identified"])
 
 
+@same_worker("clip-searched-on-top-of-the-named-cause")
 def test_a_clip_on_top_is_flat_where_it_cuts_and_a_level_that_cuts_nothing_is_outside_its_meaning():
     d, _ = pinned("clip-searched-on-top-of-the-named-cause")
     clip = next(c for c in d.also if c.cause == "saturation")
@@ -1275,6 +1283,7 @@ def test_a_clip_on_top_is_flat_where_it_cuts_and_a_level_that_cuts_nothing_is_ou
     assert tried and all(c.limit for c in tried)
 
 
+@same_worker("gain-modulation-is-no-clip")
 def test_a_clip_candidate_that_does_not_leave_the_output_flat_is_outside_its_meaning():
     """Where a fitted clip cuts, an output that still rises with the model, or moves against it, is no clip."""
     d, _ = pinned("gain-modulation-is-no-clip")
@@ -1285,24 +1294,28 @@ def test_a_clip_candidate_that_does_not_leave_the_output_flat_is_outside_its_mea
     assert clip.estimates["slope_where_clipped"] < -d.policy.max_clipped_slope and clip.limit
 
 
+@same_worker("clip-predicted-from-records-that-show-it")
 def test_a_fold_whose_records_show_no_clip_leaves_the_level_open():
     d, truth = pinned("clip-predicted-from-records-that-show-it")
     folds = d.chosen.uncertainty["saturation_level"]["folds"]
     assert max(folds) - min(folds) > 0.05 * truth["p2p"]  # one fold's records did not pin the level
 
 
+@same_worker("sub-sample-delay-on-white-noise-is-none")
 def test_a_delay_shorter_than_one_sample_on_a_null_is_outside_its_meaning():
     d, _ = pinned("sub-sample-delay-on-white-noise-is-none")
     delay = next(c for c in d.candidates if c.cause == "delay")
     assert delay.estimates["delay_s"] < 2e-3 and delay.limit
 
 
+@same_worker("partial-mode-completed-by-creep")
 def test_a_partial_cause_completed_on_top_is_timed():
     d, _ = pinned("partial-mode-completed-by-creep")
     parts = {k: v for k, v in d.timings.items() if k != "total"}
     assert abs(sum(parts.values()) - d.timings["total"]) <= 0.05 * d.timings["total"], d.timings
 
 
+@same_worker("creep-on-the-physics-is-ambiguous-with-its-slow-relaxation")
 def test_creep_ambiguous_with_a_slow_relaxation_is_scored_and_separated_by_a_suggested_experiment():
     d, _ = pinned("creep-on-the-physics-is-ambiguous-with-its-slow-relaxation")
     assert max(d.chosen.estimates["tau_s"]) > d.screen.creep_min / d.policy.creep_periods
@@ -1313,6 +1326,7 @@ def test_creep_ambiguous_with_a_slow_relaxation_is_scored_and_separated_by_a_sug
     assert evidence["ambiguous"] and evidence["cause"] == "creep"
 
 
+@same_worker("mode-kept-as-a-delay-on-the-physics")
 def test_a_cause_kept_on_top_lists_those_as_good_with_their_fits_and_the_drive_that_separates_them():
     d, truth = pinned("mode-kept-as-a-delay-on-the-physics")
     delay = next(c for c in d.also if c.cause == "delay")
@@ -1327,6 +1341,7 @@ def test_a_cause_kept_on_top_lists_those_as_good_with_their_fits_and_the_drive_t
         "natural_frequency_hz"]
 
 
+@same_worker("delay-on-the-piezo-beside-an-unidentified-rival")
 def test_one_drive_is_a_caution_on_a_delay():
     d, _ = pinned("delay-on-the-piezo-beside-an-unidentified-rival")
     # three records of one 1 Hz sine: a delay there only reshapes the response, as a dead band could
@@ -1335,6 +1350,7 @@ def test_one_drive_is_a_caution_on_a_delay():
     assert d.to_json()["one_drive_caution"] == d.one_drive_caution
 
 
+@same_worker("line-within-a-broadband-drives-reach")
 def test_records_without_a_nominal_frequency_scale_the_causes_by_their_drive_band():
     """Multisines of 0.1-2 Hz tones (no ``frequency_hz``): the causes' time scale is the band's shortest period,
     not the record's duration (so a 38 Hz line is within reach); creep's floor stays the records' duration; a
@@ -1347,6 +1363,7 @@ def test_records_without_a_nominal_frequency_scale_the_causes_by_their_drive_ban
             0.5 / d.dataset.records[0].dt)
 
 
+@same_worker("line-on-top-of-the-physics-relaxation")
 def test_an_interference_on_top_of_a_kept_cause_is_chosen_without_the_left_out_record():
     """The frequency and amplitude of an interference tried on top of a kept cause come, in each fold, from
     what is kept fitted on the other records alone (``train_residuals``): a strong 41 Hz line added to
@@ -1371,6 +1388,7 @@ def test_an_interference_on_top_of_a_kept_cause_is_chosen_without_the_left_out_r
                        on_top(loud, folds, quiet_e, loud_train, 13.7)[rows])
 
 
+@same_worker("weak-line-found-on-top-of-what-is-kept")
 def test_secondary_causes_are_selected_forward_on_top_of_what_is_kept():
     """A weak interference on the virtual DEA removes under 1 % of the held-out misfit left by its relaxation
     alone, but more than that on top of relaxation + the physics' lag: it is found only if each secondary cause
@@ -1399,6 +1417,7 @@ def test_secondary_causes_are_selected_forward_on_top_of_what_is_kept():
     assert moved[1]["delay"] != pytest.approx(fold_est[1]["delay"], rel=1e-6)
 
 
+@same_worker("mode-on-the-piezo-with-a-line-tried-on-top")
 def test_an_interference_on_top_reports_and_checks_the_frequencies_it_was_scored_at():
     """The interference tried on top of a named mode (the piezo recording's two 2-s records of the 1 Hz drive) is
     scored at the frequency each fold chose, not at the one fitted on every record against the base alone: its
@@ -1459,6 +1478,7 @@ def test_every_policy_field_is_in_the_documented_table_with_its_value():
         assert doc.split(" (")[0][:30] in text or doc[:30] in text, name
 
 
+@same_worker("level-that-cuts-nothing-is-no-clip-on-top")
 def test_a_different_policy_gives_the_verdict_its_thresholds_decide():
     """The policy is passed down: with ``z_pass`` above every candidate's block z and ``strong_gain`` above every
     gain nothing is evidence, and a planted creep the default rule names gives no cause."""
