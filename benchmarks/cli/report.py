@@ -3,7 +3,8 @@
 Reports: ``identification`` (every identifier on MRPIM and classical P-I),
 ``baselines`` (the baselines in the layout of the paper's Tables 3 and 4),
 ``virtual-dea`` (the virtual DEA against the paper's figures), ``bouc-wen``
-(the Bouc-Wen benchmark's league table with hysbench's models) and
+(the Bouc-Wen benchmark's league table with hysbench's models), ``amplitude``
+(the virtual DEA's best fits driven beyond their identified voltage range) and
 ``calibrate-virtual-dea`` (re-run the calibration of the virtual DEA's
 parameters; prints the parameter set). Adding a report is one entry in
 ``REPORTS``: a help line, an ``add_arguments`` and a ``run`` function.
@@ -14,11 +15,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hysbench.benchmarks.reports import baselines, bouc_wen, identification, virtual_dea
+from hysbench.benchmarks.reports import amplitude, baselines, bouc_wen, identification, virtual_dea
 from hysbench.data import calibrate_virtual_dea as calibration
 from hysbench.data.virtual_dea import DEFAULT_SEED
 
-from .common import OneLineParser, add_dataset_argument, add_seed_argument, comma_list, dataset_paths, positive_int
+from .common import CommandError, OneLineParser, add_dataset_argument, add_seed_argument, comma_list, dataset_paths, positive_int
 
 EXAMPLE = "hysbench report identification data/virtual_dea --out results"
 
@@ -51,6 +52,22 @@ def _bouc_wen_arguments(parser):
                         help="the Bouc-Wen benchmark's folder (default ../shared/datasets/bouc_wen_benchmark)")
     _out_folder(parser)
     add_seed_argument(parser)
+
+
+def _amplitude_arguments(parser):
+    parser.add_argument("--results", default="results",
+                        help="the output folder of `hysbench run` whose cells/ are read; the report is written there "
+                             "(default results/)")
+
+
+def _amplitude(args) -> int:
+    results = Path(args.results)
+    if not (results / "cells").is_dir():
+        raise CommandError(f"{results}: no cells/ folder (run `hysbench run --out {results}` first)")
+    if not amplitude.best_cells(results):
+        raise CommandError(f"{results}/cells: no finished cell identified on the dataset {amplitude.IDENTIFIED_ON}")
+    print(f"wrote {amplitude.write(results)}")
+    return 0
 
 
 def _calibration_arguments(parser):
@@ -94,6 +111,8 @@ REPORTS = {
                     _virtual_dea_arguments, lambda a: virtual_dea.write_report(Path(a.out), a.seed)),
     "bouc-wen": ("the Bouc-Wen benchmark's league table with hysbench's models (results/bouc_wen_benchmark.md)",
                  _bouc_wen_arguments, lambda a: bouc_wen.write_report(Path(a.out), a.seed, Path(a.dataset))),
+    "amplitude": ("the virtual DEA's best fits driven beyond their identified voltage range "
+                  "(results/amplitude_extrapolation.md)", _amplitude_arguments, _amplitude),
     "calibrate-virtual-dea": ("re-run the calibration of the virtual DEA's parameters (prints them)",
                               _calibration_arguments, _calibrate),
 }
