@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,14 @@ def drive(amplitude_kv: float, dt: float = SAMPLE_TIME_S) -> np.ndarray:
     return OFFSET_KV - amplitude_kv * np.cos(2 * np.pi * FREQUENCY_HZ * t)
 
 
+@lru_cache(maxsize=None)
+def reference(amplitude_kv: float) -> np.ndarray:
+    """The virtual DEA's noise-free displacement for the drive of this amplitude (computed once per process)."""
+    y = displacement_mm(drive(amplitude_kv))
+    y.flags.writeable = False
+    return y
+
+
 def best_cells(results_dir: Path) -> list[dict]:
     cells = [json.loads(p.read_text()) for p in sorted((results_dir / "cells").glob("*.json"))]
     cells = [c for c in cells if c.get("dataset") == IDENTIFIED_ON and c.get("status") == "ok" and c.get("fit")]
@@ -46,7 +55,7 @@ def best_cells(results_dir: Path) -> list[dict]:
 
 def study(results_dir: Path) -> list[dict]:
     period = int(round(1.0 / (FREQUENCY_HZ * SAMPLE_TIME_S)))
-    refs = {a: displacement_mm(drive(a)) for a in AMPLITUDES_KV}
+    refs = {a: reference(a) for a in AMPLITUDES_KV}
     rows = []
     for res in best_cells(results_dir):
         fit = Fit.from_dict(res["fit"])
