@@ -19,12 +19,14 @@ that a fitted model is one fixed operator on every record.
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass, replace
 from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from .errors import ModelError
+from .kernels import all_finite
 from .stepper import InverseStepper, ReplayStepper, Stepper
 from .window import Window
 
@@ -258,9 +260,9 @@ class HysteresisModel:
         u = np.ascontiguousarray(u, dtype=float)
         if u.ndim != 1 or u.size == 0:
             raise ModelError(f"model {self.name!r} needs a non-empty 1-D input, got shape {u.shape}")
-        if not np.all(np.isfinite(u)):
+        if not all_finite(u):
             raise ModelError(f"model {self.name!r}: input holds NaN or inf")
-        if not (dt > 0 and np.isfinite(dt)):
+        if not (dt > 0 and math.isfinite(dt)):
             raise ModelError(f"model {self.name!r}: time step must be positive, got {dt!r}")
         return u
 

@@ -30,6 +30,20 @@ from numba import njit, prange  # noqa: E402
 KERNEL_FASTMATH = {"nnan", "ninf", "nsz", "arcp", "afn"}
 
 
+_EXPONENT = np.uint64(0x7FF0000000000000)  # all exponent bits set: inf or NaN
+
+
+@njit(cache=True, nogil=True)
+def all_finite(x):
+    """Whether a contiguous 1-D float64 array holds no NaN or inf: an integer test of the exponent
+    bits, which vectorises (about 4x faster than ``np.isfinite(x).all()`` on long records)."""
+    bits = x.view(np.uint64)
+    top = np.uint64(0)
+    for k in range(bits.shape[0]):
+        top = max(top, bits[k] & _EXPONENT)
+    return top != _EXPONENT
+
+
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
 def play_update(w, lower, upper):
     """One sample of a play operator: its previous output w clamped into the band
@@ -183,19 +197,26 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
     smoothed derivative's); u1 = u(k-1); the state w (plays), xf (filters) is that after
     sample k-1 and moves to sample k only when ``commit``. ``want_slope``: also dy/du (the
     inverse's Newton steps). ``upper_offsets=False``: r_hi is all zero and not read (the one-sided
-    plays of classical-pi and mrpim; the batch kernel's fast path, same result). The one home of the P-I family's per-sample maths: the batch
-    kernels, the inverse, the steppers call it, and the exported C (models/export_c.py) is
-    generated from the same expressions in the same order."""
+    plays of classical-pi and mrpim; the batch kernel's fast path, same result). The one home of
+    the P-I family's per-sample maths: the batch kernels, the inverse, the steppers call it, and
+    the exported C (models/export_c.py) is generated from the same expressions in the same order."""
     acc = 0.0
     dy = 0.0
-    for i in range(r_lo.shape[0]):
+    n = r_lo.shape[0]
+    if commit:
+        # The plays move first, in a loop of their own (vectorised over the plays); the sum below
+        # then reads them: the same operations in the same order, fewer instructions per sample.
+        for i in range(n):
+            upper = u + g_hi * a
+            if upper_offsets:
+                upper += r_hi[i]
+            w[i] = play_update(w[i], u - g_lo * a - r_lo[i], upper)
+    for i in range(n):
         lower = u - g_lo * a - r_lo[i]
         upper = u + g_hi * a
         if upper_offsets:
             upper += r_hi[i]
-        v = play_update(w[i], lower, upper)
-        if commit:
-            w[i] = v
+        v = w[i] if commit else play_update(w[i], lower, upper)
         acc += weights[i] * v
         if want_slope:
             if v == lower:
