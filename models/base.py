@@ -180,7 +180,10 @@ class HysteresisModel:
     # --- evaluation ------------------------------------------------------
     def simulate(self, u, dt: float, params: Mapping[str, float] | np.ndarray, input_range=None) -> np.ndarray:
         """Output for a 1-D input sampled every ``dt`` seconds."""
-        vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
+        if isinstance(params, np.ndarray):  # first: cheaper than the Mapping (abstract class) test
+            vec = params.astype(float, copy=False)
+        else:
+            vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
         return self.simulate_batch(u, dt, vec[None, :], input_range=input_range)[0]
 
     def simulate_batch(self, u, dt: float, param_sets: np.ndarray, input_range=None) -> np.ndarray:
@@ -267,7 +270,9 @@ class HysteresisModel:
         return u
 
     def _check_param_sets(self, param_sets) -> np.ndarray:
-        P = np.ascontiguousarray(np.atleast_2d(np.asarray(param_sets, dtype=float)))
+        P = param_sets
+        if not (isinstance(P, np.ndarray) and P.ndim == 2 and P.dtype == np.float64 and P.flags.c_contiguous):
+            P = np.ascontiguousarray(np.atleast_2d(np.asarray(param_sets, dtype=float)))
         if P.ndim != 2 or P.shape[1] != self.n_params:
             raise ModelError(
                 f"model {self.name!r} takes {self.n_params} parameters ({', '.join(self.param_names)}), "
