@@ -82,7 +82,7 @@ def test_stepping_through_a_record_equals_simulate(name, u):
 
 
 # models whose stepper keeps a fixed-size state and advances it with the batch kernel's per-sample update
-FIXED_STATE = ["bouc-wen", "dual-polynomial", "elliptical", "preisach"]
+FIXED_STATE = ["bouc-wen", "dual-polynomial", "elliptical", "preisach", "viscoelastic"]
 
 
 @pytest.mark.parametrize("name", FIXED_STATE)
