@@ -174,7 +174,10 @@ class ArrayStepper(Stepper):
         self._state[:] = self._rest()
 
     def step(self, u: float) -> float:
-        u = float(u)
+        try:
+            u = float(u)
+        except (TypeError, ValueError):
+            check_step_input(self.model.name, u)  # raises the one-line ModelError
         if u - u != 0.0:  # NaN or inf (cheaper than math.isfinite on a hot path)
             check_step_input(self.model.name, u)
         return self._advance(u)
