@@ -19,12 +19,14 @@ that a fitted model is one fixed operator on every record.
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass, replace
 from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from .errors import ModelError
+from .kernels import all_finite
 from .stepper import InverseStepper, ReplayStepper, Stepper
 from .window import Window
 
@@ -178,7 +180,10 @@ class HysteresisModel:
     # --- evaluation ------------------------------------------------------
     def simulate(self, u, dt: float, params: Mapping[str, float] | np.ndarray, input_range=None) -> np.ndarray:
         """Output for a 1-D input sampled every ``dt`` seconds."""
-        vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
+        if isinstance(params, np.ndarray):  # first: cheaper than the Mapping (abstract class) test
+            vec = params.astype(float, copy=False)
+        else:
+            vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
         return self.simulate_batch(u, dt, vec[None, :], input_range=input_range)[0]
 
     def simulate_batch(self, u, dt: float, param_sets: np.ndarray, input_range=None) -> np.ndarray:
@@ -258,14 +263,16 @@ class HysteresisModel:
         u = np.ascontiguousarray(u, dtype=float)
         if u.ndim != 1 or u.size == 0:
             raise ModelError(f"model {self.name!r} needs a non-empty 1-D input, got shape {u.shape}")
-        if not np.all(np.isfinite(u)):
+        if not all_finite(u):
             raise ModelError(f"model {self.name!r}: input holds NaN or inf")
-        if not (dt > 0 and np.isfinite(dt)):
+        if not (dt > 0 and math.isfinite(dt)):
             raise ModelError(f"model {self.name!r}: time step must be positive, got {dt!r}")
         return u
 
     def _check_param_sets(self, param_sets) -> np.ndarray:
-        P = np.ascontiguousarray(np.atleast_2d(np.asarray(param_sets, dtype=float)))
+        P = param_sets
+        if not (isinstance(P, np.ndarray) and P.ndim == 2 and P.dtype == np.float64 and P.flags.c_contiguous):
+            P = np.ascontiguousarray(np.atleast_2d(np.asarray(param_sets, dtype=float)))
         if P.ndim != 2 or P.shape[1] != self.n_params:
             raise ModelError(
                 f"model {self.name!r} takes {self.n_params} parameters ({', '.join(self.param_names)}), "

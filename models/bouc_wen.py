@@ -64,6 +64,7 @@ from .errors import ModelError
 from .hyperparameters import check_bool
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
+from .stepper import ArrayStepper, stepper_input_range
 
 Z_CAP = 1e3
 MAX_SUBSTEPS = 4096
@@ -247,6 +248,36 @@ def bouc_wen_candidate(u, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx,
     return offset + kx * xi + kz * z, xi, z
 
 
+@njit(cache=True, nogil=True)
+def bouc_wen_advance(u, state, c):
+    """One sample of ``BoucWenStepper``: state [first, xi(k-1), z(k-1)] moves to sample k through
+    ``bouc_wen_candidate`` (the batch kernel's ``bouc_wen_step``); c = [u_min, u_max, beta, gamma, n,
+    kx, kz, offset]. Returns y(k)."""
+    y, xi, z = bouc_wen_candidate(u, state[0] != 0.0, state[1], state[2], c[0], c[1], c[2], c[3], c[4], c[5], c[6],
+                                  c[7])
+    state[0] = 0.0
+    state[1] = xi
+    state[2] = z
+    return y
+
+
+class BoucWenStepper(ArrayStepper):
+    """The constant-time stepper of ``bouc-wen``: state (first, xi(k-1), z(k-1)); each step integrates
+    z over one sample interval with ``bouc_wen_step``, as ``simulate`` does."""
+
+    def __init__(self, model: "BoucWen", dt: float, params, input_range):
+        self._setup(model, dt, (("first", 0), ("xi", 0), ("z", 0)))
+        vec, rng = model._step_setup(params, stepper_input_range(model, input_range))
+        self._c = np.array(model.step_arguments(vec, rng), dtype=float)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        return np.array([1.0, 0.0, 0.0])
+
+    def _advance(self, u: float) -> float:
+        return bouc_wen_advance(u, self._state, self._c)
+
+
 @njit(cache=True)
 def bouc_wen_steps(yd, u_given, range_lo, range_hi, beta, gamma, n, kx, kz, offset, u_limit_lo, u_limit_hi, u_start,
                    max_step, n_grid, tol, clip_tol):
@@ -314,6 +345,11 @@ class BoucWen(KernelInvertible, HysteresisModel):
             return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
                                    offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    def stepper(self, dt: float, params, input_range=None) -> BoucWenStepper:
+        """A constant-time ``BoucWenStepper`` (the batch kernel's per-sample ``bouc_wen_step``)."""
+        self._check_causal()
+        return BoucWenStepper(self, dt, params, input_range)
 
     def step_arguments(self, vector, input_range) -> tuple:
         p = self.unpack(vector)

@@ -56,6 +56,7 @@ from .errors import ModelError
 from .hyperparameters import check_bool
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
+from .stepper import ArrayStepper, stepper_input_range
 
 
 def normalised_input(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -177,6 +178,66 @@ def branch_candidate(u, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, 
     return y, xi, sk, xt
 
 
+STATE_HEAD = 5  # first, u(k-1), direction, xi(k-1), xi_t
+
+
+@njit(cache=True, nogil=True)
+def branch_advance(u, state, coef, offset, x_lo, x_hi, square, kind, n_centre, n_half, work):
+    """One sample of ``BranchStepper``: ``branch_candidate`` at u from the state after the previous
+    sample, then committed (as ``branch_steps`` commits). state = [first, u(k-1), direction,
+    xi(k-1), xi_t, jump (nc), G_prev (n_centre), K_prev (n_half), prev_row (nc)]; work: 2 nc
+    floats of scratch. Returns y(k)."""
+    nc = n_centre + n_half
+    o = STATE_HEAD
+    jump = state[o:o + nc]
+    G_prev = state[o + nc:o + nc + n_centre]
+    K_prev = state[o + nc + n_centre:o + 2 * nc]
+    prev_row = state[o + 2 * nc:o + 3 * nc]
+    G, K = work[:n_centre], work[n_centre:nc]
+    jump_c, row = work[nc:2 * nc], work[2 * nc:3 * nc]
+    y, xi, sk, xt = branch_candidate(u, state[0] != 0.0, state[1], int(state[2]), state[3], state[4], jump, G_prev,
+                                     K_prev, prev_row, coef, offset, x_lo, x_hi, square, kind, G, K, jump_c, row)
+    jump[:] = jump_c
+    prev_row[:] = row
+    G_prev[:] = G
+    K_prev[:] = K
+    state[0] = 0.0
+    state[1] = u
+    state[2] = sk
+    state[3] = xi
+    state[4] = xt
+    return y
+
+
+class BranchStepper(ArrayStepper):
+    """The constant-time stepper of the branch models: state (first, u(k-1), direction, xi(k-1), the
+    reversal point xi_t, the memory, the previous bases and row); each step is ``branch_step``, the
+    per-sample rule ``branch_regressors`` runs. The output is offset + coefficients . row, summed in
+    order (``simulate`` takes the same sum as one matrix product: equal to rounding, ~1e-16)."""
+
+    def __init__(self, model: "BranchModel", dt: float, params, input_range):
+        nm, nh = model.n_centre, model.n_halfwidth
+        nc = nm + nh
+        self._setup(model, dt, (("first", 0), ("u1", 0), ("direction", 0), ("xi", 0), ("xi_reversal", 0),
+                                ("memory", nc), ("centre_bases", nm), ("halfwidth_bases", nh), ("row", nc)))
+        vec, rng = model._step_setup(params, stepper_input_range(model, input_range))
+        self._args = model.step_arguments(vec, rng)  # coef, offset, x_lo, x_hi, square, n_centre, kind, n_half
+        self._work = np.zeros(3 * nc)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        rest = np.zeros(self._state.size)
+        rest[0], rest[2] = 1.0, 1.0  # before the first sample; rising (s(0) = +1)
+        return rest
+
+    def _valid(self, array: np.ndarray) -> bool:
+        return bool(np.all(np.isfinite(array)) and abs(array[2]) == 1.0)
+
+    def _advance(self, u: float) -> float:
+        coef, offset, x_lo, x_hi, square, nm, kind, nh = self._args
+        return branch_advance(u, self._state, coef, offset, x_lo, x_hi, square, kind, nm, nh, self._work)
+
+
 @njit(cache=True)
 def branch_steps(yd, u_given, coef, offset, x_lo, x_hi, square, n_centre, kind, n_half, u_limit_lo, u_limit_hi,
                  u_start, max_step, n_grid, tol, clip_tol):
@@ -287,6 +348,11 @@ class BranchModel(KernelInvertible, HysteresisModel):
         Phi = self.regressors(u, dt, None, input_range)
         # the time loop is input-only (in branch_regressors); the parameter sets are one product
         return P @ Phi.T
+
+    def stepper(self, dt: float, params, input_range=None) -> BranchStepper:
+        """A constant-time ``BranchStepper`` (the per-sample rule of ``branch_regressors``)."""
+        self._check_causal()
+        return BranchStepper(self, dt, params, input_range)
 
     # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(branch_steps)

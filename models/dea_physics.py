@@ -253,6 +253,24 @@ def advance_sample(x, ua, ub, dt, m, p, n_br):
 
 
 @njit(cache=True)
+def stepper_sample(u_kv, dt, p, n_br, x, head, inv_6tau, work):
+    """One sample of the viscoelastic stepper: lam_a(t_k) - lam0 for input u_kv at this sample,
+    the state ``x`` advanced in place over the interval from the previous input (``_advance``, as
+    ``_simulate_one``). head = [first, u(k-1) (kV), substeps m, failed]: at the first sample m is
+    set from its input (as ``_simulate_one`` sets it from u(0)) and the state is the rest state;
+    after a failure every sample is NaN. work: (5, len(x)) scratch."""
+    if head[0] != 0.0:
+        head[0] = 0.0
+        head[2] = _substeps(u_kv, dt, p, n_br)
+    elif head[3] == 0.0:
+        m = int(head[2])
+        if not _advance(x, head[1], u_kv, dt / m, m, p, n_br, inv_6tau, work[0], work[1], work[2], work[3], work[4]):
+            head[3] = 1.0
+    head[1] = u_kv
+    return np.nan if head[3] != 0.0 else x[0] - p[3]
+
+
+@njit(cache=True)
 def invert_stretch(dlam, dt, p, n_br, u_lo, u_hi, u_start, max_step, tol):
     """The causal inverse of the physics: (u_kv, clipped) with lam_a(t_k) - lam0 = dlam[k].
 

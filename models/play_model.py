@@ -107,25 +107,48 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
         return cached
 
     # --- evaluation ------------------------------------------------------
+    def _parameter_arrays(self, P: np.ndarray) -> tuple:
+        """(gammas, lams, weights, polys, qs, offsets) of the parameter sets P (n_set, n_params).
+        A single set's arrays are kept and reused while the same set comes back (a fitted model,
+        a benchmark, a stepper's replay simulate one set again and again)."""
+        single = P.shape[0] == 1
+        key = P.tobytes() if single else None
+        cached = self.__dict__.get("_parameter_arrays_cache")
+        if single and cached is not None and cached[0] == key:
+            return cached[1]
+        n_set = P.shape[0]
+        idx = self._column_indices()
+        names = self.param_names
+        zeros = np.zeros(n_set)
+        arrays = (P[:, names.index("gamma")].copy() if self.envelopes else zeros,
+                  P[:, names.index("lambda")].copy() if self.envelopes else zeros,
+                  np.ascontiguousarray(P[:, idx["weights"]]), np.ascontiguousarray(P[:, idx["poly"]]),
+                  P[:, names.index("q")].copy() if self.q_term else zeros,
+                  P[:, names.index("offset")].copy() if self.offset else zeros)
+        if single:
+            self.__dict__["_parameter_arrays_cache"] = (key, arrays)
+        return arrays
+
+    def _record_thresholds(self, u: np.ndarray, input_range) -> np.ndarray:
+        """``thresholds`` for a simulation: kept per ``input_range`` (it does not depend on u then)."""
+        if input_range is None:
+            return self.thresholds(u, None)
+        key = self._input_range(u, input_range)
+        cached = self.__dict__.get("_threshold_cache")
+        if cached is None or cached[0] != key:
+            cached = self.__dict__["_threshold_cache"] = (key, self.thresholds(u, key))
+        return cached[1]
+
     def _batch_arguments(self, u, dt: float, param_sets, input_range):
         u = self._check_input(u, dt)
         P = self._check_param_sets(param_sets)
-        n_set = P.shape[0]
-        r = self.thresholds(u, input_range)
+        r = self._record_thresholds(u, input_range)
         backward = self.derivative == "backward"
         if backward:
             abs_du = ddu = u[:0]
         else:
             abs_du, ddu = self._signals(u, dt)
-        idx = self._column_indices()
-        names = self.param_names
-        zeros = np.zeros(n_set)
-        gammas = P[:, names.index("gamma")].copy() if self.envelopes else zeros
-        lams = P[:, names.index("lambda")].copy() if self.envelopes else zeros
-        qs = P[:, names.index("q")].copy() if self.q_term else zeros
-        offsets = P[:, names.index("offset")].copy() if self.offset else zeros
-        weights = np.ascontiguousarray(P[:, idx["weights"]])
-        polys = np.ascontiguousarray(P[:, idx["poly"]])
+        gammas, lams, weights, polys, qs, offsets = self._parameter_arrays(P)
         return u, backward, abs_du, ddu, gammas, lams, r, weights, polys, qs, offsets
 
     def simulate_batch(self, u, dt: float, param_sets, input_range=None) -> np.ndarray:

@@ -51,6 +51,7 @@ from .errors import ModelError
 from .hyperparameters import check_bool, check_int
 from .inverse import KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
+from .stepper import ArrayStepper, stepper_input_range
 
 WEIGHT_BOUND = 2.0  # 0 <= w_ij <= WEIGHT_BOUND * y
 
@@ -144,6 +145,51 @@ def preisach_step(u, state, alphas, betas, weights, acc, commit):
     return acc
 
 
+@njit(cache=True, nogil=True)
+def preisach_advance(u, state, alphas, betas, weights, relays, offset):
+    """One sample of ``PreisachStepper``: the relays (as int8 in ``relays``, mirrored in state[1:])
+    switch to input u by ``preisach_step``, state[0] holds the running sum (as the batch kernel
+    adds its switching events). Returns y(k)."""
+    acc = preisach_step(u, relays, alphas, betas, weights, state[0], True)
+    state[0] = acc
+    for i in range(relays.shape[0]):
+        state[1 + i] = relays[i]
+    return offset + acc
+
+
+class PreisachStepper(ArrayStepper):
+    """The constant-time stepper of ``preisach``: state (the weighted sum, every relay's state);
+    each step switches the relays with ``preisach_step`` (``relay_switch``, the batch kernel's rule)
+    and adds their switches to the sum in the batch kernel's order."""
+
+    def __init__(self, model: "Preisach", dt: float, params, input_range):
+        self._setup(model, dt, (("sum", 0), ("relays", model.n_relays)))
+        vec, rng = model._step_setup(params, stepper_input_range(model, input_range))
+        self._alphas, self._betas, self._weights, self._offset = model.step_arguments(vec, rng)
+        self._relays = np.empty(model.n_relays, dtype=np.int8)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        acc = 0.0
+        for w in self._weights:  # all relays at -1: as preisach_batch starts its sum
+            acc -= w
+        return np.concatenate(([acc], -np.ones(self.model.n_relays)))
+
+    def reset(self) -> None:
+        super().reset()
+        self._relays[:] = -1
+
+    def set_state(self, state: dict) -> None:
+        super().set_state(state)
+        self._relays[:] = self._state[1:].astype(np.int8)
+
+    def _valid(self, array: np.ndarray) -> bool:
+        return bool(np.all(np.isfinite(array)) and np.all(np.abs(array[1:]) == 1.0))
+
+    def _advance(self, u: float) -> float:
+        return preisach_advance(u, self._state, self._alphas, self._betas, self._weights, self._relays, self._offset)
+
+
 @njit(cache=True)
 def preisach_steps(yd, u_given, alphas, betas, weights, offset, u_limit_lo, u_limit_hi, u_start, max_step, n_grid,
                    tol, clip_tol):
@@ -223,6 +269,11 @@ class Preisach(KernelInvertible, HysteresisModel):
         if self.offset:
             Phi = np.concatenate((Phi, np.ones((u.size, 1))), axis=1)
         return Phi
+
+    def stepper(self, dt: float, params, input_range=None) -> PreisachStepper:
+        """A constant-time ``PreisachStepper`` (the batch kernel's relay rule per sample)."""
+        self._check_causal()
+        return PreisachStepper(self, dt, params, input_range)
 
     # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(preisach_steps)

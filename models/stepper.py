@@ -130,3 +130,84 @@ class ReplayStepper(Stepper):
     def set_state(self, state: dict) -> None:
         state = check_state_keys(self.model.name, state, ("inputs",))
         self._inputs = [float(v) for v in state["inputs"]]
+
+
+def stepper_input_range(model, input_range) -> tuple[float, float]:
+    """The (u_min, u_max) a stepper fixes its structure with; ModelError when it is missing or empty."""
+    if input_range is None:
+        raise ModelError(f"model {model.name!r}: a stepper needs the input range that fixes the model's "
+                         "structure (the fit's input_range)")
+    lo, hi = map(float, input_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise ModelError(f"model {model.name!r}: a stepper needs an input range of positive width, got "
+                         f"({lo!r}, {hi!r})")
+    return lo, hi
+
+
+class ArrayStepper(Stepper):
+    """Base of the constant-time steppers whose state is one float array that the model's jitted
+    per-sample function (the one its batch kernel runs) updates in place.
+
+    Subclasses call ``_setup(model, dt, fields)`` with ``fields`` the (name, size) pairs laid out
+    in that array (size 0: a scalar, a float in ``state``; else a list of floats), and implement
+    ``_rest()`` (the array before the first sample) and ``_advance(u) -> y``."""
+
+    def _setup(self, model, dt: float, fields) -> None:
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ModelError(f"model {model.name!r}: time step must be positive, got {dt!r}")
+        self.model = model
+        self.dt = float(dt)
+        self._fields = tuple((name, int(size)) for name, size in fields)
+        self._state = np.zeros(sum(max(size, 1) for _, size in self._fields))
+
+    def _rest(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _advance(self, u: float) -> float:
+        raise NotImplementedError
+
+    def _valid(self, array: np.ndarray) -> bool:
+        """Whether a snapshot's array is a state this model can be in (default: all finite)."""
+        return bool(np.all(np.isfinite(array)))
+
+    def reset(self) -> None:
+        self._state[:] = self._rest()
+
+    def step(self, u: float) -> float:
+        try:
+            u = float(u)
+        except (TypeError, ValueError):
+            check_step_input(self.model.name, u)  # raises the one-line ModelError
+        if u - u != 0.0:  # NaN or inf (cheaper than math.isfinite on a hot path)
+            check_step_input(self.model.name, u)
+        return self._advance(u)
+
+    @property
+    def state(self) -> dict:
+        out, o = {}, 0
+        for name, size in self._fields:
+            if size == 0:
+                out[name] = float(self._state[o])
+                o += 1
+            else:
+                out[name] = [float(v) for v in self._state[o:o + size]]
+                o += size
+        return out
+
+    def set_state(self, state: dict) -> None:
+        name = self.model.name
+        state = check_state_keys(name, state, [f for f, _ in self._fields])
+        parts = []
+        for field, size in self._fields:
+            try:
+                value = np.array(state[field], dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ModelError(f"{name}: state field {field!r} must be numbers, got {state[field]!r}") from None
+            if value.size != max(size, 1) or (size == 0 and np.ndim(state[field]) != 0):
+                raise ModelError(f"{name}: state field {field!r} holds {value.size} values, this stepper "
+                                 f"{'one number' if size == 0 else size}")
+            parts.append(value)
+        new = np.concatenate(parts)
+        if not self._valid(new):
+            raise ModelError(f"{name}: a state holds values this model cannot be in (non-finite)")
+        self._state[:] = new

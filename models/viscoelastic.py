@@ -49,6 +49,40 @@ from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
 from .inverse import Inversion, ReplayInverseStepper, check_max_rate
+from .stepper import ArrayStepper
+
+
+class ViscoelasticStepper(ArrayStepper):
+    """The constant-time stepper of ``viscoelastic``: state (first, the previous input in kV, the RK4
+    substeps per sample, failed, the physics state); each step integrates one sample interval with
+    ``dea_physics.stepper_sample`` (the batch kernel's ``_advance``). ``input_range`` is not needed
+    (the model has no input-dependent structure)."""
+
+    def __init__(self, model: "Viscoelastic", dt: float, params):
+        n = 1 + 4 * model.n_branches
+        self._setup(model, dt, (("first", 0), ("u1_kv", 0), ("substeps", 0), ("failed", 0), ("physics", n)))
+        P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
+        K = model.n_branches
+        self._phys = np.ascontiguousarray(model.physical_vectors(P)[0])
+        self._length = float(P[0, 2 + 2 * K])
+        self._offset = float(P[0, 3 + 2 * K]) if model.offset else 0.0
+        self._kv = model.volts_per_input_unit / 1000.0
+        self._inv_6tau = dea_physics._inv_6tau(self._phys, K)
+        self._work = np.empty((5, n))
+        self._head, self._x = self._state[:4], self._state[4:]  # views: the state array is updated in place
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        return np.concatenate(([1.0, 0.0, 1.0, 0.0], dea_physics.initial_state(self._phys, self.model.n_branches)))
+
+    def _valid(self, array: np.ndarray) -> bool:
+        head_ok = bool(np.all(np.isfinite(array[:4])) and array[2] >= 1 and array[2] == int(array[2]))
+        return head_ok and (array[3] != 0.0 or bool(np.all(np.isfinite(array[4:]))))
+
+    def _advance(self, u: float) -> float:
+        dlam = dea_physics.stepper_sample(u * self._kv, self.dt, self._phys, self.model.n_branches, self._x,
+                                          self._head, self._inv_6tau, self._work)
+        return self._length * dlam + self._offset
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -203,6 +237,11 @@ class Viscoelastic(HysteresisModel):
         u_kv, clipped = dea_physics.invert_stretch(dlam, float(dt), self.physical_vectors(P)[0], K, lo, hi, start, step,
                                                    tol)
         return Inversion(u_kv / kv, clipped)
+
+    def stepper(self, dt: float, params, input_range=None) -> ViscoelasticStepper:
+        """A constant-time ``ViscoelasticStepper`` (the batch kernel's RK4 sample interval per step)."""
+        self._check_causal()
+        return ViscoelasticStepper(self, dt, params)
 
     def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
         """The inverse one sample at a time (``inverse.ReplayInverseStepper``: the batch inverse over the

@@ -81,6 +81,24 @@ def test_stepping_through_a_record_equals_simulate(name, u):
     assert_close(first + rest, y, 1e-12)
 
 
+# models whose stepper keeps a fixed-size state and advances it with the batch kernel's per-sample update
+FIXED_STATE = ["bouc-wen", "dual-polynomial", "elliptical", "preisach", "viscoelastic"]
+
+
+@pytest.mark.parametrize("name", FIXED_STATE)
+def test_a_constant_time_stepper_keeps_a_state_of_fixed_size(name):
+    model, params = model_and_params(name)
+    s = model.stepper(DT, params, input_range=RANGE)
+    assert not isinstance(s, ReplayStepper)
+    u = 1.5 - np.cos(np.linspace(0.0, 12.0, 400))
+    sizes = []
+    for k, v in enumerate(u):
+        s.step(v)
+        if k in (3, 399):
+            sizes.append({key: np.size(val) for key, val in s.state.items()})
+    assert sizes[0] == sizes[1]
+
+
 @pytest.mark.parametrize("name", sorted(CONSTANT_TIME))
 def test_the_p_i_family_has_constant_time_steppers(name):
     model, params = model_and_params(name)
