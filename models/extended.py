@@ -33,6 +33,10 @@ output is built in the order of a physical measurement chain:
   no parameter enter linearly, so this model has no regressors (identify it
   with ``lsq`` or ``mpso``).
 
+Stepping (``stepper``): the P-I stepper where the model has a step structure; else the chain of
+per-sample blocks of ``extended_stepper`` (a ring buffer for the delay, the batch filter's step for
+the mode, the clip), constant time per sample and equal to ``simulate``.
+
 Every dynamic block but the mode starts from rest (the signal it receives is zero before
 t = 0; see ``filter_kernels``); the rest output of a late actuator is the
 base's output for the record's first input sample. Without saturation the model stays linear in the base's
@@ -54,7 +58,9 @@ from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_choice, check_int, check_int_list
 from .inverse import StepInvertible, StepStructure
+from . import extended_stepper
 from .pi_stepper import SteppableStructure
+from .stepper import ReplayStepper
 from .filter_kernels import (
     first_order_foh,
     lowpass1_bank,
@@ -289,6 +295,22 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
             base += params["interference_sin"] * cols[0] + params["interference_cos"] * cols[1]
         s.base = base
         return s
+
+    # --- causal stepper (models/extended_stepper.py) --------------------
+    def stepper(self, dt: float, params, input_range=None):
+        """A constant-time stepper: the P-I stepper where the model has a step structure, else the
+        measurement chain's per-sample blocks around the actuator's stepper (``extended_stepper``);
+        the replay stepper only for a combination those blocks do not cover (delay with creep)."""
+        self._check_causal()
+        if not self.inverse_unavailable:
+            return super().stepper(dt, params, input_range)
+        vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
+        values = self.unpack(vec)
+        self._check_range(values)
+        try:
+            return extended_stepper.build(self, self.components, float(dt), values, input_range)
+        except extended_stepper.NoBlockStepper:
+            return ReplayStepper(self, dt, vec, input_range)
 
     # --- evaluation ------------------------------------------------------
     @staticmethod

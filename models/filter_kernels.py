@@ -115,6 +115,27 @@ def _step2(phi, g0, g1, x0, x1, vk, vn):
             phi[1, 0] * x0 + phi[1, 1] * x1 + g0[1] * vk + g1[1] * vn)
 
 
+def lowpass2_coefficients(phi, g0, g1) -> np.ndarray:
+    """Phi, G0, G1 packed in one array of 8 (``lowpass2_advance``: few arguments dispatch fast)."""
+    return np.ascontiguousarray(np.concatenate((np.ravel(phi), g0, g1)), dtype=float)
+
+
+@njit(cache=True, nogil=True)
+def lowpass2_advance(state, coef, v):
+    """One sample of the second-order block for a stepper: state = [first, x, x', v(k-1)] moves to
+    sample k for the signal's value v there (``_step2``, the step ``_lowpass2`` takes; the first
+    sample starts the mode at rest at v); coef from ``lowpass2_coefficients``. Returns x(k)."""
+    if state[0] != 0.0:
+        state[0] = 0.0
+        state[1] = v
+        state[2] = 0.0
+    else:
+        state[1], state[2] = _step2(coef[0:4].reshape((2, 2)), coef[4:6], coef[6:8], state[1], state[2],
+                                    state[3], v)
+    state[3] = v
+    return state[1]
+
+
 @njit(cache=True)
 def _lowpass2(v, phi, g0, g1, out):
     # at rest at the first sample's level (a mode in equilibrium with the output it starts from)

@@ -218,7 +218,7 @@ class SteppableStructure(StepInvertible):
 
     def stepper(self, dt: float, params, input_range=None):
         """A constant-time ``PIStepper`` (models/pi_stepper.py) where the model has a step structure;
-        else the base class's replay stepper (mrpim+delay, +resonance, +saturation)."""
+        else the base class's replay stepper (the extended models override this: extended_stepper.py)."""
         self._check_causal()
         if self.inverse_unavailable:
             return super().stepper(dt, params, input_range)

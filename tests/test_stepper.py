@@ -34,6 +34,8 @@ def model_and_params(name: str, seed: int = 0):
         params[p.name] = float(min(max(v, p.min), p.max))
     if name.startswith("mrpim"):
         params.update(MRPIM().preset("paper"))
+    if "delay" in params:  # the default is no delay: 7.4 samples late tests the ring and its interpolation
+        params["delay"] = 7.4 * DT
     return model, params
 
 
@@ -82,7 +84,8 @@ def test_stepping_through_a_record_equals_simulate(name, u):
 
 
 # models whose stepper keeps a fixed-size state and advances it with the batch kernel's per-sample update
-FIXED_STATE = ["bouc-wen", "dual-polynomial", "elliptical", "preisach", "viscoelastic"]
+FIXED_STATE = ["bouc-wen", "dual-polynomial", "elliptical", "preisach", "viscoelastic", "mrpim+delay",
+               "mrpim+resonance", "mrpim+saturation"]
 
 
 @pytest.mark.parametrize("name", FIXED_STATE)
@@ -138,9 +141,60 @@ def test_a_stepper_needs_the_input_range_and_finite_input():
         s.set_state({"plays": []})
 
 
-def test_the_replay_stepper_is_the_fallback_of_models_without_a_step_structure():
+def test_no_registered_model_replays_its_record():
+    for name in list_models():
+        if name == "bouc-wen-oscillator":
+            continue
+        model, params = model_and_params(name)
+        assert not isinstance(model.stepper(DT, params, input_range=RANGE), ReplayStepper), name
+
+
+# unregistered chains of the extended blocks (extended_stepper.py), each against simulate
+CHAINS = [("relaxation", "delay"), ("relaxation", "resonance"), ("resonance", "interference"),
+          ("delay", "interference"), ("delay", "resonance", "interference", "saturation"),
+          ("creep", "resonance"), ("creep", "interference", "saturation")]
+
+
+@pytest.mark.parametrize("components", CHAINS, ids="+".join)
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_a_chain_of_extended_blocks_steps_as_simulate(components, side):
+    from hysbench.models import ExtendedModel
+    model = ExtendedModel(components=components, saturation_side=side)
+    params = dict(model.default_params(), **MRPIM().preset("paper"))
+    for name, value in (("delay", 0.0237), ("interference_sin", 0.3), ("interference_cos", -0.2),
+                        ("creep_size", 0.5), ("creep_time", 0.3), ("c1", 0.7),
+                        ("saturation_level", 8.0 if side == "upper" else 3.0)):
+        if name in params:
+            params[name] = value
+    t = np.arange(300) * DT
+    u = 1.5 - np.cos(2 * np.pi * 5 * t)
+    s = model.stepper(DT, params, input_range=RANGE)
+    assert not isinstance(s, ReplayStepper)
+    y = model.simulate(u, DT, params, input_range=RANGE)
+    assert_close(s.run(u), y, 1e-12)
+    if "saturation" in components:  # the clip is reached
+        assert np.any(y == params["saturation_level"])
+
+
+def test_a_delay_with_creep_replays_its_record():
+    from hysbench.models import ExtendedModel
+    model = ExtendedModel(components=("delay", "creep"))
+    params = dict(model.default_params(), delay=0.01)
+    s = model.stepper(DT, params, input_range=RANGE)
+    assert isinstance(s, ReplayStepper)
+    u = 1.5 - np.cos(np.linspace(0.0, 6.0, 50))
+    assert_close(s.run(u), model.simulate(u, DT, params, input_range=RANGE), 1e-12)
+
+
+def test_a_delay_stepper_holds_the_rest_output_then_the_late_input():
     model, params = model_and_params("mrpim+delay")
-    assert isinstance(model.stepper(DT, params, input_range=RANGE), ReplayStepper)
+    params["delay"] = 0.0104  # 10.4 samples: the actuator starts at sample 11, 0.6 samples late
+    u = 1.5 - np.cos(np.linspace(0.0, 6.0, 60))
+    s = model.stepper(DT, params, input_range=RANGE)
+    y = s.run(u)
+    assert np.all(y[:11] == y[0])
+    assert s.state["k"] == 60 and len(s.state["inputs"]) == 12
+    assert_close(y, model.simulate(u, DT, params, input_range=RANGE), 1e-12)
 
 
 INVERTIBLE = [n for n in list_models() if get_model(n, **CAUSAL.get(n, {})).inverse_unavailable is None]
