@@ -41,6 +41,12 @@ Against scipy's solve_ivp (DOP853, rtol 1e-11) on the benchmark's parameters the
 largest error is 1.2e-5 of max |y| at 20 sub-steps and 5e-7 at 100 (tests), far below
 the benchmark's noise (about 1 % of the output's RMS).
 
+Stepping: "linear" and "hold" are causal (the force within an interval needs only its two end
+samples), so ``stepper`` gives a constant-time ``OscillatorStepper`` that runs the batch kernel's
+per-interval ``_interval``, bit for bit as ``simulate``. "fourier" interpolates with the whole
+record (a later sample changes the force between earlier ones): it has no stepper and says so
+(``noncausal_reason``); a stepper would be a different model, fitted as such.
+
 A set whose state leaves |y|, |z| < STATE_CAP or turns non-finite gives NaN from
 there on (identifiers count and reject such sets).
 
@@ -60,6 +66,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_choice, check_int, check_number
+from .stepper import ArrayStepper
 
 INTERPOLATIONS = ("fourier", "linear", "hold")
 STATE_CAP = 1e12
@@ -78,6 +85,34 @@ def _rates(y, v, z, u, m, c, k, alpha, bg, bd, nu):
     return v, acc, zd
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _interval(u_fine, base, n_sub, h, y, v, z, m, c, k, alpha, bg, bd, nu):
+    """(y, v, z) at the end of one sample interval: n_sub RK4 sub-steps of length h, the force at
+    u_fine[base : base + 2 n_sub + 1] (sub-step ends and mid-points, the interval's end as a left limit).
+    The per-sample update of both the batch kernel and the stepper."""
+    for j in range(n_sub):
+        i = base + 2 * j
+        u0 = u_fine[i]
+        u1 = u_fine[i + 1]
+        u2 = u_fine[i + 2]
+        k1y, k1v, k1z = _rates(y, v, z, u0, m, c, k, alpha, bg, bd, nu)
+        k2y, k2v, k2z = _rates(y + 0.5 * h * k1y, v + 0.5 * h * k1v, z + 0.5 * h * k1z, u1,
+                               m, c, k, alpha, bg, bd, nu)
+        k3y, k3v, k3z = _rates(y + 0.5 * h * k2y, v + 0.5 * h * k2v, z + 0.5 * h * k2z, u1,
+                               m, c, k, alpha, bg, bd, nu)
+        k4y, k4v, k4z = _rates(y + h * k3y, v + h * k3v, z + h * k3z, u2, m, c, k, alpha, bg, bd, nu)
+        y += h * (k1y + 2.0 * k2y + 2.0 * k3y + k4y) / 6.0
+        v += h * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
+        z += h * (k1z + 2.0 * k2z + 2.0 * k3z + k4z) / 6.0
+    return y, v, z
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _capped(y, v, z):
+    """Whether the state left the cap (or turned non-finite): NaN from the next sample on."""
+    return not (abs(y) < STATE_CAP and abs(z) < STATE_CAP and abs(v) < STATE_CAP)
+
+
 @njit(cache=True, nogil=True)
 def _simulate_one(u_fine, n_sub, dt, m, c, k, alpha, bg, bd, nu, start, stop, out):
     """y(k) for k in [start, stop) into ``out``; u_fine holds, per sample interval, the force at
@@ -91,25 +126,52 @@ def _simulate_one(u_fine, n_sub, dt, m, c, k, alpha, bg, bd, nu, start, stop, ou
             out[n - start] = y
         if n == stop - 1:
             break
-        base = (2 * n_sub + 1) * n
-        for j in range(n_sub):
-            i = base + 2 * j
-            u0 = u_fine[i]
-            u1 = u_fine[i + 1]
-            u2 = u_fine[i + 2]
-            k1y, k1v, k1z = _rates(y, v, z, u0, m, c, k, alpha, bg, bd, nu)
-            k2y, k2v, k2z = _rates(y + 0.5 * h * k1y, v + 0.5 * h * k1v, z + 0.5 * h * k1z, u1,
-                                   m, c, k, alpha, bg, bd, nu)
-            k3y, k3v, k3z = _rates(y + 0.5 * h * k2y, v + 0.5 * h * k2v, z + 0.5 * h * k2z, u1,
-                                   m, c, k, alpha, bg, bd, nu)
-            k4y, k4v, k4z = _rates(y + h * k3y, v + h * k3v, z + h * k3z, u2, m, c, k, alpha, bg, bd, nu)
-            y += h * (k1y + 2.0 * k2y + 2.0 * k3y + k4y) / 6.0
-            v += h * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
-            z += h * (k1z + 2.0 * k2z + 2.0 * k3z + k4z) / 6.0
-        if not (abs(y) < STATE_CAP and abs(z) < STATE_CAP and abs(v) < STATE_CAP):
+        y, v, z = _interval(u_fine, (2 * n_sub + 1) * n, n_sub, h, y, v, z, m, c, k, alpha, bg, bd, nu)
+        if _capped(y, v, z):
             for j in range(max(n + 1, start), stop):
                 out[j - start] = math.nan
             return
+
+
+@njit(cache=True, nogil=True)
+def oscillator_advance(u, state, coef, fine):
+    """One sample of ``OscillatorStepper``: state [first, u(k-1), y, v, z, failed, k] moves to sample k
+    for the force u there; returns y(k). The force within the interval is ``fine_input``'s for that
+    interval alone (coef[1] = 1: linear, ``np.interp``'s arithmetic at the batch grid's positions;
+    0: hold), then ``_interval`` as the batch kernel. coef = [dt, n_sub, linear, m, c, k, alpha,
+    beta gamma, beta delta, nu]; fine: scratch of 2 n_sub + 1."""
+    if state[0] != 0.0:  # the record's first sample: at rest
+        state[0] = 0.0
+        state[1] = u
+        state[6] = 1.0
+        return state[2]
+    u_prev = state[1]
+    i = state[6] - 1.0  # the interval's index (a whole number)
+    state[1] = u
+    state[6] += 1.0
+    if state[5] != 0.0:
+        return math.nan
+    n_sub = int(coef[1])
+    factor = 2 * n_sub
+    if coef[2] != 0.0:
+        slope = (u - u_prev) / 1.0
+        for j in range(factor + 1):
+            x = (i * factor + j) / factor
+            if x == i:
+                fine[j] = u_prev
+            elif x == i + 1.0:
+                fine[j] = u
+            else:
+                fine[j] = slope * (x - i) + u_prev
+    else:
+        fine[:] = u_prev
+    y, v, z = _interval(fine, 0, n_sub, coef[0] / n_sub, state[2], state[3], state[4], coef[3], coef[4], coef[5],
+                        coef[6], coef[7], coef[8], coef[9])
+    if _capped(y, v, z):
+        state[5] = 1.0  # the state before the failure is kept (finite)
+        return math.nan
+    state[2], state[3], state[4] = y, v, z
+    return y
 
 
 @njit(cache=True, parallel=True)
@@ -120,6 +182,31 @@ def oscillator_batch(u_fine, n_sub, dt, P, start, stop):
         _simulate_one(u_fine, n_sub, dt, P[b, 0], P[b, 1], P[b, 2], P[b, 3], P[b, 4], P[b, 5], P[b, 6],
                       start, stop, out[b])
     return out
+
+
+class OscillatorStepper(ArrayStepper):
+    """The constant-time stepper of ``bouc-wen-oscillator`` with a causal input interpolation
+    ("linear", "hold"): state (first, the previous force, y, y', z, failed, k); each step integrates
+    one sample interval with the batch kernel's ``_interval`` (``oscillator_advance``)."""
+
+    def __init__(self, model: "BoucWenOscillator", dt: float, params):
+        self._setup(model, dt, (("first", 0), ("u1", 0), ("y", 0), ("v", 0), ("z", 0), ("failed", 0), ("k", 0)))
+        P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
+        row = model._kernel_rows(P)[0]
+        linear = 1.0 if model.input_interpolation == "linear" else 0.0
+        self._c = np.concatenate(([self.dt, float(model.n_substeps), linear], row))
+        self._fine = np.empty(2 * model.n_substeps + 1)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        return np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    def _valid(self, array: np.ndarray) -> bool:
+        k = array[6]
+        return bool(np.all(np.isfinite(array)) and k >= 0 and k == int(k) and (array[0] == 0.0) != (k == 0))
+
+    def _advance(self, u: float) -> float:
+        return oscillator_advance(u, self._state, self._c, self._fine)
 
 
 def fine_input(u: np.ndarray, factor: int, how: str) -> np.ndarray:
@@ -177,6 +264,12 @@ class BoucWenOscillator(HysteresisModel):
             return ("its 'fourier' input interpolation uses the whole record, so the output at a sample depends "
                     "on later inputs (use input_interpolation='linear' or 'hold' for a stepper)")
         return None
+
+    def stepper(self, dt: float, params, input_range=None) -> OscillatorStepper:
+        """A constant-time ``OscillatorStepper`` (the batch kernel's RK4 sample interval per step) for
+        the causal interpolations; "fourier" refuses (``noncausal_reason``)."""
+        self._check_causal()
+        return OscillatorStepper(self, dt, params)
 
     # --- simulation ------------------------------------------------------
     def _fine(self, u: np.ndarray) -> np.ndarray:
