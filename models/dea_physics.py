@@ -288,48 +288,89 @@ def invert_stretch(dlam, dt, p, n_br, u_lo, u_hi, u_start, max_step, tol):
     trial = np.empty_like(x)
     k1, k2, k3, k4, tmp = np.empty_like(x), np.empty_like(x), np.empty_like(x), np.empty_like(x), np.empty_like(x)
     inv_6tau = _inv_6tau(p, n_br)
-    lam0 = p[3]
     u[0] = u_start
     clipped[0] = abs(dlam[0]) > tol
     m = _substeps(u_start, dt, p, n_br)
     h = dt / m
     for k in range(1, n):
-        u1 = u[k - 1]
-        lo = max(u_lo, u1 - max_step)
-        hi = min(u_hi, u1 + max_step)
-        trial[:] = x
-        _advance(trial, u1, lo, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
-        g_lo = trial[0] - lam0 - dlam[k]
-        trial[:] = x
-        _advance(trial, u1, hi, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
-        g_hi = trial[0] - lam0 - dlam[k]
-        if not (np.isfinite(g_lo) and np.isfinite(g_hi)):
+        uk, clip, ok = _invert_sample(dlam[k], x, u[k - 1], u_lo, u_hi, max_step, tol, h, m, p, n_br, inv_6tau,
+                                      trial, k1, k2, k3, k4, tmp)
+        if not ok:
             u[k:] = np.nan
             clipped[k:] = True
             break
-        if (g_lo > 0) == (g_hi > 0) and abs(g_lo) > tol and abs(g_hi) > tol:
-            uk = lo if abs(g_lo) < abs(g_hi) else hi
-            clipped[k] = True
-        else:
-            a, ga, b, gb = lo, g_lo, hi, g_hi
-            uk = a if abs(ga) < abs(gb) else b
-            for it in range(100):
-                if abs(ga) <= tol or abs(gb) <= tol or b - a <= 1e-14 * (abs(a) + abs(b)):
-                    break
-                c = b - gb * (b - a) / (gb - ga) if it % 2 == 0 else 0.5 * (a + b)  # secant, then bisection
-                if not a < c < b:
-                    c = 0.5 * (a + b)
-                trial[:] = x
-                _advance(trial, u1, c, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
-                gc = trial[0] - lam0 - dlam[k]
-                if (gc > 0) == (ga > 0):
-                    a, ga = c, gc
-                else:
-                    b, gb = c, gc
-            uk = a if abs(ga) < abs(gb) else b
-        _advance(x, u1, uk, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
         u[k] = uk
+        clipped[k] = clip
     return u, clipped
+
+
+@njit(cache=True)
+def _invert_sample(target, x, u1, u_lo, u_hi, max_step, tol, h, m, p, n_br, inv_6tau, trial, k1, k2, k3, k4, tmp):
+    """One sample of the inverse (``invert_stretch``): (u_k, clipped, ok) for the desired stretch
+    ``target`` from the state x after the previous input u1; x is advanced in place to u_k. ok is
+    False (x untouched) where the stretch at the interval's ends is not finite."""
+    lam0 = p[3]
+    lo = max(u_lo, u1 - max_step)
+    hi = min(u_hi, u1 + max_step)
+    trial[:] = x
+    _advance(trial, u1, lo, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+    g_lo = trial[0] - lam0 - target
+    trial[:] = x
+    _advance(trial, u1, hi, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+    g_hi = trial[0] - lam0 - target
+    if not (np.isfinite(g_lo) and np.isfinite(g_hi)):
+        return np.nan, True, False
+    clipped = False
+    if (g_lo > 0) == (g_hi > 0) and abs(g_lo) > tol and abs(g_hi) > tol:
+        uk = lo if abs(g_lo) < abs(g_hi) else hi
+        clipped = True
+    else:
+        a, ga, b, gb = lo, g_lo, hi, g_hi
+        uk = a if abs(ga) < abs(gb) else b
+        for it in range(100):
+            if abs(ga) <= tol or abs(gb) <= tol or b - a <= 1e-14 * (abs(a) + abs(b)):
+                break
+            c = b - gb * (b - a) / (gb - ga) if it % 2 == 0 else 0.5 * (a + b)  # secant, then bisection
+            if not a < c < b:
+                c = 0.5 * (a + b)
+            trial[:] = x
+            _advance(trial, u1, c, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+            gc = trial[0] - lam0 - target
+            if (gc > 0) == (ga > 0):
+                a, ga = c, gc
+            else:
+                b, gb = c, gc
+        uk = a if abs(ga) < abs(gb) else b
+    _advance(x, u1, uk, h, m, p, n_br, inv_6tau, k1, k2, k3, k4, tmp)
+    return uk, clipped, True
+
+
+@njit(cache=True)
+def inverse_stepper_sample(target, dt, p, n_br, x, head, limits, inv_6tau, work):
+    """One sample of the viscoelastic inverse stepper: the input (kV) for the desired stretch ``target``
+    at this sample, the state advanced (``_invert_sample``, as ``invert_stretch``). head = [first,
+    u(k-1) (kV), substeps m, failed, clipped (out)]; limits = [u_lo, u_hi, u_start, max_step, tol] (kV);
+    work: (6, len(x)) scratch. The first sample is the rest state, its input u_start (clipped unless
+    the target is 0); after a failure every input is NaN (clipped)."""
+    if head[0] != 0.0:
+        head[0] = 0.0
+        head[1] = limits[2]
+        head[2] = _substeps(limits[2], dt, p, n_br)
+        head[4] = 1.0 if abs(target) > limits[4] else 0.0
+        return limits[2]
+    if head[3] != 0.0:
+        head[4] = 1.0
+        return np.nan
+    m = int(head[2])
+    uk, clip, ok = _invert_sample(target, x, head[1], limits[0], limits[1], limits[3], limits[4], dt / m, m, p, n_br,
+                                  inv_6tau, work[0], work[1], work[2], work[3], work[4], work[5])
+    if not ok:
+        head[3] = 1.0
+        head[4] = 1.0
+        return np.nan
+    head[1] = uk
+    head[4] = 1.0 if clip else 0.0
+    return uk
 
 
 @njit(cache=True)

@@ -48,8 +48,8 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import Inversion, ReplayInverseStepper, check_max_rate
-from .stepper import ArrayStepper
+from .inverse import Inversion, check_max_rate
+from .stepper import ArrayStepper, InverseStepper
 
 
 class ViscoelasticStepper(ArrayStepper):
@@ -83,6 +83,66 @@ class ViscoelasticStepper(ArrayStepper):
         dlam = dea_physics.stepper_sample(u * self._kv, self.dt, self._phys, self.model.n_branches, self._x,
                                           self._head, self._inv_6tau, self._work)
         return self._length * dlam + self._offset
+
+class ViscoelasticInverseStepper(ArrayStepper, InverseStepper):
+    """The constant-time inverse stepper of ``viscoelastic``: ``step(y_ref) -> u``, the batch ``invert``'s
+    root search for one sample (``dea_physics.inverse_stepper_sample``, the per-sample function of
+    ``invert_stretch``). State (first, the previous input in kV, the RK4 substeps per sample, failed,
+    the physics state) and ``n_clipped``. ``reference_scale``: the largest |y_ref - offset| the
+    references reach (the batch inverse takes it from its whole reference); the reach tolerance is
+    1e-12 (1 + reference_scale / length), as the batch inverse's."""
+
+    def __init__(self, model: "Viscoelastic", dt: float, params, limits_kv: tuple, u_start_kv: float,
+                 max_step_kv: float, reference_scale: float):
+        n = 1 + 4 * model.n_branches
+        self._setup(model, dt, (("first", 0), ("u1_kv", 0), ("substeps", 0), ("failed", 0), ("physics", n)))
+        P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
+        K = model.n_branches
+        self._phys = np.ascontiguousarray(model.physical_vectors(P)[0])
+        self._length = float(P[0, 2 + 2 * K])
+        self._offset = float(P[0, 3 + 2 * K]) if model.offset else 0.0
+        self._kv = model.volts_per_input_unit / 1000.0
+        tol = 1e-12 * (1.0 + abs(float(reference_scale)) / self._length)
+        self._limits = np.array([limits_kv[0], limits_kv[1], u_start_kv, max_step_kv, tol])
+        self._inv_6tau = dea_physics._inv_6tau(self._phys, K)
+        self._work = np.empty((6, n))
+        self._head = np.zeros(5)  # the state's head and the last sample's clipped flag
+        self._x = self._state[4:]
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        return np.concatenate(([1.0, 0.0, 1.0, 0.0], dea_physics.initial_state(self._phys, self.model.n_branches)))
+
+    def _valid(self, array: np.ndarray) -> bool:
+        # the physics may hold what a failed interval left (as the batch inverse carries it on)
+        return bool(np.all(np.isfinite(array[:4])) and array[2] >= 1 and array[2] == int(array[2]))
+
+    def reset(self) -> None:
+        super().reset()
+        self.clipped = False
+        self.n_clipped = 0
+
+    def _advance(self, y_ref: float) -> float:
+        head = self._head
+        head[:4] = self._state[:4]
+        u_kv = dea_physics.inverse_stepper_sample((y_ref - self._offset) / self._length, self.dt, self._phys,
+                                                  self.model.n_branches, self._x, head, self._limits,
+                                                  self._inv_6tau, self._work)
+        self._state[:4] = head[:4]
+        self.clipped = bool(head[4] != 0.0)
+        self.n_clipped += self.clipped
+        return u_kv / self._kv
+
+    @property
+    def state(self) -> dict:
+        return dict(super().state, n_clipped=int(self.n_clipped))
+
+    def set_state(self, state: dict) -> None:
+        if not isinstance(state, dict) or "n_clipped" not in state:
+            raise ModelError(f"{self.model.name}: state keys do not match (missing ['n_clipped'])")
+        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
+        self.n_clipped = int(state["n_clipped"])
+
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
 MU_BOUNDS = (1e-3, 3.0)  # x S
@@ -243,13 +303,22 @@ class Viscoelastic(HysteresisModel):
         self._check_causal()
         return ViscoelasticStepper(self, dt, params)
 
-    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
-        """The inverse one sample at a time (``inverse.ReplayInverseStepper``: the batch inverse over the
-        references so far; its reach tolerance follows their largest stretch, so the input can differ
-        from the batch inverse over a whole record by that tolerance, 1e-12 of the stretch)."""
-        self.invert(np.zeros(1), dt, params, input_range, input_limits, **options)  # refuse bad options now
-        return ReplayInverseStepper(self, dt, lambda refs: self.invert(refs, dt, params, input_range, input_limits,
-                                                                       **options))
+    def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None,
+                        max_rate: float | None = None, u_start: float | None = None,
+                        reference_scale: float | None = None) -> ViscoelasticInverseStepper:
+        """The inverse one sample at a time in constant time (``ViscoelasticInverseStepper``), equal to
+        ``invert`` with the same options; ``reference_scale``: the largest |y_ref - offset| of the
+        references (sets the reach tolerance as ``invert`` sets it from its whole reference)."""
+        self.invert(np.zeros(1), dt, params, input_range, input_limits, max_rate=max_rate,
+                    u_start=u_start)  # refuse bad options now, in invert's words
+        limits = input_limits if input_limits is not None else input_range
+        kv = self.volts_per_input_unit / 1000.0
+        lo, hi = float(limits[0]) * kv, float(limits[1]) * kv
+        max_rate = check_max_rate(self.name, max_rate)
+        step = np.inf if max_rate is None else max_rate * kv * float(dt)
+        start = lo if u_start is None else float(u_start) * kv
+        scale = 0.0 if reference_scale is None else check_number(self.name, "reference_scale", reference_scale)
+        return ViscoelasticInverseStepper(self, dt, params, (lo, hi), start, step, scale)
 
     # --- evaluation ------------------------------------------------------
     def _linear_part(self, P: np.ndarray, dlam: np.ndarray) -> np.ndarray:
