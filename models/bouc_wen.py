@@ -62,7 +62,7 @@ from .base import DataScale, HysteresisModel, Parameter
 from .branches import normalised_input
 from .errors import ModelError
 from .hyperparameters import check_bool
-from .inverse import KernelInvertible
+from .inverse import KernelInverseStepper, KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 from .stepper import ArrayStepper, stepper_input_range
 
@@ -278,25 +278,58 @@ class BoucWenStepper(ArrayStepper):
         return bouc_wen_advance(u, self._state, self._c)
 
 
+@njit(cache=True, nogil=True)
+def bouc_wen_inverse_sample(yd, u_given, k, state, c, limits, st):
+    """One sample of the causal inverse (``inverse.search_next``, derivative-free) for the desired
+    output yd, or with a non-empty ``u_given`` the forward model at u_given[k]: (u, y), the state
+    committed by ``bouc_wen_advance``. state = [first, xi(k-1), z(k-1), u(k-1)]; c as
+    ``bouc_wen_advance``; limits = [u_lo, u_hi, max_step, n_grid, tol, clip_tol]."""
+    first = state[0] != 0.0
+    x = search_start(st, u_given, k, state[3], limits[0], limits[1], limits[2], int(limits[3]), limits[4],
+                     limits[5])
+    while not search_done(st):
+        y = bouc_wen_candidate(x, first, state[1], state[2], c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7])[0]
+        x = search_next(st, y - yd, np.nan)
+    y = bouc_wen_advance(x, state, c)
+    state[3] = x
+    return x, y
+
+
 @njit(cache=True)
 def bouc_wen_steps(yd, u_given, range_lo, range_hi, beta, gamma, n, kx, kz, offset, u_limit_lo, u_limit_hi, u_start,
                    max_step, n_grid, tol, clip_tol):
-    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
-    derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
+    """(u, clipped, y): the causal inverse for desired outputs yd, or, with a non-empty ``u_given``,
+    the forward model through the same steps (``bouc_wen_inverse_sample`` per sample)."""
     n_t = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
     u_out, y_out, clipped = np.empty(n_t), np.empty(n_t), np.zeros(n_t, dtype=np.bool_)
     st = np.empty(SEARCH_SIZE)
-    u1, xi1, z = u_start, 0.0, 0.0
+    state = np.array([1.0, 0.0, 0.0, u_start])
+    c = np.array([range_lo, range_hi, beta, gamma, n, kx, kz, offset])
+    limits = np.array([u_limit_lo, u_limit_hi, max_step, float(n_grid), tol, clip_tol])
     for k in range(n_t):
-        first = k == 0
-        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
-        while not search_done(st):
-            y = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)[0]
-            x = search_next(st, y - yd[k], np.nan)
+        u_out[k], y_out[k] = bouc_wen_inverse_sample(yd[k] if yd.shape[0] > 0 else 0.0, u_given, k, state, c,
+                                                     limits, st)
         clipped[k] = search_clipped(st)
-        y, xi1, z = bouc_wen_candidate(x, first, xi1, z, range_lo, range_hi, beta, gamma, n, kx, kz, offset)
-        u_out[k], y_out[k], u1 = x, y, x
     return u_out, clipped, y_out
+
+
+class BoucWenInverseStepper(KernelInverseStepper):
+    """The constant-time inverse stepper of ``bouc-wen``: state (first, xi(k-1), z(k-1), u(k-1)) and
+    n_clipped; each step is ``bouc_wen_inverse_sample``, the per-sample search ``bouc_wen_steps`` runs."""
+
+    def __init__(self, model: "BoucWen", dt: float, vec, input_range, a, clip_tol: float):
+        self._setup(model, dt, (("first", 0), ("xi", 0), ("z", 0), ("u1", 0)))
+        self._c = np.array(model.step_arguments(vec, input_range), dtype=float)
+        self._inverse_setup(a, clip_tol)
+        self._none = np.zeros(0)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        return np.array([1.0, 0.0, 0.0, self.u_start])
+
+    def _search(self, y_ref: float) -> float:
+        return bouc_wen_inverse_sample(y_ref, self._none, 0, self._state, self._c, self._limits,
+                                       self._search_state)[0]
 
 
 class BoucWen(KernelInvertible, HysteresisModel):
@@ -345,6 +378,8 @@ class BoucWen(KernelInvertible, HysteresisModel):
             return bouc_wen_output(xi, col["beta"][0], col["gamma"][0], col["n"][0], col["kx"][0], col["kz"][0],
                                    offsets[0])[None, :]
         return bouc_wen_batch(xi, col["beta"], col["gamma"], col["n"], col["kx"], col["kz"], offsets)
+
+    inverse_stepper_class = BoucWenInverseStepper
 
     def stepper(self, dt: float, params, input_range=None) -> BoucWenStepper:
         """A constant-time ``BoucWenStepper`` (the batch kernel's per-sample ``bouc_wen_step``)."""

@@ -93,7 +93,7 @@ P_h[u] = max(u - h, min(u + h, P(k-1))), 0 < h_2 < ... and A_i = a0 + sum_{j<=i}
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -101,7 +101,7 @@ from numba import njit
 from .errors import ModelError
 from .hyperparameters import check_int, check_number
 from .kernels import KERNEL_FASTMATH, backward_rates, pi_sample, play_update
-from .stepper import InverseStepper, check_state_keys, check_step_input
+from .stepper import ArrayStepper, InverseStepper, check_state_keys, check_step_input
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
@@ -397,20 +397,63 @@ class KernelInvertible:
                                          a.max_step, a.n_grid, tol, self.clip_tolerance(vec, rng, tol))
         return Inversion(u, clipped)
 
+    #: the model's ``KernelInverseStepper`` subclass (its per-sample search, the one its kernel runs)
+    inverse_stepper_class = None
+
     def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, n_grid: int = DEFAULT_GRID,
                         max_rate: float | None = None, u_start: float | None = None,
                         reference_scale: float | None = None):
-        """The inverse one sample at a time, replayed through the model's step kernel
-        (``ReplayInverseStepper``); ``reference_scale`` as ``PIInverseStepper``."""
+        """The inverse one sample at a time in constant time (the model's ``KernelInverseStepper``: the
+        per-sample search its step kernel runs), equal to ``invert`` with the same options;
+        ``reference_scale`` as ``PIInverseStepper``."""
         scale = abs(float(reference_scale)) if reference_scale is not None else 0.0
         a = InverseArguments.check(self.name, [scale], dt, input_range, input_limits, n_grid, max_rate, u_start)
-        self._step_setup(params, a.input_range)
-        return ReplayInverseStepper(self, dt, lambda refs: self._kernel_inverse(replace(a, yd=refs), params, a.tol))
+        vec, rng = self._step_setup(params, a.input_range)
+        return self.inverse_stepper_class(self, dt, vec, rng, a, self.clip_tolerance(vec, rng, a.tol))
+
+
+class KernelInverseStepper(ArrayStepper, InverseStepper):
+    """Base of the constant-time inverse steppers of the ``KernelInvertible`` models: the state is the
+    forward stepper's array (``ArrayStepper``) plus the previous input u(k-1) where the forward state
+    lacks it; each step is one call of the model's jitted per-sample inverse, the function its step
+    kernel loops over (``search_start`` / ``search_next`` on the model's candidate output, then the
+    forward stepper's commit). Subclasses set the fields and the rest state and implement
+    ``_search(y_ref) -> u``."""
+
+    def _inverse_setup(self, a: "InverseArguments", clip_tol: float) -> None:
+        self.input_limits = (a.lo, a.hi)
+        self.u_start = a.u_start
+        self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol, clip_tol])
+        self._search_state = np.empty(SEARCH_SIZE)
+
+    def reset(self) -> None:
+        super().reset()
+        self.clipped = False
+        self.n_clipped = 0
+
+    def _search(self, y_ref: float) -> float:
+        raise NotImplementedError
+
+    def _advance(self, y_ref: float) -> float:
+        u = self._search(y_ref)
+        self.clipped = bool(search_clipped(self._search_state))
+        self.n_clipped += self.clipped
+        return u
+
+    @property
+    def state(self) -> dict:
+        return dict(super().state, n_clipped=int(self.n_clipped))
+
+    def set_state(self, state: dict) -> None:
+        if not isinstance(state, dict) or "n_clipped" not in state:
+            raise ModelError(f"{self.model.name}: state keys do not match (missing ['n_clipped'])")
+        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
+        self.n_clipped = int(state["n_clipped"])
 
 
 class ReplayInverseStepper(InverseStepper):
-    """The inverse stepper of a model whose inverse has no per-sample form here (the
-    ``KernelInvertible`` models, viscoelastic): it keeps the references since ``reset`` and returns
+    """The inverse stepper of a model whose inverse has no per-sample form (no registered model: each
+    has a constant-time inverse stepper): it keeps the references since ``reset`` and returns
     the last input of the model's causal inverse over them (causal: the input the batch inverse
     gives at that sample). Exact, O(k) per step: for tests and offline loops, not for a real-time
     target. ``invert_prefix(references) -> Inversion`` is the model's inverse with its options bound."""
