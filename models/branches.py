@@ -54,7 +54,7 @@ from numba import njit
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool
-from .inverse import KernelInvertible
+from .inverse import KernelInverseStepper, KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 from .stepper import ArrayStepper, stepper_input_range
 
@@ -238,36 +238,78 @@ class BranchStepper(ArrayStepper):
         return branch_advance(u, self._state, coef, offset, x_lo, x_hi, square, kind, nm, nh, self._work)
 
 
+@njit(cache=True, nogil=True)
+def branch_inverse_sample(yd, u_given, k, state, coef, offset, x_lo, x_hi, square, kind, n_centre, n_half, work,
+                          limits, st):
+    """One sample of the causal inverse (``inverse.search_next``, derivative-free) for the desired
+    output yd, or with a non-empty ``u_given`` the forward model at u_given[k]: (u, y), the state
+    (``branch_advance``'s layout, u(k-1) at state[1]) committed by ``branch_advance``;
+    limits = [u_lo, u_hi, max_step, n_grid, tol, clip_tol]."""
+    nc = n_centre + n_half
+    o = STATE_HEAD
+    jump = state[o:o + nc]
+    G_prev = state[o + nc:o + nc + n_centre]
+    K_prev = state[o + nc + n_centre:o + 2 * nc]
+    prev_row = state[o + 2 * nc:o + 3 * nc]
+    G, K = work[:n_centre], work[n_centre:nc]
+    jump_c, row = work[nc:2 * nc], work[2 * nc:3 * nc]
+    first = state[0] != 0.0
+    x = search_start(st, u_given, k, state[1], limits[0], limits[1], limits[2], int(limits[3]), limits[4],
+                     limits[5])
+    while not search_done(st):
+        y = branch_candidate(x, first, state[1], int(state[2]), state[3], state[4], jump, G_prev, K_prev, prev_row,
+                             coef, offset, x_lo, x_hi, square, kind, G, K, jump_c, row)[0]
+        x = search_next(st, y - yd, np.nan)
+    return x, branch_advance(x, state, coef, offset, x_lo, x_hi, square, kind, n_centre, n_half, work)
+
+
 @njit(cache=True)
 def branch_steps(yd, u_given, coef, offset, x_lo, x_hi, square, n_centre, kind, n_half, u_limit_lo, u_limit_hi,
                  u_start, max_step, n_grid, tol, clip_tol):
-    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
-    derivative-free), or, with a non-empty ``u_given``, the forward model through the same steps."""
+    """(u, clipped, y): the causal inverse for desired outputs yd, or, with a non-empty ``u_given``,
+    the forward model through the same steps (``branch_inverse_sample`` per sample)."""
     n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
     u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
     nc = n_centre + n_half
-    jump, jump_c, row, prev_row = np.zeros(nc), np.zeros(nc), np.zeros(nc), np.zeros(nc)
-    G, G_prev = np.zeros(n_centre), np.zeros(n_centre)
-    K, K_prev = np.zeros(n_half), np.zeros(n_half)
+    state = np.zeros(STATE_HEAD + 3 * nc)
+    state[0], state[1], state[2] = 1.0, u_start, 1.0  # before the first sample; rising (s(0) = +1)
+    work = np.zeros(3 * nc)
     st = np.empty(SEARCH_SIZE)
-    u1, s_prev, xi_prev, xi_t = u_start, 1, 0.0, 0.0
+    limits = np.array([u_limit_lo, u_limit_hi, max_step, float(n_grid), tol, clip_tol])
     for k in range(n):
-        first = k == 0
-        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
-        while not search_done(st):
-            y = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef, offset,
-                                 x_lo, x_hi, square, kind, G, K, jump_c, row)[0]
-            x = search_next(st, y - yd[k], np.nan)
+        u_out[k], y_out[k] = branch_inverse_sample(yd[k] if yd.shape[0] > 0 else 0.0, u_given, k, state, coef, offset,
+                                                   x_lo, x_hi, square, kind, n_centre, n_half, work, limits, st)
         clipped[k] = search_clipped(st)
-        y, xi, sk, xt = branch_candidate(x, first, u1, s_prev, xi_prev, xi_t, jump, G_prev, K_prev, prev_row, coef,
-                                         offset, x_lo, x_hi, square, kind, G, K, jump_c, row)
-        jump[:] = jump_c  # commit
-        prev_row[:] = row
-        G_prev[:] = G
-        K_prev[:] = K
-        u1, s_prev, xi_prev, xi_t = x, sk, xi, xt
-        u_out[k], y_out[k] = x, y
     return u_out, clipped, y_out
+
+
+class BranchInverseStepper(KernelInverseStepper):
+    """The constant-time inverse stepper of the branch models: ``BranchStepper``'s state (u(k-1) in it)
+    and n_clipped; each step is ``branch_inverse_sample``, the per-sample search ``branch_steps`` runs."""
+
+    def __init__(self, model: "BranchModel", dt: float, vec, input_range, a, clip_tol: float):
+        nm, nh = model.n_centre, model.n_halfwidth
+        nc = nm + nh
+        self._setup(model, dt, (("first", 0), ("u1", 0), ("direction", 0), ("xi", 0), ("xi_reversal", 0),
+                                ("memory", nc), ("centre_bases", nm), ("halfwidth_bases", nh), ("row", nc)))
+        self._args = model.step_arguments(vec, input_range)  # coef, offset, x_lo, x_hi, square, n_centre, kind, n_half
+        self._work = np.zeros(3 * nc)
+        self._inverse_setup(a, clip_tol)
+        self._none = np.zeros(0)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        rest = np.zeros(self._state.size)
+        rest[0], rest[1], rest[2] = 1.0, self.u_start, 1.0
+        return rest
+
+    def _valid(self, array: np.ndarray) -> bool:
+        return bool(np.all(np.isfinite(array)) and abs(array[2]) == 1.0)
+
+    def _search(self, y_ref: float) -> float:
+        coef, offset, x_lo, x_hi, square, nm, kind, nh = self._args
+        return branch_inverse_sample(y_ref, self._none, 0, self._state, coef, offset, x_lo, x_hi, square, kind, nm, nh,
+                                     self._work, self._limits, self._search_state)[0]
 
 
 # --- the shared model class ---------------------------------------------------
@@ -356,6 +398,7 @@ class BranchModel(KernelInvertible, HysteresisModel):
 
     # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(branch_steps)
+    inverse_stepper_class = BranchInverseStepper
 
     def step_arguments(self, vector, input_range) -> tuple:
         x_lo, x_hi = self._linearised(np.array(input_range))
