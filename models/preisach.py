@@ -49,7 +49,7 @@ from numba import njit, prange
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int
-from .inverse import KernelInvertible
+from .inverse import KernelInverseStepper, KernelInvertible
 from .root_search import SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 from .stepper import ArrayStepper, stepper_input_range
 
@@ -147,7 +147,7 @@ def preisach_step(u, state, alphas, betas, weights, acc, commit):
 
 @njit(cache=True, nogil=True)
 def preisach_advance(u, state, alphas, betas, weights, relays, offset):
-    """One sample of ``PreisachStepper``: the relays (as int8 in ``relays``, mirrored in state[1:])
+    """One sample of ``PreisachStepper``: the relays (as int8 in ``relays``, mirrored in state[1:1 + n])
     switch to input u by ``preisach_step``, state[0] holds the running sum (as the batch kernel
     adds its switching events). Returns y(k)."""
     acc = preisach_step(u, relays, alphas, betas, weights, state[0], True)
@@ -190,28 +190,78 @@ class PreisachStepper(ArrayStepper):
         return preisach_advance(u, self._state, self._alphas, self._betas, self._weights, self._relays, self._offset)
 
 
+@njit(cache=True, nogil=True)
+def preisach_inverse_sample(yd, u_given, k, state, alphas, betas, weights, relays, offset, limits, st):
+    """One sample of the causal inverse (``inverse.search_next``, derivative-free) for the desired
+    output yd, or with a non-empty ``u_given`` the forward model at u_given[k]: (u, y), the relays
+    committed by ``preisach_advance``. state = [sum, relays (mirrored), u(k-1)]; limits = [u_lo, u_hi,
+    max_step, n_grid, tol, clip_tol]."""
+    u1 = state[state.shape[0] - 1]
+    x = search_start(st, u_given, k, u1, limits[0], limits[1], limits[2], int(limits[3]), limits[4], limits[5])
+    while not search_done(st):
+        x = search_next(st, offset + preisach_step(x, relays, alphas, betas, weights, state[0], False) - yd, np.nan)
+    y = preisach_advance(x, state, alphas, betas, weights, relays, offset)
+    state[state.shape[0] - 1] = x
+    return x, y
+
+
 @njit(cache=True)
 def preisach_steps(yd, u_given, alphas, betas, weights, offset, u_limit_lo, u_limit_hi, u_start, max_step, n_grid,
                    tol, clip_tol):
-    """(u, clipped, y): the causal inverse for desired outputs yd (``inverse.search_next``,
-    derivative-free; clipped where the nearest output misses by more than ``clip_tol``), or, with
-    a non-empty ``u_given``, the forward model through the same steps."""
+    """(u, clipped, y): the causal inverse for desired outputs yd (clipped where the nearest output
+    misses by more than ``clip_tol``), or, with a non-empty ``u_given``, the forward model through
+    the same steps (``preisach_inverse_sample`` per sample)."""
     n = u_given.shape[0] if u_given.shape[0] > 0 else yd.shape[0]
     u_out, y_out, clipped = np.empty(n), np.empty(n), np.zeros(n, dtype=np.bool_)
-    state = -np.ones(alphas.shape[0], dtype=np.int8)
+    relays = -np.ones(alphas.shape[0], dtype=np.int8)
+    state = -np.ones(alphas.shape[0] + 2)
     acc = 0.0
     for i in range(weights.shape[0]):
         acc -= weights[i]
+    state[0] = acc
+    state[state.shape[0] - 1] = u_start
     st = np.empty(SEARCH_SIZE)
-    u1 = u_start
+    limits = np.array([u_limit_lo, u_limit_hi, max_step, float(n_grid), tol, clip_tol])
     for k in range(n):
-        x = search_start(st, u_given, k, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, clip_tol)
-        while not search_done(st):
-            x = search_next(st, offset + preisach_step(x, state, alphas, betas, weights, acc, False) - yd[k], np.nan)
+        u_out[k], y_out[k] = preisach_inverse_sample(yd[k] if yd.shape[0] > 0 else 0.0, u_given, k, state, alphas,
+                                                     betas, weights, relays, offset, limits, st)
         clipped[k] = search_clipped(st)
-        acc = preisach_step(x, state, alphas, betas, weights, acc, True)
-        u_out[k], y_out[k], u1 = x, offset + acc, x
     return u_out, clipped, y_out
+
+
+class PreisachInverseStepper(KernelInverseStepper):
+    """The constant-time inverse stepper of ``preisach``: state (the weighted sum, every relay's
+    state, u(k-1)) and n_clipped; each step is ``preisach_inverse_sample``, the per-sample search
+    ``preisach_steps`` runs."""
+
+    def __init__(self, model: "Preisach", dt: float, vec, input_range, a, clip_tol: float):
+        self._setup(model, dt, (("sum", 0), ("relays", model.n_relays), ("u1", 0)))
+        self._alphas, self._betas, self._weights, self._offset = model.step_arguments(vec, input_range)
+        self._relays = np.empty(model.n_relays, dtype=np.int8)
+        self._inverse_setup(a, clip_tol)
+        self._none = np.zeros(0)
+        self.reset()
+
+    def _rest(self) -> np.ndarray:
+        acc = 0.0
+        for w in self._weights:  # all relays at -1: as preisach_batch starts its sum
+            acc -= w
+        return np.concatenate(([acc], -np.ones(self.model.n_relays), [self.u_start]))
+
+    def reset(self) -> None:
+        super().reset()
+        self._relays[:] = -1
+
+    def set_state(self, state: dict) -> None:
+        super().set_state(state)
+        self._relays[:] = self._state[1:-1].astype(np.int8)
+
+    def _valid(self, array: np.ndarray) -> bool:
+        return bool(np.all(np.isfinite(array)) and np.all(np.abs(array[1:-1]) == 1.0))
+
+    def _search(self, y_ref: float) -> float:
+        return preisach_inverse_sample(y_ref, self._none, 0, self._state, self._alphas, self._betas, self._weights,
+                                       self._relays, self._offset, self._limits, self._search_state)[0]
 
 
 class Preisach(KernelInvertible, HysteresisModel):
@@ -277,6 +327,7 @@ class Preisach(KernelInvertible, HysteresisModel):
 
     # inverse (``KernelInvertible``) ---------------------------------------
     step_kernel = staticmethod(preisach_steps)
+    inverse_stepper_class = PreisachInverseStepper
 
     def step_arguments(self, vector, input_range) -> tuple:
         alphas, betas = self.grid(np.zeros(1), input_range)
