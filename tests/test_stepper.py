@@ -223,6 +223,21 @@ def test_the_inverse_stepper_equals_the_batch_inverse(name, u, max_rate):
     assert clipped == list(batch.clipped) and s.n_clipped == batch.n_clipped
 
 
+@pytest.mark.parametrize("name", INVERTIBLE)
+def test_every_inverse_stepper_keeps_a_state_of_fixed_size(name):
+    from hysbench.models.inverse import ReplayInverseStepper
+    model, params = model_and_params(name)
+    y = model.simulate(1.5 - np.cos(np.linspace(0.0, 12.0, 400)), DT, params, input_range=RANGE)
+    s = model.inverse_stepper(DT, params, input_range=RANGE, max_rate=50.0)
+    assert not isinstance(s, ReplayInverseStepper)
+    sizes = []
+    for k, v in enumerate(y):
+        s.step(v)
+        if k in (3, 399):
+            sizes.append({key: np.size(val) for key, val in s.state.items()})
+    assert sizes[0] == sizes[1]
+
+
 def test_the_inverse_stepper_reports_clipping_and_reproduces_a_reachable_trajectory():
     model, params = model_and_params("classical-pi")
     params = dict(params, p1=1.0, offset=0.0, **{f"a{i}": 0.1 for i in range(1, 14)})
