@@ -47,7 +47,6 @@ identifies it directly.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from typing import Mapping, MutableMapping, Sequence
 
@@ -60,7 +59,6 @@ from .hyperparameters import check_choice, check_int, check_int_list
 from .inverse import StepInvertible, StepStructure
 from . import extended_stepper
 from .pi_stepper import SteppableStructure
-from .stepper import ReplayStepper
 from .filter_kernels import (
     first_order_foh,
     lowpass1_bank,
@@ -299,18 +297,19 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
     # --- causal stepper (models/extended_stepper.py) --------------------
     def stepper(self, dt: float, params, input_range=None):
         """A constant-time stepper: the P-I stepper where the model has a step structure, else the
-        measurement chain's per-sample blocks around the actuator's stepper (``extended_stepper``);
-        the replay stepper only for a combination those blocks do not cover (delay with creep)."""
+        measurement chain's per-sample blocks around the actuator's stepper (``extended_stepper``)."""
         self._check_causal()
         if not self.inverse_unavailable:
             return super().stepper(dt, params, input_range)
         vec = self.pack(params) if isinstance(params, Mapping) else np.asarray(params, dtype=float)
         values = self.unpack(vec)
         self._check_range(values)
-        try:
-            return extended_stepper.build(self, self.components, float(dt), values, input_range)
-        except extended_stepper.NoBlockStepper:
-            return ReplayStepper(self, dt, vec, input_range)
+        return extended_stepper.build(self, self.components, float(dt), values, input_range)
+
+    @property
+    def noncausal_reason(self) -> str | None:
+        """The base's: the components are causal."""
+        return self.base_model.noncausal_reason
 
     # --- evaluation ------------------------------------------------------
     @staticmethod
@@ -318,9 +317,7 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         """The input as a late actuator receives it: (u_a, k0, t0). The actuator starts at record
         sample k0 = ceil(d / dt); its sample j is record sample k0 + j, at its own time
         t0 + j dt = (k0 + j) dt - d, where it receives u((k0 + j) dt - d) (linear between samples)."""
-        ds = delay / dt
-        k0 = int(math.ceil(ds - 1e-9))
-        frac0 = max(k0 - ds, 0.0)
+        k0, frac0 = extended_stepper.delay_samples(delay, dt)
         n = u.size
         if k0 <= 0:
             return u, 0, 0.0

@@ -1,22 +1,23 @@
 """Constant-time steppers of the extended models whose blocks have no step structure of the P-I
-family (``ExtendedModel``: +delay, +resonance, +saturation, and +interference after either of the
-first two).
+family (``ExtendedModel``: +delay, +resonance, +saturation; and any component on a base outside the
+P-I family, e.g. the diagnosis's ``bouc-wen+relaxation``).
 
 The stepper is the model's measurement chain (extended.py's module docstring) built from
 per-sample blocks around the actuator's own stepper, in the order ``simulate_batch`` applies them:
 
     saturation    ``ClipStepper``           the clip after the stepper inside it (as np.minimum/maximum)
-    interference  ``InterferenceStepper``   the sinusoid in the record's time added after a delay or mode
+    interference  ``InterferenceStepper``   the sinusoid in the record's time, added after the rest
     delay         ``DelayStepper``          a ring buffer of the last ceil(d / dt) + 1 inputs; the
                                             actuator receives them interpolated as ``delayed_input``
     resonance     ``ResonanceStepper``      ``filter_kernels.lowpass2_advance`` (the batch filter's step)
-    actuator      the P-I stepper of the base with relaxation, creep (and interference without
-                  delay or mode): ``pi_stepper.PIStepper``; or the base's own stepper
+    actuator      the P-I stepper of the base with relaxation, creep and interference
+                  (``pi_stepper.PIStepper``) where the base has a step structure and the actuator runs
+                  in the record's time; else ``ActuatorStepper``: the base's own stepper plus the
+                  relaxation bank (``filter_kernels.lowpass1_bank_advance``, the batch filter's step)
+                  and the creep in the actuator's own time (t0 = the delay's fraction of a sample)
 
 Each block's state is a fixed-size plain dict: its own fields plus the inner stepper's, prefixed
-``actuator.``. An unregistered combination of delay and creep (the creep runs in the late
-actuator's own time, which the P-I stepper's offset does not shift) has no block here:
-``ExtendedModel.stepper`` then gives the replay stepper.
+``actuator.``.
 """
 
 from __future__ import annotations
@@ -26,14 +27,20 @@ import math
 import numpy as np
 
 from .errors import ModelError
-from .filter_kernels import lowpass2_advance, lowpass2_coefficients, second_order_foh
+from .filter_kernels import (first_order_foh, lowpass1_bank_advance, lowpass2_advance, lowpass2_coefficients,
+                             second_order_foh)
+from .inverse import StepInvertible
 from .stepper import Stepper, check_state_keys, check_step_input
 
 PREFIX = "actuator."
 
 
-class NoBlockStepper(Exception):
-    """The combination of components has no constant-time stepper here."""
+def delay_samples(delay: float, dt: float) -> tuple[int, float]:
+    """(k0, frac0): a delay d starts the actuator at record sample k0 = ceil(d / dt) (to 1e-9 of a
+    sample), frac0 = k0 - d / dt of a sample late (0 for k0 = 0); ``ExtendedModel.delayed_input``."""
+    ds = delay / dt
+    k0 = int(math.ceil(ds - 1e-9))
+    return k0, max(k0 - ds, 0.0)
 
 
 def _finite(owner: str, u) -> float:
@@ -196,9 +203,7 @@ class DelayStepper(WrappedStepper):
 
     def __init__(self, model, inner: Stepper, rest_stepper: Stepper, delay: float):
         super().__init__(model, inner)
-        ds = float(delay) / self.dt
-        self.k0 = int(math.ceil(ds - 1e-9))  # as ``delayed_input``
-        self._frac0 = max(self.k0 - ds, 0.0) if self.k0 > 0 else 0.0
+        self.k0, self._frac0 = delay_samples(float(delay), self.dt)
         self._rest_stepper = rest_stepper
         self._ring = [0.0] * (self.k0 + 1)
         self._reset_own()
@@ -253,33 +258,97 @@ class DelayStepper(WrappedStepper):
             self._ring[(k + i) % n] = v
 
 
-def build(model, components: tuple, dt: float, params: dict, input_range) -> Stepper:
+class ActuatorStepper(WrappedStepper):
+    """The actuator on a base outside the P-I family's step structure (or late, for its creep): the
+    base's own stepper plus the relaxation bank, L_tau_k[u^p] weighted by c_kp
+    (``filter_kernels.lowpass1_bank_advance``), and the creep s (1 - exp(-(t0 + j dt) / T_c)) at the
+    actuator's sample j, added in ``_actuator_batch``'s order. State: k (the actuator's samples so
+    far), relaxation ([first, the filters, u(k-1)])."""
+
+    _own_keys = ("k", "relaxation")
+
+    def __init__(self, model, inner: Stepper, params: dict, t0: float):
+        super().__init__(model, inner)
+        self._bank = model.has("relaxation")
+        if self._bank:
+            coef = [first_order_foh(float(params[f"tau{k}"]), self.dt) for k in range(1, model.n_relaxation + 1)]
+            n_p = len(model.relaxation_powers)
+            a, b0, b1 = ([c[i] for c in coef for _ in range(n_p)] for i in range(3))
+            weights = [float(params[w]) for w in model._relaxation_weight_names()]
+            self._coef = np.array(a + b0 + b1 + weights)
+            self._powers = np.array(list(model.relaxation_powers) * len(coef), dtype=np.int64)
+        else:
+            self._coef, self._powers = np.zeros(0), np.zeros(0, dtype=np.int64)
+        self._filters = np.zeros(self._powers.size + 2)
+        self._creep = model.has("creep")
+        self._creep_size = float(params.get("creep_size", 0.0))
+        self._creep_time = float(params.get("creep_time", 1.0))
+        self._t0 = float(t0)
+        self._reset_own()
+
+    def step(self, u: float) -> float:
+        y = self.inner.step(u)
+        if self._bank:
+            y = y + lowpass1_bank_advance(self._filters, self._coef, self._powers, float(u))
+        if self._creep:
+            y = y + self._creep_size * -math.expm1(-(self._t0 + self._k * self.dt) / self._creep_time)
+        self._k += 1
+        return y
+
+    def _reset_own(self) -> None:
+        self._k = 0
+        self._filters[:] = 0.0
+        self._filters[0] = 1.0
+
+    def _own_state(self) -> dict:
+        return {"k": self._k, "relaxation": [float(v) for v in self._filters]}
+
+    def _set_own(self, state: dict) -> None:
+        k = self._count(state, "k")
+        try:
+            filters = np.array(state["relaxation"], dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ModelError(f"{self.model.name}: state field 'relaxation' must be a list of numbers") from None
+        if filters.size != self._filters.size or not np.all(np.isfinite(filters)):
+            raise ModelError(f"{self.model.name}: state field 'relaxation' must hold {self._filters.size} finite "
+                             "numbers")
+        self._k = k
+        self._filters[:] = filters
+
+
+def build(model, components: tuple, dt: float, params: dict, input_range, t0: float = 0.0) -> Stepper:
     """The constant-time stepper of ``model`` restricted to ``components`` (a tuple in the model's
-    order) with the parameters ``params`` (a dict over the model's names); NoBlockStepper where a
-    combination has none."""
+    order) with the parameters ``params`` (a dict over the model's names); ``t0``: the actuator's own
+    time at its first sample (a delay's fraction of a sample)."""
     comps = tuple(components)
+    base = model.base_model
+    pi_base = isinstance(base, StepInvertible) and not base.inverse_unavailable
 
     def without(*names):
         return tuple(c for c in comps if c not in names)
 
+    def base_stepper():
+        return base.stepper(dt, {n: params[n] for n in base.param_names}, input_range)
+
     if "saturation" in comps:
-        return ClipStepper(model, build(model, without("saturation"), dt, params, input_range),
+        return ClipStepper(model, build(model, without("saturation"), dt, params, input_range, t0),
                            params["saturation_level"], model.saturation_side == "upper")
-    if "interference" in comps and ("delay" in comps or "resonance" in comps):
-        return InterferenceStepper(model, build(model, without("interference"), dt, params, input_range),
+    if "interference" in comps and ("delay" in comps or "resonance" in comps or not pi_base):
+        return InterferenceStepper(model, build(model, without("interference"), dt, params, input_range, t0),
                                    params["interference_frequency"], params["interference_sin"],
                                    params["interference_cos"])
     if "delay" in comps:
-        if "creep" in comps:
-            raise NoBlockStepper("a late actuator's creep runs in its own time")
-        base = model.base_model
-        rest = base.stepper(dt, {n: params[n] for n in base.param_names}, input_range)
-        return DelayStepper(model, build(model, without("delay"), dt, params, input_range), rest, params["delay"])
+        k0, frac0 = delay_samples(float(params["delay"]), dt)
+        late = frac0 * dt if k0 > 0 else 0.0  # the actuator's own time at its first sample (delayed_input)
+        return DelayStepper(model, build(model, without("delay"), dt, params, input_range, late), base_stepper(),
+                            params["delay"])
     if "resonance" in comps:
         offset = params.get("offset", 0.0) if "offset" in model.base_names else 0.0
-        return ResonanceStepper(model, build(model, without("resonance"), dt, params, input_range),
+        return ResonanceStepper(model, build(model, without("resonance"), dt, params, input_range, t0),
                                 params["natural_frequency"], params["damping_ratio"], offset)
-    inner = model.base_model if not comps else model.clone(components=comps)
-    if comps and inner.inverse_unavailable:
-        raise NoBlockStepper(inner.inverse_unavailable)
-    return inner.stepper(dt, {n: params[n] for n in inner.param_names}, input_range)
+    if not comps:
+        return base_stepper()
+    if pi_base and not ("creep" in comps and t0 != 0.0):
+        inner = model.clone(components=comps)
+        return inner.stepper(dt, {n: params[n] for n in inner.param_names}, input_range)
+    return ActuatorStepper(model, base_stepper(), params, t0)

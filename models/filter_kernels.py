@@ -54,13 +54,38 @@ def second_order_foh(natural_frequency_hz: float, damping_ratio: float, h: float
 
 
 # --- kernels ---------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _step1(a, b0, b1, x, vk, vn):
+    # one first-order-hold step of the first-order block: x at the next sample
+    return a * x + b0 * vk + b1 * vn
+
+
 @njit(cache=True)
 def _lowpass1(v, a, b0, b1, out):
     x = 0.0
     out[0] = 0.0
     for k in range(v.shape[0] - 1):
-        x = a * x + b0 * v[k] + b1 * v[k + 1]
+        x = _step1(a, b0, b1, x, v[k], v[k + 1])
         out[k + 1] = x
+
+
+@njit(cache=True, nogil=True)
+def lowpass1_bank_advance(state, coef, powers, u):
+    """One sample of a weighted bank of first-order blocks for a stepper, block j filtering u^p_j
+    (``_step1``, the step ``_lowpass1`` takes; from rest: 0 at the first sample). state = [first,
+    x_1..x_m, u(k-1)]; coef = [a (m), b0 (m), b1 (m), weights (m)]. Returns sum_j w_j x_j(k)."""
+    m = powers.shape[0]
+    first = state[0] != 0.0
+    u1 = state[m + 1]
+    acc = 0.0
+    for j in range(m):
+        p = powers[j]
+        x = 0.0 if first else _step1(coef[j], coef[m + j], coef[2 * m + j], state[1 + j], u1**p, u**p)
+        state[1 + j] = x
+        acc += coef[3 * m + j] * x
+    state[0] = 0.0
+    state[m + 1] = u
+    return acc
 
 
 @njit(cache=True)
@@ -92,7 +117,7 @@ def _lowpass1_at(v, a, b0, b1, rows, out):
     for k in range(v.shape[0] - 1):
         if j == rows.shape[0]:
             break
-        x = a * x + b0 * v[k] + b1 * v[k + 1]
+        x = _step1(a, b0, b1, x, v[k], v[k + 1])
         if rows[j] == k + 1:
             out[j] = x
             j += 1

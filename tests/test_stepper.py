@@ -155,40 +155,56 @@ def test_no_registered_model_replays_its_record():
 
 
 # unregistered chains of the extended blocks (extended_stepper.py), each against simulate
-CHAINS = [("relaxation", "delay"), ("relaxation", "resonance"), ("resonance", "interference"),
-          ("delay", "interference"), ("delay", "resonance", "interference", "saturation"),
-          ("creep", "resonance"), ("creep", "interference", "saturation")]
+CHAINS = [("mrpim", ("relaxation", "delay")), ("mrpim", ("relaxation", "resonance")),
+          ("mrpim", ("resonance", "interference")), ("mrpim", ("delay", "interference")),
+          ("mrpim", ("delay", "resonance", "interference", "saturation")), ("mrpim", ("creep", "resonance")),
+          ("mrpim", ("creep", "interference", "saturation")), ("mrpim", ("creep", "delay")),
+          ("mrpim", ("relaxation", "creep", "delay", "resonance")),
+          # bases outside the P-I family's step structure (the diagnosis extends any registered model)
+          ("bouc-wen", ("relaxation", "creep", "interference")), ("preisach", ("delay", "resonance", "saturation")),
+          ("elliptical", ("relaxation", "creep", "delay"))]
 
 
-@pytest.mark.parametrize("components", CHAINS, ids="+".join)
-@pytest.mark.parametrize("side", ["upper", "lower"])
-def test_a_chain_of_extended_blocks_steps_as_simulate(components, side):
+CHAIN_CASES = [(base, comps, side) for base, comps in CHAINS
+               for side in (("upper", "lower") if "saturation" in comps else ("upper",))]
+
+
+@pytest.mark.parametrize("base, components, side", CHAIN_CASES,
+                         ids=["+".join((b,) + c) + ("" if "saturation" not in c else f"-{s}") for b, c, s in CHAIN_CASES])
+def test_a_chain_of_extended_blocks_steps_as_simulate(base, components, side):
     from hysbench.models import ExtendedModel
-    model = ExtendedModel(components=components, saturation_side=side)
-    params = dict(model.default_params(), **MRPIM().preset("paper"))
+    model = ExtendedModel(base=base, components=components, saturation_side=side, relaxation_powers=(1, 2))
+    params = model.default_params()
+    if base == "mrpim":
+        params.update(MRPIM().preset("paper"))
     for name, value in (("delay", 0.0237), ("interference_sin", 0.3), ("interference_cos", -0.2),
-                        ("creep_size", 0.5), ("creep_time", 0.3), ("c1", 0.7),
-                        ("saturation_level", 8.0 if side == "upper" else 3.0)):
+                        ("creep_size", 0.5), ("creep_time", 0.3), ("c1", 0.7), ("c1_u2", -0.2)):
         if name in params:
             params[name] = value
     t = np.arange(300) * DT
     u = 1.5 - np.cos(2 * np.pi * 5 * t)
+    if "saturation" in components:  # a level the output crosses
+        free = model.simulate(u, DT, dict(params, saturation_level=1e9 if side == "upper" else -1e9),
+                              input_range=RANGE)
+        params["saturation_level"] = float(np.quantile(free, 0.8 if side == "upper" else 0.2))
     s = model.stepper(DT, params, input_range=RANGE)
     assert not isinstance(s, ReplayStepper)
     y = model.simulate(u, DT, params, input_range=RANGE)
     assert_close(s.run(u), y, 1e-12)
+    s.reset()
+    first = s.run(u[:140])
+    other = model.stepper(DT, params, input_range=RANGE)
+    other.set_state(json.loads(json.dumps(s.state)))
+    assert_close(np.concatenate([first, other.run(u[140:])]), y, 1e-12)
     if "saturation" in components:  # the clip is reached
         assert np.any(y == params["saturation_level"])
 
 
-def test_a_delay_with_creep_replays_its_record():
+def test_an_extension_of_a_non_causal_base_refuses_a_stepper():
     from hysbench.models import ExtendedModel
-    model = ExtendedModel(components=("delay", "creep"))
-    params = dict(model.default_params(), delay=0.01)
-    s = model.stepper(DT, params, input_range=RANGE)
-    assert isinstance(s, ReplayStepper)
-    u = 1.5 - np.cos(np.linspace(0.0, 6.0, 50))
-    assert_close(s.run(u), model.simulate(u, DT, params, input_range=RANGE), 1e-12)
+    model = ExtendedModel(components=("delay",), base_hyperparameters={"derivative": "smoothed"})
+    with pytest.raises(ModelError, match="'smoothed' derivative uses later samples"):
+        model.stepper(DT, model.default_params(), input_range=RANGE)
 
 
 def test_a_delay_stepper_holds_the_rest_output_then_the_late_input():
