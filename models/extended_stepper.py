@@ -74,8 +74,13 @@ class WrappedStepper(Stepper):
             raise ModelError(f"{self.model.name}: a state is a dict, got {type(state).__name__}")
         own = {k: v for k, v in state.items() if not k.startswith(PREFIX)}
         check_state_keys(self.model.name, own, self._own_keys)
+        before = self.inner.state
         self.inner.set_state({k[len(PREFIX):]: v for k, v in state.items() if k.startswith(PREFIX)})
-        self._set_own(own)
+        try:
+            self._set_own(own)
+        except ModelError:
+            self.inner.set_state(before)  # a refused state changes nothing
+            raise
 
     def _number(self, state: dict, key: str) -> float:
         try:

@@ -200,6 +200,24 @@ def test_a_chain_of_extended_blocks_steps_as_simulate(base, components, side):
         assert np.any(y == params["saturation_level"])
 
 
+@pytest.mark.parametrize("name, bad", [
+    ("mrpim+delay", {"inputs": [1.0]}),                      # the ring holds 8 inputs at 7.4 samples
+    ("mrpim+delay", {"k": -1}),
+    ("mrpim+resonance", {"x": "a"}),
+    ("bouc-wen-oscillator", {"k": 0.5}),
+])
+def test_a_chain_stepper_refuses_a_state_it_cannot_be_in(name, bad):
+    model, params = model_and_params(name)
+    s = model.stepper(DT, params, input_range=RANGE)
+    s.run([1.0, 1.2, 1.4])
+    before = s.state
+    with pytest.raises(ModelError):
+        s.set_state(dict(s.state, **bad))
+    assert s.state == before  # a refused state changes nothing
+    with pytest.raises(ModelError, match="state keys"):
+        s.set_state({k: v for k, v in s.state.items() if k != next(iter(bad))})
+
+
 def test_an_extension_of_a_non_causal_base_refuses_a_stepper():
     from hysbench.models import ExtendedModel
     model = ExtendedModel(components=("delay",), base_hyperparameters={"derivative": "smoothed"})
