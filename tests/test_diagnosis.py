@@ -45,7 +45,7 @@ from hysbench.benchmarks.diagnosis_accuracy.planted import (
 )
 from hysbench.benchmarks.diagnosis_accuracy.stated_limits import LIMITS_PCT, stated_limit
 from hysbench.benchmarks.diagnosis.report import verdict_lines
-from hysbench.benchmarks.diagnosis.saturation import shows_clip, slope_where_clipped
+from hysbench.benchmarks.diagnosis.causes.saturation import shows_clip, slope_where_clipped
 from hysbench.benchmarks.diagnosis.residuals import (
     RecordResidual,
     coherent_spectrum,
@@ -59,8 +59,8 @@ from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, NO_CUT, Candi
 from hysbench.benchmarks.diagnosis.policy import Policy, PolicyError
 from hysbench.benchmarks.diagnosis.screen import Screen
 from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, passes, score
-from hysbench.benchmarks.diagnosis.interference import (fold_frequencies, frequencies_agree, on_top,
-                                                      same_line)
+from hysbench.benchmarks.diagnosis.causes.interference import same_line
+from hysbench.benchmarks.diagnosis.lines import fold_frequencies, frequencies_agree, on_top
 from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree, replacements, strongest_first
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.segments import own_samples
@@ -425,7 +425,7 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
 
 
 def test_without_pinned_needs_a_pinned_time_constant_and_one_left():
-    from hysbench.benchmarks.diagnosis.relaxation import without_pinned
+    from hysbench.benchmarks.diagnosis.causes.relaxation import without_pinned
 
     c = SimpleNamespace(model=SimpleNamespace(nonlinear_names=("gamma", "lambda", "tau1")), params={"tau1": 0.01},
                         hyperparameters={"n_relaxation": 1})
@@ -904,7 +904,7 @@ def test_a_mode_started_on_top_of_a_delay_keeps_the_low_frequency_lag(fn, zeta, 
     """``lag_shared``: a mode started on top of a kept delay shortens the delay by the mode's low-frequency
     lag, so the two together lag the input as the delay alone did. Checked on the mode's transfer function
     1 / (1 - r^2 + 2 j zeta r) at r = 1e-3 (its phase per radian, not the formula used)."""
-    from hysbench.benchmarks.diagnosis.screen import lag_shared
+    from hysbench.benchmarks.diagnosis.causes.resonance import lag_shared
 
     wn = 2 * math.pi * fn
     w = 1e-3 * wn
@@ -1424,7 +1424,7 @@ def test_the_delay_search_on_short_records_reaches_a_delay_between_its_grid_poin
     """On short records the delay is profiled on a geometric grid (about 50 % steps), then refined by Brent
     between the best point's neighbours: a planted 43 ms delay (grid points 36 and 50 ms here) on the exact
     plant is found within 5 %."""
-    from hysbench.benchmarks.diagnosis.delay import fit_delay
+    from hysbench.benchmarks.diagnosis.causes.delay import fit_delay
 
     ds, _ = planted(("delay",), "mrpim", "sines", 2, {"delay": {"delay_s": 0.043}})
     screen = build_screen(own_samples(ds), get_model("mrpim"))[-1]
@@ -1647,7 +1647,7 @@ def test_the_delay_profile_is_scanned_where_it_is_rough_at_the_scale_of_a_sample
     ripple minimum away from the valley's floor; the scan (every half sample) then Brent reaches the floor."""
     from scipy.optimize import minimize_scalar
 
-    from hysbench.benchmarks.diagnosis.delay import scan_minimum
+    from hysbench.benchmarks.diagnosis.causes.delay import scan_minimum
     dt, floor = 2e-3, 0.0044
 
     def rss(d):  # minima at floor + k dt; envelope rising away from the floor

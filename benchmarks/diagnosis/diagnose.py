@@ -70,7 +70,8 @@ from hysbench.models.base import HysteresisModel
 from hysbench.models.errors import HysbenchError
 
 from .candidates import MAX_RELAXATION, MAX_ROWS, Candidate
-from .experiment import RESHAPING_CAUSES, one_drive, suggest
+from .causes import CAUSES
+from .experiment import one_drive, suggest
 from .extensions import gain, residuals_of_fit, scores_by_file
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
 from .screen import Screen
@@ -79,7 +80,7 @@ from .secondary import complete_partial, complete_promising, drop_redundant_prim
 from .slow_part import predicts_as_well, slow_part_composite
 from .validation import borne_out, check_also, check_unexplained, fit_extension, refit_base_whole
 from .policy import Policy
-from .selection import Verdict, decide, step
+from .selection import UNEXPLAINED, Verdict, decide, step
 
 FORMAT = "hysbench-diagnosis/3"  # 3: the thresholds in "policy" (not "settings"), the rule "trace"
 
@@ -160,19 +161,7 @@ class Diagnosis:
             return {}
         if self.extended_fit is None:
             return dict(c.estimates)
-        from_fit = dict(c.estimates)
-        p = self.extended_fit.params
-        if c.cause == "relaxation":
-            from_fit["tau_s"] = sorted(float(p[f"tau{i}"]) for i in range(1, len(c.estimates["tau_s"]) + 1))
-        elif c.cause == "delay":
-            from_fit["delay_s"] = float(p["delay"])
-        elif c.cause == "resonance":
-            from_fit.update(natural_frequency_hz=float(p["natural_frequency"]), damping_ratio=float(p["damping_ratio"]))
-        elif c.cause == "creep":
-            from_fit.update(size=float(p["creep_size"]), time_scale_s=float(p["creep_time"]))
-        elif c.cause == "saturation":
-            from_fit["level"] = float(p["saturation_level"])
-        return from_fit
+        return c.kind.from_fit(dict(c.estimates), self.extended_fit.params)
 
     @property
     def uncertainty(self) -> dict:
@@ -246,14 +235,15 @@ class Diagnosis:
                 f"z = {v['z_whole']:.2f} against the noise, needs {self.policy.z_confirm:.3g}; "
                 f"{100 * v['explained_window']:.1f} % on the windows"
                 + (f"; interference amplitude there {self.interference_check.get('validation_amplitude', 0):.3g}"
-                   if self.cause == "interference" else "")
+                   if self.chosen.kind.disturbance else "")
                 + f"): '{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
 
     @property
     def one_drive_caution(self) -> str:
         """Under one periodic drive a delay, a lag or a mode only reshapes the response's harmonics, as a static
         nonlinearity outside the vocabulary can: said when one is named or kept ("" otherwise)."""
-        named = list(dict.fromkeys(c for c in (self.cause, *(a.cause for a in self.also)) if c in RESHAPING_CAUSES))
+        named = list(dict.fromkeys(c for c in (self.cause, *(a.cause for a in self.also))
+                                   if c in CAUSES and CAUSES[c].reshapes))
         drive = one_drive(self.dataset.records) if named else None
         if drive is None:
             return ""
@@ -321,8 +311,9 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
     """Creep as ambiguous with the named relaxation's slowest part (``slow_part``), unless creep is
     already named, ambiguous, or kept on top of the relaxation ("also": then the records show both)."""
     v = diag.verdict
-    if v.chosen is None or v.chosen.cause != "relaxation":
+    if v.chosen is None or v.chosen.kind.slow_twin is None:
         return
+    twin = v.chosen.kind.slow_twin
     say("the slowest time constant or creep")
     comp = slow_part_composite(diag.screen, result["folds"], result["errors"], v.chosen, result["candidates"],
                                result["relaxation_variants"])
@@ -331,10 +322,10 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
     if comp is None:
         return
     as_well = predicts_as_well(result["folds"], result["errors"], v.chosen, comp)
-    ambiguous = as_well and "creep" not in taken
-    diag.trace.append(step("slow-part-twin", "creep ambiguous" if ambiguous else "relaxation alone",
+    ambiguous = as_well and twin not in taken
+    diag.trace.append(step("slow-part-twin", f"{twin} ambiguous" if ambiguous else f"{v.chosen.cause} alone",
                            composite=comp.label, gain=comp.heldout.get("gain"), z=comp.heldout.get("z"),
-                           predicts_as_well=as_well, creep_already=sorted(taken & {"creep"})))
+                           predicts_as_well=as_well, creep_already=sorted(taken & {twin})))
     if not ambiguous:
         return
     v.ambiguous_with.append(comp)
@@ -342,7 +333,7 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
                  f"drive period, and the faster ones plus a drift since the start predict the held-out records as well "
                  f"(z < {diag.policy.z_same:g}): that part may be creep")
     if experiments:
-        diag.experiments.append({"causes": [v.chosen.cause, "creep"], **suggest(diag.screen, v.chosen, comp)})
+        diag.experiments.append({"causes": [v.chosen.cause, twin], **suggest(diag.screen, v.chosen, comp)})
 
 
 def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
@@ -464,7 +455,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     completed = verdict.chosen is None and extend and (complete_partial(diag, result, say)
                                                        or complete_promising(diag, result, say))
     secondary_s = time.perf_counter() - t1  # a completion runs the secondary causes on the partial or promising cause
-    if extend and diag.cause == "unexplained" and diag.verdict.partial is not None and not structured:
+    if extend and diag.cause == UNEXPLAINED and diag.verdict.partial is not None and not structured:
         t1 = time.perf_counter()
         refit_base_whole(diag, say)
         check_unexplained(diag, say)
@@ -495,7 +486,7 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     diag.trace.append(step("validation", "confirmed" if diag.confirmed else "not confirmed", cause=diag.cause,
                            **{k: v.get(k) for k in ("explained_whole", "explained_window", "z_whole")},
                            **({"same_amplitude": diag.interference_check.get("same_amplitude")}
-                              if diag.cause == "interference" else {})))
+                              if diag.chosen.kind.disturbance else {})))
     if diag.also:
         t1 = time.perf_counter()
         check_also(diag, say)

@@ -31,8 +31,6 @@ from .candidates import Candidate
 N_FREQUENCIES = 9
 SAMPLES_PER_PERIOD = 2000
 OUTSIDE_RECORDED = 1.0  # a probe's fit beyond the recorded output range by this many times its width
-# causes that, under one periodic drive, only reshape the response's harmonics -- as a static nonlinearity does
-RESHAPING_CAUSES = ("relaxation", "delay", "resonance")
 SAME_DRIVE = 0.02  # two inputs' quantiles agree within this share of their range: the same drive
 _DRIVE_QUANTILES = (0.01, 0.25, 0.5, 0.75, 0.99)
 
@@ -109,7 +107,7 @@ def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle:
 def suggest(screen, a: Candidate, b: Candidate) -> dict:
     """{"drive", "frequency_hz", "separation" (output units, rms), "noise_sd", "probes": [...]}; probes on which a
     fit leaves the recorded output range (``_probe``) are not suggested ("note" says so if none is left)."""
-    if "interference" in (a.cause, b.cause):
+    if a.kind.disturbance or b.kind.disturbance:
         return {"drive": "constant input (drive off)", "frequency_hz": None, "separation": None,
                 "noise_sd": screen.noise_sd,
                 "note": "an interference is not driven by the input: record with the drive held constant"}
@@ -127,7 +125,7 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
     probes.append({"drive": f"multisine {freqs[0]:.3g}-{freqs[-1]:.3g} Hz", "frequency_hz": None,
                    **_probe(screen, a, b, u, dt, u.size // 3, recorded)})
-    if "creep" in (a.cause, b.cause):
+    if a.kind.shown_at_rest or b.kind.shown_at_rest:
         hold = np.full(u.size, float(lo))
         probes.append({"drive": f"input held at {lo:.3g} (the rest) for {duration:.3g} s", "frequency_hz": None,
                        **_probe(screen, a, b, hold, dt, 0, recorded)})

@@ -151,8 +151,9 @@ def figure_spectrum(diag, path: Path) -> None:
     f, a = coherent_spectrum(ids, 1.0 / duration, 0.45 / dt, pad=2)
     keep = extremes_kept(np.log(f), a, low=False)
     ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color="C0")
-    if diag.cause == "interference":
-        ax.axvline(diag.parameters["frequency_hz"], color="C3", lw=0.8, ls="--", label="named interference")
+    marker = diag.chosen.kind.spectrum_marker(diag.parameters) if diag.chosen is not None else None
+    if marker is not None:
+        ax.axvline(marker, color="C3", lw=0.8, ls="--", label=f"named {diag.cause}")
         ax.legend(fontsize=7)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("pooled coherent amplitude")

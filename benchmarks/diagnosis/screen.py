@@ -36,12 +36,12 @@ from scipy.optimize import least_squares, minimize_scalar
 from hysbench.data.dataset import Record
 from hysbench.data.excitations import drive_band, shortest_period
 from hysbench.identification.criteria import effective_sample_size
-from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
-from .candidates import DRIVE_LOCKED, MAX_ROWS, NO_CUT, Candidate, estimates_of, is_log
+from .candidates import MAX_ROWS, Candidate, column_basis, estimates_of, is_log, solve_scaled
+from .causes import CAUSES, cause_of_parameter, refined
 from .policy import Policy
 from .residuals import RecordResidual, harmonic_phase_turn
 
@@ -97,14 +97,6 @@ def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[
     return out
 
 
-def lag_shared(z: Mapping[str, float]) -> dict:
-    """A mode's start on top of a kept delay, the delay shortened by the mode's low-frequency lag
-    (2 zeta / omega_n = zeta / (pi f_n)): a delay fitted first has taken up that lag, so with it held a mode
-    at its true values adds the lag twice and predicts worse than none."""
-    lag = z["damping_ratio"] / (math.pi * z["natural_frequency"])
-    return {**z, "delay": max(float(z["delay"]) - lag, 0.0)}
-
-
 @dataclass
 class _Part:
     """One identification record in the screen: its row subset and the base's columns."""
@@ -120,21 +112,6 @@ class _BaseColumns:
 
     rows: list  # (n_rows_m, n_base_linear) per record
     full: list | None  # {name: full-length column} per record, or None if not kept
-
-
-def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Column-scaled least squares (minimum norm below 1e-10 of the largest singular value): (theta, residual)."""
-    theta = scaled_lstsq(A, y, rcond=1e-10)
-    return theta, y - A @ theta
-
-
-def column_basis(A: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of A's column space (columns scaled to unit norm; singular values below 1e-10 of
-    the largest dropped)."""
-    d = np.sqrt(np.einsum("ij,ij->j", A, A))
-    d[~(d > 0)] = 1.0
-    u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
-    return np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])
 
 
 class Screen:
@@ -221,15 +198,9 @@ class Screen:
         scale = self.scale if name in self.base.param_names else self.component_scale
         for p in model.parameters(scale):
             if p.name == name:
-                if name == "creep_time":
-                    return max(float(p.min), self.creep_min), float(p.max)
-                if name == "damping_ratio":  # a resonance is a mode: underdamped
-                    return float(p.min), min(float(p.max), self.policy.max_damping)
-                if name == "natural_frequency":  # down to a broadband drive's band; nothing above Nyquist
-                    return min(float(p.min), self.mode_floor), min(float(p.max), self.nyquist)
-                if name == "interference_frequency":  # the samples show nothing faster
-                    return float(p.min), min(float(p.max), self.nyquist)
-                return float(p.min), float(p.max)
+                owner = cause_of_parameter(name)
+                lo, hi = float(p.min), float(p.max)
+                return owner.bounds(self, name, lo, hi) if owner is not None else (lo, hi)
         raise KeyError(name)
 
     @property
@@ -267,7 +238,7 @@ class Screen:
     @staticmethod
     def transforms(model: HysteresisModel) -> bool:
         """Whether the model's components change the base's columns (resonance, delay)."""
-        return isinstance(model, ExtendedModel) and (model.has("resonance") or model.has("delay"))
+        return isinstance(model, ExtendedModel) and any(CAUSES[c].transforms for c in model.components)
 
     def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False) -> np.ndarray:
         """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'):
@@ -275,7 +246,7 @@ class Screen:
         columns the components add (for components that leave the base's columns unchanged)."""
         base_nl = {k: nonlinear[k] for k in self.base_nl_names}
         names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
-        if isinstance(model, ExtendedModel) and model.has("delay"):  # the base runs on a late input
+        if isinstance(model, ExtendedModel) and any(CAUSES[c].late_input for c in model.components):
             cols = [model.linear_names.index(c) for c in names]
             return np.concatenate([model.windowed_regressors(p.record.u, p.record.dt, dict(nonlinear), p.rows,
                                                              self.input_range)[:, cols] for p in self.parts])
@@ -360,34 +331,8 @@ class Screen:
         return c
 
     def limit_of(self, cause: str, estimates: Mapping) -> str:
-        """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
-        creep slower than the drive, a delay at least one sample long; a fit pinned at those limits is not
-        named."""
-        pol = self.policy
-        if cause == "resonance" and estimates["damping_ratio"] >= pol.damping_limit_share * pol.max_damping:
-            return f"damping ratio at the limit {pol.max_damping:g}: no mode"
-        if cause == "relaxation":
-            taus = estimates["tau_s"]
-            if any(b < pol.duplicate_tau_ratio * a for a, b in zip(taus, taus[1:])):
-                return (f"time constants closer than a factor {pol.duplicate_tau_ratio:g}: their difference is a "
-                        "band-pass, not a relaxation")
-        if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < pol.interference_min_cycles:
-            return (f"fewer than {pol.interference_min_cycles:g} cycles in the shortest record "
-                    f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
-        if cause == "interference" and self.drive_locked(estimates):
-            return DRIVE_LOCKED
-        if cause == "saturation" and "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
-            return NO_CUT
-        if cause == "saturation" and abs(estimates["slope_where_clipped"]) >= pol.max_clipped_slope:
-            moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
-            return (f"where it would clip, the output still {moves} the model (slope "
-                    f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
-        if cause == "delay" and estimates["delay_s"] < (dt := max(p.record.dt for p in self.parts)):
-            return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
-                    "plus a first difference of it (a rate term), not a resolved delay")
-        if cause == "creep" and estimates["time_scale_s"] <= pol.creep_limit_margin * self.creep_min:
-            return f"time scale at the limit {self.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
-        return ""
+        """Why estimates fall outside the cause's meaning (``Cause.limit``): a fit pinned there is not named."""
+        return CAUSES[cause].limit(self, estimates) if cause in CAUSES else ""
 
     # --- nonlinear search --------------------------------------------------
     def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
@@ -514,11 +459,11 @@ class Screen:
     def joint(self, c: Candidate, max_nfev: int = 15) -> Candidate:
         """Refine a stage-1 candidate with the base's nonlinear parameters free too (not saturation:
         ``saturation.joint_saturation``; not interference: its phase is per record)."""
-        if not self.base_nl_names or c.cause in ("saturation", "interference"):
+        if not self.base_nl_names or not c.kind.separable:
             return c
         model = c.model
         nl = list(model.nonlinear_names)
-        free = [(n, is_log(n)) for n in nl if n != "interference_frequency"]
+        free = [(n, is_log(n)) for n in nl if refined(n)]
         start = {n: c.params[n] for n in nl}
         z = self.refine(model, start, free, max_nfev=max_nfev)
         out = self.candidate(c.cause, c.label, model, z, c.hyperparameters, stage="joint")
@@ -534,20 +479,19 @@ class Screen:
         the policy's ``min_explained`` of the primary's sum of squares (else None: nothing to add, and a refinement with
         every nonlinear parameter free is the costly part)."""
         parts = tuple(getattr(primary.model, "components", (primary.cause,)))
-        if {"saturation", "interference"} & {*parts, other.cause} or other.cause in parts:
+        if not all(CAUSES[p].separable for p in (*parts, other.cause)) or other.cause in parts:
             return None
         hyper = {**primary.hyperparameters, **other.hyperparameters}
         model = self.extension((*parts, other.cause), **hyper)
         start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
         if search:
             starts = self._starts(model, start, [n for n in model.nonlinear_names if n not in primary.params])
-            if other.cause == "resonance" and "delay" in primary.params:
-                starts += [lag_shared(q) for q in starts[1:]]
+            starts += other.kind.starts_on_top(primary, starts)
             rss = [self.evaluate(model, z)[0] for z in starts]
             if min(rss) > (1.0 - self.policy.min_explained) * primary.rss:
                 return None
             start = starts[int(np.argmin(rss))]
-        free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]
+        free = [(n, is_log(n)) for n in model.nonlinear_names if refined(n)]
         z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
         c = self.candidate(other.cause, f"{primary.label} + {other.label}", model, z, hyper, stage="joint")
         c.estimates = estimates_of(other.cause, c.params, model)
@@ -560,18 +504,15 @@ class Screen:
         """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
         ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
         frequency and damping); a relaxation of several time constants keeps its own start."""
-        if not names or (len(names) > 1 and any(n.startswith("tau") for n in names)):  # several time constants
+        if not names or (len(names) > 1 and any(cause_of_parameter(n).variants for n in names)):
             return [dict(start)]
         k = max(3, COMPOSITE_GRID // len(names))
         axes = []
         for n in names:
-            lo, hi = self.bounds_of(model, n)
-            if n == "delay":
-                lo = min(p.record.dt for p in self.parts)
-            if not hi > lo:  # nothing to search
-                return [dict(start)]
             # inside the bounds (a start at a bound is a bound estimate if nothing moves it)
-            spaced = np.geomspace if is_log(n) or n == "delay" else np.linspace
-            axes.append(spaced(lo, hi, k + 2)[1:-1])
+            axis = cause_of_parameter(n).grid_axis(self, model, n, k)
+            if axis is None:  # nothing to search
+                return [dict(start)]
+            axes.append(axis)
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(names))
         return [dict(start)] + [{**start, **dict(zip(names, map(float, g)))} for g in grid]

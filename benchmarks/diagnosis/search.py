@@ -15,14 +15,9 @@ from __future__ import annotations
 from typing import Callable, Sequence
 
 from .candidates import MAX_RELAXATION, Candidate
-from .creep import fit_creep
-from .delay import fit_delay
-from .interference import fit_interference, same_line
+from .causes import CAUSES
 from .library_screen import library_screen
-from .relaxation import fit_relaxation, without_pinned
 from .residuals import RecordResidual
-from .resonance import fit_resonance
-from .saturation import fit_saturation, joint_saturation
 from .selection import (Folds, bound_flags, fold_uncertainty, heldout_errors, heldout_null, line_worth_refit,
                         passes, promising, score)
 
@@ -33,8 +28,8 @@ def score_candidate(screen, folds: Folds, e_null, errors: dict, c: Candidate, re
     c.train_residuals = []
     e, fold_est = heldout_errors(screen, folds, c, refit=refit, train_residuals=c.train_residuals)
     c.heldout = {**score(folds, e_null, e), **bound_flags(screen, c), "refit_per_fold": refit}
-    if refit and c.cause == "interference":
-        c.heldout["same_line"] = same_line(screen, fold_est)
+    if refit:
+        c.heldout.update(c.kind.fold_checks(screen, fold_est))
     if fold_est:
         c.uncertainty = fold_uncertainty(screen, fold_est)
     errors[id(c)] = e
@@ -47,15 +42,10 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
     say = progress or (lambda s: None)
     say("library screen (pysindy FROLS)")
     library = library_screen(screen, residuals)
-    say("relaxation")
-    variants = fit_relaxation(screen, max_relaxation, seeds=library["relaxation_taus"])
-    cands = []
-    for name, fit in (("delay", fit_delay), ("resonance", fit_resonance), ("creep", fit_creep),
-                      ("interference", fit_interference), ("saturation", fit_saturation)):
-        say(name)
-        c = fit(screen)
-        if c is not None:
-            cands.append(c)
+    variants, cands = [], []  # variants: every order of a cause fitted in variants competes
+    for kind in CAUSES.values():
+        say(kind.name)
+        (variants if kind.variants else cands).extend(kind.fit(screen, library, max_relaxation))
     say("held-out scores (leave one identification record out)")
     folds = Folds.of(screen)
     screen.null.train_residuals = []
@@ -70,7 +60,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             best_of[c.cause] = c
     for c in sorted(best_of.values(), key=lambda c: -c.heldout_gain)[:max_joint]:
         say(f"{c.label} (joint)")
-        j = joint_saturation(screen, c, joint_nfev) if c.cause == "saturation" else screen.joint(c, joint_nfev)
+        j = c.kind.joint(screen, c, joint_nfev)
         if j is not c:
             score_candidate(screen, folds, e_null, errors, j)
             if j.heldout_gain > c.heldout_gain:
@@ -78,7 +68,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
                 pool[pool.index(c)] = j
     # a time constant at its bound: one fewer, from the others
     for c in [v for v in variants if promising(v, screen.policy)]:
-        r = without_pinned(screen, c, c.heldout["at_bound"])
+        r = c.kind.one_fewer(screen, c, c.heldout["at_bound"])
         if r is None:
             continue
         say(f"{r.label} (from {c.label} without its pinned time constant)")

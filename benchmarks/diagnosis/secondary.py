@@ -25,13 +25,12 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .candidates import Candidate
-from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top,
-                           on_top_estimates)
-from .saturation import clip_on_top
+from .causes import CAUSES, cause_of_parameter
+from .lines import fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top, on_top_estimates
 from .policy import Policy
-from .selection import (OPEN_ENDED_NOTE, Verdict, at_bound, bound_flags, carried_by_one_record, evidence,
-                        fold_uncertainty, heldout_errors, own_nonlinear, passes, promising, score, share_of_misfit,
-                        step)
+from .selection import (NONE, OPEN_ENDED, OPEN_ENDED_NOTE, UNEXPLAINED, Verdict, at_bound, bound_flags,
+                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, own_nonlinear, passes,
+                        promising, score, share_of_misfit, step)
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
@@ -81,7 +80,7 @@ def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
     train, designs = [], []
-    if chosen.cause == "interference":  # the base's errors and training residuals: those of its joint fit
+    if chosen.kind.disturbance:  # the base's errors and training residuals: those of its joint fit
         base = screen.design(screen.base, screen.base_nl)
         lines = joint_line(screen, folds, lambda m: base)
         return _Kept(None, lines.part_errors, lines.train_residuals, lines.errors, lines.frequencies_hz,
@@ -109,7 +108,7 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
         fold_f = fold_frequencies(screen, kept.train)
         e = on_top(screen, folds, kept.errors, kept.train, fold_f)
         comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)
-    comp.limit = screen.limit_of("interference", comp.estimates) or _folds_disagree(screen, fold_f)
+    comp.limit = screen.limit_of(c.cause, comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
     return comp, kept.part, kept.errors, kept.train, e, e, kept.designs
@@ -118,10 +117,7 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
 def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
     """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
     admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
-    if c.cause == "saturation" and kept.part is not None:
-        comp = clip_on_top(screen, kept.part)
-    else:
-        comp = copy.copy(c) if kept.part is None else screen.composite(kept.part, c, search=fresh)
+    comp = copy.copy(c) if kept.part is None else c.kind.on_top(screen, kept.part, c, fresh)
     if comp is None:
         return None
     part_train, part_designs = [], []
@@ -192,14 +188,14 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
         return not c.limit and (promising(c, pol) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= pol.z_pass))
 
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
-            and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
+            and not (c.kind.disturbance and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
     kept = _start(screen, folds, chosen)
     while pool and len(diag.also) < pol.max_secondary:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
         tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
         for cause, c in pool.items():
-            if cause == "interference":
+            if c.kind.disturbance:
                 t = _line_on_top(screen, folds, c, kept) if kept.frequency is None else None
             else:
                 t = _cause_on_top(screen, folds, c, kept, fresh)
@@ -214,9 +210,9 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
         diag.also.append(comp)
         pool.pop(comp.cause)
         kept = _Kept(part, part_e, part_train, e,
-                     comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency, designs)
-        if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
-            pool = {k: v for k, v in pool.items() if k == "interference"}
+                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, designs)
+        if not comp.kind.carries_others:  # nothing composes on top of a clip; a disturbance still adds
+            pool = {k: v for k, v in pool.items() if v.kind.disturbance}
 
 
 def _forward_on(diag, result: dict, say: Callable[[str], None], p: Candidate) -> int:
@@ -236,7 +232,7 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     v = diag.verdict
     p = v.partial
     pol = result["folds"].policy
-    if v.cause != "unexplained" or p is None or not passes(p, pol):
+    if v.cause != UNEXPLAINED or p is None or not passes(p, pol):
         return False
     say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
     tried = _forward_on(diag, result, say, p)
@@ -273,7 +269,7 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
     pol = folds.policy
     pool = [c for c in diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
-    if v.cause != "none" or not pool:
+    if v.cause != NONE or not pool:
         return False
     p = max(pool, key=lambda c: c.heldout_gain)
     say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other causes "
@@ -318,36 +314,38 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
     return chain
 
 
-def _creep_time_unidentified(screen, c: Candidate) -> bool:
-    """A creep (alone or in a composite) whose only flaw is its time scale at an end: the fastest its meaning
-    allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over these records).
-    Replacing a relaxation slower than every drive period, whose own time constant these records do not pin
-    down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
+def _time_unidentified(screen, c: Candidate, twin) -> bool:
+    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end:
+    the fastest its meaning allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over
+    these records). Replacing a relaxation slower than every drive period, whose own time constant these records
+    do not pin down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
     identified."""
     parts = getattr(c.model, "components", (c.cause,))
-    return ("creep" in parts and (c.cause == "creep" or not c.limit)
-            and set(at_bound(screen, c)) <= {"creep_time"})
+    return (twin.name in parts and (c.cause == twin.name or not c.limit)
+            and set(at_bound(screen, c)) <= {twin.time_scale})
 
 
-def _creep_end(screen, chain: list[Candidate]) -> dict | None:
-    """The first creep in ``chain`` whose time scale sits at an end (None if none does): ``end`` ``limit`` (the
-    fastest its meaning allows) or ``search`` (open-ended, the slowest searched), ``alone`` (creep first, before
-    the others were composed on top), ``creep_time_s``."""
+def _time_scale_end(screen, chain: list[Candidate]) -> tuple[str, dict | None]:
+    """The first open-ended time scale in ``chain`` (``Cause.open_ended``: creep's) that sits at an end, and its
+    cause ("", None if none does): ``end`` ``limit`` (the fastest its meaning allows) or ``search`` (open-ended, the
+    slowest searched), ``alone`` (first, before the others were composed on top), ``<parameter>_s``."""
     for c in chain:
         flags = bound_flags(screen, c)
-        if "creep_time" in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
-            return {"end": "limit" if "creep_time" in flags["at_bound"] else "search",
-                    "alone": c is chain[0] and len(chain) > 1, "creep_time_s": float(c.params["creep_time"])}
-    return None
+        for n in OPEN_ENDED:
+            if n in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
+                return cause_of_parameter(n).name, {
+                    "end": "limit" if n in flags["at_bound"] else "search", "alone": c is chain[0] and len(chain) > 1,
+                    f"{n}_s": float(c.params[n])}
+    return "", None
 
 
-def _pinned_creep(end: dict | None) -> str:
-    """What the backward step says of a creep whose time scale sits at an end (``_creep_end``; "" if none)."""
+def _pinned_time(cause: str, end: dict | None) -> str:
+    """What the backward step says of a time scale that sits at an end (``_time_scale_end``; "" if none)."""
     if end is None:
         return ""
     where = "its limit" if end["end"] == "limit" else "the end of its search"
-    return (f"creep's time scale{' alone' if end['alone'] else ''} sits at {where}, {end['creep_time_s']:.3g} s: "
-            "not identified")
+    value = next(v for k, v in end.items() if k.endswith("_s"))
+    return f"{cause}'s time scale{' alone' if end['alone'] else ''} sits at {where}, {value:.3g} s: not identified"
 
 
 def not_identified(c: Candidate) -> str:
@@ -377,15 +375,17 @@ def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: flo
     for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
     ``creep_periods``), also the same with creep after them, standing for that slow part."""
     options = [strongest_first(own, causes)]
-    if slow_relaxation(chosen, creep_min, policy) and "creep" in own and "creep" not in causes:
-        options.append([*options[0], "creep"])
+    twin = chosen.kind.slow_twin
+    if slow_relaxation(chosen, creep_min, policy) and twin in own and twin not in causes:
+        options.append([*options[0], twin])
     return options
 
 
 def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
     """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
     drive period): creep may stand for that slow part."""
-    return chosen.cause == "relaxation" and max(chosen.estimates["tau_s"]) >= creep_min / policy.creep_periods
+    kind = chosen.kind
+    return kind.slow_twin is not None and kind.slowest_time_s(chosen.estimates) >= creep_min / policy.creep_periods
 
 
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
@@ -399,14 +399,14 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
     strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
     ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
-    (``_creep_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
+    (``_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
     names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
     (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
     pol = folds.policy
     causes = [c.cause for c in diag.also]
     if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
-            or {"interference", "saturation"} & {v.chosen.cause, *causes}):
+            or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):
         return
     say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
     own = {c.cause: c for c in diag.candidates}
@@ -420,7 +420,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
 
         def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
-            if creep_may_stand_in and _creep_time_unidentified(screen, c):
+            if creep_may_stand_in and _time_unidentified(screen, c, CAUSES[v.chosen.kind.slow_twin]):
                 return False
             return bool(c.limit or at_bound(screen, c))
 
@@ -444,11 +444,11 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         also.append(c)
     diag.dropped = old
     diag.also = also
-    end = _creep_end(screen, chain)
+    end_cause, end = _time_scale_end(screen, chain)
     diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
                            creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
     v.chosen, v.cause = first, first.cause
-    pinned = _pinned_creep(end)
+    pinned = _pinned_time(end_cause, end)
     slow = ""
     if standing_in:
         slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "

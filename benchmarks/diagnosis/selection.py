@@ -57,7 +57,7 @@ the folds and the screen):
    held-out misfit beyond white noise (n sd^2) is still named, with the rest
    reported as unexplained remainder, if it is *specific*: the part it removes
    passes the block test (z >= ``z_pass``), its fold estimates agree within
-   ``partial_se`` (a mode's: its frequency, ``IDENTIFYING``; its damping is
+   ``partial_se`` (a mode's: its frequency, ``Cause.identifying``; its damping is
    reported), and every other passing cause that predicts as well
    (z < ``z_same``) removes the *same* part (held-out improvements
    e_null - e with cosine >= ``same_slice``): those are rival explanations of
@@ -89,11 +89,10 @@ import numpy as np
 from scipy import stats
 
 from .candidates import DRIVE_LOCKED, Candidate, is_log
-from .delay import refit_delay
-from .interference import fold_amplitude, fold_frequencies, joint_line, lines_removed, on_top
+from .cause import CAUSES, cause_of_parameter
 from .policy import Policy
-from .saturation import columns_of, fit_level, shows_clip, unclipped
 
+NONE, UNEXPLAINED = "none", "unexplained"  # the verdicts that name no cause
 FOLD_NFEV = 8  # iterations of a fold's refit of a candidate's own nonlinear parameters (numerics)
 
 
@@ -187,28 +186,10 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     given) are refitted on each fold's training rows (returns the fold estimates too). ``train_residuals``: a
     list that receives, per fold, the fit's residual on its training rows; ``designs``: one that receives, per
     fold, the stacked design it was solved with (not for a clip or an interference: not linear)."""
+    special = c.kind.heldout_errors(screen, folds, c, refit, train_residuals)
+    if special is not None:  # not linear (a clip) or a line on top (a disturbance)
+        return special
     nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    if c.cause == "interference":  # a disturbance: a line fitted jointly with the base, its phase per record
-        base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
-        if c.limit == DRIVE_LOCKED:  # no disturbance but the base's misfit at a harmonic: on the base's residual
-            base_train = []
-            e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
-            f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
-            fold_est = [{"interference_frequency": f[m]} if refit else {} for m in range(folds.n)]
-            for m, est in enumerate(fold_est):
-                est["amplitude"] = fold_amplitude(screen, m, base_train[m], f[m])
-            if train_residuals is not None:
-                train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
-            return on_top(screen, folds, e_base, base_train, f), fold_est
-        lines = joint_line(screen, folds, lambda m: base_rows,
-                           None if refit else [nl["interference_frequency"]] * folds.n)
-        fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
-                    for f, a in zip(lines.frequencies_hz, lines.amplitudes)]
-        if train_residuals is not None:
-            train_residuals.extend(lines.train_residuals)
-        return lines.errors, fold_est
-    if c.cause == "saturation":
-        return _heldout_saturation(screen, folds, c, refit, train_residuals)
     names = [n for n in own_nonlinear(screen, c) if only is None or n in only] if refit else []
     fold_est, fold_nl = [], []
     for m in range(folds.n):
@@ -220,10 +201,10 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
                 A = screen.design(c.model, q)
                 return screen.solve(A[train], screen.y[train])[1]
 
-            if names == ["delay"]:  # a rough profile: scanned, not a gradient step
-                z = refit_delay(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2)))
-            else:
-                z = screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV, residual=residual)
+            alone = cause_of_parameter(names[0]) if len(names) == 1 else None
+            scanned = alone.refit_alone(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2))) if alone else None
+            z = scanned if scanned is not None else screen.refine(c.model, z, [(n, is_log(n)) for n in names],
+                                                                  max_nfev=FOLD_NFEV, residual=residual)
             fold_est.append({n: float(z[n]) for n in names})
         fold_nl.append(z)
     if not names:
@@ -234,41 +215,6 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     if designs is not None:
         designs.extend(mats)
     return out_of_fold(screen, folds, lambda m: mats[m], train_residuals), fold_est
-
-
-def clipped_columns(screen, c: Candidate) -> np.ndarray:
-    """The regressors a clipping candidate clips: the base's, or those of the kept part it sits on."""
-    if c.clips is not None:
-        return columns_of(screen, c.clips)
-    return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
-
-
-def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
-                        train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
-    """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
-    with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
-    level (no flat top there, ``shows_clip``) predicts the left-out record unclipped: records that never reach
-    a clip leave its level open above their peaks, and a level placed just under them would cut a record
-    that goes higher."""
-    side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
-    A = clipped_columns(screen, c)
-    e = np.zeros(screen.n)
-    fold_est = []
-    for m in range(folds.n):
-        test = folds.test(m)
-        if refit:
-            level = fit_level(screen, A[~test], screen.y[~test], side)
-            fold_est.append({"saturation_level": level})
-            if not shows_clip(screen, A[~test], screen.y[~test], side, level):
-                level = math.inf if side == "upper" else -math.inf
-        train = ~test & unclipped(screen, screen.y, side, level)
-        theta, _ = screen.solve(A[train], screen.y[train])
-        clip = np.minimum if side == "upper" else np.maximum
-        e[test] = screen.y[test] - clip(A[test] @ theta, level)
-        e[folds.tail(m)] = 0.0
-        if train_residuals is not None:
-            train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
-    return e, fold_est
 
 
 def signed_rank_z(d: np.ndarray) -> float:
@@ -319,7 +265,7 @@ def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
     return out
 
 
-OPEN_ENDED = ("creep_time",)  # parameters whose upper search bound is a limit within the cause's meaning
+OPEN_ENDED = tuple(n for kind in CAUSES.values() for n in kind.open_ended)  # an upper bound within the meaning
 OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
 
 
@@ -342,13 +288,14 @@ def bound_flags(screen, c: Candidate) -> dict:
 def at_bound(screen, c: Candidate) -> list[str]:
     """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
     out = []
-    if c.cause in ("saturation", "interference"):
+    if not c.kind.bounded:
         return out
     near = screen.policy.at_bound
     for n in own_nonlinear(screen, c):
         lo, hi = screen.bounds_of(c.model, n)
         v = float(c.params[n])
-        if n == "delay":  # a delay at zero is no delay: only the upper bound counts
+        owner = cause_of_parameter(n)
+        if owner is not None and n in owner.only_upper_bound:  # its lower bound is no effect: only the upper counts
             if v >= hi * (1 - near):
                 out.append(n)
         elif is_log(n) and lo > 0:
@@ -387,7 +334,7 @@ def line_evidence(h: dict, policy: Policy) -> bool:
 
 def line_worth_refit(c: Candidate, policy: Policy) -> bool:
     """An interference whose quick score (frequency from every record) could become ``line_evidence``."""
-    return (c.cause == "interference" and not c.limit and bool(c.heldout)
+    return (c.kind.disturbance and not c.limit and bool(c.heldout)
             and _improves_every_fold(c.heldout, policy))
 
 
@@ -439,26 +386,6 @@ def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
             f"meaning; the best, {best.label} (held-out gain {100 * best.heldout_gain:.2f} %), is {why}")
 
 
-def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds: Folds, errors: dict) -> Candidate:
-    """A relaxation variant with two time constants closer than their uncertainty (or a factor 1.25)
-    gives way to the variant with one fewer, if that passes and does not predict worse (z < ``z_same``)."""
-    pol = folds.policy
-    while chosen.cause == "relaxation" and chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
-        taus = chosen.estimates["tau_s"]
-        se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
-        ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
-        width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
-        floor = math.log(pol.duplicate_tau_ratio)
-        close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
-                    for i in range(len(taus) - 1))
-        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
-                 and pairwise_z(folds, errors, chosen, v) < pol.z_same]
-        if not (close and fewer):
-            break
-        chosen = fewer[0]
-    return chosen
-
-
 def pairwise_z(folds: Folds, errors: dict, a: Candidate, b: Candidate) -> float:
     """How many standard errors b's held-out squared error exceeds a's (positive: a is better)."""
     return score(folds, errors[id(b)], errors[id(a)])["z"]
@@ -507,7 +434,7 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
     trace = [step("simplest-as-good", chosen.cause, best=_score_of(best), as_good=[_score_of(c) for c in same],
                   passing=[c.cause for c in ok])]
-    merged = merge_duplicates(chosen, variants, folds, errors)
+    merged = chosen.kind.merged(chosen, variants, folds, errors)
     if merged is not chosen:
         trace.append(step("merge-duplicates", merged.label, named=chosen.label, tau_s=chosen.estimates["tau_s"]))
         chosen = merged
@@ -524,8 +451,8 @@ def decide(screen, folds: Folds, candidates: Sequence[Candidate], variants: Sequ
                       f"({max(chosen.estimates['tau_s']):.3g} s) is longer than the longest drive period, so these "
                       "records do not show that it depends on the input, and a drift since the start predicts "
                       f"them as well (z < {pol.z_same:g})")
-        trace.append(step("slow-relaxation-twin", "creep", relaxation=_score_of(chosen), creep=_score_of(slow_twin),
-                          slowest_tau_s=max(chosen.estimates["tau_s"])))
+        trace.append(step("slow-relaxation-twin", slow_twin.cause, relaxation=_score_of(chosen),
+                          creep=_score_of(slow_twin), slowest_tau_s=max(chosen.estimates["tau_s"])))
         chosen = slow_twin
         if "share_of_misfit" not in chosen.heldout:
             record_share(chosen)
@@ -586,7 +513,6 @@ def carried_by_one_record(folds: Folds, e_null: np.ndarray, e_c: np.ndarray) -> 
     return not evidence(score(folds.without(best), e_null[keep], e_c[keep]), folds.policy)
 
 
-IDENTIFYING = {"resonance": ("natural_frequency",)}  # a cause identified by these alone; the rest is its shape
 
 
 def identified(c: Candidate, policy: Policy) -> bool:
@@ -596,7 +522,7 @@ def identified(c: Candidate, policy: Policy) -> bool:
     the mode barely show, is reported with its fold spread but does not decide whether the mode is there."""
     if not c.uncertainty:  # nothing refitted per fold: agreement not shown
         return False
-    only = IDENTIFYING.get(c.cause)
+    only = c.kind.identifying
     return all(agrees(u, policy) for name, u in c.uncertainty.items() if only is None or name in only)
 
 
@@ -609,9 +535,9 @@ def agrees(u: dict, policy: Policy) -> bool:
 
 
 def loose_note(c: Candidate, policy: Policy) -> str:
-    """What the reason says of a named cause's parameters that do not identify it (``IDENTIFYING``) and whose
+    """What the reason says of a named cause's parameters that do not identify it (``Cause.identifying``) and whose
     fold estimates differ by more than ``partial_se``: e.g. a mode's damping ratio."""
-    only = IDENTIFYING.get(c.cause)
+    only = c.kind.identifying
     if only is None:
         return ""
     loose = [f"{n} (fold spread ±{100 * u['relative_se']:.0f} %)" for n, u in c.uncertainty.items()
@@ -689,8 +615,9 @@ def slow_relaxation_twin(screen, folds: Folds, errors: dict, chosen: Candidate,
     (``creep_periods`` drive periods): under drives of one mean level a slow low-pass of the input and a
     drift since the start are nearly the same function."""
     pol = folds.policy
-    if chosen.cause != "relaxation" or max(chosen.estimates["tau_s"]) < screen.creep_min / pol.creep_periods:
+    kind = chosen.kind
+    if kind.slow_twin is None or kind.slowest_time_s(chosen.estimates) < screen.creep_min / pol.creep_periods:
         return None
-    twins = [c for c in candidates if c.cause == "creep" and significant(c, pol)
+    twins = [c for c in candidates if c.cause == kind.slow_twin and significant(c, pol)
              and pairwise_z(folds, errors, chosen, c) < pol.z_same]
     return max(twins, key=lambda c: c.heldout_gain) if twins else None

@@ -19,7 +19,8 @@ from hysbench.identification import Fit
 
 from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
-from .interference import amplitude_at, phase_fitted
+from .causes import CAUSES
+from .causes.interference import interference_on_validation
 from .residuals import RecordResidual
 from .policy import Policy
 from .selection import Verdict, step
@@ -30,35 +31,16 @@ def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> 
     records' residual over whole records and on the windows, by more than their noise explains (z >= the
     policy's ``z_confirm``); an interference, by the same amplitude there (``interference_on_validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
-    if cause == "interference":
+    if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
     return ok and bool(v["z_whole"] >= policy.z_confirm)
-
-
-def interference_on_validation(before: list[RecordResidual], c: Candidate,
-                               policy: Policy) -> tuple[list[RecordResidual], dict]:
-    """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
-    whole records), its phase fitted per record: the residuals after it, and the validation records' own
-    amplitude there against ``c``'s (the same within the policy's ``interference_amplitude_tolerance``)."""
-    f = c.estimates["frequency_hz"]
-    amplitude = c.estimates["amplitude"]
-    after, amps = [], []
-    for rr in before:
-        t = rr.record.t - rr.record.t[0]
-        sine = phase_fitted(rr.residual, t, f, amplitude)
-        after.append(RecordResidual(rr.record, rr.prediction + sine))
-        if rr.record.role == "validation":
-            amps.append(amplitude_at(rr.residual, t, f))
-    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
-    return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
-                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
     """``c``'s extension identified on the identification records' whole length, every parameter free (an
     interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
     record and the interference check."""
-    if c.cause == "interference":
+    if c.kind.disturbance:
         after, check = interference_on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
     base = diag.screen.base
@@ -134,7 +116,7 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         diag.also_check = [{"cause": c.cause, "label": c.label, "checked": False, "note": "no validation record"}
                            for c in diag.also]
         return
-    lines = [diag.chosen] if diag.cause == "interference" else []  # a named line is on top of the base
+    lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
     before, out, clipped = diag.after, [], False
     for c in diag.also:
         entry = {"cause": c.cause, "label": c.label}
@@ -144,7 +126,7 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             continue
         say(f"checking {c.label} on the validation records")
         check = {}
-        if c.cause == "interference":
+        if c.kind.disturbance:
             after, check = interference_on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:

@@ -9,7 +9,9 @@ import numpy as np
 
 from hysbench.models.extended import TAU_BOUNDS
 
-from .candidates import MAX_RELAXATION, Candidate, is_log
+from ..candidates import MAX_RELAXATION, Candidate, is_log
+from ..cause import Cause, register
+from ..selection import pairwise_z, passes
 
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
@@ -56,3 +58,65 @@ def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 
     z = screen.refine(model, start, [(n, is_log(n)) for n in model.nonlinear_names], max_nfev=max_nfev)
     return screen.candidate("relaxation", f"relaxation, {k} time constant{'s' if k > 1 else ''}", model, z, hyper,
                             stage="joint")
+
+
+def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds, held) -> Candidate:
+    """A relaxation variant with two time constants closer than their uncertainty (or a factor
+    ``duplicate_tau_ratio``) gives way to the variant with one fewer, if that passes and does not predict worse
+    (z < ``z_same``)."""
+    pol = folds.policy
+    while chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
+        taus = chosen.estimates["tau_s"]
+        se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
+        ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
+        width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
+        floor = math.log(pol.duplicate_tau_ratio)
+        close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
+                    for i in range(len(taus) - 1))
+        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
+                 and pairwise_z(folds, held, chosen, v) < pol.z_same]
+        if not (close and fewer):
+            break
+        chosen = fewer[0]
+    return chosen
+
+
+@register
+class Relaxation(Cause):
+    """First-order low-pass histories of the input, in variants of 1, 2, ... time constants."""
+
+    name = "relaxation"
+    log_scale = ("tau",)
+    reshapes = True
+    variants = True
+    slow_twin = "creep"
+
+    def owns(self, parameter: str) -> bool:
+        return parameter.startswith("tau")
+
+    def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
+        return fit_relaxation(screen, max_order, seeds=library["relaxation_taus"])
+
+    def estimates(self, params, model) -> dict:
+        k = getattr(model, "n_relaxation", 0)
+        return {"tau_s": sorted(float(params[f"tau{i}"]) for i in range(1, k + 1))}
+
+    def from_fit(self, estimates: dict, params) -> dict:
+        k = len(estimates["tau_s"])
+        return {**estimates, "tau_s": sorted(float(params[f"tau{i}"]) for i in range(1, k + 1))}
+
+    def limit(self, screen, estimates) -> str:
+        pol, taus = screen.policy, estimates["tau_s"]
+        if any(b < pol.duplicate_tau_ratio * a for a, b in zip(taus, taus[1:])):
+            return (f"time constants closer than a factor {pol.duplicate_tau_ratio:g}: their difference is a "
+                    "band-pass, not a relaxation")
+        return ""
+
+    def slowest_time_s(self, estimates) -> float | None:
+        return max(estimates["tau_s"])
+
+    def one_fewer(self, screen, c: Candidate, pinned: list) -> Candidate | None:
+        return without_pinned(screen, c, pinned)
+
+    def merged(self, chosen: Candidate, variants, folds, held) -> Candidate:
+        return merge_duplicates(chosen, variants, folds, held)

@@ -1,4 +1,5 @@
-"""Interference: a sinusoid unrelated to the drive, with its own phase in every record.
+"""Lines: a sinusoid unrelated to the drive, with its own phase in every record, fitted and scored
+(the interference cause, ``causes.interference``, and every line on top of another cause).
 
 A disturbance (mains pickup, a building's vibration) is not driven by the
 input, so its phase relative to a record's start is arbitrary: the fit has
@@ -41,9 +42,8 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .candidates import Candidate, prominence
+from .candidates import column_basis, prominence
 from .residuals import coherent_spectrum, spectral_peaks
-from .screen import column_basis
 
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
@@ -113,23 +113,6 @@ def best_frequency(screen, rss_of: Callable[[float], float], n_peaks: int = 5,
     return best_f
 
 
-def fit_interference(screen, n_peaks: int = 5) -> Candidate:
-    """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
-    peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
-    line (``JointLine``; one amplitude for every record, the phase per record)."""
-    line = JointLine(screen, screen.design(screen.base, screen.base_nl), range(len(screen.parts)))
-    return interference_candidate(screen, best_frequency(screen, line.loo_rss, n_peaks))
-
-
-def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
-    """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
-    within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
-    f = np.array([e["interference_frequency"] for e in fold_estimates])
-    a = np.array([e["amplitude"] for e in fold_estimates])
-    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
-
-
 def fold_tolerance_hz(screen) -> float:
     """How far the frequencies of one line fitted on different folds may differ: the coarsest fold's spectral
     resolution (one cycle over its longest training record)."""
@@ -141,26 +124,6 @@ def frequencies_agree(screen, fold_frequencies_hz: Sequence[float]) -> bool:
     """Whether the folds' frequencies (each fitted without its held-out record) are one line's."""
     f = np.asarray(fold_frequencies_hz, dtype=float)
     return bool(f.size > 1 and np.ptp(f) <= fold_tolerance_hz(screen))
-
-
-def interference_candidate(screen, frequency_hz: float) -> Candidate:
-    model = screen.extension(("interference",))
-    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(screen, frequency_hz)])
-    theta, res = screen.solve(A, screen.y)
-    nb = len(screen.base_lin)
-    pairs = theta[nb:].reshape(-1, 2)
-    amps = np.hypot(pairs[:, 0], pairs[:, 1])
-    amplitude = float(np.sqrt(np.mean(amps**2)))
-    params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
-              "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
-              "interference_sin": amplitude, "interference_cos": 0.0}
-    k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
-    c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k, float(res @ res),
-                  screen.n, n_effective=screen.n_effective)
-    c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
-                   "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
-    c.stage = "fixed base"
-    return screen._finish(c)
 
 
 def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:

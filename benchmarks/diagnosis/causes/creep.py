@@ -1,0 +1,44 @@
+"""Creep: a drift since the record's start, slower than the drive."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..candidates import Candidate
+from ..cause import Cause, register
+
+
+def fit_creep(screen) -> Candidate:
+    model = screen.extension(("creep",))
+    lo, hi = screen.bounds_of(model, "creep_time")
+    z = screen.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
+    return screen.candidate("creep", "slow drift since the start", model, z)
+
+
+@register
+class Creep(Cause):
+    """A drift since the record's start, slower than the drive."""
+
+    name = "creep"
+    parameters = ("creep_time",)
+    log_scale = ("creep_time",)
+    open_ended = ("creep_time",)  # longer than the records show: a straight drift since the start
+    time_scale = "creep_time"
+    shown_at_rest = True
+
+    def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
+        return [fit_creep(screen)]
+
+    def estimates(self, params, model) -> dict:
+        return {"size": float(params["creep_size"]), "time_scale_s": float(params["creep_time"])}
+
+    def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
+        return max(lo, screen.creep_min), hi
+
+    def limit(self, screen, estimates) -> str:
+        pol = screen.policy
+        if estimates["time_scale_s"] <= pol.creep_limit_margin * screen.creep_min:
+            return f"time scale at the limit {screen.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
+        return ""
