@@ -21,7 +21,7 @@ from hysbench.identification.criteria import bic
 from hysbench.identification.linear import scaled_lstsq
 from hysbench.models.base import HysteresisModel
 
-from .cause import CAUSES, log_scale
+from .cause import CAUSES, cause_of_parameter, log_scale, open_ended_parameter
 
 MAX_ROWS = 10_000  # rows per record in the screen
 MAX_RELAXATION = 4
@@ -119,3 +119,47 @@ def column_basis(A: np.ndarray) -> np.ndarray:
     d[~(d > 0)] = 1.0
     u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
     return np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])
+
+
+def own_nonlinear(screen, c: Candidate) -> list[str]:
+    return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
+
+
+OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
+
+
+def open_ended(screen, c: Candidate) -> list[str]:
+    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning: creep's
+    time scale longer than these records show (1 - exp(-t / T) -> t / T, a straight drift since the start).
+    The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
+    out = []
+    for n in own_nonlinear(screen, c):
+        if open_ended_parameter(n) and math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
+            out.append(n)
+    return out
+
+
+def bound_flags(screen, c: Candidate) -> dict:
+    """The held-out score's bound entries: ``at_bound`` and ``open_ended``."""
+    return {"at_bound": at_bound(screen, c), "open_ended": open_ended(screen, c)}
+
+
+def at_bound(screen, c: Candidate) -> list[str]:
+    """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
+    out = []
+    if not c.kind.bounded:
+        return out
+    near = screen.policy.at_bound
+    for n in own_nonlinear(screen, c):
+        lo, hi = screen.bounds_of(c.model, n)
+        v = float(c.params[n])
+        owner = cause_of_parameter(n)
+        if owner is not None and n in owner.only_upper_bound:  # its lower bound is no effect: only the upper counts
+            if v >= hi * (1 - near):
+                out.append(n)
+        elif is_log(n) and lo > 0:
+            if math.log(v / lo) < near or (math.log(hi / v) < near and not open_ended_parameter(n)):
+                out.append(n)
+        elif v <= lo + near * (hi - lo) or v >= hi - near * (hi - lo):
+            out.append(n)
+    return out

@@ -10,6 +10,7 @@ from typing import Mapping
 import numpy as np
 
 CAUSES: dict[str, "Cause"] = {}
+OUTPUT_UNIT = object()  # a reported parameter in the output's unit (``Cause.units``)
 
 
 def register(cls: type) -> type:
@@ -29,6 +30,12 @@ def get_cause(name: str) -> "Cause":
 def cause_of_parameter(name: str) -> "Cause | None":
     """The cause whose extension adds this nonlinear parameter (None: the base's)."""
     return next((c for c in CAUSES.values() if c.owns(name)), None)
+
+
+def open_ended_parameter(name: str) -> bool:
+    """Whether this parameter's upper search bound is a limit within its cause's meaning (``Cause.open_ended``)."""
+    owner = cause_of_parameter(name)
+    return owner is not None and name in owner.open_ended
 
 
 def refined(name: str) -> bool:
@@ -54,6 +61,7 @@ class Cause:
     open_ended: tuple = ()  # parameters whose upper search bound is a limit within its meaning (not "at bound")
     only_upper_bound: tuple = ()  # parameters whose lower bound is no effect at all: only the upper counts
     not_refined: tuple = ()  # parameters a gradient refinement holds (searched otherwise)
+    relative_to_range: tuple = ()  # parameters whose fold spread is also taken against the output's range
     identifying: tuple | None = None  # the parameters that identify it alone (None: every one)
     bounded = True  # its parameters are checked at their search bounds
     separable = True  # composes with other separable causes in one extended model (``Screen.composite``)
@@ -66,6 +74,8 @@ class Cause:
     variants = False  # fitted in variants of increasing order, each competing (``relaxation_variants``)
     slow_twin: str | None = None  # the cause its slowest part may be, slower than every drive period
     time_scale: str | None = None  # its parameter that is a time scale (a slow twin's, standing in)
+    units: dict = {}  # its reported parameters (``estimates``) and their units (``OUTPUT_UNIT``: the output's)
+    reported_as: dict = {}  # a parameter's name among the reported ones, where it differs
 
     def owns(self, parameter: str) -> bool:
         return parameter in self.parameters
@@ -133,7 +143,7 @@ class Cause:
         """The variant of one order fewer without its parameters at a bound (``variants`` only)."""
         return None
 
-    def merged(self, chosen, variants, folds, held):
+    def merged(self, chosen, variants, held):
         """A variant that gives way to one of lower order (``variants`` only): ``chosen`` otherwise."""
         return chosen
 

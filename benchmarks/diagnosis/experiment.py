@@ -69,10 +69,7 @@ def _probe_frequencies(screen) -> np.ndarray:
 def predict(screen, c: Candidate, u: np.ndarray, dt: float) -> np.ndarray:
     """A candidate's output for the drive ``u``; a clip on top of a kept part clips that part's output."""
     y = c.model.simulate(u, dt, {n: c.params[n] for n in c.model.param_names}, input_range=screen.input_range)
-    if getattr(c, "clips", None) is None:
-        return y
-    level = c.params["saturation_level"]
-    return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
+    return y if getattr(c, "clips", None) is None else c.kind.clip(c, y)
 
 
 def separation(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> float:

@@ -37,13 +37,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .candidates import column_basis, prominence
-from .residuals import coherent_spectrum, spectral_peaks
+from .residuals import coherent_spectrum, harmonic_phase_turn, spectral_peaks
 
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
@@ -89,7 +89,7 @@ def candidate_frequencies(screen, n_peaks: int = 5, parts: Sequence[int] | None 
         residuals = [residuals[m] for m in parts]
     f, amp = coherent_spectrum(residuals, lo, hi, coherent=False)
     prom = prominence(amp)
-    prom[screen.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
+    prom[drive_harmonic(screen, f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
     return [f0 for f0, _ in spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))]
 
 
@@ -334,3 +334,35 @@ def joint_line(screen, folds, design: Callable[[int], np.ndarray], frequencies_h
         amps.append(a)
         train.append(with_line - fitted)
     return FoldLines(e, part_e, freqs, amps, train, phases)
+
+
+def drive_locked(screen, estimates: Mapping) -> bool:
+    """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
+    every record's drive whose phases in the records (each from its own start) agree within
+    ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
+    model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
+    ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
+    harmonic, closer
+    to it than the records resolve, not a misfit that the drive repeats."""
+    phases = estimates.get("phase_rad_per_record") or []
+    longest = max(p.record.t.size * p.record.dt for p in screen.parts)
+    if len(phases) < 2 or not drive_harmonic(screen, np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
+        return False
+    spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
+    pol = screen.policy
+    if spread >= pol.locked_phase:
+        return False
+    turn = harmonic_phase_turn(screen.null_residuals(), estimates["frequency_hz"])
+    return turn is None or not (abs(turn[0]) > pol.locked_turn and abs(turn[0]) > pol.locked_turn_z * turn[1])
+
+def drive_harmonic(screen, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
+    """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
+    there a disturbance cannot be told from the model's misfit."""
+    out = np.ones(f.shape, dtype=bool)
+    for p in screen.parts:
+        fd = p.record.frequency_hz
+        if not fd:
+            return np.zeros(f.shape, dtype=bool)
+        k = np.maximum(np.round(f / fd), 1.0)
+        out &= np.abs(f - k * fd) <= tolerance_hz
+    return out

@@ -8,8 +8,7 @@ are solved exactly at every step (separable least squares).
 
 * The null: the base model alone, its nonlinear parameters refined on these
   rows (from the base fit on the windows), its linear ones solved.
-* Stage 1 (the cause modules ``relaxation``, ``delay``, ``resonance``,
-  ``creep``, ``interference``, ``saturation``): each cause's extension
+* Stage 1 (each cause's ``fit``, ``causes``): each cause's extension
   (``hysbench.models.extended``) with the base's nonlinear parameters held
   at the null's. Components that only add columns are regressed on the
   null's residual after projecting off the base's columns.
@@ -42,59 +41,13 @@ from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
 from .candidates import MAX_ROWS, Candidate, column_basis, estimates_of, is_log, solve_scaled
 from .causes import CAUSES, cause_of_parameter, refined
+from .composite import composite
+from .heldout import beyond_others, held_out_windows
 from .policy import Policy
-from .residuals import RecordResidual, harmonic_phase_turn
+from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
-COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of another (``composite``)
 RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
-
-
-def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
-    """How far each record's input goes beyond the range of the other records' inputs (either end), as a share
-    of the span of them all (0 if within)."""
-    if len(inputs) < 2:
-        return [0.0] * len(inputs)
-    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
-    span = max(hi) - min(lo)
-    if not span > 0:
-        return [0.0] * len(inputs)
-    out = []
-    for m in range(len(inputs)):
-        other_lo = min(v for k, v in enumerate(lo) if k != m)
-        other_hi = max(v for k, v in enumerate(hi) if k != m)
-        out.append(max(hi[m] - other_hi, other_lo - lo[m], 0.0) / span)
-    return out
-
-
-def first_excursion(u: np.ndarray, lo: float, hi: float, margin: float) -> int | None:
-    """The first sample of ``u`` beyond [lo - margin, hi + margin] (None if none is)."""
-    beyond = np.flatnonzero((u > hi + margin) | (u < lo - margin))
-    return int(beyond[0]) if beyond.size else None
-
-
-def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[int]:
-    """How many samples of each record, from its start, the held-out test predicts (``selection.Folds``):
-    all of a record whose input stays within the other records' range (to ``beyond_range`` of the span,
-    policy ``beyond_range``), and
-    of one that leaves it, the samples before it first does. Fitted on the others, the base model would
-    extrapolate beyond (weights of its hysteresis operators that only that record moves), and the comparison
-    would measure that, not the cause. The record still takes part whole in every other fold's fit. All
-    records are predicted whole if fewer than two stay within."""
-    sizes = [int(u.size) for u in inputs]
-    beyond = beyond_others(inputs)
-    if sum(b <= beyond_range for b in beyond) < 2:
-        return sizes
-    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
-    margin = beyond_range * (max(hi) - min(lo))
-    out = []
-    for m, u in enumerate(inputs):
-        k = None
-        if beyond[m] > beyond_range:
-            others = [j for j in range(len(inputs)) if j != m]
-            k = first_excursion(u, min(lo[j] for j in others), max(hi[j] for j in others), margin)
-        out.append(sizes[m] if k is None else k)
-    return out
 
 
 @dataclass
@@ -424,41 +377,10 @@ class Screen:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
 
-    def drive_locked(self, estimates: Mapping) -> bool:
-        """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
-        every record's drive whose phases in the records (each from its own start) agree within
-        ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
-        model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
-        ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
-        harmonic, closer
-        to it than the records resolve, not a misfit that the drive repeats."""
-        phases = estimates.get("phase_rad_per_record") or []
-        longest = max(p.record.t.size * p.record.dt for p in self.parts)
-        if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
-            return False
-        spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
-        pol = self.policy
-        if spread >= pol.locked_phase:
-            return False
-        turn = harmonic_phase_turn(self.null_residuals(), estimates["frequency_hz"])
-        return turn is None or not (abs(turn[0]) > pol.locked_turn and abs(turn[0]) > pol.locked_turn_z * turn[1])
-
-    def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
-        """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
-        there a disturbance cannot be told from the model's misfit."""
-        out = np.ones(f.shape, dtype=bool)
-        for p in self.parts:
-            fd = p.record.frequency_hz
-            if not fd:
-                return np.zeros(f.shape, dtype=bool)
-            k = np.maximum(np.round(f / fd), 1.0)
-            out &= np.abs(f - k * fd) <= tolerance_hz
-        return out
-
     # --- stage 2: the base's nonlinear parameters free as well --------------------
     def joint(self, c: Candidate, max_nfev: int = 15) -> Candidate:
-        """Refine a stage-1 candidate with the base's nonlinear parameters free too (not saturation:
-        ``saturation.joint_saturation``; not interference: its phase is per record)."""
+        """Refine a stage-1 candidate with the base's nonlinear parameters free too (a separable cause's: a clip
+        and a line have their own, ``Cause.joint``)."""
         if not self.base_nl_names or not c.kind.separable:
             return c
         model = c.model
@@ -469,50 +391,7 @@ class Screen:
         out = self.candidate(c.cause, c.label, model, z, c.hyperparameters, stage="joint")
         return out if out.rss <= c.rss else c
 
-    # --- composite (secondary causes) ---------------------------------------------
     def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10,
                   search: bool = False) -> Candidate | None:
-        """The primary's extension (itself possibly a composite) plus another cause, refined from both fits
-        (separable causes only). With ``search`` the other cause's own parameters are also started from a
-        coarse grid over their search bounds (the primary held): its fit against the base alone can be far
-        off when the base misses something larger; the best start is refined only if it removes at least
-        the policy's ``min_explained`` of the primary's sum of squares (else None: nothing to add, and a refinement with
-        every nonlinear parameter free is the costly part)."""
-        parts = tuple(getattr(primary.model, "components", (primary.cause,)))
-        if not all(CAUSES[p].separable for p in (*parts, other.cause)) or other.cause in parts:
-            return None
-        hyper = {**primary.hyperparameters, **other.hyperparameters}
-        model = self.extension((*parts, other.cause), **hyper)
-        start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
-        if search:
-            starts = self._starts(model, start, [n for n in model.nonlinear_names if n not in primary.params])
-            starts += other.kind.starts_on_top(primary, starts)
-            rss = [self.evaluate(model, z)[0] for z in starts]
-            if min(rss) > (1.0 - self.policy.min_explained) * primary.rss:
-                return None
-            start = starts[int(np.argmin(rss))]
-        free = [(n, is_log(n)) for n in model.nonlinear_names if refined(n)]
-        z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
-        c = self.candidate(other.cause, f"{primary.label} + {other.label}", model, z, hyper, stage="joint")
-        c.estimates = estimates_of(other.cause, c.params, model)
-        c.delta_bic = c.bic - primary.bic  # against the primary alone
-        c.explained = 1.0 - c.rss / primary.rss
-        c.limit = self.limit_of(other.cause, c.estimates)
-        return c
-
-    def _starts(self, model: HysteresisModel, start: Mapping[str, float], names: Sequence[str]) -> list[dict]:
-        """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
-        ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
-        frequency and damping); a relaxation of several time constants keeps its own start."""
-        if not names or (len(names) > 1 and any(cause_of_parameter(n).variants for n in names)):
-            return [dict(start)]
-        k = max(3, COMPOSITE_GRID // len(names))
-        axes = []
-        for n in names:
-            # inside the bounds (a start at a bound is a bound estimate if nothing moves it)
-            axis = cause_of_parameter(n).grid_axis(self, model, n, k)
-            if axis is None:  # nothing to search
-                return [dict(start)]
-            axes.append(axis)
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(names))
-        return [dict(start)] + [{**start, **dict(zip(names, map(float, g)))} for g in grid]
+        """``composite.composite`` on this screen."""
+        return composite(self, primary, other, max_nfev, search)

@@ -16,14 +16,14 @@ import copy
 
 from .candidates import Candidate
 from .causes import CAUSES
+from .heldout import HeldOut, pairwise_z, passes
 from .search import score_candidate
-from .selection import Folds, pairwise_z, passes
 
 
-def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | None, candidates, variants
+def slow_part_composite(screen, held: HeldOut | None, chosen: Candidate | None, candidates, variants
                         ) -> Candidate | None:
     """The composite (relaxation without its slowest time constant) + creep, scored on held-out records
-    (its out-of-fold residuals stored in ``errors``); None where the test does not apply."""
+    (its out-of-fold residuals added to ``held``); None where the test does not apply."""
     if chosen is None or chosen.kind.slow_twin is None:
         return None
     twin = CAUSES[chosen.kind.slow_twin]
@@ -43,10 +43,11 @@ def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | 
     comp = screen.composite(fast, slow)
     if comp is None:
         return None
-    score_candidate(screen, folds, errors[id(screen.null)], errors, comp, refit=True)
+    score_candidate(screen, held, comp, refit=True)
     return comp
 
 
-def predicts_as_well(folds: Folds, errors: dict, chosen: Candidate, comp: Candidate) -> bool:
+def predicts_as_well(held: HeldOut, chosen: Candidate, comp: Candidate) -> bool:
     """The composite passes on its own and the named relaxation does not predict better by z >= ``z_same``."""
-    return passes(comp, folds.policy) and pairwise_z(folds, errors, chosen, comp) < folds.policy.z_same
+    pol = held.folds.policy
+    return passes(comp, pol) and pairwise_z(held, chosen, comp) < pol.z_same

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from typing import Callable
 
-import numpy as np
-
 from hysbench.identification import Fit
 
 from .candidates import Candidate

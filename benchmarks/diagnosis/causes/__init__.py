@@ -9,7 +9,8 @@ module here with a ``Cause`` subclass decorated ``@register`` (its extension reg
 ``hysbench.models.extended``).
 """
 
-from ..cause import CAUSES, Cause, cause_of_parameter, get_cause, log_scale, refined, register
-from . import relaxation, delay, resonance, creep, interference, saturation  # the search's order
+from ..cause import CAUSES, OUTPUT_UNIT, Cause, cause_of_parameter, get_cause, log_scale, refined, register
+from . import relaxation, delay, resonance, creep, interference, saturation  # noqa: F401 (the search's order)
 
-__all__ = ["CAUSES", "Cause", "cause_of_parameter", "get_cause", "log_scale", "refined", "register"]
+__all__ = ["CAUSES", "OUTPUT_UNIT", "Cause", "cause_of_parameter", "get_cause", "log_scale", "refined", "register",
+           "relaxation", "delay", "resonance", "creep", "interference", "saturation"]

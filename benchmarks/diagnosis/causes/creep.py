@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ..candidates import Candidate
-from ..cause import Cause, register
+from ..cause import OUTPUT_UNIT, Cause, register
 
 
 def fit_creep(screen) -> Candidate:
@@ -22,6 +22,8 @@ class Creep(Cause):
     """A drift since the record's start, slower than the drive."""
 
     name = "creep"
+    units = {"size": OUTPUT_UNIT, "time_scale_s": "s"}
+    reported_as = {"creep_time": "time_scale_s"}
     parameters = ("creep_time",)
     log_scale = ("creep_time",)
     open_ended = ("creep_time",)  # longer than the records show: a straight drift since the start

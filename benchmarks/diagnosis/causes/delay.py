@@ -109,6 +109,7 @@ class Delay(Cause):
     """The actuator receives the input late."""
 
     name = "delay"
+    units = {"delay_s": "s"}
     parameters = ("delay",)
     only_upper_bound = ("delay",)  # a delay at zero is no delay
     transforms = True

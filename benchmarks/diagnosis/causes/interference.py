@@ -13,11 +13,12 @@ from typing import Sequence
 import numpy as np
 
 from ..candidates import DRIVE_LOCKED, Candidate
-from ..cause import Cause, register
-from ..lines import (amplitude_at, best_frequency, block_columns, fold_amplitude, fold_frequencies,
+from ..cause import OUTPUT_UNIT, Cause, register
+from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, fold_amplitude, fold_frequencies,
                      frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted)
 from ..residuals import RecordResidual
-from ..selection import out_of_fold
+from ..heldout import out_of_fold
+from ..policy import Policy
 
 
 def fit_interference(screen, n_peaks: int = 5) -> Candidate:
@@ -106,6 +107,7 @@ class Interference(Cause):
     """A sinusoidal disturbance: not driven by the input, its phase free per record."""
 
     name = "interference"
+    units = {"frequency_hz": "Hz", "amplitude": OUTPUT_UNIT}
     parameters = ("interference_frequency",)
     not_refined = ("interference_frequency",)  # searched over spectral peaks, not by a gradient step
     bounded = False
@@ -138,7 +140,7 @@ class Interference(Cause):
             return (f"fewer than {pol.interference_min_cycles:g} cycles in the shortest record "
                     f"({screen.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a "
                     "per-record drift, not a disturbance")
-        return DRIVE_LOCKED if screen.drive_locked(estimates) else ""
+        return DRIVE_LOCKED if drive_locked(screen, estimates) else ""
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
         return heldout_line(screen, folds, c, refit, train_residuals)

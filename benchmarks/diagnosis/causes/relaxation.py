@@ -11,7 +11,7 @@ from hysbench.models.extended import TAU_BOUNDS
 
 from ..candidates import MAX_RELAXATION, Candidate, is_log
 from ..cause import Cause, register
-from ..selection import pairwise_z, passes
+from ..heldout import pairwise_z, passes
 
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
@@ -60,11 +60,11 @@ def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 
                             stage="joint")
 
 
-def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds, held) -> Candidate:
+def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], held) -> Candidate:
     """A relaxation variant with two time constants closer than their uncertainty (or a factor
     ``duplicate_tau_ratio``) gives way to the variant with one fewer, if that passes and does not predict worse
     (z < ``z_same``)."""
-    pol = folds.policy
+    pol = held.folds.policy
     while chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
         taus = chosen.estimates["tau_s"]
         se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
@@ -74,7 +74,7 @@ def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], folds, he
         close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
                     for i in range(len(taus) - 1))
         fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
-                 and pairwise_z(folds, held, chosen, v) < pol.z_same]
+                 and pairwise_z(held, chosen, v) < pol.z_same]
         if not (close and fewer):
             break
         chosen = fewer[0]
@@ -86,6 +86,7 @@ class Relaxation(Cause):
     """First-order low-pass histories of the input, in variants of 1, 2, ... time constants."""
 
     name = "relaxation"
+    units = {"tau_s": "s"}
     log_scale = ("tau",)
     reshapes = True
     variants = True
@@ -118,5 +119,5 @@ class Relaxation(Cause):
     def one_fewer(self, screen, c: Candidate, pinned: list) -> Candidate | None:
         return without_pinned(screen, c, pinned)
 
-    def merged(self, chosen: Candidate, variants, folds, held) -> Candidate:
-        return merge_duplicates(chosen, variants, folds, held)
+    def merged(self, chosen: Candidate, variants, held) -> Candidate:
+        return merge_duplicates(chosen, variants, held)

@@ -70,6 +70,7 @@ class Resonance(Cause):
     """A second-order mode; identified by its frequency (its damping is its shape)."""
 
     name = "resonance"
+    units = {"natural_frequency_hz": "Hz", "damping_ratio": ""}
     parameters = ("natural_frequency", "damping_ratio")
     log_scale = ("natural_frequency", "damping_ratio")
     identifying = ("natural_frequency",)

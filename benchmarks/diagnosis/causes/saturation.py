@@ -10,7 +10,8 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from ..candidates import NO_CUT, Candidate, estimates_of
-from ..cause import Cause, register
+from ..cause import OUTPUT_UNIT, Cause, register
+from ..heldout import Folds
 
 
 def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -203,7 +204,9 @@ class Saturation(Cause):
     """The output clipped at a level (censored regression), from above or below."""
 
     name = "saturation"
+    units = {"level": OUTPUT_UNIT, "side": ""}
     parameters = ("saturation_level",)
+    relative_to_range = ("saturation_level",)  # a level has no natural zero
     bounded = False  # its level is searched over the output's range, not between bounds
     separable = False
     carries_others = False  # nothing composes on top of a clip; a disturbance still adds
@@ -232,6 +235,11 @@ class Saturation(Cause):
 
     def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
         return clip_on_top(screen, kept)
+
+    def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
+        """A clip's output from that of the part it clips."""
+        level = c.params["saturation_level"]
+        return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
         return _heldout_saturation(screen, folds, c, refit, train_residuals)
