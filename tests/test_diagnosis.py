@@ -63,7 +63,7 @@ from hysbench.benchmarks.diagnosis.selection import decide
 from hysbench.benchmarks.diagnosis.causes import get_cause
 from hysbench.benchmarks.diagnosis.composite import composite_starts
 from hysbench.benchmarks.diagnosis.causes.interference import same_line
-from hysbench.benchmarks.diagnosis.lines import fold_frequencies, frequencies_agree, on_top
+from hysbench.benchmarks.diagnosis.lines import drive_locked, fold_frequencies, frequencies_agree, on_top
 from hysbench.benchmarks.diagnosis.backward import replacements, strongest_first
 from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree
 from hysbench.data.dataset import Record, save_dataset
@@ -501,8 +501,7 @@ def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 
 def test_an_interference_at_a_drive_harmonic_with_one_phase_in_every_record_is_drive_locked():
     rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
     fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2, policy=POLICY)
-    fake.drive_harmonic = lambda f, tol: Screen.drive_harmonic(fake, f, tol)
-    locked = lambda f, phases: Screen.drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
+    locked = lambda f, phases: drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
     fake.null_residuals = lambda: _sine_residuals(9.0, noise=0.02)  # a misfit the drive repeats
     assert locked(9.0, [2.79, 2.99]) and locked(9.0, [3.1, -3.1])  # the phase wraps
     fake.null_residuals = lambda: _sine_residuals(1.014, noise=0.02)
