@@ -148,6 +148,12 @@ class Cause:
         return chosen
 
     # --- validation and report ---------------------------------------------------------------
+    def on_validation(self, before: list, c, policy) -> tuple[list, dict]:
+        """A disturbance on top of ``before`` (residuals of what is kept, refitted on whole records) with its
+        phase fitted per record: the residuals after it and its check on the validation records
+        (``disturbance`` only; the others' extensions are identified, ``validation.fit_extension``)."""
+        raise NotImplementedError(f"{self.name} is identified on the validation records, not fitted on top")
+
     def spectrum_marker(self, parameters: Mapping) -> float | None:
         """A frequency the report's spectrum marks for it (None: nothing)."""
         return None

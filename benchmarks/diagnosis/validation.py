@@ -18,7 +18,6 @@ from hysbench.identification import Fit
 from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
 from .causes import CAUSES
-from .causes.interference import interference_on_validation
 from .residuals import RecordResidual
 from .policy import Policy
 from .selection import Verdict, step
@@ -27,7 +26,7 @@ from .selection import Verdict, step
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
     """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
     records' residual over whole records and on the windows, by more than their noise explains (z >= the
-    policy's ``z_confirm``); an interference, by the same amplitude there (``interference_on_validation``)."""
+    policy's ``z_confirm``); an interference, by the same amplitude there (``Cause.on_validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
     if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
@@ -39,7 +38,7 @@ def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit |
     interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
     record and the interference check."""
     if c.kind.disturbance:
-        after, check = interference_on_validation(diag.base_whole, c, diag.screen.policy)
+        after, check = c.kind.on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
     base = diag.screen.base
     ext = registered_extension(base.name, c.cause, c.hyperparameters, base.get_hyperparameters())
@@ -97,7 +96,7 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
 def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
     """Every kept interference on top: each a sinusoid at its frequency and amplitude, phase fitted per record."""
     for c in lines:
-        residuals = interference_on_validation(residuals, c, policy)[0]
+        residuals = c.kind.on_validation(residuals, c, policy)[0]
     return residuals
 
 
@@ -125,7 +124,7 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         say(f"checking {c.label} on the validation records")
         check = {}
         if c.kind.disturbance:
-            after, check = interference_on_validation(before, c, diag.screen.policy)
+            after, check = c.kind.on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)

@@ -148,5 +148,8 @@ class Interference(Cause):
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
         return {"same_line": same_line(screen, fold_estimates)}
 
+    def on_validation(self, before: list, c: Candidate, policy: Policy) -> tuple[list, dict]:
+        return interference_on_validation(before, c, policy)
+
     def spectrum_marker(self, parameters) -> float | None:
         return parameters["frequency_hz"]
