@@ -152,12 +152,13 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
                            creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
     v.chosen, v.cause = first, first.cause
     pinned = _pinned_time(end_cause, end)
+    slowest = old.kind.slowest_time_s(old.estimates)
     slow = ""
     if standing_in:
-        slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
+        slow = (f", with creep standing for its time constant of {slowest:.3g} s (slower than "
                 f"every drive period{'; ' + pinned if pinned else ''}),")
     elif pinned:
-        slow = f" ({pinned}; it stands for a time constant of {max(old.estimates['tau_s']):.3g} s)"
+        slow = f" ({pinned}; it stands for a time constant of {slowest:.3g} s)"
     how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
            f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
     v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "

@@ -134,7 +134,9 @@ def open_ended(screen, c: Candidate) -> list[str]:
     The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
     out = []
     for n in own_nonlinear(screen, c):
-        if open_ended_parameter(n) and math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
+        if not open_ended_parameter(n):
+            continue
+        if math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
             out.append(n)
     return out
 

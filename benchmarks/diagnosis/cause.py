@@ -85,6 +85,10 @@ class Cause:
         """Its candidates fitted on the screen (stage 1: the base's nonlinear parameters held)."""
         raise NotImplementedError
 
+    def row_columns(self, nonlinear: Mapping[str, float], dt: float, rows: np.ndarray) -> dict:
+        """Linear columns it computes on the screen's rows alone (by name), not from the extended model."""
+        return {}
+
     def joint(self, screen, c, max_nfev: int):
         """Stage 2: ``c`` refined with the base's nonlinear parameters free too (``c`` if nothing gains)."""
         return screen.joint(c, max_nfev)

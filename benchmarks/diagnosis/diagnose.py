@@ -105,7 +105,8 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
     if not ambiguous:
         return
     v.ambiguous_with.append(comp)
-    v.reason += (f"; its slowest time constant ({max(v.chosen.estimates['tau_s']):.3g} s) is longer than the longest "
+    slowest = v.chosen.kind.slowest_time_s(v.chosen.estimates)
+    v.reason += (f"; its slowest time constant ({slowest:.3g} s) is longer than the longest "
                  f"drive period, and the faster ones plus a drift since the start predict the held-out records as well "
                  f"(z < {diag.policy.z_same:g}): that part may be creep")
     if experiments:

@@ -176,10 +176,10 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
                 A = screen.design(c.model, q)
                 return screen.solve(A[train], screen.y[train])[1]
 
-            alone = cause_of_parameter(names[0]) if len(names) == 1 else None
-            scanned = alone.refit_alone(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2))) if alone else None
-            z = scanned if scanned is not None else screen.refine(c.model, z, [(n, is_log(n)) for n in names],
-                                                                  max_nfev=FOLD_NFEV, residual=residual)
+            alone = cause_of_parameter(names[0]) if len(names) == 1 else None  # e.g. a delay: scanned
+            scanned = alone and alone.refit_alone(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2)))
+            z = scanned or screen.refine(c.model, z, [(n, is_log(n)) for n in names], max_nfev=FOLD_NFEV,
+                                         residual=residual)
             fold_est.append({n: float(z[n]) for n in names})
         fold_nl.append(z)
     if not names:

@@ -215,11 +215,13 @@ class Screen:
                 cache.clear()
             cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows,
                                           relaxation_cache=cache)
+            on_rows = {}  # columns a cause computes on the rows alone (``Cause.row_columns``)
+            for c in model.components:
+                on_rows.update(CAUSES[c].row_columns(nonlinear, r.dt, p.rows))
             out = np.empty((p.rows.size, len(names)), order="F")  # filled by column; QR takes Fortran order
             for j, c in enumerate(names):
-                if c in ("interference_sin", "interference_cos"):  # on the rows only
-                    phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
-                    out[:, j] = np.sin(phase) if c == "interference_sin" else np.cos(phase)
+                if c in on_rows:
+                    out[:, j] = on_rows[c]
                 else:
                     out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c]
             blocks.append(out)

@@ -158,12 +158,13 @@ def decide(screen, held: HeldOut, candidates: Sequence[Candidate], variants: Seq
     if slow_twin is not None:  # the weaker claim: a drift since the start, not a dependence on the input
         others.pop(slow_twin.cause, None)
         others = {chosen.cause: chosen, **others}
+        slowest = chosen.kind.slowest_time_s(chosen.estimates)
         drift_note = (f"; named rather than relaxation: the relaxation's slowest time constant "
-                      f"({max(chosen.estimates['tau_s']):.3g} s) is longer than the longest drive period, so these "
+                      f"({slowest:.3g} s) is longer than the longest drive period, so these "
                       "records do not show that it depends on the input, and a drift since the start predicts "
                       f"them as well (z < {pol.z_same:g})")
         trace.append(step("slow-relaxation-twin", slow_twin.cause, relaxation=_score_of(chosen),
-                          creep=_score_of(slow_twin), slowest_tau_s=max(chosen.estimates["tau_s"])))
+                          creep=_score_of(slow_twin), slowest_tau_s=slowest))
         chosen = slow_twin
         if "share_of_misfit" not in chosen.heldout:
             record_share(chosen)

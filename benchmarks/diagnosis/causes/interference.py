@@ -117,6 +117,11 @@ class Interference(Cause):
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return [fit_interference(screen)]
 
+    def row_columns(self, nonlinear, dt: float, rows: np.ndarray) -> dict:
+        """Its (sin, cos) pair at the rows' times from the record's start."""
+        phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * rows
+        return {"interference_sin": np.sin(phase), "interference_cos": np.cos(phase)}
+
     def joint(self, screen, c: Candidate, max_nfev: int) -> Candidate:
         return c  # its phase is per record: the base is fitted jointly with it already
 
