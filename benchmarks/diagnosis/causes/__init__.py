@@ -5,8 +5,8 @@ Everything the diagnosis does differently for one cause is an attribute or a met
 extension is fitted on the screen, its parameters in the report's vocabulary and their search bounds, what
 keeps its meaning (``limit``), how it is scored on a held-out record, whether it composes with other causes,
 how the validation records confirm it, which drive separates it from another cause. Adding a cause is one
-module here with a ``Cause`` subclass decorated ``@register`` (its extension registered with
-``hysbench.models.extended``).
+module here with a ``Cause`` subclass decorated ``@register``, named on the import line below (its place there
+is its place in the search), its extension registered with ``hysbench.models.extended``.
 """
 
 from ..cause import CAUSES, OUTPUT_UNIT, Cause, cause_of_parameter, get_cause, log_scale, refined, register
