@@ -89,6 +89,12 @@ class Cause:
         """Linear columns it computes on the screen's rows alone (by name), not from the extended model."""
         return {}
 
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """Its terms in the library screen (``library_screen``): (names, ``columns(record, y_hat, t)`` -> one array
+        over the record per name, the time constant of each term or None); None: it has none. ``y_hat_rows``: the
+        null's prediction on the screen's rows."""
+        return None
+
     def joint(self, screen, c, max_nfev: int):
         """Stage 2: ``c`` refined with the base's nonlinear parameters free too (``c`` if nothing gains)."""
         return screen.joint(c, max_nfev)

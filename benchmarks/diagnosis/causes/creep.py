@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from hysbench.models.extended import CREEP_TIME_BOUNDS
+
 from ..candidates import Candidate
 from ..cause import OUTPUT_UNIT, Cause, register
 
@@ -29,6 +31,13 @@ class Creep(Cause):
     open_ended = ("creep_time",)  # longer than the records show: a straight drift since the start
     time_scale = "creep_time"
     shown_at_rest = True
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """Slow exponential drifts since the start."""
+        longest = CREEP_TIME_BOUNDS[1] * screen.drive_time / 10
+        creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(longest), 5))
+        return ([f"1-exp(-t/{c:.3g}s)" for c in creeps], lambda r, y_hat, t: [-np.expm1(-t / c) for c in creeps],
+                [None] * len(creeps))
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return [fit_creep(screen)]

@@ -116,6 +116,10 @@ class Delay(Cause):
     late_input = True
     reshapes = True
 
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """The model's output's rate (a short delay to first order)."""
+        return ["d/dt y_model"], lambda r, y_hat, t: [np.gradient(y_hat, r.dt)], [None]
+
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return [fit_delay(screen)]
 

@@ -12,11 +12,11 @@ from typing import Sequence
 
 import numpy as np
 
-from ..candidates import DRIVE_LOCKED, Candidate
+from ..candidates import DRIVE_LOCKED, Candidate, prominence
 from ..cause import OUTPUT_UNIT, Cause, register
 from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, fold_amplitude, fold_frequencies,
                      frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted)
-from ..residuals import RecordResidual
+from ..residuals import RecordResidual, coherent_spectrum, spectral_peaks
 from ..heldout import out_of_fold
 from ..policy import Policy
 
@@ -121,6 +121,17 @@ class Interference(Cause):
         """Its (sin, cos) pair at the rows' times from the record's start."""
         phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * rows
         return {"interference_sin": np.sin(phase), "interference_cos": np.cos(phase)}
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """A sinusoid at the pooled coherent spectrum's peak (none without a peak)."""
+        dt = max(p.record.dt for p in screen.parts)  # below every record's Nyquist frequency
+        f, amp = coherent_spectrum(screen.null_residuals(), 1.0 / screen.drive_time, 0.45 / dt)
+        peak = spectral_peaks(f, prominence(amp), n=1)
+        if not peak:
+            return None
+        f0 = peak[0][0]
+        return ([f"sin {f0:.4g}Hz", f"cos {f0:.4g}Hz"],
+                lambda r, y_hat, t: [np.sin(2 * np.pi * f0 * t), np.cos(2 * np.pi * f0 * t)], [None, None])
 
     def joint(self, screen, c: Candidate, max_nfev: int) -> Candidate:
         return c  # its phase is per record: the base is fitted jointly with it already

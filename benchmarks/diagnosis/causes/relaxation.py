@@ -8,10 +8,13 @@ from typing import Sequence
 import numpy as np
 
 from hysbench.models.extended import TAU_BOUNDS
+from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank
 
 from ..candidates import MAX_RELAXATION, Candidate, is_log
 from ..cause import Cause, register
 from ..heldout import pairwise_z, passes
+
+LIBRARY_TAUS = 10  # time constants of the library screen's low-pass terms
 
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
@@ -94,6 +97,18 @@ class Relaxation(Cause):
 
     def owns(self, parameter: str) -> bool:
         return parameter.startswith("tau")
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """First-order low-pass histories of the input on a grid of time constants."""
+        T = screen.drive_time
+        taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), LIBRARY_TAUS))
+
+        def columns(r, y_hat, t):
+            a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(tau), r.dt) for tau in taus)))
+            lp = lowpass1_bank(np.ascontiguousarray(r.u), a, b0, b1)
+            return [lp[j] for j in range(len(taus))]
+
+        return [f"L_{t:.3g}s[u]" for t in taus], columns, [float(t) for t in taus]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return fit_relaxation(screen, max_order, seeds=library["relaxation_taus"])

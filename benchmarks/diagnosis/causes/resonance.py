@@ -77,6 +77,10 @@ class Resonance(Cause):
     transforms = True
     reshapes = True
 
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """The model's output's second derivative (a mode's inertia to first order)."""
+        return ["d2/dt2 y_model"], lambda r, y_hat, t: [np.gradient(np.gradient(y_hat, r.dt), r.dt)], [None]
+
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return [fit_resonance(screen)]
 

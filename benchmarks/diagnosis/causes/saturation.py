@@ -211,6 +211,14 @@ class Saturation(Cause):
     separable = False
     carries_others = False  # nothing composes on top of a clip; a disturbance still adds
 
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """Hinge functions of the model's output at high and low levels."""
+        q_hi, q_lo = np.quantile(y_hat_rows, [0.90, 0.97]), np.quantile(y_hat_rows, [0.03, 0.10])
+        return ([f"max(y_model-{L:.3g},0)" for L in q_hi] + [f"max({L:.3g}-y_model,0)" for L in q_lo],
+                lambda r, y_hat, t: ([np.maximum(y_hat - L, 0.0) for L in q_hi]
+                                     + [np.maximum(L - y_hat, 0.0) for L in q_lo]),
+                [None] * 4)
+
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         c = fit_saturation(screen)
         return [] if c is None else [c]
