@@ -45,7 +45,7 @@ from hysbench.benchmarks.diagnosis_accuracy.planted import (
 )
 from hysbench.benchmarks.diagnosis_accuracy.stated_limits import LIMITS_PCT, stated_limit
 from hysbench.benchmarks.diagnosis.report import verdict_lines
-from hysbench.benchmarks.diagnosis.saturation import shows_clip, slope_where_clipped
+from hysbench.benchmarks.diagnosis.causes.saturation import shows_clip, slope_where_clipped
 from hysbench.benchmarks.diagnosis.residuals import (
     RecordResidual,
     coherent_spectrum,
@@ -58,10 +58,14 @@ from hysbench.benchmarks.diagnosis.residuals import (
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, NO_CUT, Candidate
 from hysbench.benchmarks.diagnosis.policy import Policy, PolicyError
 from hysbench.benchmarks.diagnosis.screen import Screen
-from hysbench.benchmarks.diagnosis.selection import Folds, decide, heldout_errors, heldout_null, passes, score
-from hysbench.benchmarks.diagnosis.interference import (fold_frequencies, frequencies_agree, on_top,
-                                                      same_line)
-from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree, replacements, strongest_first
+from hysbench.benchmarks.diagnosis.heldout import Folds, HeldOut, heldout_errors, heldout_null, passes, score
+from hysbench.benchmarks.diagnosis.selection import decide
+from hysbench.benchmarks.diagnosis.causes import get_cause
+from hysbench.benchmarks.diagnosis.composite import composite_starts
+from hysbench.benchmarks.diagnosis.causes.interference import same_line
+from hysbench.benchmarks.diagnosis.lines import drive_locked, fold_frequencies, frequencies_agree, on_top
+from hysbench.benchmarks.diagnosis.backward import replacements, strongest_first
+from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.segments import own_samples
 from hysbench.data.protocol import paper_voltage, protocol_time
@@ -383,49 +387,49 @@ def test_a_specific_partial_cause_is_named_with_the_rest_unexplained_and_a_rival
         return v.trace[-1]["rule"], v.trace[-1]["inputs"].get("not_specific")
 
     a = _scored("delay", folds, e_null, e_a, {"delay": {"se": 1e-4, "folds": [0.010, 0.0101, 0.0099]}})
-    errors = {id(a): e_a}
-    v = decide(screen, folds, [a], [], errors, e_null, structured=True)
+    held = HeldOut(folds, e_null, [(a, e_a)])
+    v = decide(screen, held, [a], [], structured=True)
     assert v.cause == "delay" and v.remainder == pytest.approx(0.61, abs=0.03) and last(v)[0] == "partial-specific"
     level = {"saturation_level": {"se": 1e-3, "se_over_range": 0.01, "folds": [0.50, 0.501, 0.499]}}
     b = _scored("saturation", folds, e_null, e_b, level)
-    errors[id(b)] = e_b
-    v = decide(screen, folds, [a, b], [], errors, e_null, structured=True)
+    held.add(b, e_b)
+    v = decide(screen, held, [a, b], [], structured=True)
     assert v.cause == "unexplained" and v.partial is a
     assert last(v) == ("partial-not-specific", {"why": "rivals", "rivals": ["saturation"]})
     # a rival whose own parameters the folds do not agree on is no explanation either: it does not make a guess
     loose = _scored("saturation", folds, e_null, e_b, {"saturation_level": {"se": 0.2, "se_over_range": 0.4,
                                                                            "folds": [0.2, 0.5, 0.9]}})
-    v = decide(screen, folds, [a, loose], [], {id(a): e_a, id(loose): e_b}, e_null, structured=True)
+    v = decide(screen, HeldOut(folds, e_null, [(a, e_a), (loose, e_b)]), [a, loose], [], structured=True)
     assert v.cause == "delay" and v.remainder == pytest.approx(0.61, abs=0.03), v.reason
     # a sinusoid at a drive harmonic with the same phase in every record is no cause, but with held-out evidence
     # it shows a misfit locked to the drive: removing another part, it makes the partial cause a guess too
     locked = _scored("interference", folds, e_null, e_b, {"amplitude": {"se": 1e-3, "folds": [0.5, 0.5, 0.5]}})
     locked.limit = DRIVE_LOCKED
-    v = decide(screen, folds, [a, locked], [], {id(a): e_a, id(locked): e_b}, e_null, structured=True)
+    v = decide(screen, HeldOut(folds, e_null, [(a, e_a), (locked, e_b)]), [a, locked], [], structured=True)
     assert v.cause == "unexplained" and last(v) == ("partial-not-specific", {"why": "rivals", "rivals": ["drive-locked"]})
     e_weak = e_null + rng.normal(0, 0.05, t.size)  # no held-out evidence: it does not count
     weak = _scored("interference", folds, e_null, e_weak)
     weak.limit = DRIVE_LOCKED
-    v = decide(screen, folds, [a, weak], [], {id(a): e_a, id(weak): e_weak}, e_null, structured=True)
+    v = decide(screen, HeldOut(folds, e_null, [(a, e_a), (weak, e_weak)]), [a, weak], [], structured=True)
     assert v.cause == "delay", v.reason
     # a rival for the SAME slice (another mode of explaining it, as a short lag for a delay): ambiguous, and the
     # candidate with fewer parameters is named
     e_c = 0.6 * s1 + s2 + rng.normal(0, 0.05, t.size)
     c = _scored("resonance", folds, e_null, e_c, {"natural_frequency": {"relative_se": 0.02, "folds": [9.0, 9.2, 9.1]}})
     c.k = a.k + 1
-    errors[id(c)] = e_c
-    v = decide(screen, folds, [c, a], [], errors, e_null, structured=True)
+    held.add(c, e_c)
+    v = decide(screen, held, [c, a], [], structured=True)
     assert v.cause == "delay" and [r.cause for r in v.ambiguous_with] == ["resonance"], v.reason
     assert v.remainder == pytest.approx(0.61, abs=0.03)
-    v = decide(screen, folds, [a, b, c], [], errors, e_null, structured=True)  # a rival for another slice: a guess
+    v = decide(screen, held, [a, b, c], [], structured=True)  # a rival for another slice: a guess
     assert v.cause == "unexplained" and last(v) == ("partial-not-specific", {"why": "rivals", "rivals": ["saturation"]})
     wobbly = _scored("delay", folds, e_null, e_a, {"delay": {"se": 0.004, "folds": [0.004, 0.010, 0.016]}})
-    v = decide(screen, folds, [wobbly], [], {id(wobbly): e_a}, e_null, structured=True)
+    v = decide(screen, HeldOut(folds, e_null, [(wobbly, e_a)]), [wobbly], [], structured=True)
     assert v.cause == "unexplained" and last(v) == ("partial-not-specific", {"why": "folds", "rivals": []})
 
 
 def test_without_pinned_needs_a_pinned_time_constant_and_one_left():
-    from hysbench.benchmarks.diagnosis.relaxation import without_pinned
+    from hysbench.benchmarks.diagnosis.causes.relaxation import without_pinned
 
     c = SimpleNamespace(model=SimpleNamespace(nonlinear_names=("gamma", "lambda", "tau1")), params={"tau1": 0.01},
                         hyperparameters={"n_relaxation": 1})
@@ -449,8 +453,8 @@ def test_a_relaxation_slower_than_every_drive_period_that_creep_predicts_as_well
     for tau, named in ((25.0, "creep"), (4.0, "relaxation")):
         relax, creep = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_creep)
         relax.estimates, creep.estimates = {"tau_s": [tau]}, {"size": 0.3, "time_scale_s": 20.0}
-        errors = {id(relax): e_relax, id(creep): e_creep}
-        v = decide(screen, folds, [creep], [relax], errors, e_null, structured=True)
+        held = HeldOut(folds, e_null, [(relax, e_relax), (creep, e_creep)])
+        v = decide(screen, held, [creep], [relax], structured=True)
         assert v.cause == named, (tau, v.reason)
         assert [c.cause for c in v.ambiguous_with] == ["relaxation" if named == "creep" else "creep"], tau
         assert ("slow-relaxation-twin" in [t["rule"] for t in v.trace]) == (named == "creep"), v.trace
@@ -468,7 +472,7 @@ def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_tha
     creep = Candidate("creep", "creep", get_model("mrpim"), {}, 23, 1.0, 10)
     for taus in ([0.5, 9.0], [30.0]):  # too fast, or a single time constant: not applicable (the screen is
         relax.estimates = {"tau_s": taus}  # a stub, so going on would raise)
-        assert slow_part_composite(screen, None, {}, relax, [creep], [one]) is None, taus
+        assert slow_part_composite(screen, None, relax, [creep], [one]) is None, taus
     rng = np.random.default_rng(2)
     folds = Folds(np.array([0, 4000, 8000, 12000]))
     noise = rng.normal(0, 0.01, 12000)
@@ -476,7 +480,7 @@ def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_tha
     e_null, e_relax = drift + noise, 0.05 * drift + noise
     for e_comp, same in ((0.05 * drift + rng.normal(0, 0.01, 12000), True), (0.5 * drift + noise, False)):
         chosen, comp = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_comp)
-        assert predicts_as_well(folds, {id(chosen): e_relax, id(comp): e_comp}, chosen, comp) is same
+        assert predicts_as_well(HeldOut(folds, e_null, [(chosen, e_relax), (comp, e_comp)]), chosen, comp) is same
 
 
 def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 0.0, seed: int = 0):
@@ -497,8 +501,7 @@ def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 
 def test_an_interference_at_a_drive_harmonic_with_one_phase_in_every_record_is_drive_locked():
     rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
     fake = SimpleNamespace(parts=[SimpleNamespace(record=rec)] * 2, policy=POLICY)
-    fake.drive_harmonic = lambda f, tol: Screen.drive_harmonic(fake, f, tol)
-    locked = lambda f, phases: Screen.drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
+    locked = lambda f, phases: drive_locked(fake, {"frequency_hz": f, "phase_rad_per_record": phases})  # noqa: E731
     fake.null_residuals = lambda: _sine_residuals(9.0, noise=0.02)  # a misfit the drive repeats
     assert locked(9.0, [2.79, 2.99]) and locked(9.0, [3.1, -3.1])  # the phase wraps
     fake.null_residuals = lambda: _sine_residuals(1.014, noise=0.02)
@@ -557,8 +560,8 @@ def test_suggested_experiment_separates_a_delay_from_a_lag_at_high_frequency():
     y = get_model("mrpim").simulate(paper_voltage(t, 1.0), DT, base, input_range=(0.5, 2.5))
     rec = Record("r.npz", t, paper_voltage(t, 1.0), y, frequency_hz=1.0)
     screen = SimpleNamespace(parts=[SimpleNamespace(record=rec)], input_range=(0.5, 2.5), noise_sd=0.01)
-    delay = SimpleNamespace(cause="delay", model=ExtendedModel("mrpim", ("delay",)), params={**base, "delay": 0.02})
-    lag = SimpleNamespace(cause="resonance", model=ExtendedModel("mrpim", ("resonance",)),
+    delay = SimpleNamespace(cause="delay", kind=get_cause("delay"), model=ExtendedModel("mrpim", ("delay",)), params={**base, "delay": 0.02})
+    lag = SimpleNamespace(cause="resonance", kind=get_cause("resonance"), model=ExtendedModel("mrpim", ("resonance",)),
                           params={**base, "natural_frequency": 1 / (2 * np.pi * 0.01), "damping_ratio": 1.0})
     out = suggest(screen, delay, lag)
     sines = [p for p in out["probes"] if p["drive"].startswith("sine")]
@@ -583,7 +586,7 @@ def test_a_suggested_experiment_is_never_a_probe_on_which_a_fit_leaves_the_recor
             if run_away or (run_away_on_hold and np.ptp(u) == 0):
                 y = y + np.arange(u.size) * dt * 1e3
             return y
-        return SimpleNamespace(cause=cause, params={}, model=SimpleNamespace(param_names=(), simulate=simulate))
+        return SimpleNamespace(cause=cause, kind=get_cause(cause), params={}, model=SimpleNamespace(param_names=(), simulate=simulate))
 
     out = suggest(screen, fit("relaxation", run_away_on_hold=True), fit("creep"))
     hold = [p for p in out["probes"] if p["drive"].startswith("input held")]
@@ -855,19 +858,19 @@ def test_the_backward_steps_creep_standing_in_follows_the_secondary_causes_stron
     """Creep stands for a named relaxation's slow part only after the kept causes, and those in the same order
     as without it (strongest first), and only when the slowest time constant is past every drive period."""
     own = {c: SimpleNamespace(heldout_gain=g) for c, g in (("delay", 0.2), ("resonance", 0.6), ("creep", 0.4))}
-    slow = SimpleNamespace(cause="relaxation", estimates={"tau_s": [0.05, 13.0]})
+    slow = SimpleNamespace(cause="relaxation", kind=get_cause("relaxation"), estimates={"tau_s": [0.05, 13.0]})
     assert replacements(slow, own, ["delay", "resonance"], creep_min=20.0, policy=POLICY) == [
         ["resonance", "delay"], ["resonance", "delay", "creep"]]
-    fast = SimpleNamespace(cause="relaxation", estimates={"tau_s": [0.05, 9.0]})
+    fast = SimpleNamespace(cause="relaxation", kind=get_cause("relaxation"), estimates={"tau_s": [0.05, 9.0]})
     assert replacements(fast, own, ["delay", "resonance"], creep_min=20.0, policy=POLICY) == [["resonance", "delay"]]
     assert replacements(slow, own, ["creep", "delay"], creep_min=20.0, policy=POLICY) == [["creep", "delay"]]
-    named_delay = SimpleNamespace(cause="delay", estimates={"delay_s": 0.02})
+    named_delay = SimpleNamespace(cause="delay", kind=get_cause("delay"), estimates={"delay_s": 0.02})
     assert replacements(named_delay, own, ["resonance"], creep_min=20.0, policy=POLICY) == [["resonance"]]
 
 
 @given(lo=st.floats(1e-3, 1.0), ratio=st.floats(2.0, 1e4), dt=st.floats(1e-4, 1e-3))
 def test_a_second_cause_starts_on_a_grid_strictly_inside_its_bounds(lo, ratio, dt):
-    """``Screen._starts``: the given start first, then a geometric grid strictly inside each named parameter's
+    """``composite_starts``: the given start first, then a geometric grid strictly inside each named parameter's
     bounds (a delay from one sample up), 12 points for one parameter, 6 x 6 for a mode; a relaxation of
     several time constants keeps its own start only."""
     bounds = {"delay": (0.0, lo * ratio), "natural_frequency": (lo, lo * ratio), "damping_ratio": (0.01, 1.0),
@@ -876,7 +879,7 @@ def test_a_second_cause_starts_on_a_grid_strictly_inside_its_bounds(lo, ratio, d
                            parts=[SimpleNamespace(record=SimpleNamespace(dt=dt))])
     start = {"delay": 0.5 * lo, "natural_frequency": 2 * lo, "damping_ratio": 0.3, "tau1": lo, "tau2": 2 * lo}
     for names, n in ((["delay"], 12), (["natural_frequency", "damping_ratio"], 36), (["tau1", "tau2"], 0)):
-        starts = Screen._starts(fake, None, start, names)
+        starts = composite_starts(fake, None, start, names)
         assert starts[0] == start and len(starts) == 1 + n
         for name in names if n else []:
             a, b = bounds[name]
@@ -904,7 +907,7 @@ def test_a_mode_started_on_top_of_a_delay_keeps_the_low_frequency_lag(fn, zeta, 
     """``lag_shared``: a mode started on top of a kept delay shortens the delay by the mode's low-frequency
     lag, so the two together lag the input as the delay alone did. Checked on the mode's transfer function
     1 / (1 - r^2 + 2 j zeta r) at r = 1e-3 (its phase per radian, not the formula used)."""
-    from hysbench.benchmarks.diagnosis.screen import lag_shared
+    from hysbench.benchmarks.diagnosis.causes.resonance import lag_shared
 
     wn = 2 * math.pi * fn
     w = 1e-3 * wn
@@ -945,7 +948,7 @@ def test_a_partial_cause_is_named_only_if_the_causes_on_top_explain_half_the_mis
 
     monkeypatch.setattr(secondary, "secondary_causes", on_top)
     unexplained = Verdict("unexplained", None, reason="the best-predicting cause removes only 44 %", partial=partial)
-    result = {"errors": {id(screen.null): e_null}, "folds": folds}
+    result = {"heldout": HeldOut(folds, e_null), "folds": folds}
     diag = type("D", (), {"chosen": property(lambda self: self.verdict.chosen)})()
     diag.verdict, diag.screen, diag.also, diag.secondary_tried, diag.trace = unexplained, screen, [], [], []
     assert secondary.complete_partial(diag, result, lambda m: None) is named
@@ -966,7 +969,8 @@ def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_recor
     what is then kept, refitted per fold, shows evidence against the base that more than one record carries and
     removes at least half of the misfit beyond noise; otherwise the verdict stays ``none``."""
     from hysbench.benchmarks.diagnosis import secondary
-    from hysbench.benchmarks.diagnosis.selection import Verdict, evidence, promising
+    from hysbench.benchmarks.diagnosis.heldout import evidence, promising
+    from hysbench.benchmarks.diagnosis.selection import Verdict
 
     rng = np.random.default_rng(8)
     folds = Folds(np.array([0, 4000, 8000, 12000]))
@@ -986,7 +990,7 @@ def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_recor
     screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object())
     kept = _scored("relaxation", folds, e_null, both)
     kept.heldout["refit_per_fold"] = True
-    result = {"errors": {id(screen.null): e_null, id(kept): both}, "folds": folds}
+    result = {"heldout": HeldOut(folds, e_null, [(kept, both)]), "folds": folds}
 
     def on_top(diag, result, say):
         assert diag.chosen is p  # the forward selection runs on top of the promising cause
@@ -1443,7 +1447,7 @@ def test_the_delay_search_on_short_records_reaches_a_delay_between_its_grid_poin
     """On short records the delay is profiled on a geometric grid (about 50 % steps), then refined by Brent
     between the best point's neighbours: a planted 43 ms delay (grid points 36 and 50 ms here) on the exact
     plant is found within 5 %."""
-    from hysbench.benchmarks.diagnosis.delay import fit_delay
+    from hysbench.benchmarks.diagnosis.causes.delay import fit_delay
 
     ds, _ = planted(("delay",), "mrpim", "sines", 2, {"delay": {"delay_s": 0.043}})
     screen = build_screen(own_samples(ds), get_model("mrpim"))[-1]
@@ -1667,7 +1671,7 @@ def test_the_delay_profile_is_scanned_where_it_is_rough_at_the_scale_of_a_sample
     ripple minimum away from the valley's floor; the scan (every half sample) then Brent reaches the floor."""
     from scipy.optimize import minimize_scalar
 
-    from hysbench.benchmarks.diagnosis.delay import scan_minimum
+    from hysbench.benchmarks.diagnosis.causes.delay import scan_minimum
     dt, floor = 2e-3, 0.0044
 
     def rss(d):  # minima at floor + k dt; envelope rising away from the floor
@@ -1811,7 +1815,7 @@ def test_a_held_out_gain_carried_by_one_record_alone_is_not_evidence():
     """Evidence that only the record it improves most carries (coloured noise can throw the base's extrapolation
     to one record far off) is not enough for `unexplained`; a gain spread over the records is; with two records
     nothing is left to check."""
-    from hysbench.benchmarks.diagnosis.selection import Folds, carried_by_one_record
+    from hysbench.benchmarks.diagnosis.heldout import Folds, carried_by_one_record
 
     rng = np.random.default_rng(3)
     folds = Folds(np.array([0, 4000, 6000, 7000]))
@@ -1838,16 +1842,16 @@ def test_a_delay_shorter_than_one_sample_is_not_a_delay():
 def test_no_error_against_frequency_figure_is_drawn_for_records_without_a_drive_frequency(tmp_path):
     """Records without a nominal drive frequency (the Bouc-Wen benchmark's) would leave that figure empty (it was,
     with a warning): it is not drawn; with one it is."""
-    from hysbench.benchmarks.diagnosis import report
+    from hysbench.benchmarks.diagnosis import figures
 
     record = SimpleNamespace(frequency_hz=None, role="identification")
     diag = SimpleNamespace(before=[SimpleNamespace(record=record)], base_whole=[], after=[])
     path = tmp_path / "error.png"
-    report.figure_error_vs_frequency(diag, path)
+    figures.figure_error_vs_frequency(diag, path)
     assert not path.exists()
     record.frequency_hz = 1.0
     diag.before[0].scores = lambda: {"e_rms": 2.0, "e_rms_whole": 3.0}
-    report.figure_error_vs_frequency(diag, path)
+    figures.figure_error_vs_frequency(diag, path)
     assert path.stat().st_size > 0
 
 

@@ -16,10 +16,10 @@ from hypothesis import strategies as st
 
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.report import not_held_out_lines
-from hysbench.benchmarks.diagnosis.interference import on_top
+from hysbench.benchmarks.diagnosis.lines import on_top
 from hysbench.benchmarks.diagnosis.policy import Policy
-from hysbench.benchmarks.diagnosis.screen import beyond_others, held_out_windows
-from hysbench.benchmarks.diagnosis.selection import Folds, carried_by_one_record, score
+from hysbench.benchmarks.diagnosis.heldout import beyond_others, held_out_windows
+from hysbench.benchmarks.diagnosis.heldout import Folds, carried_by_one_record, score
 from diagnosed_cases import diagnosed
 
 BEYOND_RANGE = Policy().beyond_range

@@ -16,9 +16,9 @@ from hypothesis import strategies as st
 
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED
-from hysbench.benchmarks.diagnosis.interference import JointLine, fold_frequencies
+from hysbench.benchmarks.diagnosis.lines import JointLine, fold_frequencies
 from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available
-from hysbench.benchmarks.diagnosis.selection import Folds, heldout_errors, heldout_null
+from hysbench.benchmarks.diagnosis.heldout import Folds, heldout_errors, heldout_null
 from diagnosed_cases import diagnosed
 
 

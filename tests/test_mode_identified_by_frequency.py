@@ -12,6 +12,7 @@ import pytest
 
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available
+from hysbench.benchmarks.diagnosis.causes import get_cause
 from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.selection import agrees, identified, loose_note
 from diagnosed_cases import diagnosed
@@ -23,7 +24,7 @@ PARTIAL_SE = POLICY.partial_se
 def _candidate(cause: str, **spread) -> SimpleNamespace:
     """A candidate with the relative fold spread (jackknife se) s of each named parameter."""
     uncertainty = {n: {"relative_se": s, "folds": [1.0, 1.0]} for n, s in spread.items()}
-    return SimpleNamespace(cause=cause, uncertainty=uncertainty)
+    return SimpleNamespace(cause=cause, kind=get_cause(cause), uncertainty=uncertainty)
 
 
 @pytest.mark.parametrize("frequency_se, damping_se, expected", [

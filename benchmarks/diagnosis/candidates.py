@@ -18,11 +18,13 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from hysbench.identification.criteria import bic
+from hysbench.identification.linear import scaled_lstsq
 from hysbench.models.base import HysteresisModel
+
+from .cause import CAUSES, cause_of_parameter, log_scale, open_ended_parameter
 
 MAX_ROWS = 10_000  # rows per record in the screen
 MAX_RELAXATION = 4
-LOG_SCALE = ("tau", "creep_time", "natural_frequency", "damping_ratio")
 NO_CUT = ("the level cuts too few samples of the prediction (policy min_clipped_samples): not a clip (what it gains "
           "comes from "
           "leaving the output's extreme samples out of the fit)")  # a saturation's limit (``Screen.limit_of``)
@@ -59,6 +61,11 @@ class Candidate:
         self.bic = bic(self.rss, self.n, self.k, self.n_effective) if self.rss > 0 else -math.inf
 
     @property
+    def kind(self):
+        """Its cause (``causes.Cause``; None for the base alone)."""
+        return CAUSES.get(self.cause)
+
+    @property
     def heldout_gain(self) -> float:
         return float(self.heldout.get("gain", math.nan))
 
@@ -72,32 +79,13 @@ class Candidate:
 
 
 def estimates_of(cause: str, params: Mapping[str, float], model: HysteresisModel) -> dict:
-    """A cause's parameters in the report's vocabulary."""
-    if cause == "relaxation":
-        k = getattr(model, "n_relaxation", 0)
-        taus = sorted(float(params[f"tau{i}"]) for i in range(1, k + 1))
-        return {"tau_s": taus}
-    if cause == "delay":
-        return {"delay_s": float(params["delay"])}
-    if cause == "resonance":
-        return {"natural_frequency_hz": float(params["natural_frequency"]),
-                "damping_ratio": float(params["damping_ratio"])}
-    if cause == "creep":
-        return {"size": float(params["creep_size"]), "time_scale_s": float(params["creep_time"])}
-    if cause == "interference":
-        out = {"frequency_hz": float(params["interference_frequency"])}
-        if "interference_amplitude" in params:  # one phase per record (``interference``)
-            out["amplitude"] = float(params["interference_amplitude"])
-        else:
-            out["amplitude"] = math.hypot(float(params["interference_sin"]), float(params["interference_cos"]))
-        return out
-    if cause == "saturation":
-        return {"level": float(params["saturation_level"]), "side": getattr(model, "saturation_side", "upper")}
-    return {}
+    """A cause's parameters in the report's vocabulary (``Cause.estimates``; none for the base alone)."""
+    return CAUSES[cause].estimates(params, model) if cause in CAUSES else {}
 
 
 def is_log(name: str) -> bool:
-    return any(name.startswith(s) for s in LOG_SCALE)
+    """Whether a cause's parameter is searched on a log scale (``Cause.log_scale``)."""
+    return log_scale(name)
 
 
 def local_minima(vals: np.ndarray, n: int) -> list[int]:
@@ -116,3 +104,64 @@ def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
     the slope)."""
     log_amp = np.log(np.maximum(amp, 1e-300))
     return np.exp(log_amp - uniform_filter1d(log_amp, size=2 * half_width + 1, mode="nearest"))
+
+
+def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Column-scaled least squares (minimum norm below 1e-10 of the largest singular value): (theta, residual)."""
+    theta = scaled_lstsq(A, y, rcond=1e-10)
+    return theta, y - A @ theta
+
+
+def column_basis(A: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of A's column space (columns scaled to unit norm; singular values below 1e-10 of
+    the largest dropped)."""
+    d = np.sqrt(np.einsum("ij,ij->j", A, A))
+    d[~(d > 0)] = 1.0
+    u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
+    return np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])
+
+
+def own_nonlinear(screen, c: Candidate) -> list[str]:
+    return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
+
+
+OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
+
+
+def open_ended(screen, c: Candidate) -> list[str]:
+    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning: creep's
+    time scale longer than these records show (1 - exp(-t / T) -> t / T, a straight drift since the start).
+    The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
+    out = []
+    for n in own_nonlinear(screen, c):
+        if not open_ended_parameter(n):
+            continue
+        if math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
+            out.append(n)
+    return out
+
+
+def bound_flags(screen, c: Candidate) -> dict:
+    """The held-out score's bound entries: ``at_bound`` and ``open_ended``."""
+    return {"at_bound": at_bound(screen, c), "open_ended": open_ended(screen, c)}
+
+
+def at_bound(screen, c: Candidate) -> list[str]:
+    """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
+    out = []
+    if not c.kind.bounded:
+        return out
+    near = screen.policy.at_bound
+    for n in own_nonlinear(screen, c):
+        lo, hi = screen.bounds_of(c.model, n)
+        v = float(c.params[n])
+        owner = cause_of_parameter(n)
+        if owner is not None and n in owner.only_upper_bound:  # its lower bound is no effect: only the upper counts
+            if v >= hi * (1 - near):
+                out.append(n)
+        elif is_log(n) and lo > 0:
+            if math.log(v / lo) < near or (math.log(hi / v) < near and not open_ended_parameter(n)):
+                out.append(n)
+        elif v <= lo + near * (hi - lo) or v >= hi - near * (hi - lo):
+            out.append(n)
+    return out

@@ -31,8 +31,6 @@ from .candidates import Candidate
 N_FREQUENCIES = 9
 SAMPLES_PER_PERIOD = 2000
 OUTSIDE_RECORDED = 1.0  # a probe's fit beyond the recorded output range by this many times its width
-# causes that, under one periodic drive, only reshape the response's harmonics -- as a static nonlinearity does
-RESHAPING_CAUSES = ("relaxation", "delay", "resonance")
 SAME_DRIVE = 0.02  # two inputs' quantiles agree within this share of their range: the same drive
 _DRIVE_QUANTILES = (0.01, 0.25, 0.5, 0.75, 0.99)
 
@@ -71,10 +69,7 @@ def _probe_frequencies(screen) -> np.ndarray:
 def predict(screen, c: Candidate, u: np.ndarray, dt: float) -> np.ndarray:
     """A candidate's output for the drive ``u``; a clip on top of a kept part clips that part's output."""
     y = c.model.simulate(u, dt, {n: c.params[n] for n in c.model.param_names}, input_range=screen.input_range)
-    if getattr(c, "clips", None) is None:
-        return y
-    level = c.params["saturation_level"]
-    return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
+    return y if getattr(c, "clips", None) is None else c.kind.clip(c, y)
 
 
 def separation(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> float:
@@ -109,7 +104,7 @@ def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle:
 def suggest(screen, a: Candidate, b: Candidate) -> dict:
     """{"drive", "frequency_hz", "separation" (output units, rms), "noise_sd", "probes": [...]}; probes on which a
     fit leaves the recorded output range (``_probe``) are not suggested ("note" says so if none is left)."""
-    if "interference" in (a.cause, b.cause):
+    if a.kind.disturbance or b.kind.disturbance:
         return {"drive": "constant input (drive off)", "frequency_hz": None, "separation": None,
                 "noise_sd": screen.noise_sd,
                 "note": "an interference is not driven by the input: record with the drive held constant"}
@@ -127,7 +122,7 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
     probes.append({"drive": f"multisine {freqs[0]:.3g}-{freqs[-1]:.3g} Hz", "frequency_hz": None,
                    **_probe(screen, a, b, u, dt, u.size // 3, recorded)})
-    if "creep" in (a.cause, b.cause):
+    if a.kind.shown_at_rest or b.kind.shown_at_rest:
         hold = np.full(u.size, float(lo))
         probes.append({"drive": f"input held at {lo:.3g} (the rest) for {duration:.3g} s", "frequency_hz": None,
                        **_probe(screen, a, b, hold, dt, 0, recorded)})

@@ -1,17 +1,16 @@
 """Library screen: sparse regression (pysindy FROLS) of the null's residual on candidate terms.
 
 Evidence and start values only (the cause is chosen on held-out records):
-first-order low-pass histories of the input on a grid of time constants,
-the derivatives of the model's own output, slow exponential drifts, a
-sinusoid at the pooled spectrum's peak, hinge functions of the model's output
-at high and low levels -- each made orthogonal to the base model's
+each cause's terms (``Cause.library_terms``: first-order low-pass histories of
+the input on a grid of time constants, the derivatives of the model's own
+output, slow exponential drifts, a sinusoid at the pooled spectrum's peak,
+hinge functions of the model's output at high and low levels), each made orthogonal to the base model's
 regressors and scaled to unit norm. The path is cut where BIC (with the
 null residual's effective sample size) is lowest.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
 import numpy as np
@@ -19,15 +18,12 @@ import pysindy as ps
 
 from hysbench.identification.criteria import bic
 from hysbench.identification.linear import scaled_lstsq
-from hysbench.models.extended import CREEP_TIME_BOUNDS, TAU_BOUNDS
-from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank
 
-from .candidates import prominence
-from .residuals import RecordResidual, coherent_spectrum, spectral_peaks
+from .causes import CAUSES
+from .residuals import RecordResidual
 
 
-def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int = 8,
-                   n_taus: int = 10) -> dict:
+def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int = 8) -> dict:
     """Sparse regression (pysindy FROLS) of the null's residual on a library of candidate terms.
 
     Forward orthogonal least squares adds one term at a time, the one that
@@ -35,40 +31,20 @@ def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int =
     Returns {"terms": [{name, group, explained, order}], "groups": {cause: share of the null's
     residual sum of squares explained}, "relaxation_taus": [time constants of kept low-pass terms]}.
     """
-    T = screen.drive_time
-    taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), n_taus))
-    creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(CREEP_TIME_BOUNDS[1] * T / 10), 5))
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
-    # an interference candidate frequency: the pooled coherent spectrum's peak
-    dt = max(p.record.dt for p in screen.parts)  # below every record's Nyquist frequency
-    f, amp = coherent_spectrum(screen.null_residuals(), 1.0 / T, 0.45 / dt)
-    peak = spectral_peaks(f, prominence(amp), n=1)
-    names, groups, blocks = [], [], []
     y_hat_rows = np.concatenate([rows @ null_theta for rows in bc.rows])
-    q_hi = np.quantile(y_hat_rows, [0.90, 0.97])
-    q_lo = np.quantile(y_hat_rows, [0.03, 0.10])
+    terms = [(kind.name, t) for kind in CAUSES.values() if (t := kind.library_terms(screen, y_hat_rows)) is not None]
+    blocks = []
     for m, p in enumerate(screen.parts):
         r = p.record
-        n = r.t.size
         y_hat = np.column_stack([bc.full[m][c] for c in screen.base_lin]) @ null_theta
-        dy = np.gradient(y_hat, r.dt)
-        ddy = np.gradient(dy, r.dt)
-        a, b0, b1 = (np.array(c) for c in zip(*(first_order_foh(float(t), r.dt) for t in taus)))
-        lp = lowpass1_bank(np.ascontiguousarray(r.u), a, b0, b1)
-        tt = np.arange(n) * r.dt
-        cols = [lp[j] for j in range(len(taus))] + [dy, ddy] + [-np.expm1(-tt / c) for c in creeps]
-        if peak:
-            cols += [np.sin(2 * np.pi * peak[0][0] * tt), np.cos(2 * np.pi * peak[0][0] * tt)]
-        cols += [np.maximum(y_hat - L, 0.0) for L in q_hi] + [np.maximum(L - y_hat, 0.0) for L in q_lo]
+        t = np.arange(r.t.size) * r.dt
+        cols = [col for _, (_, columns, _) in terms for col in columns(r, y_hat, t)]
         blocks.append(np.stack([c[p.rows] for c in cols], axis=1))
-    names = ([f"L_{t:.3g}s[u]" for t in taus] + ["d/dt y_model", "d2/dt2 y_model"]
-             + [f"1-exp(-t/{c:.3g}s)" for c in creeps]
-             + ([f"sin {peak[0][0]:.4g}Hz", f"cos {peak[0][0]:.4g}Hz"] if peak else [])
-             + [f"max(y_model-{L:.3g},0)" for L in q_hi] + [f"max({L:.3g}-y_model,0)" for L in q_lo])
-    tau_of = [float(t) for t in taus] + [None] * (len(names) - len(taus))
-    groups = (["relaxation"] * len(taus) + ["delay", "resonance"] + ["creep"] * len(creeps)
-              + (["interference"] * 2 if peak else []) + ["saturation"] * 4)
+    names = [n for _, (group_names, _, _) in terms for n in group_names]
+    groups = [g for g, (group_names, _, _) in terms for _ in group_names]
+    tau_of = [tau for _, (_, _, taus) in terms for tau in taus]
     Theta = np.concatenate(blocks)
     # orthogonal to the base model's regressors, unit norm
     A = np.concatenate(bc.rows)

@@ -1,20 +1,16 @@
-"""diagnosis.md, its PNG figures and the JSON of a ``Diagnosis``."""
+"""diagnosis.md, its PNG figures (``figures``) and the JSON of a ``Diagnosis``."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-import numpy as np
-
-from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
-from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
+from .causes import OUTPUT_UNIT
+from .figures import FIGURES
+from .residuals import LAGS
 from .secondary import not_identified
-
-MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
-
 
 def _fmt(v, digits: int = 4) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
@@ -30,214 +26,6 @@ def _estimates(c) -> str:
     return ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items())
 
 
-def _stride(n: int) -> int:
-    return max(1, int(math.ceil(n / MAX_PLOT_POINTS)))
-
-
-def extremes_kept(key: np.ndarray, y: np.ndarray, bins: int = MAX_PLOT_POINTS // 2, low: bool = True) -> np.ndarray:
-    """Sorted indices of each bin's largest (and, if ``low``, smallest) ``y``, the bins equal in the
-    ascending ``key``: a long curve thinned for plotting without losing its peaks."""
-    if y.size <= 2 * bins:
-        return np.arange(y.size)
-    bounds = np.unique(np.searchsorted(key, np.linspace(key[0], key[-1], bins + 1)[1:-1]))
-    kept = []
-    for lo, hi in zip(np.concatenate(([0], bounds)), np.concatenate((bounds, [y.size]))):
-        if hi > lo:
-            kept.append(lo + np.argmax(y[lo:hi]))
-            if low:
-                kept.append(lo + np.argmin(y[lo:hi]))
-    return np.unique(np.array(kept))
-
-
-def _label(rec) -> str:
-    return f"{rec.label} ({'id' if rec.role == 'identification' else 'val'})"
-
-
-# --- figures --------------------------------------------------------------------
-def figure_residual_time(diag, path: Path) -> None:
-    plt = pyplot()
-    recs = diag.before
-    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False, layout="constrained")
-    after = {rr.file: rr for rr in diag.after}
-    for ax, rr in zip(axes[:, 0], recs):
-        r = rr.record
-        k = extremes_kept(r.t, rr.residual)
-        ax.plot(r.t[k], rr.residual[k], lw=0.6, color="0.35", label=f"{diag.model} (before)")
-        if rr.file in after:
-            k = extremes_kept(r.t, after[rr.file].residual)
-            ax.plot(r.t[k], after[rr.file].residual[k], lw=0.6, color="C3", label=f"{diag.extended_model} (after)")
-        ax.axvspan(r.t[r.start], r.t[r.stop - 1], color="C0", alpha=0.12, lw=0)
-        ax.axhline(0, color="k", lw=0.4)
-        ax.set_ylabel(_label(r), fontsize=8)
-        ax.tick_params(labelsize=7)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
-    axes[0, 0].set_title(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
-                         "records; shaded: scored window", fontsize=9)
-    axes[-1, 0].set_xlabel("time (s)")
-    save_figure(fig, path)
-
-
-def _panels(plt, n: int):
-    """A figure with one small panel per record, four to a row."""
-    cols = min(4, n)
-    rows = int(math.ceil(n / cols))
-    return plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
-
-
-def figure_residual_input(diag, path: Path) -> None:
-    plt = pyplot()
-    recs = diag.before
-    n = len(recs)
-    fig, axes = _panels(plt, n)
-    for ax, rr in zip(axes.flat, recs):
-        r = rr.record
-        k = _stride(r.t.size)
-        ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
-        w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
-        ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
-        ax.set_title(_label(r), fontsize=8)
-        ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[n:]:
-        ax.axis("off")
-    axes[0, 0].legend(fontsize=6)
-    fig.supxlabel(f"input ({diag.dataset.input_unit or 'input units'})", fontsize=8)
-    fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
-
-
-def figure_residual_phase(diag, path: Path) -> None:
-    plt = pyplot()
-    recs = [rr for rr in diag.before if rr.record.frequency_hz]
-    if not recs:
-        return
-    n = len(recs)
-    fig, axes = _panels(plt, n)
-    for ax, rr in zip(axes.flat, recs):
-        r = rr.record
-        ph = phase_of(r)
-        k = _stride(r.t.size)
-        ax.plot(ph[::k], rr.residual[::k], ".", ms=1, color="0.7", label="all periods")
-        w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
-        order = np.argsort(ph[w])
-        ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
-        ax.set_title(_label(r), fontsize=8)
-        ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[n:]:
-        ax.axis("off")
-    axes[0, 0].legend(fontsize=6)
-    fig.supxlabel("phase within the drive period (0: input minimum)", fontsize=8)
-    fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
-
-
-def figure_spectrum(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
-    ax = axes[0]
-    for i, rr in enumerate(diag.before):
-        f, a = periodogram(rr.residual, rr.record.dt)
-        f, a = f[f > 0], a[f > 0]
-        keep = extremes_kept(np.log(f), a, low=False)
-        ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
-    ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("residual amplitude")
-    ax.set_title("residual spectrum per record (base model)", fontsize=9)
-    ax.legend(fontsize=6)
-    ax = axes[1]
-    ids = [rr for rr in diag.before if rr.record.role == "identification"]
-    duration = max(rr.record.t.size * rr.record.dt for rr in ids)
-    dt = max(rr.record.dt for rr in ids)  # below every record's Nyquist frequency
-    f, a = coherent_spectrum(ids, 1.0 / duration, 0.45 / dt, pad=2)
-    keep = extremes_kept(np.log(f), a, low=False)
-    ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color="C0")
-    if diag.cause == "interference":
-        ax.axvline(diag.parameters["frequency_hz"], color="C3", lw=0.8, ls="--", label="named interference")
-        ax.legend(fontsize=7)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("pooled coherent amplitude")
-    ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
-                 fontsize=9)
-    save_figure(fig, path)
-
-
-def figure_error_vs_frequency(diag, path: Path) -> None:
-    if not any(rr.record.frequency_hz for rr in diag.before):  # no nominal drive frequency: nothing to plot
-        return
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
-    series = [("before", diag.before, "0.3", "o")]
-    if diag.base_whole:
-        series.append(("base refit, whole records", diag.base_whole, "C0", "s"))
-    if diag.after:
-        series.append(("after", diag.after, "C3", "^"))
-    for ax, key, title in ((axes[0], "e_rms", "scored window"), (axes[1], "e_rms_whole", "whole record")):
-        for name, recs, color, marker in series:
-            pts = sorted((rr.record.frequency_hz, rr.scores()[key], rr.record.role) for rr in recs
-                         if rr.record.frequency_hz)
-            if not pts:
-                continue
-            f = [p[0] for p in pts]
-            ax.plot(f, [p[1] for p in pts], "-", color=color, lw=0.8, label=name)
-            for fr, v, role in pts:
-                ax.plot(fr, v, marker, color=color, mfc=color if role == "identification" else "white", ms=5)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("drive frequency (Hz)")
-        ax.set_ylabel("e_rms (% of measured peak-to-peak)")
-        ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
-    axes[0].legend(fontsize=7)
-    save_figure(fig, path)
-
-
-def figure_whiteness(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
-    lags = np.arange(1, LAGS + 1)
-    for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
-        rho = autocorrelation(rr.residual, LAGS)
-        ax.plot(lags, rho, "o-", ms=2, lw=0.7, color=f"C{i % 10}",
-                label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
-    n = min(rr.record.t.size for rr in diag.before)
-    ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")
-    ax.axhline(0, color="k", lw=0.4)
-    ax.set_xlabel("lag (samples)")
-    ax.set_ylabel("autocorrelation of the residual")
-    ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
-    ax.legend(fontsize=6)
-    save_figure(fig, path)
-
-
-def figure_candidates(diag, path: Path) -> None:
-    plt = pyplot()
-    cands = sorted(diag.candidates, key=lambda c: -c.heldout_gain)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), layout="constrained")
-    names = [c.cause for c in cands]
-    colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
-    axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)
-    axes[0].axvline(100 * diag.policy.min_explained, color="k", ls=":", lw=0.8)
-    axes[0].set_xlabel("held-out gain over the base model (%, leave one record out; floored at -100)")
-    axes[0].invert_yaxis()
-    axes[1].barh(names, [max(min(c.heldout.get("z", 0.0), 40.0), -10.0) for c in cands], color=colors)
-    axes[1].axvline(diag.policy.z_pass, color="k", ls=":", lw=0.8)
-    axes[1].set_xlabel("z (signed-rank test over blocks)")
-    axes[1].invert_yaxis()
-    fig.suptitle("candidate causes (red: named)", fontsize=9)
-    save_figure(fig, path)
-
-
-FIGURES = {
-    "residual_time": (figure_residual_time, "Residual against time, whole records (shaded: the scored window)"),
-    "residual_input": (figure_residual_input, "Residual against the input"),
-    "residual_phase": (figure_residual_phase, "Residual against the phase within the drive period, per frequency"),
-    "residual_spectrum": (figure_spectrum, "Residual spectrum"),
-    "error_vs_frequency": (figure_error_vs_frequency, "How the error grows with frequency"),
-    "whiteness": (figure_whiteness, "Whiteness of the residual"),
-    "candidates": (figure_candidates, "Candidate causes"),
-}
-
-
-# --- markdown ---------------------------------------------------------------------
 def base_bound_caution(fit) -> str:
     """What a base fit pinned at its search bounds (``Fit.diagnostics["at_bounds"]``) means for the
     verdict ("" if none is)."""
@@ -269,7 +57,6 @@ def not_held_out_lines(d) -> list[str]:
                 "and the held-out scores cover the rows predicted."]
 
 
-REPORTED_AS = {"creep_time": "time_scale_s"}  # an open-ended parameter's name among the reported parameters
 
 
 def _bound_cell(heldout: dict) -> str:
@@ -293,11 +80,11 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
     unit = d.dataset.output_unit or "output units"
     lines = [f"cause: {strong(d.cause)} ({d.verdict.reason})"]
-    units = {"tau_s": "s", "delay_s": "s", "natural_frequency_hz": "Hz", "damping_ratio": "", "time_scale_s": "s",
-             "frequency_hz": "Hz", "size": unit, "amplitude": unit, "level": unit, "side": ""}
     if d.chosen is not None:  # the named parameters (per-record phases and diagnostics are in the JSON)
+        kind = d.chosen.kind
+        units = {k: unit if u is OUTPUT_UNIT else u for k, u in kind.units.items()}
         open_ = set(d.chosen.heldout.get("open_ended") or [])  # its folds at the bound agree trivially
-        unidentified = {REPORTED_AS.get(n, n) for n in open_}
+        unidentified = {kind.reported_as.get(n, n) for n in open_}
         lines.append("parameters: " + ", ".join(f"{k} = {_fmt(v)}" + (f" {units[k]}" if units[k] else "")
                                                 + (" (not identified)" if k in unidentified else "")
                                                 for k, v in d.parameters.items() if k in units))

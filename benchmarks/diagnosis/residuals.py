@@ -29,7 +29,7 @@ from scipy.ndimage import median_filter
 from scipy.signal import zoom_fft
 
 from hysbench.data.metrics import e_m, e_rms
-from hysbench.data.dataset import Dataset, Record
+from hysbench.data.dataset import Record
 from hysbench.data.protocol import period_samples
 
 LAGS = 20
@@ -56,11 +56,6 @@ class RecordResidual:
         w = r.scored
         return {"e_m": e_m(self.prediction[w], r.y[w]), "e_rms": e_rms(self.prediction[w], r.y[w]),
                 "e_m_whole": e_m(self.prediction, r.y), "e_rms_whole": e_rms(self.prediction, r.y)}
-
-
-def residuals_of(simulate, dataset: Dataset) -> list[RecordResidual]:
-    """``simulate(record) -> y`` over every record of the dataset, from its first sample."""
-    return [RecordResidual(r, np.asarray(simulate(r), dtype=float)) for r in dataset.records]
 
 
 def noise_sd(r: np.ndarray) -> float:

@@ -8,8 +8,7 @@ are solved exactly at every step (separable least squares).
 
 * The null: the base model alone, its nonlinear parameters refined on these
   rows (from the base fit on the windows), its linear ones solved.
-* Stage 1 (the cause modules ``relaxation``, ``delay``, ``resonance``,
-  ``creep``, ``interference``, ``saturation``): each cause's extension
+* Stage 1 (each cause's ``fit``, ``causes``): each cause's extension
   (``hysbench.models.extended``) with the base's nonlinear parameters held
   at the null's. Components that only add columns are regressed on the
   null's residual after projecting off the base's columns.
@@ -36,73 +35,19 @@ from scipy.optimize import least_squares, minimize_scalar
 from hysbench.data.dataset import Record
 from hysbench.data.excitations import drive_band, shortest_period
 from hysbench.identification.criteria import effective_sample_size
-from hysbench.identification.linear import scaled_lstsq
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
-from .candidates import DRIVE_LOCKED, MAX_ROWS, NO_CUT, Candidate, estimates_of, is_log
+from .candidates import MAX_ROWS, Candidate, column_basis, estimates_of, is_log, solve_scaled
+from .causes import CAUSES, cause_of_parameter, refined
+from .composite import composite
+from .heldout import beyond_others, held_out_windows
 from .policy import Policy
-from .residuals import RecordResidual, harmonic_phase_turn
+from .residuals import RecordResidual
 
 EXACT_GRID_SAMPLES = 300_000
-COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of another (``composite``)
 RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
-
-
-def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
-    """How far each record's input goes beyond the range of the other records' inputs (either end), as a share
-    of the span of them all (0 if within)."""
-    if len(inputs) < 2:
-        return [0.0] * len(inputs)
-    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
-    span = max(hi) - min(lo)
-    if not span > 0:
-        return [0.0] * len(inputs)
-    out = []
-    for m in range(len(inputs)):
-        other_lo = min(v for k, v in enumerate(lo) if k != m)
-        other_hi = max(v for k, v in enumerate(hi) if k != m)
-        out.append(max(hi[m] - other_hi, other_lo - lo[m], 0.0) / span)
-    return out
-
-
-def first_excursion(u: np.ndarray, lo: float, hi: float, margin: float) -> int | None:
-    """The first sample of ``u`` beyond [lo - margin, hi + margin] (None if none is)."""
-    beyond = np.flatnonzero((u > hi + margin) | (u < lo - margin))
-    return int(beyond[0]) if beyond.size else None
-
-
-def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[int]:
-    """How many samples of each record, from its start, the held-out test predicts (``selection.Folds``):
-    all of a record whose input stays within the other records' range (to ``beyond_range`` of the span,
-    policy ``beyond_range``), and
-    of one that leaves it, the samples before it first does. Fitted on the others, the base model would
-    extrapolate beyond (weights of its hysteresis operators that only that record moves), and the comparison
-    would measure that, not the cause. The record still takes part whole in every other fold's fit. All
-    records are predicted whole if fewer than two stay within."""
-    sizes = [int(u.size) for u in inputs]
-    beyond = beyond_others(inputs)
-    if sum(b <= beyond_range for b in beyond) < 2:
-        return sizes
-    lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
-    margin = beyond_range * (max(hi) - min(lo))
-    out = []
-    for m, u in enumerate(inputs):
-        k = None
-        if beyond[m] > beyond_range:
-            others = [j for j in range(len(inputs)) if j != m]
-            k = first_excursion(u, min(lo[j] for j in others), max(hi[j] for j in others), margin)
-        out.append(sizes[m] if k is None else k)
-    return out
-
-
-def lag_shared(z: Mapping[str, float]) -> dict:
-    """A mode's start on top of a kept delay, the delay shortened by the mode's low-frequency lag
-    (2 zeta / omega_n = zeta / (pi f_n)): a delay fitted first has taken up that lag, so with it held a mode
-    at its true values adds the lag twice and predicts worse than none."""
-    lag = z["damping_ratio"] / (math.pi * z["natural_frequency"])
-    return {**z, "delay": max(float(z["delay"]) - lag, 0.0)}
 
 
 @dataclass
@@ -120,21 +65,6 @@ class _BaseColumns:
 
     rows: list  # (n_rows_m, n_base_linear) per record
     full: list | None  # {name: full-length column} per record, or None if not kept
-
-
-def solve_scaled(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Column-scaled least squares (minimum norm below 1e-10 of the largest singular value): (theta, residual)."""
-    theta = scaled_lstsq(A, y, rcond=1e-10)
-    return theta, y - A @ theta
-
-
-def column_basis(A: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of A's column space (columns scaled to unit norm; singular values below 1e-10 of
-    the largest dropped)."""
-    d = np.sqrt(np.einsum("ij,ij->j", A, A))
-    d[~(d > 0)] = 1.0
-    u_, s_, _ = np.linalg.svd(A / d, full_matrices=False)
-    return np.ascontiguousarray(u_[:, s_ > 1e-10 * s_[0]])
 
 
 class Screen:
@@ -221,15 +151,9 @@ class Screen:
         scale = self.scale if name in self.base.param_names else self.component_scale
         for p in model.parameters(scale):
             if p.name == name:
-                if name == "creep_time":
-                    return max(float(p.min), self.creep_min), float(p.max)
-                if name == "damping_ratio":  # a resonance is a mode: underdamped
-                    return float(p.min), min(float(p.max), self.policy.max_damping)
-                if name == "natural_frequency":  # down to a broadband drive's band; nothing above Nyquist
-                    return min(float(p.min), self.mode_floor), min(float(p.max), self.nyquist)
-                if name == "interference_frequency":  # the samples show nothing faster
-                    return float(p.min), min(float(p.max), self.nyquist)
-                return float(p.min), float(p.max)
+                owner = cause_of_parameter(name)
+                lo, hi = float(p.min), float(p.max)
+                return owner.bounds(self, name, lo, hi) if owner is not None else (lo, hi)
         raise KeyError(name)
 
     @property
@@ -267,7 +191,7 @@ class Screen:
     @staticmethod
     def transforms(model: HysteresisModel) -> bool:
         """Whether the model's components change the base's columns (resonance, delay)."""
-        return isinstance(model, ExtendedModel) and (model.has("resonance") or model.has("delay"))
+        return isinstance(model, ExtendedModel) and any(CAUSES[c].transforms for c in model.components)
 
     def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False) -> np.ndarray:
         """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'):
@@ -275,7 +199,7 @@ class Screen:
         columns the components add (for components that leave the base's columns unchanged)."""
         base_nl = {k: nonlinear[k] for k in self.base_nl_names}
         names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
-        if isinstance(model, ExtendedModel) and model.has("delay"):  # the base runs on a late input
+        if isinstance(model, ExtendedModel) and any(CAUSES[c].late_input for c in model.components):
             cols = [model.linear_names.index(c) for c in names]
             return np.concatenate([model.windowed_regressors(p.record.u, p.record.dt, dict(nonlinear), p.rows,
                                                              self.input_range)[:, cols] for p in self.parts])
@@ -291,11 +215,13 @@ class Screen:
                 cache.clear()
             cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows,
                                           relaxation_cache=cache)
+            on_rows = {}  # columns a cause computes on the rows alone (``Cause.row_columns``)
+            for c in model.components:
+                on_rows.update(CAUSES[c].row_columns(nonlinear, r.dt, p.rows))
             out = np.empty((p.rows.size, len(names)), order="F")  # filled by column; QR takes Fortran order
             for j, c in enumerate(names):
-                if c in ("interference_sin", "interference_cos"):  # on the rows only
-                    phase = 2.0 * np.pi * nonlinear["interference_frequency"] * r.dt * p.rows
-                    out[:, j] = np.sin(phase) if c == "interference_sin" else np.cos(phase)
+                if c in on_rows:
+                    out[:, j] = on_rows[c]
                 else:
                     out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c]
             blocks.append(out)
@@ -360,34 +286,8 @@ class Screen:
         return c
 
     def limit_of(self, cause: str, estimates: Mapping) -> str:
-        """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
-        creep slower than the drive, a delay at least one sample long; a fit pinned at those limits is not
-        named."""
-        pol = self.policy
-        if cause == "resonance" and estimates["damping_ratio"] >= pol.damping_limit_share * pol.max_damping:
-            return f"damping ratio at the limit {pol.max_damping:g}: no mode"
-        if cause == "relaxation":
-            taus = estimates["tau_s"]
-            if any(b < pol.duplicate_tau_ratio * a for a, b in zip(taus, taus[1:])):
-                return (f"time constants closer than a factor {pol.duplicate_tau_ratio:g}: their difference is a "
-                        "band-pass, not a relaxation")
-        if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < pol.interference_min_cycles:
-            return (f"fewer than {pol.interference_min_cycles:g} cycles in the shortest record "
-                    f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
-        if cause == "interference" and self.drive_locked(estimates):
-            return DRIVE_LOCKED
-        if cause == "saturation" and "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
-            return NO_CUT
-        if cause == "saturation" and abs(estimates["slope_where_clipped"]) >= pol.max_clipped_slope:
-            moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
-            return (f"where it would clip, the output still {moves} the model (slope "
-                    f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
-        if cause == "delay" and estimates["delay_s"] < (dt := max(p.record.dt for p in self.parts)):
-            return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
-                    "plus a first difference of it (a rate term), not a resolved delay")
-        if cause == "creep" and estimates["time_scale_s"] <= pol.creep_limit_margin * self.creep_min:
-            return f"time scale at the limit {self.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
-        return ""
+        """Why estimates fall outside the cause's meaning (``Cause.limit``): a fit pinned there is not named."""
+        return CAUSES[cause].limit(self, estimates) if cause in CAUSES else ""
 
     # --- nonlinear search --------------------------------------------------
     def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
@@ -479,99 +379,21 @@ class Screen:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
 
-    def drive_locked(self, estimates: Mapping) -> bool:
-        """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
-        every record's drive whose phases in the records (each from its own start) agree within
-        ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
-        model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
-        ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
-        harmonic, closer
-        to it than the records resolve, not a misfit that the drive repeats."""
-        phases = estimates.get("phase_rad_per_record") or []
-        longest = max(p.record.t.size * p.record.dt for p in self.parts)
-        if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
-            return False
-        spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
-        pol = self.policy
-        if spread >= pol.locked_phase:
-            return False
-        turn = harmonic_phase_turn(self.null_residuals(), estimates["frequency_hz"])
-        return turn is None or not (abs(turn[0]) > pol.locked_turn and abs(turn[0]) > pol.locked_turn_z * turn[1])
-
-    def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
-        """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
-        there a disturbance cannot be told from the model's misfit."""
-        out = np.ones(f.shape, dtype=bool)
-        for p in self.parts:
-            fd = p.record.frequency_hz
-            if not fd:
-                return np.zeros(f.shape, dtype=bool)
-            k = np.maximum(np.round(f / fd), 1.0)
-            out &= np.abs(f - k * fd) <= tolerance_hz
-        return out
-
     # --- stage 2: the base's nonlinear parameters free as well --------------------
     def joint(self, c: Candidate, max_nfev: int = 15) -> Candidate:
-        """Refine a stage-1 candidate with the base's nonlinear parameters free too (not saturation:
-        ``saturation.joint_saturation``; not interference: its phase is per record)."""
-        if not self.base_nl_names or c.cause in ("saturation", "interference"):
+        """Refine a stage-1 candidate with the base's nonlinear parameters free too (a separable cause's: a clip
+        and a line have their own, ``Cause.joint``)."""
+        if not self.base_nl_names or not c.kind.separable:
             return c
         model = c.model
         nl = list(model.nonlinear_names)
-        free = [(n, is_log(n)) for n in nl if n != "interference_frequency"]
+        free = [(n, is_log(n)) for n in nl if refined(n)]
         start = {n: c.params[n] for n in nl}
         z = self.refine(model, start, free, max_nfev=max_nfev)
         out = self.candidate(c.cause, c.label, model, z, c.hyperparameters, stage="joint")
         return out if out.rss <= c.rss else c
 
-    # --- composite (secondary causes) ---------------------------------------------
     def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10,
                   search: bool = False) -> Candidate | None:
-        """The primary's extension (itself possibly a composite) plus another cause, refined from both fits
-        (separable causes only). With ``search`` the other cause's own parameters are also started from a
-        coarse grid over their search bounds (the primary held): its fit against the base alone can be far
-        off when the base misses something larger; the best start is refined only if it removes at least
-        the policy's ``min_explained`` of the primary's sum of squares (else None: nothing to add, and a refinement with
-        every nonlinear parameter free is the costly part)."""
-        parts = tuple(getattr(primary.model, "components", (primary.cause,)))
-        if {"saturation", "interference"} & {*parts, other.cause} or other.cause in parts:
-            return None
-        hyper = {**primary.hyperparameters, **other.hyperparameters}
-        model = self.extension((*parts, other.cause), **hyper)
-        start = {n: primary.params.get(n, other.params.get(n)) for n in model.nonlinear_names}
-        if search:
-            starts = self._starts(model, start, [n for n in model.nonlinear_names if n not in primary.params])
-            if other.cause == "resonance" and "delay" in primary.params:
-                starts += [lag_shared(q) for q in starts[1:]]
-            rss = [self.evaluate(model, z)[0] for z in starts]
-            if min(rss) > (1.0 - self.policy.min_explained) * primary.rss:
-                return None
-            start = starts[int(np.argmin(rss))]
-        free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]
-        z = self.refine(model, start, free, max_nfev=max_nfev) if free else start
-        c = self.candidate(other.cause, f"{primary.label} + {other.label}", model, z, hyper, stage="joint")
-        c.estimates = estimates_of(other.cause, c.params, model)
-        c.delta_bic = c.bic - primary.bic  # against the primary alone
-        c.explained = 1.0 - c.rss / primary.rss
-        c.limit = self.limit_of(other.cause, c.estimates)
-        return c
-
-    def _starts(self, model: HysteresisModel, start: Mapping[str, float], names: Sequence[str]) -> list[dict]:
-        """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
-        ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
-        frequency and damping); a relaxation of several time constants keeps its own start."""
-        if not names or (len(names) > 1 and any(n.startswith("tau") for n in names)):  # several time constants
-            return [dict(start)]
-        k = max(3, COMPOSITE_GRID // len(names))
-        axes = []
-        for n in names:
-            lo, hi = self.bounds_of(model, n)
-            if n == "delay":
-                lo = min(p.record.dt for p in self.parts)
-            if not hi > lo:  # nothing to search
-                return [dict(start)]
-            # inside the bounds (a start at a bound is a bound estimate if nothing moves it)
-            spaced = np.geomspace if is_log(n) or n == "delay" else np.linspace
-            axes.append(spaced(lo, hi, k + 2)[1:-1])
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(names))
-        return [dict(start)] + [{**start, **dict(zip(names, map(float, g)))} for g in grid]
+        """``composite.composite`` on this screen."""
+        return composite(self, primary, other, max_nfev, search)

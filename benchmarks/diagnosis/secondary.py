@@ -1,4 +1,4 @@
-"""Secondary causes ("also"): forward selection on top of the named cause, then a backward step.
+"""Secondary causes ("also"): forward selection on top of the named cause (the backward step: ``backward``).
 
 Every cause tried on top of what is kept is scored on held-out records
 against what is kept, the kept part's parameters held as fitted on every
@@ -9,36 +9,31 @@ that score: a secondary cause too is named only on records that took no
 part in choosing its parameters, and the spread of its fold estimates is
 their uncertainty. An interference on top takes its frequency per fold from
 the other records, fitted there jointly with what is kept
-(``interference.joint_line``; on top of a clip, on its residual:
-``interference.fold_frequencies``), and is one line only if the folds agree
+(``lines.joint_line``; on top of a clip, on its residual:
+``lines.fold_frequencies``), and is one line only if the folds agree
 within their resolution; the causes tried on top of a named interference take
-its frequency per fold too. The backward step names a new cause,
-so it scores as the named cause's finalists are (``search.run_screen``):
-every own nonlinear parameter refitted per fold.
+its frequency per fold too.
 """
 
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass
 from typing import Callable
 
-from .candidates import Candidate
-from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top,
-                           on_top_estimates)
-from .saturation import clip_on_top
+from .candidates import OPEN_ENDED_NOTE, Candidate, bound_flags, own_nonlinear
+from .lines import fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top, on_top_estimates
 from .policy import Policy
-from .selection import (OPEN_ENDED_NOTE, Verdict, at_bound, bound_flags, carried_by_one_record, evidence,
-                        fold_uncertainty, heldout_errors, own_nonlinear, passes, promising, score, share_of_misfit,
-                        step)
+from .heldout import (carried_by_one_record, evidence, fold_uncertainty, heldout_errors, passes, promising, score,
+                      share_of_misfit)
+from .selection import NONE, UNEXPLAINED, Verdict, step
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
     """A candidate's out-of-fold residuals with its own nonlinear parameters refitted per fold (those of
     ``search.run_screen`` when it was scored so there)."""
-    if c.heldout.get("refit_per_fold") and id(c) in result["errors"]:
-        return result["errors"][id(c)]
+    if c.heldout.get("refit_per_fold") and c in result["heldout"]:
+        return result["heldout"].of(c)
     return heldout_errors(screen, folds, c, refit=True)[0]
 
 
@@ -81,7 +76,7 @@ def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
     train, designs = [], []
-    if chosen.cause == "interference":  # the base's errors and training residuals: those of its joint fit
+    if chosen.kind.disturbance:  # the base's errors and training residuals: those of its joint fit
         base = screen.design(screen.base, screen.base_nl)
         lines = joint_line(screen, folds, lambda m: base)
         return _Kept(None, lines.part_errors, lines.train_residuals, lines.errors, lines.frequencies_hz,
@@ -109,7 +104,7 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
         fold_f = fold_frequencies(screen, kept.train)
         e = on_top(screen, folds, kept.errors, kept.train, fold_f)
         comp.estimates = on_top_estimates(screen, folds, kept.errors, kept.train, fold_f)
-    comp.limit = screen.limit_of("interference", comp.estimates) or _folds_disagree(screen, fold_f)
+    comp.limit = screen.limit_of(c.cause, comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
     return comp, kept.part, kept.errors, kept.train, e, e, kept.designs
@@ -118,10 +113,7 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
 def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
     """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
     admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
-    if c.cause == "saturation" and kept.part is not None:
-        comp = clip_on_top(screen, kept.part)
-    else:
-        comp = copy.copy(c) if kept.part is None else screen.composite(kept.part, c, search=fresh)
+    comp = copy.copy(c) if kept.part is None else c.kind.on_top(screen, kept.part, c, fresh)
     if comp is None:
         return None
     part_train, part_designs = [], []
@@ -171,7 +163,7 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
-    ``saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
+    ``causes.saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
     against what is kept, the parameters of what is kept held on both sides as fitted on every record.
     Those with held-out evidence are scored again with the added cause's own nonlinear parameters (a
     clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
@@ -192,14 +184,14 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
         return not c.limit and (promising(c, pol) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= pol.z_pass))
 
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
-            and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
+            and not (c.kind.disturbance and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
     kept = _start(screen, folds, chosen)
     while pool and len(diag.also) < pol.max_secondary:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
         tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
         for cause, c in pool.items():
-            if cause == "interference":
+            if c.kind.disturbance:
                 t = _line_on_top(screen, folds, c, kept) if kept.frequency is None else None
             else:
                 t = _cause_on_top(screen, folds, c, kept, fresh)
@@ -214,9 +206,9 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
         diag.also.append(comp)
         pool.pop(comp.cause)
         kept = _Kept(part, part_e, part_train, e,
-                     comp.heldout["fold_frequencies_hz"] if comp.cause == "interference" else kept.frequency, designs)
-        if comp.cause == "saturation":  # nothing composes on top of a clip; an interference still adds
-            pool = {k: v for k, v in pool.items() if k == "interference"}
+                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, designs)
+        if not comp.kind.carries_others:  # nothing composes on top of a clip; a disturbance still adds
+            pool = {k: v for k, v in pool.items() if v.kind.disturbance}
 
 
 def _forward_on(diag, result: dict, say: Callable[[str], None], p: Candidate) -> int:
@@ -236,11 +228,11 @@ def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     v = diag.verdict
     p = v.partial
     pol = result["folds"].policy
-    if v.cause != "unexplained" or p is None or not passes(p, pol):
+    if v.cause != UNEXPLAINED or p is None or not passes(p, pol):
         return False
     say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
     tried = _forward_on(diag, result, say, p)
-    e_null = result["errors"][id(diag.screen.null)]
+    e_null = result["heldout"].null
     null_sse = float(e_null @ e_null)
     share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
     diag.trace.append(step("complete-partial", p.cause if share >= pol.explain_share else "unexplained",
@@ -268,18 +260,18 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
     (``secondary_causes``). Two causes at once can each fall short alone, e.g. a delay that only the fastest
     drive shows on a plant that also relaxes. The promising cause is named with those kept under "also" only if
     all of them together, every nonlinear parameter refitted per fold, show held-out evidence against the base
-    model that more than one record carries (``selection.carried_by_one_record``) and remove at least
+    model that more than one record carries (``heldout.carried_by_one_record``) and remove at least
     ``explain_share`` of its held-out misfit beyond noise; otherwise the verdict stays ``none``. True if named."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
     pol = folds.policy
     pool = [c for c in diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
-    if v.cause != "none" or not pool:
+    if v.cause != NONE or not pool:
         return False
     p = max(pool, key=lambda c: c.heldout_gain)
     say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other causes "
         "on top")
     tried = _forward_on(diag, result, say, p)
-    e_null = result["errors"][id(screen.null)]
+    e_null = result["heldout"].null
     named = False
     if diag.also:
         e = refit_errors(screen, folds, result, diag.also[-1])
@@ -307,49 +299,6 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
     return True
 
 
-def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
-    """The causes composed in order, each searched on top of the ones before (None if one does not compose)."""
-    kept, chain = own[causes[0]], [own[causes[0]]]
-    for cause in causes[1:]:
-        kept = screen.composite(kept, own[cause], search=screen.small)
-        if kept is None:
-            return None
-        chain.append(kept)
-    return chain
-
-
-def _creep_time_unidentified(screen, c: Candidate) -> bool:
-    """A creep (alone or in a composite) whose only flaw is its time scale at an end: the fastest its meaning
-    allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over these records).
-    Replacing a relaxation slower than every drive period, whose own time constant these records do not pin
-    down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
-    identified."""
-    parts = getattr(c.model, "components", (c.cause,))
-    return ("creep" in parts and (c.cause == "creep" or not c.limit)
-            and set(at_bound(screen, c)) <= {"creep_time"})
-
-
-def _creep_end(screen, chain: list[Candidate]) -> dict | None:
-    """The first creep in ``chain`` whose time scale sits at an end (None if none does): ``end`` ``limit`` (the
-    fastest its meaning allows) or ``search`` (open-ended, the slowest searched), ``alone`` (creep first, before
-    the others were composed on top), ``creep_time_s``."""
-    for c in chain:
-        flags = bound_flags(screen, c)
-        if "creep_time" in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
-            return {"end": "limit" if "creep_time" in flags["at_bound"] else "search",
-                    "alone": c is chain[0] and len(chain) > 1, "creep_time_s": float(c.params["creep_time"])}
-    return None
-
-
-def _pinned_creep(end: dict | None) -> str:
-    """What the backward step says of a creep whose time scale sits at an end (``_creep_end``; "" if none)."""
-    if end is None:
-        return ""
-    where = "its limit" if end["end"] == "limit" else "the end of its search"
-    return (f"creep's time scale{' alone' if end['alone'] else ''} sits at {where}, {end['creep_time_s']:.3g} s: "
-            "not identified")
-
-
 def not_identified(c: Candidate) -> str:
     """Why a kept cause's parameters are not identified ("" if they are): out of its meaning, or at a bound."""
     if c.limit:
@@ -359,105 +308,3 @@ def not_identified(c: Candidate) -> str:
         return f"{', '.join(pinned)} at its search bound"
     open_ = c.heldout.get("open_ended") or []
     return f"{', '.join(open_)} {OPEN_ENDED_NOTE}" if open_ else ""
-
-
-def strongest_first(own: dict, causes: list[str]) -> list[str]:
-    """The causes ordered by what each predicts of the held-out records against the base alone (its own
-    held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
-    on top of the named cause is no guide without it, and each is searched with the ones before it held: a
-    delay searched before a larger creep takes up part of the drift, which the composite's refinement does not
-    undo."""
-    gain = {c: own[c].heldout_gain for c in causes}
-    return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
-
-
-def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
-                 policy: Policy) -> list[list[str]]:
-    """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
-    for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
-    ``creep_periods``), also the same with creep after them, standing for that slow part."""
-    options = [strongest_first(own, causes)]
-    if slow_relaxation(chosen, creep_min, policy) and "creep" in own and "creep" not in causes:
-        options.append([*options[0], "creep"])
-    return options
-
-
-def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
-    """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
-    drive period): creep may stand for that slow part."""
-    return chosen.cause == "relaxation" and max(chosen.estimates["tau_s"]) >= creep_min / policy.creep_periods
-
-
-def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
-    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
-    causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
-    predict the held-out records as well as all of them together (together not better by z >= ``z_same``), show
-    held-out evidence against the base, remove at least ``explain_share`` of its held-out misfit beyond white
-    noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
-    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose
-    slowest time constant is longer than the longest drive period may be creep there
-    (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
-    strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
-    ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
-    (``_creep_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
-    names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
-    (not interference or saturation)."""
-    v, screen, folds = diag.verdict, diag.screen, result["folds"]
-    pol = folds.policy
-    causes = [c.cause for c in diag.also]
-    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
-            or {"interference", "saturation"} & {v.chosen.cause, *causes}):
-        return
-    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
-    own = {c.cause: c for c in diag.candidates}
-    options = replacements(v.chosen, own, causes, screen.creep_min, pol)
-    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min, pol)
-    together = None  # all of them, scored once a replacement is worth comparing
-    e_null = result["errors"][id(screen.null)]
-    null_sse = float(e_null @ e_null)
-    for replacement in options:
-        chain = _chain(screen, own, replacement)
-        standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
-
-        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
-            if creep_may_stand_in and _creep_time_unidentified(screen, c):
-                return False
-            return bool(c.limit or at_bound(screen, c))
-
-        if chain is None or any(flawed(c) for c in chain):
-            continue
-        if together is None:
-            together = refit_errors(screen, folds, result, diag.also[-1])
-        errors = [refit_errors(screen, folds, result, c) for c in chain]
-        without = score(folds, errors[-1], together)  # how much better all together predict
-        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= pol.explain_share
-        if without["z"] < pol.z_same and evidence(score(folds, e_null, errors[-1]), pol) and explains:
-            break
-    else:
-        diag.trace.append(step("drop-redundant-primary", v.chosen.cause, also=causes))
-        return
-    old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
-    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
-    also = []
-    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
-        c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
-        also.append(c)
-    diag.dropped = old
-    diag.also = also
-    end = _creep_end(screen, chain)
-    diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
-                           creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
-    v.chosen, v.cause = first, first.cause
-    pinned = _pinned_creep(end)
-    slow = ""
-    if standing_in:
-        slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
-                f"every drive period{'; ' + pinned if pinned else ''}),")
-    elif pinned:
-        slow = f" ({pinned}; it stands for a time constant of {max(old.estimates['tau_s']):.3g} s)"
-    how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
-           f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
-    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
-                f"{old.cause} is not needed, and "
-                f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "
-                f"{old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")

@@ -15,36 +15,39 @@ from __future__ import annotations
 import copy
 
 from .candidates import Candidate
+from .causes import CAUSES
+from .heldout import HeldOut, pairwise_z, passes
 from .search import score_candidate
-from .selection import Folds, pairwise_z, passes
 
 
-def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | None, candidates, variants
+def slow_part_composite(screen, held: HeldOut | None, chosen: Candidate | None, candidates, variants
                         ) -> Candidate | None:
     """The composite (relaxation without its slowest time constant) + creep, scored on held-out records
-    (its out-of-fold residuals stored in ``errors``); None where the test does not apply."""
-    if chosen is None or chosen.cause != "relaxation":
+    (its out-of-fold residuals added to ``held``); None where the test does not apply."""
+    if chosen is None or chosen.kind.slow_twin is None:
         return None
+    twin = CAUSES[chosen.kind.slow_twin]
     taus = sorted(chosen.estimates["tau_s"])
     if len(taus) < 2 or taus[-1] < screen.creep_min / screen.policy.creep_periods:
         return None
     fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1]
-    creep = [c for c in candidates if c.cause == "creep"]
+    creep = [c for c in candidates if c.cause == twin.name]
     if not fewer or not creep:
         return None
     fast = copy.copy(fewer[0])  # the faster time constants, and the named fit's base parameters
     fast.params = {**fewer[0].params, **{n: chosen.params[n] for n in screen.base_nl_names},
                    **{f"tau{i + 1}": t for i, t in enumerate(taus[:-1])}}
     slow = copy.copy(creep[0])  # creep starting at the slowest time constant, within creep's bounds
-    lo, hi = screen.bounds_of(slow.model, "creep_time")
-    slow.params = {**slow.params, "creep_time": min(max(taus[-1], 1.05 * lo), hi / 1.05)}
+    lo, hi = screen.bounds_of(slow.model, twin.time_scale)
+    slow.params = {**slow.params, twin.time_scale: min(max(taus[-1], 1.05 * lo), hi / 1.05)}
     comp = screen.composite(fast, slow)
     if comp is None:
         return None
-    score_candidate(screen, folds, errors[id(screen.null)], errors, comp, refit=True)
+    score_candidate(screen, held, comp, refit=True)
     return comp
 
 
-def predicts_as_well(folds: Folds, errors: dict, chosen: Candidate, comp: Candidate) -> bool:
+def predicts_as_well(held: HeldOut, chosen: Candidate, comp: Candidate) -> bool:
     """The composite passes on its own and the named relaxation does not predict better by z >= ``z_same``."""
-    return passes(comp, folds.policy) and pairwise_z(folds, errors, chosen, comp) < folds.policy.z_same
+    pol = held.folds.policy
+    return passes(comp, pol) and pairwise_z(held, chosen, comp) < pol.z_same

@@ -13,13 +13,11 @@ from __future__ import annotations
 
 from typing import Callable
 
-import numpy as np
-
 from hysbench.identification import Fit
 
 from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
-from .interference import amplitude_at, phase_fitted
+from .causes import CAUSES
 from .residuals import RecordResidual
 from .policy import Policy
 from .selection import Verdict, step
@@ -28,38 +26,19 @@ from .selection import Verdict, step
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
     """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
     records' residual over whole records and on the windows, by more than their noise explains (z >= the
-    policy's ``z_confirm``); an interference, by the same amplitude there (``interference_on_validation``)."""
+    policy's ``z_confirm``); an interference, by the same amplitude there (``Cause.on_validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
-    if cause == "interference":
+    if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
     return ok and bool(v["z_whole"] >= policy.z_confirm)
-
-
-def interference_on_validation(before: list[RecordResidual], c: Candidate,
-                               policy: Policy) -> tuple[list[RecordResidual], dict]:
-    """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
-    whole records), its phase fitted per record: the residuals after it, and the validation records' own
-    amplitude there against ``c``'s (the same within the policy's ``interference_amplitude_tolerance``)."""
-    f = c.estimates["frequency_hz"]
-    amplitude = c.estimates["amplitude"]
-    after, amps = [], []
-    for rr in before:
-        t = rr.record.t - rr.record.t[0]
-        sine = phase_fitted(rr.residual, t, f, amplitude)
-        after.append(RecordResidual(rr.record, rr.prediction + sine))
-        if rr.record.role == "validation":
-            amps.append(amplitude_at(rr.residual, t, f))
-    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
-    return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
-                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
     """``c``'s extension identified on the identification records' whole length, every parameter free (an
     interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
     record and the interference check."""
-    if c.cause == "interference":
-        after, check = interference_on_validation(diag.base_whole, c, diag.screen.policy)
+    if c.kind.disturbance:
+        after, check = c.kind.on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
     base = diag.screen.base
     ext = registered_extension(base.name, c.cause, c.hyperparameters, base.get_hyperparameters())
@@ -117,7 +96,7 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
 def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
     """Every kept interference on top: each a sinusoid at its frequency and amplitude, phase fitted per record."""
     for c in lines:
-        residuals = interference_on_validation(residuals, c, policy)[0]
+        residuals = c.kind.on_validation(residuals, c, policy)[0]
     return residuals
 
 
@@ -134,7 +113,7 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         diag.also_check = [{"cause": c.cause, "label": c.label, "checked": False, "note": "no validation record"}
                            for c in diag.also]
         return
-    lines = [diag.chosen] if diag.cause == "interference" else []  # a named line is on top of the base
+    lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
     before, out, clipped = diag.after, [], False
     for c in diag.also:
         entry = {"cause": c.cause, "label": c.label}
@@ -144,8 +123,8 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             continue
         say(f"checking {c.label} on the validation records")
         check = {}
-        if c.cause == "interference":
-            after, check = interference_on_validation(before, c, diag.screen.policy)
+        if c.kind.disturbance:
+            after, check = c.kind.on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)

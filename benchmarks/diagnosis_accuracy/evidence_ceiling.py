@@ -28,7 +28,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from hysbench.benchmarks.diagnosis.policy import Policy
-from hysbench.benchmarks.diagnosis.selection import Folds, evidence, out_of_fold, score
+from hysbench.benchmarks.diagnosis.heldout import Folds, evidence, out_of_fold, score
 
 NO_NAMED_REFERENCE = ("interference", "saturation")  # named causes whose held-out design is not one matrix
 AT_TRUTH_NFEV = 8  # the base's nonlinear parameters refitted around an extension at the planted parameters

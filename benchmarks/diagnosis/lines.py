@@ -1,4 +1,5 @@
-"""Interference: a sinusoid unrelated to the drive, with its own phase in every record.
+"""Lines: a sinusoid unrelated to the drive, with its own phase in every record, fitted and scored
+(the interference cause, ``causes.interference``, and every line on top of another cause).
 
 A disturbance (mains pickup, a building's vibration) is not driven by the
 input, so its phase relative to a record's start is arbitrary: the fit has
@@ -36,14 +37,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .candidates import Candidate, prominence
-from .residuals import coherent_spectrum, spectral_peaks
-from .screen import column_basis
+from .candidates import column_basis, prominence
+from .residuals import coherent_spectrum, harmonic_phase_turn, spectral_peaks
 
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
@@ -89,7 +89,7 @@ def candidate_frequencies(screen, n_peaks: int = 5, parts: Sequence[int] | None 
         residuals = [residuals[m] for m in parts]
     f, amp = coherent_spectrum(residuals, lo, hi, coherent=False)
     prom = prominence(amp)
-    prom[screen.drive_harmonic(f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
+    prom[drive_harmonic(screen, f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
     return [f0 for f0, _ in spectral_peaks(f, prom, n=n_peaks, min_separation_hz=max(lo, 0.05))]
 
 
@@ -113,23 +113,6 @@ def best_frequency(screen, rss_of: Callable[[float], float], n_peaks: int = 5,
     return best_f
 
 
-def fit_interference(screen, n_peaks: int = 5) -> Candidate:
-    """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
-    peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
-    line (``JointLine``; one amplitude for every record, the phase per record)."""
-    line = JointLine(screen, screen.design(screen.base, screen.base_nl), range(len(screen.parts)))
-    return interference_candidate(screen, best_frequency(screen, line.loo_rss, n_peaks))
-
-
-def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
-    """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
-    within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
-    f = np.array([e["interference_frequency"] for e in fold_estimates])
-    a = np.array([e["amplitude"] for e in fold_estimates])
-    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
-
-
 def fold_tolerance_hz(screen) -> float:
     """How far the frequencies of one line fitted on different folds may differ: the coarsest fold's spectral
     resolution (one cycle over its longest training record)."""
@@ -141,26 +124,6 @@ def frequencies_agree(screen, fold_frequencies_hz: Sequence[float]) -> bool:
     """Whether the folds' frequencies (each fitted without its held-out record) are one line's."""
     f = np.asarray(fold_frequencies_hz, dtype=float)
     return bool(f.size > 1 and np.ptp(f) <= fold_tolerance_hz(screen))
-
-
-def interference_candidate(screen, frequency_hz: float) -> Candidate:
-    model = screen.extension(("interference",))
-    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(screen, frequency_hz)])
-    theta, res = screen.solve(A, screen.y)
-    nb = len(screen.base_lin)
-    pairs = theta[nb:].reshape(-1, 2)
-    amps = np.hypot(pairs[:, 0], pairs[:, 1])
-    amplitude = float(np.sqrt(np.mean(amps**2)))
-    params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
-              "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
-              "interference_sin": amplitude, "interference_cos": 0.0}
-    k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
-    c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k, float(res @ res),
-                  screen.n, n_effective=screen.n_effective)
-    c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
-                   "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
-    c.stage = "fixed base"
-    return screen._finish(c)
 
 
 def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:
@@ -371,3 +334,35 @@ def joint_line(screen, folds, design: Callable[[int], np.ndarray], frequencies_h
         amps.append(a)
         train.append(with_line - fitted)
     return FoldLines(e, part_e, freqs, amps, train, phases)
+
+
+def drive_locked(screen, estimates: Mapping) -> bool:
+    """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
+    every record's drive whose phases in the records (each from its own start) agree within
+    ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
+    model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
+    ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
+    harmonic, closer
+    to it than the records resolve, not a misfit that the drive repeats."""
+    phases = estimates.get("phase_rad_per_record") or []
+    longest = max(p.record.t.size * p.record.dt for p in screen.parts)
+    if len(phases) < 2 or not drive_harmonic(screen, np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
+        return False
+    spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
+    pol = screen.policy
+    if spread >= pol.locked_phase:
+        return False
+    turn = harmonic_phase_turn(screen.null_residuals(), estimates["frequency_hz"])
+    return turn is None or not (abs(turn[0]) > pol.locked_turn and abs(turn[0]) > pol.locked_turn_z * turn[1])
+
+def drive_harmonic(screen, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
+    """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
+    there a disturbance cannot be told from the model's misfit."""
+    out = np.ones(f.shape, dtype=bool)
+    for p in screen.parts:
+        fd = p.record.frequency_hz
+        if not fd:
+            return np.zeros(f.shape, dtype=bool)
+        k = np.maximum(np.round(f / fd), 1.0)
+        out &= np.abs(f - k * fd) <= tolerance_hz
+    return out

@@ -8,7 +8,8 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .candidates import Candidate, local_minima
+from ..candidates import Candidate, local_minima
+from ..cause import Cause, register
 
 PROFILE_POINTS = 16
 PROFILE_NFEV = 4
@@ -101,3 +102,42 @@ def fit_delay(screen) -> Candidate:
         if rss < best_rss:
             best, best_rss = z, rss
     return screen.candidate("delay", "pure delay", model, best)
+
+
+@register
+class Delay(Cause):
+    """The actuator receives the input late."""
+
+    name = "delay"
+    units = {"delay_s": "s"}
+    parameters = ("delay",)
+    only_upper_bound = ("delay",)  # a delay at zero is no delay
+    transforms = True
+    late_input = True
+    reshapes = True
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """The model's output's rate (a short delay to first order)."""
+        return ["d/dt y_model"], lambda r, y_hat, t: [np.gradient(y_hat, r.dt)], [None]
+
+    def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
+        return [fit_delay(screen)]
+
+    def estimates(self, params, model) -> dict:
+        return {"delay_s": float(params["delay"])}
+
+    def limit(self, screen, estimates) -> str:
+        if estimates["delay_s"] < (dt := max(p.record.dt for p in screen.parts)):
+            return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
+                    "plus a first difference of it (a rate term), not a resolved delay")
+        return ""
+
+    def refit_alone(self, screen, model, start: dict, training_rss) -> dict:
+        """A rough profile: scanned, not a gradient step (``refit_delay``)."""
+        return refit_delay(screen, model, start, training_rss)
+
+    def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
+        """From one sample (a start at zero is no delay) to its bound, geometric."""
+        hi = screen.bounds_of(model, parameter)[1]
+        lo = min(p.record.dt for p in screen.parts)
+        return np.geomspace(lo, hi, k + 2)[1:-1] if hi > lo else None

@@ -9,7 +9,9 @@ import numpy as np
 
 from scipy.optimize import least_squares, minimize_scalar
 
-from .candidates import Candidate, estimates_of
+from ..candidates import NO_CUT, Candidate, estimates_of
+from ..cause import OUTPUT_UNIT, Cause, register
+from ..heldout import Folds
 
 
 def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -156,7 +158,96 @@ def clip_on_top(screen, kept: Candidate) -> Candidate | None:
         c.stage = "joint"
         c.delta_bic = c.bic - kept.bic
         c.explained = 1.0 - c.rss / kept.rss
-        c.limit = screen.limit_of("saturation", estimates)
+        c.limit = screen.limit_of(c.cause, estimates)
         if out is None or c.rss < out.rss:
             out = c
     return out
+
+
+def clipped_columns(screen, c: Candidate) -> np.ndarray:
+    """The regressors a clipping candidate clips: the base's, or those of the kept part it sits on."""
+    if c.clips is not None:
+        return columns_of(screen, c.clips)
+    return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
+
+
+def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
+                        train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
+    """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
+    with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
+    level (no flat top there, ``shows_clip``) predicts the left-out record unclipped: records that never reach
+    a clip leave its level open above their peaks, and a level placed just under them would cut a record
+    that goes higher."""
+    side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
+    A = clipped_columns(screen, c)
+    e = np.zeros(screen.n)
+    fold_est = []
+    for m in range(folds.n):
+        test = folds.test(m)
+        if refit:
+            level = fit_level(screen, A[~test], screen.y[~test], side)
+            fold_est.append({"saturation_level": level})
+            if not shows_clip(screen, A[~test], screen.y[~test], side, level):
+                level = math.inf if side == "upper" else -math.inf
+        train = ~test & unclipped(screen, screen.y, side, level)
+        theta, _ = screen.solve(A[train], screen.y[train])
+        clip = np.minimum if side == "upper" else np.maximum
+        e[test] = screen.y[test] - clip(A[test] @ theta, level)
+        e[folds.tail(m)] = 0.0
+        if train_residuals is not None:
+            train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
+    return e, fold_est
+
+
+@register
+class Saturation(Cause):
+    """The output clipped at a level (censored regression), from above or below."""
+
+    name = "saturation"
+    units = {"level": OUTPUT_UNIT, "side": ""}
+    parameters = ("saturation_level",)
+    relative_to_range = ("saturation_level",)  # a level has no natural zero
+    bounded = False  # its level is searched over the output's range, not between bounds
+    separable = False
+    carries_others = False  # nothing composes on top of a clip; a disturbance still adds
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """Hinge functions of the model's output at high and low levels."""
+        q_hi, q_lo = np.quantile(y_hat_rows, [0.90, 0.97]), np.quantile(y_hat_rows, [0.03, 0.10])
+        return ([f"max(y_model-{L:.3g},0)" for L in q_hi] + [f"max({L:.3g}-y_model,0)" for L in q_lo],
+                lambda r, y_hat, t: ([np.maximum(y_hat - L, 0.0) for L in q_hi]
+                                     + [np.maximum(L - y_hat, 0.0) for L in q_lo]),
+                [None] * 4)
+
+    def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
+        c = fit_saturation(screen)
+        return [] if c is None else [c]
+
+    def joint(self, screen, c: Candidate, max_nfev: int) -> Candidate:
+        return joint_saturation(screen, c, max_nfev)
+
+    def estimates(self, params, model) -> dict:
+        return {"level": float(params["saturation_level"]), "side": getattr(model, "saturation_side", "upper")}
+
+    def from_fit(self, estimates: dict, params) -> dict:
+        return {**estimates, "level": float(params["saturation_level"])}
+
+    def limit(self, screen, estimates) -> str:
+        if "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
+            return NO_CUT
+        if abs(estimates["slope_where_clipped"]) >= screen.policy.max_clipped_slope:
+            moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
+            return (f"where it would clip, the output still {moves} the model (slope "
+                    f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
+        return ""
+
+    def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
+        return clip_on_top(screen, kept)
+
+    def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
+        """A clip's output from that of the part it clips."""
+        level = c.params["saturation_level"]
+        return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
+
+    def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
+        return _heldout_saturation(screen, folds, c, refit, train_residuals)

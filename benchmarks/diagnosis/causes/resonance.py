@@ -9,7 +9,8 @@ import numpy as np
 from hysbench.models.extended import RESONANCE_HZ_BOUNDS
 from hysbench.models.filter_kernels import lowpass2_rows, second_order_foh
 
-from .candidates import Candidate
+from ..candidates import Candidate
+from ..cause import Cause, register
 
 
 def _resonant_null(screen, z):
@@ -54,3 +55,49 @@ def fit_resonance(screen) -> Candidate:
     z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
     z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
     return screen.candidate("resonance", "second-order mode", model, z)
+
+
+def lag_shared(z: dict) -> dict:
+    """A mode's start on top of a kept delay, the delay shortened by the mode's low-frequency lag
+    (2 zeta / omega_n = zeta / (pi f_n)): a delay fitted first has taken up that lag, so with it held a mode
+    at its true values adds the lag twice and predicts worse than none."""
+    lag = z["damping_ratio"] / (math.pi * z["natural_frequency"])
+    return {**z, "delay": max(float(z["delay"]) - lag, 0.0)}
+
+
+@register
+class Resonance(Cause):
+    """A second-order mode; identified by its frequency (its damping is its shape)."""
+
+    name = "resonance"
+    units = {"natural_frequency_hz": "Hz", "damping_ratio": ""}
+    parameters = ("natural_frequency", "damping_ratio")
+    log_scale = ("natural_frequency", "damping_ratio")
+    identifying = ("natural_frequency",)
+    transforms = True
+    reshapes = True
+
+    def library_terms(self, screen, y_hat_rows: np.ndarray):
+        """The model's output's second derivative (a mode's inertia to first order)."""
+        return ["d2/dt2 y_model"], lambda r, y_hat, t: [np.gradient(np.gradient(y_hat, r.dt), r.dt)], [None]
+
+    def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
+        return [fit_resonance(screen)]
+
+    def estimates(self, params, model) -> dict:
+        return {"natural_frequency_hz": float(params["natural_frequency"]),
+                "damping_ratio": float(params["damping_ratio"])}
+
+    def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
+        if parameter == "damping_ratio":  # a mode: underdamped
+            return lo, min(hi, screen.policy.max_damping)
+        return min(lo, screen.mode_floor), min(hi, screen.nyquist)  # down to a broadband drive's band
+
+    def limit(self, screen, estimates) -> str:
+        pol = screen.policy
+        if estimates["damping_ratio"] >= pol.damping_limit_share * pol.max_damping:
+            return f"damping ratio at the limit {pol.max_damping:g}: no mode"
+        return ""
+
+    def starts_on_top(self, primary: Candidate, starts: list[dict]) -> list[dict]:
+        return [lag_shared(q) for q in starts[1:]] if "delay" in primary.params else []

@@ -1,0 +1,167 @@
+"""The backward step after the forward one (``secondary``): is the named cause still needed beside the causes
+kept on top of it? It names a new cause, so it scores as the named cause's finalists are (``search.run_screen``):
+every own nonlinear parameter refitted per fold.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Callable
+
+from .candidates import Candidate, at_bound, bound_flags
+from .causes import CAUSES, cause_of_parameter
+from .heldout import evidence, score, share_of_misfit
+from .policy import Policy
+from .secondary import refit_errors
+from .selection import step
+
+
+def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
+    """The causes composed in order, each searched on top of the ones before (None if one does not compose)."""
+    kept, chain = own[causes[0]], [own[causes[0]]]
+    for cause in causes[1:]:
+        kept = screen.composite(kept, own[cause], search=screen.small)
+        if kept is None:
+            return None
+        chain.append(kept)
+    return chain
+
+
+def _time_unidentified(screen, c: Candidate, twin) -> bool:
+    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end:
+    the fastest its meaning allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over
+    these records). Replacing a relaxation slower than every drive period, whose own time constant these records
+    do not pin down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
+    identified."""
+    parts = getattr(c.model, "components", (c.cause,))
+    return (twin.name in parts and (c.cause == twin.name or not c.limit)
+            and set(at_bound(screen, c)) <= {twin.time_scale})
+
+
+def _time_scale_end(screen, chain: list[Candidate]) -> tuple[str, dict | None]:
+    """The first open-ended time scale in ``chain`` (``Cause.open_ended``: creep's) that sits at an end, and its
+    cause ("", None if none does): ``end`` ``limit`` (the fastest its meaning allows) or ``search`` (open-ended, the
+    slowest searched), ``alone`` (first, before the others were composed on top), ``<parameter>_s``."""
+    for c in chain:
+        flags = bound_flags(screen, c)
+        for n in (n for kind in CAUSES.values() for n in kind.open_ended):
+            if n in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
+                return cause_of_parameter(n).name, {
+                    "end": "limit" if n in flags["at_bound"] else "search", "alone": c is chain[0] and len(chain) > 1,
+                    f"{n}_s": float(c.params[n])}
+    return "", None
+
+
+def _pinned_time(cause: str, end: dict | None) -> str:
+    """What the backward step says of a time scale that sits at an end (``_time_scale_end``; "" if none)."""
+    if end is None:
+        return ""
+    where = "its limit" if end["end"] == "limit" else "the end of its search"
+    value = next(v for k, v in end.items() if k.endswith("_s"))
+    return f"{cause}'s time scale{' alone' if end['alone'] else ''} sits at {where}, {value:.3g} s: not identified"
+
+
+def strongest_first(own: dict, causes: list[str]) -> list[str]:
+    """The causes ordered by what each predicts of the held-out records against the base alone (its own
+    held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
+    on top of the named cause is no guide without it, and each is searched with the ones before it held: a
+    delay searched before a larger creep takes up part of the drift, which the composite's refinement does not
+    undo."""
+    gain = {c: own[c].heldout_gain for c in causes}
+    return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
+
+
+def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
+                 policy: Policy) -> list[list[str]]:
+    """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
+    for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
+    ``creep_periods``), also the same with creep after them, standing for that slow part."""
+    options = [strongest_first(own, causes)]
+    twin = chosen.kind.slow_twin
+    if slow_relaxation(chosen, creep_min, policy) and twin in own and twin not in causes:
+        options.append([*options[0], twin])
+    return options
+
+
+def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
+    """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
+    drive period): creep may stand for that slow part."""
+    kind = chosen.kind
+    return kind.slow_twin is not None and kind.slowest_time_s(chosen.estimates) >= creep_min / policy.creep_periods
+
+
+def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
+    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
+    causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
+    predict the held-out records as well as all of them together (together not better by z >= ``z_same``), show
+    held-out evidence against the base, remove at least ``explain_share`` of its held-out misfit beyond white
+    noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
+    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose
+    slowest time constant is longer than the longest drive period may be creep there
+    (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
+    strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
+    ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
+    (``_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
+    names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
+    (not interference or saturation)."""
+    v, screen, folds = diag.verdict, diag.screen, result["folds"]
+    pol = folds.policy
+    causes = [c.cause for c in diag.also]
+    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
+            or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):
+        return
+    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
+    own = {c.cause: c for c in diag.candidates}
+    options = replacements(v.chosen, own, causes, screen.creep_min, pol)
+    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min, pol)
+    together = None  # all of them, scored once a replacement is worth comparing
+    e_null = result["heldout"].null
+    null_sse = float(e_null @ e_null)
+    for replacement in options:
+        chain = _chain(screen, own, replacement)
+        standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
+
+        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
+            if creep_may_stand_in and _time_unidentified(screen, c, CAUSES[v.chosen.kind.slow_twin]):
+                return False
+            return bool(c.limit or at_bound(screen, c))
+
+        if chain is None or any(flawed(c) for c in chain):
+            continue
+        if together is None:
+            together = refit_errors(screen, folds, result, diag.also[-1])
+        errors = [refit_errors(screen, folds, result, c) for c in chain]
+        without = score(folds, errors[-1], together)  # how much better all together predict
+        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= pol.explain_share
+        if without["z"] < pol.z_same and evidence(score(folds, e_null, errors[-1]), pol) and explains:
+            break
+    else:
+        diag.trace.append(step("drop-redundant-primary", v.chosen.cause, also=causes))
+        return
+    old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
+    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
+    also = []
+    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
+        c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
+        also.append(c)
+    diag.dropped = old
+    diag.also = also
+    end_cause, end = _time_scale_end(screen, chain)
+    diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
+                           creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
+    v.chosen, v.cause = first, first.cause
+    pinned = _pinned_time(end_cause, end)
+    slowest = old.kind.slowest_time_s(old.estimates)
+    slow = ""
+    if standing_in:
+        slow = (f", with creep standing for its time constant of {slowest:.3g} s (slower than "
+                f"every drive period{'; ' + pinned if pinned else ''}),")
+    elif pinned:
+        slow = f" ({pinned}; it stands for a time constant of {slowest:.3g} s)"
+    how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
+           f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
+    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
+                f"{old.cause} is not needed, and "
+                f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "
+                f"{old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")

@@ -1,0 +1,243 @@
+"""``Diagnosis``: what ``diagnose`` found, in one result object (its JSON: ``Diagnosis.to_json``)."""
+
+from __future__ import annotations
+
+import copy
+import json
+from dataclasses import dataclass, field
+
+from hysbench.data.dataset import Dataset
+from hysbench.data.files import jsonable
+from hysbench.identification import Fit
+
+from .candidates import Candidate
+from .causes import CAUSES
+from .experiment import one_drive
+from .extensions import gain, scores_by_file
+from .policy import Policy
+from .residuals import RecordResidual, ResidualSummary
+from .screen import Screen
+from .secondary import not_identified
+from .selection import Verdict
+from .validation import borne_out
+
+
+FORMAT = "hysbench-diagnosis/3"  # 3: the thresholds in "policy" (not "settings"), the rule "trace"
+
+
+def _plain(obj):
+    """JSON fallback for numpy values."""
+    return obj.tolist() if hasattr(obj, "tolist") else str(obj)
+
+
+@dataclass
+class Diagnosis:
+    dataset: Dataset
+    model: str
+    seed: int
+    base_fit: Fit
+    before: list[RecordResidual]
+    summaries: list[ResidualSummary]
+    noise_sd: float
+    screen: Screen
+    library: dict
+    candidates: list[Candidate]
+    relaxation_variants: list[Candidate]
+    verdict: Verdict
+    structure: dict
+    also: list[Candidate] = field(default_factory=list)
+    secondary_tried: list[Candidate] = field(default_factory=list)
+    also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
+    slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
+    dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
+    experiments: list[dict] = field(default_factory=list)
+    extended_fit: Fit | None = None
+    after: list[RecordResidual] = field(default_factory=list)
+    base_whole_fit: Fit | None = None
+    base_whole: list[RecordResidual] = field(default_factory=list)
+    interference_check: dict = field(default_factory=dict)
+    unexplained_check: dict | None = None  # an unexplained verdict's evidence on the validation records
+    also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
+    timings: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    trace: list = field(default_factory=list)  # every rule that decided or changed the verdict, in order (``step``)
+    _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
+
+    @property
+    def chosen(self) -> Candidate | None:
+        return self.verdict.chosen
+
+    @property
+    def cause(self) -> str:
+        return self.verdict.cause
+
+    def as_good_as(self, c: Candidate) -> list[Candidate]:
+        """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
+        kept secondary cause, less those kept as well later (then the records show both); empty once a backward
+        step has replaced it."""
+        alike = next((alike for kept, alike in self.also_alternatives if kept is c), [])
+        return [a for a in alike if a.cause not in {k.cause for k in self.also}]
+
+    def on_top_of(self, c: Candidate) -> str:
+        """What a kept secondary cause was added to: the named cause and the ones kept before it."""
+        i = next(i for i, a in enumerate(self.also) if a is c)
+        return " + ".join([self.cause, *(a.cause for a in self.also[:i])])
+
+    @property
+    def extended_model(self) -> str | None:
+        if self.extended_fit:
+            return self.extended_fit.model
+        return self.chosen.model.name if self.chosen is not None else None
+
+    @property
+    def parameters(self) -> dict:
+        """The named cause's parameters (identified on the identification records' whole length)."""
+        c = self.chosen
+        if c is None:
+            return {}
+        if self.extended_fit is None:
+            return dict(c.estimates)
+        return c.kind.from_fit(dict(c.estimates), self.extended_fit.params)
+
+    @property
+    def uncertainty(self) -> dict:
+        return self.chosen.uncertainty if self.chosen is not None else {}
+
+    @property
+    def policy(self) -> Policy:
+        """The decision policy every step used (the screen's)."""
+        return self.screen.policy
+
+    @property
+    def decision_rule(self) -> str:
+        p = self.policy
+        return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
+                f"a cause passes with held-out gain >= {p.min_explained:.0%} in a majority of folds "
+                f"and z >= {p.z_pass:g} (signed-rank test over blocks) or a gain >= {p.strong_gain:.0%} in every fold "
+                f"(an interference, scored on top of the base's own held-out prediction, found at one frequency and "
+                f"amplitude on each fold's other records: any gain, every fold improved, z >= {p.z_pass:g}), "
+                f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
+                f"within z = {p.z_same:g} of the best is "
+                f"named (creep rather than a relaxation slower than every drive period that creep predicts as well; "
+                f"a relaxation whose slowest time constant is slower than every drive period is compared with its "
+                f"faster ones plus creep, which is listed as ambiguous if it predicts as well); "
+                f"if it removes < {p.explain_share:.0%} of the held-out misfit beyond white noise it is named "
+                f"only if specific (z >= {p.z_pass:g}, fold estimates within {p.partial_se:.0%}: a mode's frequency, its "
+                f"damping reported; every other cause within z = {p.z_same:g} removing the same part, held-out "
+                f"improvements with cosine >= {p.same_slice:g}: "
+                f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
+                f"cause predicting most among those that are specific ({p.min_records_check} or more records), else the best "
+                f"partial cause (if it passes) with the causes kept on top of it by held-out forward selection if "
+                f"together they remove >= {p.explain_share:.0%} (two causes at once), else unexplained; "
+                f"nothing passing: unexplained if the residual is structured (period-to-period "
+                f"F > {p.structure_f:g} or a significant but inadmissible candidate), else none. Validation "
+                f"records take no part; they confirm the named extension if it lowers their residual with "
+                f"z >= {p.z_confirm:.3g} against their own noise (correlated noise counted); an unexplained verdict "
+                f"resting on a candidate alone (no period-to-period structure) becomes none unless that candidate's "
+                f"extension lowers the validation records' residual the same way; each cause under also is checked "
+                f"the same way on top of what was kept before it (reported, the verdict unchanged)")
+
+    def gain(self) -> dict:
+        """The named extension's gain on the validation and identification records (computed once for the
+        residuals it is given)."""
+        if not self.after:
+            return {}
+        inputs = (self.base_whole, self.after, self.before)
+        if self._gain is None or any(a is not b for a, b in zip(self._gain[0], inputs)):
+            out = {"validation": gain(self.base_whole, self.after, "validation"),
+                   "identification": gain(self.base_whole, self.after, "identification"),
+                   "validation_vs_base_fitted_on_windows": gain(self.before, self.after, "validation")}
+            self._gain = (inputs, out)
+        return copy.deepcopy(self._gain[1])
+
+    @property
+    def confirmed(self) -> bool | None:
+        """Whether the named extension lowers the validation residual against the base model refitted
+        on the same whole records, on the windows and by more than the records' noise explains (z >=
+        the policy's ``z_confirm``); an interference (phase fitted per validation record) by the same amplitude
+        there."""
+        v = self.gain().get("validation")
+        if not v:
+            return None
+        return borne_out(v, self.cause, self.interference_check, self.policy)
+
+    @property
+    def warning(self) -> str:
+        if self.confirmed is not False:
+            return ""
+        v = self.gain()["validation"]
+        return (f"the extension does not improve the validation records beyond their noise against the base model "
+                f"refitted the same way (residual sum of squares removed: {100 * v['explained_whole']:.1f} % whole, "
+                f"z = {v['z_whole']:.2f} against the noise, needs {self.policy.z_confirm:.3g}; "
+                f"{100 * v['explained_window']:.1f} % on the windows"
+                + (f"; interference amplitude there {self.interference_check.get('validation_amplitude', 0):.3g}"
+                   if self.chosen.kind.disturbance else "")
+                + f"): '{self.cause}' is not confirmed on data that took no part in the fit; treat it as a hypothesis")
+
+    @property
+    def one_drive_caution(self) -> str:
+        """Under one periodic drive a delay, a lag or a mode only reshapes the response's harmonics, as a static
+        nonlinearity outside the vocabulary can: said when one is named or kept ("" otherwise)."""
+        named = list(dict.fromkeys(c for c in (self.cause, *(a.cause for a in self.also))
+                                   if c in CAUSES and CAUSES[c].reshapes))
+        drive = one_drive(self.dataset.records) if named else None
+        if drive is None:
+            return ""
+        return (f"every record ({drive['records']}) has the same drive, {drive['frequency_hz']:.4g} Hz over the same "
+                f"input range: under it {' and '.join(named)} only reshape{'s' if len(named) == 1 else ''} the "
+                "periodic response, as a static nonlinearity outside the vocabulary (a dead band, a sensor curvature) "
+                "can; a record at another amplitude or frequency would tell them apart")
+
+    def to_json(self) -> dict:
+        v = self.verdict
+        evidence = {
+            "noise_sd": self.noise_sd,
+            "records": [s.as_dict() for s in self.summaries],
+            "library_screen": self.library,
+            "null": self.screen.null.summary(),
+            "candidates": [c.summary() for c in sorted(self.candidates, key=lambda c: -c.heldout_gain)],
+            "relaxation_variants": [c.summary() for c in self.relaxation_variants],
+            "secondary_tried": [{**c.summary(), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
+            "slow_part_as_creep": None if self.slow_part is None else {
+                **self.slow_part.summary(), "ambiguous": any(c is self.slow_part for c in self.verdict.ambiguous_with)},
+            "periodic_structure": self.structure,
+            "decision_rule": self.decision_rule,
+            "screen_rows": self.screen.n,
+        }
+        extended = None
+        if self.extended_fit:
+            extended = {"name": self.extended_fit.model, "hyperparameters": self.extended_fit.hyperparameters,
+                        "method": self.extended_fit.method, "params": self.extended_fit.params,
+                        "n_params": self.extended_fit.n_params, "fitted_on": self.extended_fit.fitted_on,
+                        "notes": self.extended_fit.notes}
+        as_good = {c.cause: alike for c in self.also if (alike := self.as_good_as(c))}
+        data = {
+            "format": FORMAT, "model": self.model, "dataset": self.dataset.name,
+            "dataset_hash": self.dataset.content_hash(), "seed": self.seed, "policy": self.policy.as_dict(),
+            "cause": self.cause, "reason": v.reason, "parameters": self.parameters,
+            "uncertainty": self.uncertainty, "not_identified": v.not_identified,
+            "ambiguous_with": [c.cause for c in v.ambiguous_with], "suggested_experiments": self.experiments,
+            "partial": v.partial.summary() if v.partial is not None else None,
+            "unexplained_remainder": v.remainder,
+            "evidence": evidence, "extended_model": self.extended_model, "extended_fit": extended,
+            "base_fit": {"method": self.base_fit.method, "params": self.base_fit.params,
+                         "n_params": self.base_fit.n_params, "notes": self.base_fit.notes},
+            "before": scores_by_file(self.before),
+            "after": scores_by_file(self.after) if self.after else {},
+            "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
+            "gain": self.gain(), "interference_check": self.interference_check,
+            "confirmed_on_validation": self.confirmed, "warning": self.warning,
+            "one_drive_caution": self.one_drive_caution, "unexplained_check": self.unexplained_check,
+            "also_on_validation": self.also_check,
+            "also": [c.cause for c in self.also],
+            "dropped_as_redundant": None if self.dropped is None else {
+                "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
+            "also_as_good": {cause: [a.cause for a in alike] for cause, alike in as_good.items()},
+            "also_as_good_fits": {cause: [{"cause": a.cause, "label": a.label, "estimates": a.estimates,
+                                           "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
+                                          for a in alike] for cause, alike in as_good.items()},
+            "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
+            "trace": self.trace,
+            "timings_s": self.timings, "settings": self.settings,
+        }
+        return jsonable(json.loads(json.dumps(data, default=_plain)))
