@@ -52,3 +52,21 @@ def test_held_out_residuals_belong_to_the_candidate_scored_not_to_a_copy():
     assert twin not in held
     with pytest.raises(KeyError, match="no held-out score"):
         held.of(twin)
+
+
+@pytest.mark.parametrize("name, estimates, standing_in, expected", [
+    ("delay", {"delay_s": 0.02}, False, " (creep's time scale sits at its limit, 40 s: not identified)"),
+    ("relaxation", {"tau_s": [0.1, 30.0]}, False,
+     " (creep's time scale sits at its limit, 40 s: not identified; it stands for a time constant of 30 s)"),
+    ("relaxation", {"tau_s": [0.1, 30.0]}, True, ", with creep standing for its time constant of 30 s (slower than "
+     "every drive period; creep's time scale sits at its limit, 40 s: not identified),"),
+])
+def test_the_backward_steps_reason_names_a_slow_time_only_for_a_cause_that_has_one(name, estimates, standing_in,
+                                                                                  expected):
+    from types import SimpleNamespace
+
+    from hysbench.benchmarks.diagnosis.backward import slow_part_clause
+    old = SimpleNamespace(kind=get_cause(name), estimates=estimates)
+    pinned = "creep's time scale sits at its limit, 40 s: not identified"
+    assert slow_part_clause(old, standing_in, pinned) == expected
+    assert slow_part_clause(old, False, "") == ""

@@ -62,6 +62,18 @@ def _pinned_time(cause: str, end: dict | None) -> str:
     return f"{cause}'s time scale{' alone' if end['alone'] else ''} sits at {where}, {value:.3g} s: not identified"
 
 
+def slow_part_clause(old: Candidate, standing_in: bool, pinned: str) -> str:
+    """What the backward step's reason says of the dropped cause's slow part: creep standing for it, or the time
+    scale that sits at an end (``pinned``), with the dropped cause's slowest time where it has one."""
+    slowest = old.kind.slowest_time_s(old.estimates)
+    if standing_in:
+        return (f", with creep standing for its time constant of {slowest:.3g} s (slower than "
+                f"every drive period{'; ' + pinned if pinned else ''}),")
+    if not pinned:
+        return ""
+    return f" ({pinned}; it stands for a time constant of {slowest:.3g} s)" if slowest is not None else f" ({pinned})"
+
+
 def strongest_first(own: dict, causes: list[str]) -> list[str]:
     """The causes ordered by what each predicts of the held-out records against the base alone (its own
     held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
@@ -151,14 +163,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
                            creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
     v.chosen, v.cause = first, first.cause
-    pinned = _pinned_time(end_cause, end)
-    slowest = old.kind.slowest_time_s(old.estimates)
-    slow = ""
-    if standing_in:
-        slow = (f", with creep standing for its time constant of {slowest:.3g} s (slower than "
-                f"every drive period{'; ' + pinned if pinned else ''}),")
-    elif pinned:
-        slow = f" ({pinned}; it stands for a time constant of {slowest:.3g} s)"
+    slow = slow_part_clause(old, standing_in, _pinned_time(end_cause, end))
     how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
            f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
     v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
