@@ -38,7 +38,7 @@ region and the merge radius all see log z.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -48,7 +48,8 @@ from scipy.stats import qmc
 from .base import Identifier
 from .errors import IdentificationError
 from .jacobian import CachedResidual, forward_difference
-from .linear import column_norms, solve_spectrum, spectrum_from_gram, spectrum_from_qr
+from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_spectrum, spectrum_from_gram,
+                     spectrum_from_qr, undetermined_count)
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
 class Varpro(Identifier):
@@ -95,6 +96,9 @@ class LinearSolution:
     ridge: float  # alpha / s_max (0 when not regularised)
     bounded: bool  # the bounded solve was needed
     weak_directions: list  # [(singular value / s_max, {name: loading})] below 1 / max_condition
+    n_undetermined: int = 0  # directions with singular value below UNDETERMINED_TOL * s_max (accurate solve only)
+    fixed: dict = field(default_factory=dict)  # {name: value} linear parameters fixed because the data do not determine them
+    condition_number_full: float = math.nan  # of the design with every column, when some were fixed
 
 
 class SeparableProblem:
@@ -161,12 +165,53 @@ class SeparableProblem:
         its error (~cond^2 * 1e-16 in the weakest direction) changes the
         fitness only at second order. ``accurate`` (the reported optimum): a
         Householder QR of [A_s, b] and the SVD of its small triangle
-        (condition numbers exact up to ~1e16). A model output that is not
+        (condition numbers exact up to ~1e16); there, directions the data do
+        not determine (singular value below ``linear.UNDETERMINED_TOL`` * s_max)
+        are found and their parameters fixed (``fix_undetermined``). A model output that is not
         finite gives an infinite fitness and is counted in the problem's ``n_nonfinite``.
         """
+        sol = self._solve(blocks, accurate, None)
+        if not (accurate and sol.n_undetermined and math.isfinite(sol.fitness)):
+            return sol
+        fixed = dependent_columns(np.concatenate([wm * Phi for wm, Phi in zip(self.problem.row_weights, blocks)]),
+                                  self.column_priority(blocks))
+        if not fixed.any():
+            return sol
+        reduced = self._solve(blocks, True, ~fixed)
+        reduced.condition_number_full = sol.condition_number
+        return reduced
+
+    def column_priority(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The order in which columns are kept when some must be fixed (``linear.dependent_columns``):
+        an intercept (1 on every scored row) first, then the columns that vary on the scored rows, then
+        those constant there (a play whose threshold the scored input never crosses again), each group in
+        the model's order. A column constant on the scored rows only repeats the intercept there, while
+        its weight moves the output wherever the column differs: from rest, before its play first turns."""
+        stacked = np.concatenate(blocks)
+        ones = np.all(stacked == 1.0, axis=0)
+        span = np.ptp(stacked, axis=0) if stacked.shape[0] else np.zeros(stacked.shape[1])
+        constant = span <= UNDETERMINED_TOL * np.max(np.abs(stacked), axis=0, initial=0.0)
+        group = np.where(ones, 0, np.where(constant, 2, 1))
+        return np.lexsort((np.arange(group.size), group))
+
+    def _solve(self, blocks: list[np.ndarray], accurate: bool, keep: np.ndarray | None) -> LinearSolution:
+        """``solve_blocks`` on the columns ``keep`` (None: all); the others are fixed at 0 (or the bound
+        nearest 0) and their contribution taken off the data."""
         w = self.problem.row_weights
-        ys = self._ys
         n = len(self.linear_names)
+        names = list(self.linear_names)
+        lo, hi = self.lin_lower, self.lin_upper
+        ys = self._ys
+        b = self.b
+        x_fixed = np.zeros(0)
+        if keep is not None:
+            x_fixed = np.clip(0.0, lo[~keep], hi[~keep])
+            if np.any(x_fixed != 0.0):
+                ys = [y - Phi[:, ~keep] @ x_fixed for Phi, y in zip(blocks, ys)]
+                b = np.concatenate([wm * y for wm, y in zip(w, ys)])
+            blocks = [np.ascontiguousarray(Phi[:, keep]) for Phi in blocks]
+            names = [nm for nm, k in zip(names, keep) if k]
+            lo, hi = lo[keep], hi[keep]
         blown_up = LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
                                   [])
 
@@ -179,11 +224,11 @@ class SeparableProblem:
             if not np.all(np.isfinite(D)):
                 self.problem.n_nonfinite += 1
                 return blown_up
-            ev, V, rhs = spectrum_from_qr(A, self.b, column_scale=D)
+            ev, V, rhs = spectrum_from_qr(A, b, column_scale=D)
         else:
             with np.errstate(over="ignore", invalid="ignore"):
                 G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
-                Atb = self._Atb(blocks)
+                Atb = sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(w, blocks, ys))
             if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
                 self.problem.n_nonfinite += 1
                 return blown_up
@@ -196,7 +241,6 @@ class SeparableProblem:
         denom, safe = spec.denominators, spec.kept
         x = spec.x_scaled / D
         bounded = False
-        lo, hi = self.lin_lower, self.lin_upper
         if np.any(x < lo) or np.any(x > hi):
             bounded = True
             # min ||A_s xs - b||^2 + alpha2 ||xs||^2 as the small system M xs ~ c
@@ -214,9 +258,16 @@ class SeparableProblem:
                 load = load / np.max(np.abs(load))
                 top = np.argsort(-np.abs(load))[:4]
                 weak.append((math.sqrt(ev[k] / ev_max) if ev_max > 0 else 0.0,
-                             {self.linear_names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
+                             {names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
+        fixed: dict = {}
+        if keep is not None:
+            x_all = np.zeros(n)
+            x_all[keep] = x
+            x_all[~keep] = x_fixed
+            fixed = {nm: float(v) for nm, v in zip(np.array(self.linear_names)[~keep], x_fixed)}
+            x = x_all
         return LinearSolution(x, fit, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
-                              bounded, weak)
+                              bounded, weak, undetermined_count(ev) if accurate else 0, fixed)
 
     def _Atb(self, blocks):
         return sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(self.problem.row_weights, blocks, self._ys))
@@ -362,6 +413,14 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     diag.update(condition_number=final.condition_number, regularised=final.regularised, ridge=final.ridge,
                 bounded_linear_solve=final.bounded, max_condition=sep.max_condition)
     notes = []
+    if final.fixed:
+        diag.update(undetermined=dict(final.fixed), condition_number_all_columns=final.condition_number_full)
+        notes.append(
+            f"varpro: the scored data do not determine {len(final.fixed)} linear parameter(s) (the column-scaled "
+            f"design has condition number {final.condition_number_full:.3g}; a direction with singular value below "
+            f"{UNDETERMINED_TOL:g} * s_max): {', '.join(final.fixed)} fixed at "
+            f"{', '.join(f'{v:g}' for v in final.fixed.values())}, the rest solved without them (condition number "
+            f"{final.condition_number:.3g})")
     if final.regularised:
         dirs = "; ".join(
             " ".join(f"{v:+.2f}*{n}" for n, v in load.items()) + f" (s/s_max {sv:.1e})"
