@@ -52,6 +52,14 @@ from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_sp
                      spectrum_from_qr, undetermined_count)
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
+# a column whose spread on the scored rows is below this fraction of its largest magnitude is nearly constant
+# (its level more than 20 times the variation the data show: the level is an extrapolation)
+NEAR_CONSTANT = 0.05
+# fixing an undetermined direction may cost at most this relative increase of the fitness (rounding, the
+# ridge); a bounded solve whose bounds pin the direction down costs more, and is kept whole
+FREE_FIX = 1e-6
+
+
 class Varpro(Identifier):
     """Separable least squares; see the module docstring."""
 
@@ -98,7 +106,8 @@ class LinearSolution:
     weak_directions: list  # [(singular value / s_max, {name: loading})] below 1 / max_condition
     n_undetermined: int = 0  # directions with singular value below UNDETERMINED_TOL * s_max (accurate solve only)
     fixed: dict = field(default_factory=dict)  # {name: value} linear parameters fixed because the data do not determine them
-    condition_number_full: float = math.nan  # of the design with every column, when some were fixed
+    condition_number_full: float = math.nan  # of the design before rank-deficient columns were fixed
+    nearly_constant: list = field(default_factory=list)  # of ``fixed``: columns nearly constant on the scored rows
 
 
 class SeparableProblem:
@@ -167,31 +176,55 @@ class SeparableProblem:
         Householder QR of [A_s, b] and the SVD of its small triangle
         (condition numbers exact up to ~1e16); there, directions the data do
         not determine (singular value below ``linear.UNDETERMINED_TOL`` * s_max)
-        are found and their parameters fixed (``fix_undetermined``). A model output that is not
+        are found and their parameters fixed at 0 (``linear.dependent_columns``, columns kept in
+        ``column_priority``). In both paths, next to an intercept, a column nearly constant on the
+        scored rows is fixed at 0 (``varying_columns``). A model output that is not
         finite gives an infinite fitness and is counted in the problem's ``n_nonfinite``.
         """
-        sol = self._solve(blocks, accurate, None)
+        keep = self.varying_columns(blocks)
+        sol = self._solve(blocks, accurate, None if keep.all() else keep)
+        sol.nearly_constant = [n for n, k in zip(self.linear_names, keep) if not k]
         if not (accurate and sol.n_undetermined and math.isfinite(sol.fitness)):
             return sol
-        fixed = dependent_columns(np.concatenate([wm * Phi for wm, Phi in zip(self.problem.row_weights, blocks)]),
-                                  self.column_priority(blocks))
-        if not fixed.any():
+        cols = np.flatnonzero(keep)
+        A = np.concatenate([wm * Phi[:, cols] for wm, Phi in zip(self.problem.row_weights, blocks)])
+        dependent = dependent_columns(A, self.column_priority([Phi[:, cols] for Phi in blocks]))
+        if not dependent.any():
             return sol
-        reduced = self._solve(blocks, True, ~fixed)
+        keep[cols[dependent]] = False
+        reduced = self._solve(blocks, True, keep)
+        if not reduced.fitness <= sol.fitness * (1.0 + FREE_FIX):  # the bounds determine those directions
+            return sol
         reduced.condition_number_full = sol.condition_number
+        reduced.nearly_constant = sol.nearly_constant
         return reduced
 
-    def column_priority(self, blocks: list[np.ndarray]) -> np.ndarray:
-        """The order in which columns are kept when some must be fixed (``linear.dependent_columns``):
-        an intercept (1 on every scored row) first, then the columns that vary on the scored rows, then
-        those constant there (a play whose threshold the scored input never crosses again), each group in
-        the model's order. A column constant on the scored rows only repeats the intercept there, while
-        its weight moves the output wherever the column differs: from rest, before its play first turns."""
+    @staticmethod
+    def column_groups(blocks: list[np.ndarray]) -> np.ndarray:
+        """Per column: 0 an intercept (1 on every scored row), 2 nearly constant on the scored rows (spread
+        below ``NEAR_CONSTANT`` of its largest magnitude), 1 the others."""
         stacked = np.concatenate(blocks)
         ones = np.all(stacked == 1.0, axis=0)
         span = np.ptp(stacked, axis=0) if stacked.shape[0] else np.zeros(stacked.shape[1])
-        constant = span <= UNDETERMINED_TOL * np.max(np.abs(stacked), axis=0, initial=0.0)
-        group = np.where(ones, 0, np.where(constant, 2, 1))
+        constant = span <= NEAR_CONSTANT * np.max(np.abs(stacked), axis=0, initial=0.0)
+        return np.where(ones, 0, np.where(constant, 2, 1))
+
+    def varying_columns(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The columns solved for: all but those nearly constant on the scored rows, when the design has
+        an intercept. Such a column (a play whose threshold lies above the scored input's span moves only
+        through the rate envelopes, by a fraction of its level) repeats the intercept there up to that
+        fraction; a weight fitted to the remainder multiplies a level that the intercept absorbs in the
+        scored windows but not where the column differs (from rest, before the play first turns)."""
+        group = self.column_groups(blocks)
+        if not np.any(group == 0):
+            return np.ones(group.size, dtype=bool)
+        return group != 2
+
+    def column_priority(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The order in which columns are kept when some must be fixed (``linear.dependent_columns``):
+        an intercept first, then the columns that vary on the scored rows, then those nearly constant
+        there, each group in the model's order."""
+        group = self.column_groups(blocks)
         return np.lexsort((np.arange(group.size), group))
 
     def _solve(self, blocks: list[np.ndarray], accurate: bool, keep: np.ndarray | None) -> LinearSolution:
@@ -414,13 +447,20 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                 bounded_linear_solve=final.bounded, max_condition=sep.max_condition)
     notes = []
     if final.fixed:
-        diag.update(undetermined=dict(final.fixed), condition_number_all_columns=final.condition_number_full)
-        notes.append(
-            f"varpro: the scored data do not determine {len(final.fixed)} linear parameter(s) (the column-scaled "
-            f"design has condition number {final.condition_number_full:.3g}; a direction with singular value below "
-            f"{UNDETERMINED_TOL:g} * s_max): {', '.join(final.fixed)} fixed at "
-            f"{', '.join(f'{v:g}' for v in final.fixed.values())}, the rest solved without them (condition number "
-            f"{final.condition_number:.3g})")
+        diag["undetermined"] = dict(final.fixed)
+        rank = [n for n in final.fixed if n not in final.nearly_constant]
+        if final.nearly_constant:
+            notes.append(
+                f"varpro: {', '.join(final.nearly_constant)}: regressor(s) nearly constant on the scored rows (spread "
+                f"below {NEAR_CONSTANT:g} of the level) next to the intercept: the data determine their weights only "
+                "through that spread while the level trades with the intercept; fixed at 0")
+        if rank:
+            diag["condition_number_all_columns"] = final.condition_number_full
+            notes.append(
+                f"varpro: the scored data do not determine {', '.join(rank)} (the column-scaled design has condition "
+                f"number {final.condition_number_full:.3g}, a direction with singular value below "
+                f"{UNDETERMINED_TOL:g} * s_max): fixed at {', '.join(f'{final.fixed[n]:g}' for n in rank)}, the rest "
+                f"solved without (condition number {final.condition_number:.3g})")
     if final.regularised:
         dirs = "; ".join(
             " ".join(f"{v:+.2f}*{n}" for n, v in load.items()) + f" (s/s_max {sv:.1e})"

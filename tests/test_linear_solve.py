@@ -180,3 +180,20 @@ def test_varpro_solve_of_a_determined_design_is_unchanged_bit_for_bit():
     D = column_norms(A)
     expected = solve_spectrum(*spectrum_from_qr(A, b, column_scale=D), 1e6).x_scaled / D
     np.testing.assert_array_equal(sol.linear, expected)
+
+
+def test_a_nearly_constant_column_next_to_the_intercept_is_fixed_and_kept_without_one():
+    from hysbench.identification.varpro import NEAR_CONSTANT
+    A, b = _design(6, n=80, k=4)
+    A[:, 3] = 1.0
+    wiggle = 0.385 + 0.3 * NEAR_CONSTANT * 0.385 * np.sin(np.arange(A.shape[0]))  # spread 0.6 NEAR_CONSTANT of its level
+    A = np.column_stack([A, wiggle])
+    sep = _Stub(A, b, ["c0", "c1", "c2", "offset", "a12"]).sep
+    for accurate in (True, False):
+        sol = sep.solve_blocks([A], accurate=accurate)
+        assert sol.fixed == {"a12": 0.0} and sol.nearly_constant == ["a12"]
+        np.testing.assert_allclose(sol.linear[:4], np.linalg.lstsq(A[:, :4], b, rcond=None)[0], rtol=1e-8)
+    without_intercept = np.column_stack([A[:, :3], wiggle])
+    sep = _Stub(without_intercept, b, ["c0", "c1", "c2", "a12"]).sep
+    sol = sep.solve_blocks([without_intercept], accurate=True)
+    assert sol.fixed == {} and sol.linear[3] != 0.0
