@@ -383,6 +383,8 @@ class InverseCheck:
     n_samples: int
     tolerance: float
     stable: bool
+    max_root: float = float("nan")  # largest root modulus of the inverse's linearised error recursion (nan: not known)
+    share_unstable: float = float("nan")  # share of the samples where that modulus exceeds 1
 
     def message(self, name: str) -> str:
         if self.stable:
@@ -390,8 +392,12 @@ class InverseCheck:
                     f"input span ({self.n_samples} samples, {self.n_clipped} clipped)")
         return (f"{name}: the inverse does not give back a reachable trajectory's input: its error grows to "
                 f"{self.max_error:.3g} of the input span (above {self.tolerance:g} from sample {self.first_sample} of "
-                f"{self.n_samples}; {self.n_clipped} clipped): the inverse recursion amplifies small errors or jumps "
-                "to another root, so it is not safe as a feedforward")
+                f"{self.n_samples}; {self.n_clipped} clipped): " + (
+                    f"its linearised error recursion has roots of modulus up to {self.max_root:.3g} (above 1 on "
+                    f"{100 * self.share_unstable:.0f} % of the samples), so it amplifies any error, rounding included"
+                    if self.max_root == self.max_root and self.max_root > 1.0 else
+                    "the inverse recursion amplifies small errors or jumps to another root")
+                + ", so it is not safe as a feedforward")
 
 
 def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2, **options) -> InverseCheck:
@@ -415,8 +421,11 @@ def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2
         err = np.where(inv.clipped, 0.0, np.abs(inv.u - u)) / span
         err = np.where(np.isfinite(err), err, np.inf)
         over = np.flatnonzero(err > tolerance)
+        roots = (fitted.model.inverse_recursion_radius(u, fitted.sample_time, fitted.params, fitted.input_range)
+                 if hasattr(fitted.model, "inverse_recursion_radius") else np.full(u.size, np.nan))
         check = InverseCheck(float(np.max(err)), int(over[0]) if over.size else -1, inv.n_clipped, u.size, tolerance,
-                             float(np.max(err)) <= tolerance)
+                             float(np.max(err)) <= tolerance, float(np.max(roots)),
+                             float(np.mean(roots > 1.0 + 1e-9)))
         if worst is None or check.max_error > worst.max_error:
             worst = check
     return worst

@@ -210,6 +210,43 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
     return u_out, clipped
 
 
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """Per sample k of the forward model driven with u, the largest root modulus of the inverse's
+    linearised error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0, c_j = dy(k)/du(k-j) with the
+    play and filter states held (module docstring, "Why the exact inverse diverges"). 0 at the first
+    two samples and where c0 = 0 (no root: the sample's input is not determined)."""
+    n = u.shape[0]
+    rho = np.zeros(n)
+    w = np.zeros(r_lo.shape[0])
+    xf = np.zeros(fa.shape[0])
+    u1 = u2 = u[0]
+    for k in range(n):
+        if k >= 2:
+            c0 = step_output(u[k], False, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                             fa, fb0, fb1, fpow, fw)[1]
+            h1 = 1e-7 * (1.0 + abs(u1))
+            c1 = (step_output(u[k], False, u1 + h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                              fa, fb0, fb1, fpow, fw)[0]
+                  - step_output(u[k], False, u1 - h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly,
+                                q, fa, fb0, fb1, fpow, fw)[0]) / (2.0 * h1)
+            c2 = q / (dt * dt)
+            if c0 != 0.0:
+                b = c1 / c0
+                c = c2 / c0
+                disc = b * b - 4.0 * c
+                if disc >= 0.0:
+                    sq = np.sqrt(disc)
+                    rho[k] = max(abs(-b + sq), abs(-b - sq)) / 2.0
+                else:
+                    rho[k] = np.sqrt(abs(c))  # complex pair: |z|^2 = c
+        step_commit(u[k], k == 0, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                    fa, fb0, fb1, fpow, fw)
+        u2 = u1
+        u1 = u[k]
+    return rho
+
+
 # --- the model-facing side ----------------------------------------------------------
 class StepInvertible:
     """Mixin for a model that can state its one-sample structure (``step_structure``):
@@ -243,6 +280,16 @@ class StepInvertible:
         r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
         return step_simulate(u, float(dt), np.ascontiguousarray(s.base), r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                              fa, fb0, fb1, fpow, fw)
+
+    def inverse_recursion_radius(self, u, dt: float, params, input_range=None) -> np.ndarray:
+        """Per sample of the forward response to u: the largest root modulus of the exact inverse's
+        linearised error recursion (``recursion_radius``). Above 1 the inverse amplifies any error in
+        its input (rounding included) by that factor per sample."""
+        u = self._check_input(u, dt)
+        s = self._structure(dt, params, input_range if input_range is not None else (u.min(), u.max()), u.size)
+        r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
+        return recursion_radius(u, float(dt), np.ascontiguousarray(s.base), r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                                fa, fb0, fb1, fpow, fw)
 
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
                n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:

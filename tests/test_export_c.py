@@ -162,11 +162,12 @@ def test_the_inverse_check_passes_a_monotone_p_i_and_names_an_inverse_that_loses
     model = get_model("classical-pi")
     params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
     good = check_inverse(FittedModel(model, params, RANGE, DT, {}))
-    assert good.stable and good.max_error < 1e-12 and good.first_sample == -1
+    assert good.stable and good.max_error < 1e-12 and good.first_sample == -1 and good.max_root <= 1.0
     # Table 2's MRPIM: the sample-by-sample inverse through q u'' and the envelopes loses the input
     bad = check_inverse(FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}))
     assert not bad.stable and bad.max_error > 1e-3 and bad.first_sample > 0
-    assert "not safe as a feedforward" in bad.message("mrpim")
+    assert bad.max_root > 1.0 and 0.0 < bad.share_unstable <= 1.0
+    assert "not safe as a feedforward" in bad.message("mrpim") and "roots of modulus up to" in bad.message("mrpim")
 
 
 def test_cli_export_warns_on_stderr_where_the_inverse_check_fails(tmp_path, capsys):

@@ -322,3 +322,37 @@ def test_non_pi_clipping_count_on_an_unreachable_reference(name):
     limited = m.invert(desired, DT, p, input_range=LIMITS, max_rate=50.0)  # 0.05 kV per sample at most
     assert np.max(np.abs(np.diff(limited.u))) <= 50.0 * DT + 1e-12
     assert np.all(limited.clipped[1000:1050])
+
+
+def test_inverse_recursion_roots_match_finite_differences_of_simulate():
+    """The exact inverse's error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0: its coefficients from
+    perturbing the inputs of ``simulate`` (slow reference), away from reversals, give the same roots."""
+    model = get_model("mrpim")
+    rng = np.random.default_rng(3)
+    dt = 1e-3
+    params = mrpim_params(rng, model, gamma=0.004, lam=0.003, q=2e-6)
+    t = np.arange(400) * dt
+    u = 1.5 - np.cos(2 * np.pi * 2.0 * t)  # reversals at 0, 250 ms
+    rng_in = (0.5, 2.5)
+    rho = model.inverse_recursion_radius(u, dt, params, rng_in)
+    assert rho[0] == rho[1] == 0.0 and np.all(np.isfinite(rho))
+    for k in (60, 130, 190, 330):
+        base = model.simulate(u[:k + 1], dt, params, input_range=rng_in)[k]
+        c = []
+        for j in range(3):
+            h = 1e-6
+            up = u[:k + 1].copy()
+            up[k - j] += h
+            dn = u[:k + 1].copy()
+            dn[k - j] -= h
+            c.append((model.simulate(up, dt, params, input_range=rng_in)[k]
+                      - model.simulate(dn, dt, params, input_range=rng_in)[k]) / (2 * h))
+        assert np.isfinite(base)
+        assert rho[k] == pytest.approx(np.max(np.abs(np.roots(c))), rel=1e-4)
+
+
+def test_a_rate_independent_model_has_no_inverse_recursion():
+    model = get_model("classical-pi")
+    params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
+    u = 1.5 - np.cos(np.linspace(0, 6 * np.pi, 300))
+    assert np.all(model.inverse_recursion_radius(u, 1e-3, params, (0.5, 2.5)) == 0.0)
