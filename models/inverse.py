@@ -49,9 +49,8 @@ Where each model is not invertible (the sample is then clipped as above):
   otherwise, and the output range at a sample is [y(u_lo), y(u_hi)] for a monotone model.
 * mrpim: the envelopes make y's slope in u differ on the two sides of u(k-1) by
   -/+ gamma/dt and lambda/dt per active play (x 100 for gamma = 0.1 s at 1 ms), so y is
-  generally non-monotone near the previous input; q u'' adds q/dt^2 to the slope (exact
-  inverse, but lightly damped internal dynamics: the input rings at about
-  sqrt(slope / q) when q > 0, and diverges for q < 0).
+  generally non-monotone near the previous input; q u'' adds q/dt^2 to the slope. The
+  inverse is exact but need not be stable (below).
 * rate-dependent-pi: thresholds grow with |u - u(k-1)|: the same kink at u(k-1).
 * mrpim+relaxation / +creep / +interference: as mrpim; the filters add c b1 u^p, the
   creep and the interference only shift the target.
@@ -59,6 +58,15 @@ Where each model is not invertible (the sample is then clipped as above):
   module docstring (branches.py for the two branch models).
 * mrpim+delay, +resonance, +saturation, bouc-wen-oscillator: not inverted here (each says
   why in ``inverse_unavailable``).
+
+Why the exact inverse diverges. With the play and filter states held, y(k) depends on u(k),
+u(k-1) (the envelopes' rate term, the first difference of q u'') and u(k-2) (q u''); an
+error e in the inverse's input therefore obeys c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 with
+c_j = dy(k)/du(k-j). Where a root of c0 z^2 + c1 z + c2 lies outside the unit circle (a zero
+of the model outside it) the recursion amplifies any error, rounding included, by that modulus
+per sample; no causal exact inverse is then stable. ``recursion_radius`` gives the largest
+modulus per sample (MRPIM fitted on the virtual DEA: up to 1.14 on the protocol's sines, with
+the envelopes the cause; docs/deploying.md); the export's inverse check reports it.
 
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
