@@ -197,3 +197,16 @@ def test_a_nearly_constant_column_next_to_the_intercept_is_fixed_and_kept_withou
     sep = _Stub(without_intercept, b, ["c0", "c1", "c2", "a12"]).sep
     sol = sep.solve_blocks([without_intercept], accurate=True)
     assert sol.fixed == {} and sol.linear[3] != 0.0
+
+
+def test_a_direction_the_bounds_pin_down_is_not_fixed():
+    rng = np.random.default_rng(7)
+    c1, c2 = rng.normal(size=(2, 60))
+    A = np.column_stack([c1, c2, c1 - c2])  # exactly dependent: c3 = c1 - c2
+    b = c1 - c2  # reached only through c3 when every weight is non-negative
+    sep = _Stub(A, b, ["w1", "w2", "w3"]).sep
+    sep.lin_lower = np.zeros(3)
+    sol = sep.solve_blocks([A], accurate=True)
+    assert sol.fixed == {} and sol.fitness < 1e-20 and sol.linear[2] > 0.99
+    sep.lin_lower = np.full(3, -np.inf)  # unbounded: the same direction is fixed at no cost
+    assert sep.solve_blocks([A], accurate=True).fixed == {"w3": 0.0}
