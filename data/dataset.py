@@ -33,8 +33,11 @@ import hashlib
 import io
 import math
 import os
+import re
 import shutil
+import stat
 import tempfile
+import zipfile
 import tomllib
 from collections import Counter
 from dataclasses import dataclass, field
@@ -48,6 +51,8 @@ from hysbench.models.errors import HysbenchError
 ROLES = ("identification", "validation")
 UNIFORM_STEP_TOLERANCE = 0.01
 MAX_MAGNITUDE = 1e100  # |value| of any column: squares summed over many samples stay finite
+MIN_MAGNITUDE = float(np.finfo(float).tiny)  # a non-zero |value| below it is subnormal: too few digits to scale
+MAX_RECORD_BYTES = 2**30  # an array file's columns, as float64 once loaded, read from its header before loading
 TOP_REQUIRED = ("name", "time_column", "input_column", "output_column", "records")
 TOP_OPTIONAL = ("description", "input_unit", "output_unit", "csv_columns", "delimiter")
 RECORD_REQUIRED = ("file", "role")
@@ -147,12 +152,16 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     """Read and check a dataset folder (or its dataset.toml)."""
     path = Path(path)
     toml_path = path if path.suffix == ".toml" else path / "dataset.toml"
+    if toml_path.exists() and not toml_path.is_file():
+        raise DatasetError(f"{toml_path}: not a regular file (a dataset is a folder holding dataset.toml)")
     if not toml_path.is_file():
         raise DatasetError(f"{toml_path}: no such dataset file (a dataset is a folder holding dataset.toml)")
     try:
         meta = tomllib.loads(toml_path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{toml_path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise DatasetError(f"{toml_path}: not valid TOML: arrays or tables nested too deeply") from None
     _check_keys(toml_path.name, meta, TOP_REQUIRED, TOP_OPTIONAL)
     for key in ("name", "time_column", "input_column", "output_column", "description", "input_unit", "output_unit"):
         if key in meta and not isinstance(meta[key], str):
@@ -262,16 +271,41 @@ def _load_record(folder: Path, index: int, rm: dict, columns, csv_columns, delim
         if not (isinstance(window, list) and len(window) == 2):
             raise DatasetError(f"{where}: window must be [start, end] in seconds")
         window = (_number(where, "window start", window[0]), _number(where, "window end", window[1]))
-    file_path = folder / file
-    if file_path.is_dir():
-        raise DatasetError(f"{where}: is a folder, not a record file ({file_path})")
-    if not file_path.is_file():
-        raise DatasetError(f"{where}: file not found ({file_path})")
+    file_path = record_path(folder, file, where)
     t, u, y = _read_columns(file_path, where, columns, csv_columns, delimiter)
     check_series(where, t, u, y, columns)
     record = Record(file=file, t=t, u=u, y=y, role=role, frequency_hz=freq, weight=weight, window=window)
     _check_output_span(where, record.y[record.scored])
     return record
+
+
+def record_path(folder: Path, file: str, where: str) -> Path:
+    """The record file's path: a relative ``file`` must stay inside the dataset folder (symbolic links
+    resolved), an absolute one is taken as it is; it must be a regular file."""
+    file_path = folder / file
+    if not os.path.isabs(file) and not Path(os.path.realpath(file_path)).is_relative_to(os.path.realpath(folder)):
+        raise DatasetError(f"{where}: a relative record path must stay inside the dataset folder "
+                           f"(use an absolute path for a file elsewhere)")
+    try:
+        mode = os.stat(file_path).st_mode
+    except FileNotFoundError:
+        raise DatasetError(f"{where}: file not found ({file_path})") from None
+    except OSError as exc:
+        raise DatasetError(f"{where}: cannot read record file: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
+        raise DatasetError(f"{where}: is a folder, not a record file ({file_path})")
+    if not stat.S_ISREG(mode):
+        raise DatasetError(f"{where}: not a regular file (a device, FIFO or socket); a record is a .csv or .npz file")
+    return file_path
+
+
+def fitting_problems(dataset: "Dataset") -> list[str]:
+    """Why no model can be identified on ``dataset`` as it is ('check' warns, commands that fit refuse)."""
+    if not dataset.identification:
+        return ["no identification records (every record has role 'validation'): nothing to fit on"]
+    if all(float(np.ptp(r.u)) == 0 for r in dataset.identification):
+        return ["the input is constant in every identification record: no hysteresis can be identified"]
+    return []
 
 
 def _check_output_span(where: str, y: np.ndarray) -> None:
@@ -284,16 +318,18 @@ def _check_output_span(where: str, y: np.ndarray) -> None:
 
 def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
     if path.suffix == ".npz":
+        _check_npz_size(path, where, columns)
         try:
             with np.load(path, allow_pickle=False) as z:
                 missing = [c for c in columns if c not in z.files]
                 if missing:
-                    raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} (has {', '.join(z.files)})")
+                    raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} "
+                                       f"(the file holds {len(z.files)} arrays)")
                 arrays = [np.asarray(z[c]) for c in columns]
         except DatasetError:
             raise
-        except Exception as exc:  # zip, pickle or format errors
-            raise DatasetError(f"{where}: cannot read .npz file: {exc}") from None
+        except Exception as exc:  # zip, pickle or format errors (named by type: no file content echoed)
+            raise DatasetError(f"{where}: cannot read .npz file ({type(exc).__name__})") from None
         for c, a in zip(columns, arrays):
             if a.ndim != 1:
                 raise DatasetError(f"{where}: column {c} must be 1-D, has shape {a.shape}")
@@ -305,7 +341,35 @@ def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
     return _read_csv(path, where, columns, csv_columns, delimiter)
 
 
+def _check_npz_size(path: Path, where: str, columns) -> None:
+    """Refuse, from the .npy headers alone, columns that would take more than MAX_RECORD_BYTES as float64
+    (a compressed file can be tiny and expand to gigabytes)."""
+    total = 0
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for c in columns:
+                try:
+                    member = zf.open(f"{c}.npy")
+                except KeyError:
+                    continue  # named as missing when loaded
+                with member:
+                    version = np.lib.format.read_magic(member)
+                    header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                              else np.lib.format.read_array_header_2_0)(member)
+                shape = header[0]
+                total += 8 * math.prod(int(n) for n in shape)
+    except DatasetError:
+        raise
+    except Exception as exc:  # not a zip, a bad header
+        raise DatasetError(f"{where}: cannot read .npz file ({type(exc).__name__})") from None
+    if total > MAX_RECORD_BYTES:
+        raise DatasetError(f"{where}: its columns would take {total / 2**20:.0f} MiB in memory, above the limit of "
+                           f"{MAX_RECORD_BYTES / 2**20:.0f} MiB per record (refused before loading)")
+
+
 def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
+    if path.stat().st_size > MAX_RECORD_BYTES:
+        raise DatasetError(f"{where}: CSV file larger than the limit of {MAX_RECORD_BYTES / 2**20:.0f} MiB per record")
     try:
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
@@ -322,8 +386,9 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         body = lines
         names_from = "csv_columns"
     missing = [c for c in columns if c not in header]
-    if missing:
-        raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} (has {', '.join(header)})")
+    if missing:  # the header's own text is not echoed: the file may be anything
+        raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} ({names_from} names "
+                           f"{len(header)} column{'s' if len(header) != 1 else ''}, not these)")
     for c in columns:
         if header.count(c) > 1:
             raise DatasetError(f"{where}: column name {c!r} appears {header.count(c)} times in {names_from}; "
@@ -345,11 +410,26 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         lengths = {len(r) for r in rows}
         if len(lengths) > 1 or max(lengths) < len(header):
             raise DatasetError(f"{where}: columns of unequal length (rows have {sorted(lengths)} fields)")
-        try:
-            data = np.array([[float(r[j]) if r[j].strip() else np.nan for j in wanted] for r in rows])
-        except ValueError as exc:
-            raise DatasetError(f"{where}: non-numeric value: {exc}") from None
+        data = np.empty((len(rows), len(wanted)))
+        for i, r in enumerate(rows):
+            for k, j in enumerate(wanted):
+                data[i, k] = _csv_number(r[j], where, i, columns[k])
     return [data[:, k].copy() for k in range(len(columns))]
+
+
+# a decimal number in ASCII digits (float() would also take '1_0' as 10, and digits of other scripts)
+CSV_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.ASCII | re.IGNORECASE)
+
+
+def _csv_number(cell: str, where: str, row: int, column: str) -> float:
+    """A CSV cell as a float, strictly: Python's float() would also read '1_0' as 10; an empty cell is NaN
+    (refused by ``check_series``). The cell's text is not echoed."""
+    cell = cell.strip()
+    if not cell:
+        return np.nan
+    if not CSV_NUMBER.fullmatch(cell):
+        raise DatasetError(f"{where}: non-numeric value in data row {row + 1}, column {column}")
+    return float(cell)
 
 
 def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
@@ -363,6 +443,11 @@ def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, column
         if not np.all(np.isfinite(a)):
             k = int(np.flatnonzero(~np.isfinite(a))[0])
             raise DatasetError(f"{where}: column {c} holds NaN or inf (first at sample {k})")
+        small = (a != 0) & (np.abs(a) < MIN_MAGNITUDE)
+        if np.any(small):
+            k = int(np.flatnonzero(small)[0])
+            raise DatasetError(f"{where}: column {c} holds {a[k]:g} at sample {k}, subnormal (below {MIN_MAGNITUDE:g} "
+                               "in magnitude): too few digits to compute with (rescale the column's unit)")
         if np.any(np.abs(a) > MAX_MAGNITUDE):
             k = int(np.flatnonzero(np.abs(a) > MAX_MAGNITUDE)[0])
             raise DatasetError(f"{where}: column {c} holds {a[k]:g} at sample {k}, beyond {MAX_MAGNITUDE:g} in "
@@ -426,6 +511,37 @@ def scored_window(where: str, t: np.ndarray, frequency_hz: float | None, window)
     if period is not None:
         return n - period, n
     return 0, n
+
+
+# --- scale -----------------------------------------------------------------
+ORDINARY_SCALE = (2.0**-100, 2.0**100)  # max |output| within: computed as it is
+
+
+def output_scale(dataset: Dataset) -> float:
+    """``scale_of_outputs`` of every record's output."""
+    return scale_of_outputs(r.y for r in dataset.records)
+
+
+def scale_of_outputs(outputs: Iterable[np.ndarray]) -> float:
+    """1 where max |output| lies in ORDINARY_SCALE, else the power of two 2^e with 2^e <= max |output| <
+    2^(e+1): dividing by it is exact, so e.g. data at 1e-200 or 1e+90 are computed at order one with every
+    digit kept (and data at ordinary scales are left untouched, bit for bit)."""
+    peak = max((float(np.max(np.abs(y))) for y in outputs if np.size(y)), default=0.0)
+    if ORDINARY_SCALE[0] <= peak <= ORDINARY_SCALE[1] or peak == 0.0:
+        return 1.0
+    return math.ldexp(0.5, math.frexp(peak)[1])
+
+
+def scaled_output(dataset: Dataset, scale: float) -> Dataset:
+    """A copy of ``dataset`` with every output divided by ``scale`` (a power of two: exact)."""
+    if scale == 1.0:
+        return dataset
+    records = [Record(file=r.file, t=r.t, u=r.u, y=r.y / scale, role=r.role, frequency_hz=r.frequency_hz,
+                      weight=r.weight, window=r.window, start=r.start, stop=r.stop) for r in dataset.records]
+    return Dataset(name=dataset.name, records=records, description=dataset.description,
+                   time_column=dataset.time_column, input_column=dataset.input_column,
+                   output_column=dataset.output_column, input_unit=dataset.input_unit,
+                   output_unit=dataset.output_unit, path=dataset.path)
 
 
 # --- writing ---------------------------------------------------------------

@@ -94,7 +94,7 @@ FINAL_TIME_S = 2000.0
 CREEP_TOLERANCE = 0.02  # cycle means within 2 % of the final peak-to-peak
 STABLE_PERIODS = 2  # stable periods after the creep transition in every record
 
-# The paper's figures (section 2.3) and the tolerances of issue 3.
+# The paper's figures (section 2.3) and the calibration's tolerances.
 CALIBRATION_TARGETS = {
     "p2p_change_pct": (-27.3, 2.0),  # 0.02 -> 1 Hz, stable period
     "width_change_pct": (21.8, 3.0),

@@ -9,7 +9,10 @@ Methods (see each module's docstring):
 * ``lsq`` -- scipy.optimize.least_squares over all parameters.
 * chains ``A+B`` run B from A's result; ``varpro+lsq`` and ``mpso+lsq`` are
   the polished forms (lsq starts exactly at the previous stage's parameters).
-* ``auto`` -- ``varpro`` for a model with a linear part, else ``lsq``.
+* ``native`` -- the model's own training (the black-box learners, trained by their
+  library: see native.py); the only method for such models.
+* ``auto`` -- ``native`` for a model trained by its own library, ``varpro`` for a model
+  with a linear part, else ``lsq``.
 
 Options common to all methods:
 
@@ -33,33 +36,37 @@ from typing import Mapping
 
 import numpy as np
 
-from hysbench.data.dataset import Dataset, load_dataset
+from hysbench.data.dataset import Dataset, fitting_problems, load_dataset
 from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
-from . import lsq, mpso, varpro
+from . import lsq, mpso, native, varpro
 from .base import Chain, Identifier
 from .errors import IdentificationError
 from .fit import Fit
 from .lsq import LeastSquares
 from .mpso import ParticleSwarm
+from .native import Native, is_native
 from .varpro import Varpro
 
-STAGES = {"varpro": varpro, "mpso": mpso, "lsq": lsq}
-IDENTIFIERS = {"varpro": Varpro, "mpso": ParticleSwarm, "lsq": LeastSquares}
-METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq")
+STAGES = {"varpro": varpro, "mpso": mpso, "lsq": lsq, "native": native}
+IDENTIFIERS = {"varpro": Varpro, "mpso": ParticleSwarm, "lsq": LeastSquares, "native": Native}
+METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq")  # the parameter searches
+NATIVE = "native"  # a model's own training (the black-box learners); the only method for them
 COMMON_OPTIONS = ("fit_on", "bounds", "start")
 # smallest allowed value of each numeric option (integers where the default is one)
 OPTION_MINIMUM = {"n_candidates": 0, "inertia_end": 0.0, "inertia_start": 0.0, "c1": 0.0, "c2": 0.0}
 
 
 def list_methods() -> list[str]:
-    return list(METHODS) + ["auto"]
+    return list(METHODS) + [NATIVE, "auto"]
 
 
 def applicable_methods(model: HysteresisModel | str) -> list[str]:
-    """The methods of ``METHODS`` that can identify this model."""
+    """The methods that can identify this model: ``METHODS`` that apply, or ``native`` alone."""
     model = get_model(model) if isinstance(model, str) else model
+    if is_native(model):
+        return [NATIVE]
     if model.n_params == 0:
         return []
     if model.has_linear_part:
@@ -72,13 +79,19 @@ def resolve_method(method: str, model: HysteresisModel) -> list[str]:
     if not isinstance(method, str) or not method:
         raise IdentificationError(f"method must be a name, got {method!r}")
     if method == "auto":
-        method = "varpro" if model.has_linear_part else "lsq"
+        method = "native" if is_native(model) else ("varpro" if model.has_linear_part else "lsq")
     stages = method.split("+")
     unknown = [s for s in stages if s not in STAGES]
     if unknown:
         raise IdentificationError(
             f"unknown method {method!r} for model {model.name!r}; methods: {', '.join(list_methods())}"
         )
+    if is_native(model) and stages != ["native"]:
+        raise IdentificationError(f"model {model.name!r} is trained by its own library: use method 'native' "
+                                  f"(not {method!r})")
+    if "native" in stages and (len(stages) > 1 or not is_native(model)):
+        raise IdentificationError(f"method {method!r} cannot identify model {model.name!r}: 'native' trains only "
+                                  "the black-box models, alone")
     if "varpro" in stages and not model.has_linear_part:
         raise IdentificationError(
             f"method {method!r} cannot identify model {model.name!r}: it has no linear parameters to solve "
@@ -142,6 +155,9 @@ def identify(model: HysteresisModel | str, dataset: Dataset | str | os.PathLike,
         raise IdentificationError(f"dataset must be a Dataset or a folder, got {type(dataset).__name__}")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
         raise IdentificationError(f"seed must be a non-negative integer, got {seed!r}")
+    if options.get("fit_on") is None and dataset.identification:  # (none at all: the identifier names the method)
+        for problem in fitting_problems(dataset):  # fitted on the identification records: they must vary
+            raise IdentificationError(f"dataset {dataset.name!r}: {problem}")
     identifier = build_identifier(method, model, options)
     common = {k: options[k] for k in COMMON_OPTIONS if k in options}
     return identifier.fit(model, dataset, seed, **common)

@@ -109,7 +109,12 @@ class Identifier(ABC):
         residual = problem.residuals_batch(problem.vector(params)[None])[0]
         problem.n_evaluations -= 1  # the final scoring is not part of the search
         finite = bool(np.all(np.isfinite(residual)))
-        fitness = float(residual @ residual) if finite else math.nan
+        scaled_fitness = float(residual @ residual) if finite else math.nan
+        fitness = scaled_fitness * problem.output_scale**2
+        if fitness == 0.0 < scaled_fitness or math.isinf(fitness) and math.isfinite(scaled_fitness):
+            notes.append(f"fitness (eq. 9) is {scaled_fitness:.6g} x 2^{2 * math.frexp(problem.output_scale)[1] - 2} "
+                         "in the output's unit squared, beyond the range of a float: shown as "
+                         f"{fitness:g}; e_m and e_rms are exact")
         if finite:
             success, message = True, f"identified with {name} in {problem.n_evaluations} evaluations"
         else:

@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from hysbench.data.protocol import input_range as records_input_range
-from hysbench.data.dataset import Record
+from hysbench.data.dataset import Record, scale_of_outputs
 from hysbench.data.excitations import shortest_period
 from hysbench.models.base import DataScale, HysteresisModel
 
@@ -43,6 +43,12 @@ def data_scale(records: Sequence[Record]) -> DataScale:
     return DataScale.of([r.u for r in records], [r.y for r in records], time=min(drive_time(r) for r in records))
 
 
+def fit_output_scale(records: Sequence[Record]) -> float:
+    """The power of two the residuals are divided by (``scale_of_outputs`` of the scored outputs: 1 at
+    ordinary scales, so fits there are unchanged to the last bit; data at 1e-200 or 1e+90 fitted at order one)."""
+    return scale_of_outputs(r.y[r.scored] for r in records)
+
+
 @dataclass
 class Problem:
     """A prepared identification problem; see the module docstring."""
@@ -58,6 +64,7 @@ class Problem:
     best_fitness: float = math.inf
     n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
     data_start: dict | None = None  # the model's start from the data (``start_from_data``), if it has one
+    output_scale: float = 1.0  # residuals are divided by it (``fit_output_scale``); fitness is reported unscaled
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
@@ -87,7 +94,8 @@ class Problem:
                 raise IdentificationError(f"bounds for {name!r}: low {lo!r} is not <= high {hi!r}")
             i = names.index(name)
             lower[i], upper[i] = lo, hi
-        return cls(model, records, scale, lower, upper, records_input_range(records), data_start=data_start)
+        return cls(model, records, scale, lower, upper, records_input_range(records), data_start=data_start,
+                   output_scale=fit_output_scale(records))
 
     @classmethod
     def for_fit(cls, fit, dataset) -> "Problem":
@@ -115,7 +123,8 @@ class Problem:
 
     # --- evaluation ------------------------------------------------------
     def residuals_batch(self, P: np.ndarray) -> np.ndarray:
-        """Weighted residuals (n_sets, n_rows) for parameter sets in ``param_names`` order.
+        """Weighted residuals (n_sets, n_rows) for parameter sets in ``param_names`` order, divided by
+        ``output_scale`` (a power of two, 1 at ordinary scales: ``fit_output_scale``).
 
         Each record is simulated for the whole batch in one
         ``simulate_window_batch`` call (split only when the output would exceed
@@ -130,6 +139,7 @@ class Problem:
         starts = np.cumsum([0] + [r.n_scored for r in self.records])
         # the base class's window is a slice of the full output: size its batches by the record
         windowed = type(self.model).simulate_window_batch is not HysteresisModel.simulate_window_batch
+        scale = self.output_scale
 
         def one(m):
             r, w, col = self.records[m], self.row_weights[m], starts[m]
@@ -137,7 +147,7 @@ class Problem:
             ya = r.y[r.scored]
             for a in range(0, n_set, chunk):
                 Y = self.model.simulate_window_batch(r.u, r.dt, P[a:a + chunk], r.scored, input_range=self.input_range)
-                out[a:a + chunk, col:col + r.n_scored] = w * (Y - ya)
+                out[a:a + chunk, col:col + r.n_scored] = w * (Y - ya) if scale == 1.0 else w * ((Y - ya) / scale)
 
         for m in range(len(self.records)):
             one(m)
@@ -154,7 +164,7 @@ class Problem:
         with np.errstate(over="ignore", invalid="ignore"):
             f = np.einsum("ij,ij->i", R, R)
         f[~np.isfinite(f)] = np.inf
-        self.note(float(np.min(f)) if f.size else math.inf)
+        self.note(float(np.min(f)) * self.output_scale**2 if f.size else math.inf)
         return f
 
     def note(self, fitness: float) -> None:

@@ -98,7 +98,7 @@ class LinearSolution:
 
     linear: np.ndarray  # linear parameters in ``model.linear_names`` order
     fitness: float  # eq. 9
-    residuals: np.ndarray  # weighted, stacked over records
+    residuals: np.ndarray  # weighted, stacked over records, divided by the problem's output_scale (order one)
     condition_number: float  # of the column-scaled weighted design matrix
     regularised: bool
     ridge: float  # alpha / s_max (0 when not regularised)
@@ -129,12 +129,15 @@ class SeparableProblem:
         self.nonlinear_names = model.nonlinear_names
         self.lin_idx = np.array([names.index(n) for n in self.linear_names], dtype=int)
         self.nl_idx = np.array([names.index(n) for n in self.nonlinear_names], dtype=int)
-        self.lin_lower = problem.lower[self.lin_idx]
-        self.lin_upper = problem.upper[self.lin_idx]
+        # solved at order one: outputs, linear parameters and their bounds divided by the power of two
+        # problem.output_scale (1 at ordinary scales); linear parameters and fitness are returned unscaled
+        self.output_scale = problem.output_scale
+        self.lin_lower = problem.lower[self.lin_idx] / self.output_scale
+        self.lin_upper = problem.upper[self.lin_idx] / self.output_scale
         self.nl_lower = problem.lower[self.nl_idx]
         self.nl_upper = problem.upper[self.nl_idx]
         w = problem.row_weights
-        self._ys = [np.ascontiguousarray(r.y[r.scored]) for r in problem.records]
+        self._ys = [np.ascontiguousarray(r.y[r.scored]) / self.output_scale for r in problem.records]
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
 
     # --- design matrices ---------------------------------------------------
@@ -292,15 +295,17 @@ class SeparableProblem:
                 top = np.argsort(-np.abs(load))[:4]
                 weak.append((math.sqrt(ev[k] / ev_max) if ev_max > 0 else 0.0,
                              {names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
+        scale = self.output_scale
         fixed: dict = {}
         if keep is not None:
             x_all = np.zeros(n)
             x_all[keep] = x
             x_all[~keep] = x_fixed
-            fixed = {nm: float(v) for nm, v in zip(np.array(self.linear_names)[~keep], x_fixed)}
+            fixed = {nm: float(v * scale) for nm, v in zip(np.array(self.linear_names)[~keep], x_fixed)}
             x = x_all
-        return LinearSolution(x, fit, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
-                              bounded, weak, undetermined_count(ev) if accurate else 0, fixed)
+        return LinearSolution(x * scale, fit * scale * scale, r, cond, regularised,
+                              math.sqrt(alpha2 / ev_max) if regularised else 0.0, bounded, weak,
+                              undetermined_count(ev) if accurate else 0, fixed)
 
     def _Atb(self, blocks):
         return sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(self.problem.row_weights, blocks, self._ys))
@@ -431,7 +436,7 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
                              n_evaluations=problem.n_evaluations - n0)
                 searches.append(entry)
                 continue
-            f = float(2.0 * res.cost)
+            f = float(2.0 * res.cost) * sep.output_scale**2
             end = full(res.x)
             entry.update(end=[float(v) for v in from_s(end)], fitness=f, status=int(res.status),
                          message=str(res.message), n_evaluations=problem.n_evaluations - n0)

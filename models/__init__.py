@@ -2,6 +2,7 @@
 
 from . import numba_cache  # noqa: F401  (first: numba's cache folder, before any kernel is defined)
 from .base import DataScale, HysteresisModel, Parameter
+from .black_box import NeuralNARX, SparseNARX
 from .bouc_wen import BoucWen
 from .bouc_wen_oscillator import BoucWenOscillator
 from .classical_pi import ClassicalPI
@@ -14,6 +15,7 @@ from .mrpim import MRPIM, PAPER_TABLE2
 from .preisach import Preisach
 from .rate_dependent_pi import RateDependentPI
 from .stepper import InverseStepper, Stepper
+from .recurrent import RecurrentNetwork
 from .registry import get_model, list_models, register
 from .viscoelastic import Viscoelastic
 from .window import Window
@@ -29,6 +31,11 @@ register(Preisach.name, Preisach)
 register(RateDependentPI.name, RateDependentPI)
 # the Bouc-Wen benchmark's structure: force -> displacement, not a DEA model
 register(BoucWenOscillator.name, BoucWenOscillator, in_matrix=False)
+# black-box learners, trained by their own library (method "native")
+register(SparseNARX.name, SparseNARX)
+register(NeuralNARX.name, NeuralNARX)
+# trains with the optional extra [neural] (PyTorch): named with --models, not in the default matrix
+register(RecurrentNetwork.name, RecurrentNetwork, in_matrix=False)
 # mrpim+relaxation, mrpim+delay, ... (see extended.py); the diagnosis names relaxation on the
 # default dataset (results/diagnosis.md), so that extension joins the default matrix.
 register_extensions(MRPIM.name, in_matrix=("relaxation",))
@@ -49,11 +56,14 @@ __all__ = [
     "MRPIM",
     "ModelError",
     "ModelFileError",
+    "NeuralNARX",
     "PAPER_TABLE2",
     "Parameter",
     "Preisach",
     "RateDependentPI",
     "Stepper",
+    "RecurrentNetwork",
+    "SparseNARX",
     "Viscoelastic",
     "Window",
     "get_model",

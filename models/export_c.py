@@ -397,7 +397,7 @@ class InverseCheck:
                     f"{100 * self.share_unstable:.0f} % of the samples), so it amplifies any error, rounding included"
                     if self.max_root == self.max_root and self.max_root > 1.0 else
                     "the inverse recursion amplifies small errors or jumps to another root")
-                + "; it is not safe as a feedforward")
+                + ", so it is not safe as a feedforward")
 
 
 def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2, **options) -> InverseCheck:

@@ -1,24 +1,22 @@
 """The causes kept under "also" checked on the validation records (``validation.check_also``): each on top of
-what was kept before it, as a named cause is confirmed. Reported, the verdict unchanged. The cases are draws of
-the accuracy benchmark's plan of seed 53 (``planted``, no extension code)."""
+what was kept before it, as a named cause is confirmed. Reported, the verdict unchanged. The cases are planted
+(``planted``, no extension code)."""
 
 from __future__ import annotations
 
 import pytest
 
-from hysbench.benchmarks.diagnosis import diagnose
-from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import verdict_lines
-from hysbench.benchmarks.diagnosis.selection import Z_CONFIRM
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis_accuracy.shares import also_on_validation
+from diagnosed_cases import diagnosed
 
 
 def test_an_unplanted_cause_kept_under_also_that_fails_on_validation_is_said_to():
-    """A 2nd-order mode planted on the Table 2 MRPIM under triangles (case 68): the mode is named and confirmed; a
+    """A 2nd-order mode planted on the Table 2 MRPIM under triangles: the mode is named and confirmed; a
     two-time-constant relaxation kept on top of it on the held-out identification records makes the validation
     records' residual many times larger."""
-    ds, _ = planted_case(("resonance",), "mrpim", "triangles", 5300068)
-    d = diagnose(ds, seed=0, experiments=False)
+    d, _ = diagnosed(("resonance",), "mrpim", "triangles", 5300068)
     assert d.cause == "resonance" and d.confirmed
     assert [a["cause"] for a in d.also_check] == [c.cause for c in d.also]
     check = next(a for a in d.also_check if a["cause"] == "relaxation")
@@ -33,12 +31,11 @@ def test_an_unplanted_cause_kept_under_also_that_fails_on_validation_is_said_to(
     (("relaxation", "interference"), "sines", 5300026, "relaxation", "interference"),  # a line on top, phase per record
 ])
 def test_a_planted_cause_kept_under_also_is_borne_out_on_validation(kinds, drive, seed, named, kept):
-    ds, _ = planted_case(kinds, "mrpim", drive, seed)
-    d = diagnose(ds, seed=0, experiments=False)
+    d, _ = diagnosed(kinds, "mrpim", drive, seed)
     assert d.cause == named and kept in [c.cause for c in d.also]
     check = next(a for a in d.also_check if a["cause"] == kept)
     assert check["checked"] and check["borne_out"], check
-    assert check["explained_whole"] > 0 and check["z_whole"] >= Z_CONFIRM
+    assert check["explained_whole"] > 0 and check["z_whole"] >= Policy().z_confirm
     if kept == "interference":
         assert check["interference_check"]["same_amplitude"]
 

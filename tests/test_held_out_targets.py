@@ -14,13 +14,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
-from hysbench.benchmarks.diagnosis_accuracy.planted import planted_case
 from hysbench.benchmarks.diagnosis.report import not_held_out_lines
 from hysbench.benchmarks.diagnosis.interference import on_top
-from hysbench.benchmarks.diagnosis.screen import BEYOND_RANGE, beyond_others, held_out_windows
+from hysbench.benchmarks.diagnosis.policy import Policy
+from hysbench.benchmarks.diagnosis.screen import beyond_others, held_out_windows
 from hysbench.benchmarks.diagnosis.selection import Folds, carried_by_one_record, score
+from diagnosed_cases import diagnosed
+
+BEYOND_RANGE = Policy().beyond_range
 
 ranges = st.lists(st.tuples(st.floats(-5, 5), st.floats(0.01, 5)), min_size=1, max_size=5)
 
@@ -49,7 +51,7 @@ def test_how_far_a_record_goes_beyond_the_others_against_a_slow_reference(spec):
 
 def _slow_windows(inputs: list[np.ndarray]) -> list[int]:
     """Sample by sample: a record is predicted until its input first leaves the others' range widened by
-    ``BEYOND_RANGE`` of the span of all (whole if it never does, or if fewer than two never do)."""
+    ``beyond_range`` of the span of all (whole if it never does, or if fewer than two never do)."""
     everything = np.concatenate(inputs)
     span = everything.max() - everything.min()
     out = []
@@ -71,17 +73,17 @@ shapes = st.lists(st.tuples(st.floats(-5, 5), st.floats(0.01, 5), st.integers(0,
 @given(shapes)
 def test_how_much_of_each_record_is_predicted_against_a_slow_reference(spec):
     inputs = [lo + width * np.random.default_rng(seed).random(40) for lo, width, seed in spec]
-    assert held_out_windows(inputs) == _slow_windows(inputs)
+    assert held_out_windows(inputs, BEYOND_RANGE) == _slow_windows(inputs)
 
 
 def test_a_record_beyond_the_others_range_is_predicted_up_to_where_it_first_leaves_it():
     narrow, middle = np.linspace(0.5, 1.9, 50), np.linspace(0.7, 2.3, 50)
     wide = np.linspace(0.5, 2.5, 50)  # 0.2 above 2.3 at its end (10 % of the span)
     first = int(np.argmax(wide > 2.3 + BEYOND_RANGE * 2.0))
-    assert held_out_windows([narrow, wide, middle]) == [50, first, 50]
+    assert held_out_windows([narrow, wide, middle], BEYOND_RANGE) == [50, first, 50]
     assert 0 < first < 50
-    assert held_out_windows([wide, wide + 0.05]) == [50, 50]  # two records: both stay whole
-    assert held_out_windows([narrow, middle, wide[::-1]]) == [50, 50, 0]  # beyond from its first sample
+    assert held_out_windows([wide, wide + 0.05], BEYOND_RANGE) == [50, 50]  # two records: both stay whole
+    assert held_out_windows([narrow, middle, wide[::-1]], BEYOND_RANGE) == [50, 50, 0]  # beyond from its first sample
 
 
 @settings(max_examples=50, deadline=None)
@@ -148,14 +150,13 @@ def test_a_line_on_top_is_phased_on_the_predicted_rows_alone():
 
 
 def test_a_creep_on_multisines_is_named_when_the_widest_record_is_predicted_only_within_the_others_range():
-    """Plan seed 36 case 189: a logarithmic creep (t_c 23 s, 4.3 % of the output's range) on MRPIM multisines.
-    The second identification record's input reaches 2.50 kV, the others 1.96 and 2.31 kV (9 % of the span
-    beyond). Fitted on the other two, the base model's prediction of it is 6 times its training misfit, and
-    with creep's column 15 times: predicted whole, creep's held-out gain was -278 % although it brought the
-    other two records to their noise, and the verdict was ``none``. That record first leaves the others' range
-    at 12.15 s of its 15; predicted up to there, creep is named on all three records."""
-    ds, truth = planted_case(("creep",), "mrpim", "multisines", 3600189)
-    d = diagnose(ds, seed=0, experiments=False)
+    """A logarithmic creep (t_c 23 s, 4.3 % of the output's range) on MRPIM multisines. The second
+    identification record's input reaches 2.50 kV, the others 1.96 and 2.31 kV (9 % of the span beyond).
+    Fitted on the other two, the base model's prediction of it is 6 times its training misfit, and with
+    creep's column 15 times: predicted whole, it would swamp what creep brings to the other two records. That
+    record first leaves the others' range at 12.15 s of its 15; predicted up to there, creep is named on all
+    three records."""
+    d, truth = diagnosed(("creep",), "mrpim", "multisines", 3600189)
     s = d.screen
     assert s.held_out == [True, True, True]
     assert s.scored_rows[0] == s.parts[0].rows.size and s.scored_rows[2] == s.parts[2].rows.size
@@ -172,25 +173,25 @@ def test_a_creep_on_multisines_is_named_when_the_widest_record_is_predicted_only
 
 
 def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_others_range():
-    """A 6.09 Hz mode (damping 0.15) on virtual-DEA multisines (plan seed 39 case 96). The first identification
-    record's input goes 5.6 % of the span beyond the others', first at 13.25 s of its 15; predicted up to
-    there, the physics' relaxation is named, the mode under "also" within 25 % in frequency (in session 38,
-    with that record not predicted at all, the same; before it a partial relaxation completed by the mode)."""
-    ds, truth = planted_case(("resonance",), "virtual-dea", "multisines", 3900096)
-    d = diagnose(ds, seed=0, experiments=False)
+    """A 6.09 Hz mode (damping 0.15) on virtual-DEA multisines. The first identification record's input goes
+    5.6 % of the span beyond the others', first at 13.25 s of its 15; predicted up to there, the physics'
+    relaxation is named by itself (not as a partial cause completed on top), the mode under "also" within 25 %
+    in frequency."""
+    d, truth = diagnosed(("resonance",), "virtual-dea", "multisines", 3900096)
     assert d.screen.held_out == [True, True, True]
     assert d.screen.scored_rows[0] < d.screen.parts[0].rows.size
-    assert d.cause == "relaxation" and "two causes at once" not in d.verdict.reason, d.verdict.reason
+    assert d.cause == "relaxation", d.verdict.reason
+    assert "complete-partial" not in [t["rule"] for t in d.trace]
     also = {c.cause: c for c in d.also}
     assert "resonance" in also
     assert parameter_errors(truth, "resonance", also["resonance"].estimates)["natural_frequency_hz"] <= 0.25
 
 
 def test_the_report_names_a_record_held_out_in_part_with_its_own_time_or_not_predicted():
-    d = SimpleNamespace(settings={"not_held_out": [
+    d = SimpleNamespace(policy=Policy(), settings={"not_held_out": [
         {"record": "a.csv", "beyond_others_range": 0.093, "predicted_share": 0.5, "held_out_until_s": 107.5},
         {"record": "b.csv", "beyond_others_range": 0.2, "predicted_share": 0.0, "held_out_until_s": None}]})
     text = " ".join(not_held_out_lines(d))
     assert "a.csv (predicted up to t = 107.5 s, 50 % of it; beyond by 9 % of the input span)" in text
     assert "b.csv (not predicted; beyond by 20 % of the input span)" in text
-    assert not_held_out_lines(SimpleNamespace(settings={})) == []
+    assert not_held_out_lines(SimpleNamespace(policy=Policy(), settings={})) == []

@@ -36,6 +36,12 @@ INTEGERS = [
     ("preisach", "grid_size", 1, 100), ("elliptical", "poly_order", 1, 8), ("dual-polynomial", "order", 2, 12),
     ("viscoelastic", "n_branches", 0, 8), ("viscoelastic", "warmup_stride", 1, 1000),
     ("bouc-wen-oscillator", "n_substeps", 1, 1000), ("mrpim+relaxation", "n_relaxation", 1, 6),
+    ("narx-sparse", "n_output_lags", 1, 20), ("narx-sparse", "n_input_lags", 1, 20), ("narx-sparse", "degree", 1, 5),
+    ("narx-sparse", "n_thresholds", 1, 100), ("narx-sparse", "max_iter", 1, 10_000),
+    ("narx-mlp", "n_output_lags", 1, 20), ("narx-mlp", "n_input_lags", 1, 20), ("narx-mlp", "width", 1, 1024),
+    ("narx-mlp", "depth", 1, 8), ("narx-mlp", "max_epochs", 1, 100_000), ("narx-mlp", "max_rows", 10, 10_000_000),
+    ("narx-mlp", "seed", 0, 2**32 - 1), ("gru", "width", 1, 1024), ("gru", "window", 2, 1_000_000),
+    ("gru", "washout", 0, 1_000_000), ("gru", "max_epochs", 1, 100_000), ("gru", "seed", 0, 2**32 - 1),
 ]
 
 

@@ -14,12 +14,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import parameter_errors
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED
 from hysbench.benchmarks.diagnosis.interference import JointLine, fold_frequencies
-from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available, planted_case
+from hysbench.benchmarks.diagnosis_accuracy.planted import piezo_available
 from hysbench.benchmarks.diagnosis.selection import Folds, heldout_errors, heldout_null
+from diagnosed_cases import diagnosed
 
 
 def _fake_screen(rng, sizes, dt, p):
@@ -70,17 +70,16 @@ def test_a_joint_line_is_the_least_squares_fit_of_part_and_line_together(seed, n
 def _piezo_line_near_a_harmonic():
     if not piezo_available():
         pytest.skip("the accuracy benchmark's piezo recording is not present")
-    return planted_case(("interference",), "piezo", "sines", 3500044)  # seed 35, case 44
+    return diagnosed(("interference",), "piezo", "sines", 3500044)
 
 
 def test_a_line_near_a_drive_harmonic_keeps_its_amplitude_in_every_fold():
-    """Seed 35 case 44: a 3.89 Hz line (amplitude 0.280) on the piezo recording's two 2-s records of the 1 Hz
-    drive, 0.11 Hz from its 4th harmonic. Chosen on the base's training residual, fold 0 (trained on record 1,
-    where the base took up much of the line) found 0.08 at 3.62 Hz, the folds disagreed and the verdict was
-    `unexplained` (before session 40). Fitted jointly with the base, both folds find the line within their
-    resolution (0.5 Hz) and its amplitude within 50 %, and it is named, its frequency within 1 %."""
-    ds, truth = _piezo_line_near_a_harmonic()
-    d = diagnose(ds, seed=0, experiments=False)
+    """A 3.89 Hz line (amplitude 0.280) on the piezo recording's two 2-s records of the 1 Hz drive, 0.11 Hz
+    from its 4th harmonic. Chosen on the base's training residual alone, fold 0 (trained on record 1, where the
+    base takes up much of the line) finds another frequency. Fitted jointly with the base, both folds find the
+    line within their resolution (0.5 Hz) and its amplitude within 50 %, and it is named, its frequency within
+    1 %."""
+    d, truth = _piezo_line_near_a_harmonic()
     s, folds = d.screen, Folds.of(d.screen)
     planted = truth["effects"]["interference"]
     null_train = []
@@ -99,20 +98,19 @@ def test_a_line_near_a_drive_harmonic_keeps_its_amplitude_in_every_fold():
 def _piezo_dead_zone():
     if not piezo_available():
         pytest.skip("the accuracy benchmark's piezo recording is not present")
-    return planted_case(("dead-zone",), "piezo", "sines", 4200085)  # seed 42, case 85
+    return diagnosed(("dead-zone",), "piezo", "sines", 4200085)
 
 
 def test_a_line_locked_to_the_drive_is_scored_on_the_residual_of_the_base_fitted_alone():
-    """Seed 42 case 85: a dead zone (outside the vocabulary) on the piezo recording. The whole-record line sits
+    """A dead zone (outside the vocabulary) on the piezo recording. The whole-record line sits
     at a drive harmonic with one phase in both records: no disturbance but the base's own misfit there, which
     shows as a rival of the partial clip (``selection.not_specific``). Its held-out residual against a slow
     reference: per fold the base fitted on the other record alone (``screen.solve``), the line's amplitude the
     rms of that record's amplitude at the frequency in the base's training residual (numpy lstsq of a sin and a
-    cos), its phase fitted on the held-out record's scored rows. With session 40's joint line the base took up
-    part of its own misfit, the line understated it, and the clip was named (wrong); so scored, the misfit
-    locked to the drive predicts about as well and the verdict is `unexplained`."""
-    ds, _ = _piezo_dead_zone()
-    d = diagnose(ds, seed=0, experiments=False)
+    cos), its phase fitted on the held-out record's scored rows. (Fitted jointly, the base would take up part of
+    its own misfit and the line understate it.) So scored, the misfit locked to the drive predicts about as
+    well as the partial clip and removes another part: the verdict is `unexplained`."""
+    d, _ = _piezo_dead_zone()
     s, folds = d.screen, Folds.of(d.screen)
     c = next(c for c in d.candidates if c.cause == "interference")
     assert c.limit == DRIVE_LOCKED
@@ -135,4 +133,5 @@ def test_a_line_locked_to_the_drive_is_scored_on_the_residual_of_the_base_fitted
     got, _ = heldout_errors(s, folds, c)
     assert np.allclose(got, expected, rtol=0, atol=1e-9 * np.abs(s.y).max())
     assert d.cause == "unexplained", d.verdict.reason
-    assert "a misfit locked to the drive" in d.verdict.reason
+    not_named = next(t for t in d.trace if t["rule"] == "partial-not-specific")
+    assert "drive-locked" in not_named["inputs"]["not_specific"]["rivals"], d.trace

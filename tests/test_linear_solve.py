@@ -142,16 +142,19 @@ def test_undetermined_count_from_the_spectrum():
 class _Stub:
     """The few attributes SeparableProblem's linear solve reads, for a plain design (one record, weight 1)."""
 
-    def __init__(self, A, y, names):
+    def __init__(self, A, y, names, output_scale=1.0, lower=None):
         from types import SimpleNamespace
         from hysbench.identification.varpro import SeparableProblem
         self.sep = object.__new__(SeparableProblem)
         self.sep.problem = SimpleNamespace(row_weights=[1.0], n_nonfinite=0)
         self.sep.linear_names = tuple(names)
-        self.sep.lin_lower = np.full(len(names), -np.inf)
+        # as SeparableProblem.__init__: data and linear bounds divided by the output scale
+        self.sep.output_scale = output_scale
+        lower = np.full(len(names), -np.inf) if lower is None else np.asarray(lower, dtype=float)
+        self.sep.lin_lower = lower / output_scale
         self.sep.lin_upper = np.full(len(names), np.inf)
-        self.sep._ys = [y]
-        self.sep.b = y.copy()
+        self.sep._ys = [y / output_scale]
+        self.sep.b = y / output_scale
         self.sep.max_condition = 1e6
 
 
@@ -170,6 +173,19 @@ def test_varpro_solve_fixes_the_constant_and_repeated_columns_at_zero():
     # the residual is the least-squares one of the full design
     full = np.linalg.lstsq(A, b, rcond=None)[0]
     assert sol.fitness == pytest.approx(float(np.sum((A @ full - b) ** 2)), rel=1e-9)
+
+
+def test_varpro_solve_with_an_output_scale_returns_unscaled_parameters_and_fixed_values():
+    A, b = _with_constant_and_duplicate(3)
+    names = ["offset", "a1", "a2", "a3", "a4", "a12", "a2_copy"]
+    lower = np.full(len(names), -np.inf)
+    lower[5] = 0.25  # the constant column's weight cannot be 0: it is fixed at its bound nearest 0
+    plain = _Stub(A, b, names, lower=lower).sep.solve_blocks([A], accurate=True)
+    scaled = _Stub(A, b, names, output_scale=2.0 ** 40, lower=lower).sep.solve_blocks([A], accurate=True)
+    assert plain.fixed == {"a12": 0.25, "a2_copy": 0.0}
+    assert scaled.fixed == plain.fixed
+    np.testing.assert_allclose(scaled.linear, plain.linear, rtol=1e-12)
+    assert scaled.fitness == pytest.approx(plain.fitness, rel=1e-12)
 
 
 def test_varpro_solve_of_a_determined_design_is_unchanged_bit_for_bit():

@@ -14,6 +14,7 @@ from importlib.metadata import PackageNotFoundError, version as _dist_version
 import importlib
 import sys
 
+from hysbench.data.files import CREATED_FOLDERS, remove_created_empty_folders
 from hysbench.models.errors import HysbenchError
 
 from .common import OneLineParser
@@ -63,16 +64,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    for stream in (sys.stdout, sys.stderr):  # a path is printed as the OS gave it, whatever its bytes
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="surrogateescape" if stream is sys.stdout else "backslashreplace")
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error already printed in one line (2)
         return int(exc.code or 0)
+    CREATED_FOLDERS.clear()  # only this command's folders are removed on a refusal
     try:
         return int(importlib.import_module(args._module).main(args) or 0)
     except HysbenchError as exc:
+        remove_created_empty_folders()
         print(f"hysbench {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        remove_created_empty_folders()
         print(f"hysbench {args.command}: interrupted", file=sys.stderr)
         return 130
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from hysbench.data.dataset import load_dataset
+import sys
+
+from hysbench.data.dataset import fitting_problems, load_dataset
 
 from .common import add_dataset_argument, dataset_paths
 
@@ -24,4 +26,6 @@ def main(args) -> int:
         f = f"{r.frequency_hz:g}" if r.frequency_hz else "-"
         scored = f"{r.t[r.start]:.6g}-{r.t[r.stop - 1]:.6g} s"
         print(f"{r.file:<28} {r.role:<15} {f:>8} {r.weight:>6g} {r.t.size:>9} {r.dt:>10.4g} {scored:>16}")
+    for problem in fitting_problems(ds):  # loadable, but no command can fit on it: say so
+        print(f"hysbench check: warning: {problem}", file=sys.stderr)
     return 0

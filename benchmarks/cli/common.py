@@ -89,7 +89,10 @@ def parse_key_values(items: list[str], flag: str) -> dict:
         key = key.strip()
         if not sep or not key:
             raise CommandError(f"{flag} {item!r} is not KEY=VALUE")
-        out[key] = parse_value(raw)
+        try:
+            out[key] = parse_value(raw)
+        except RecursionError:
+            raise CommandError(f"{flag} {key}=...: value nested too deeply") from None
     return out
 
 

@@ -109,6 +109,10 @@ def manifest(args, csv_path: Path, header: list[str] | None, columns: list[int],
 
 def main(args) -> int:
     csv_path = Path(args.csv)
+    if csv_path.is_dir():
+        raise CommandError(f"{csv_path}: is a folder; dataset init takes the CSV file itself")
+    if csv_path.exists() and not csv_path.is_file():
+        raise CommandError(f"{csv_path}: not a regular file (a device, FIFO or socket); dataset init takes a CSV file")
     if not csv_path.is_file():
         raise CommandError(f"{csv_path}: no such file")
     target = csv_path.parent / "dataset.toml"

@@ -12,11 +12,14 @@ the extended model.
 from __future__ import annotations
 
 import argparse
+import math
 
+from hysbench.data.dataset import load_dataset, output_scale, scaled_output
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, dataset_paths,
                                             integer_at_least, positive_int, timed_progress)
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.report import verdict_lines, write_report
 from hysbench.models import get_model
 
@@ -37,19 +40,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--thorough", action="store_true",
                         help="try every cause afresh on top of the named one also on long records (a delay or a "
                              "mode under the plant's own relaxation; about three times slower on the default dataset)")
+    parser.add_argument("--policy", action="append", default=[], metavar="KEY=VALUE",
+                        help="change one threshold of the decision rule (repeat for several; fields and defaults: "
+                             "docs/diagnosis.md, e.g. --policy z_pass=2.5); the report prints the policy used")
     parser.add_argument("--note", default="", help="a line put at the top of diagnosis.md")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def main(args) -> int:
-    model = get_model(args.model)  # an unknown name or an unwritable destination fails here, before any work
+    # an unknown model, a bad policy or an unwritable destination fails here, before any work
+    model = get_model(args.model)
+    policy = Policy().with_overrides(args.policy)
     check_outputs(args)
     say = timed_progress(args.quiet)
 
-    diag = diagnose(dataset_paths(args.dataset)[0], model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
-                    segments=args.segments, progress=say, thorough=args.thorough)
+    dataset = load_dataset(dataset_paths(args.dataset)[0])
+    scale = output_scale(dataset)  # 1 at ordinary scales; else diagnosed at order one (exact power of two)
+    note = args.note
+    if scale != 1.0:
+        dataset = scaled_output(dataset, scale)
+        note = " ".join(filter(None, [note, f"The output was divided by 2^{math.frexp(scale)[1] - 1} (exact) to be "
+                                            "diagnosed at order one: amounts in the output's unit below are in units "
+                                            f"of 2^{math.frexp(scale)[1] - 1} {dataset.output_unit or 'output units'}; "
+                                            "percentages and verdicts are unchanged by it."]))
+    diag = diagnose(dataset, model=model, seed=args.seed, max_rows=args.max_rows or MAX_ROWS,
+                    segments=args.segments, progress=say, thorough=args.thorough, policy=policy)
     say("writing the report")
-    write_report(diag, args.out, args.json, note=args.note)
+    write_report(diag, args.out, args.json, note=note)
     print(verdict(diag))
     return 0
 
@@ -57,6 +74,7 @@ def main(args) -> int:
 def verdict(diag) -> str:
     """The report's verdict lines, then each candidate's held-out score."""
     lines = verdict_lines(diag)
+    lines.append(diag.policy.summary())
     lines.append("evidence (leave-one-identification-record-out prediction against the base model refitted the same "
                  "way; validation records untouched):")
     for c in sorted(diag.candidates, key=lambda c: -c.heldout_gain):

@@ -17,12 +17,12 @@ import sys
 from pathlib import Path
 
 from hysbench.data.dataset import load_dataset
-from hysbench.data.files import check_output_file, ensure_dir, write_json
+from hysbench.data.files import STDOUT, check_output_file, ensure_dir, write_json
 from hysbench.models import get_model
 
 from hysbench.identification.api import identify, list_methods
 
-from .common import add_dataset_argument, add_seed_argument, dataset_paths, parse_key_values
+from .common import CommandError, add_dataset_argument, add_seed_argument, dataset_paths, parse_key_values
 
 EXAMPLE = "hysbench fit data/virtual_dea --model mrpim --method varpro --json fit.json"
 
@@ -34,9 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"identifier: {', '.join(list_methods())} (default: auto = varpro when the model has a "
                              "linear part, else lsq)")
     add_seed_argument(parser, what="the identifier")
-    parser.add_argument("--json", metavar="FILE", help="write the fit as JSON to FILE")
+    parser.add_argument("--json", metavar="FILE",
+                        help="write the fit as JSON to FILE ('-': standard output, the table then goes to stderr); "
+                             "a symbolic link is followed (its target is replaced), an existing folder, device, "
+                             "FIFO or socket is refused")
     parser.add_argument("--save", metavar="MODEL.json",
-                        help="write the fitted model as a model file (load with hysbench.models.load_model)")
+                        help="write the fitted model as a model file (load with hysbench.load_model); "
+                             "refused like --json, '-' is not accepted")
     parser.add_argument("--hyper", metavar="KEY=VALUE", action="append", default=[],
                         help="model hyperparameter, e.g. --hyper offset=false (repeatable)")
     parser.add_argument("--option", metavar="KEY=VALUE", action="append", default=[],
@@ -48,13 +52,18 @@ def main(args) -> int:
     options = parse_key_values(args.option, "--option")
     dataset = dataset_paths(args.dataset)[0]
     model = get_model(args.model, **hyper)
+    if args.save == STDOUT:
+        raise CommandError("--save needs a file name ('-' is for --json only)")
     for out in (args.json, args.save):  # refuse an unwritable destination before spending time on the fit
         if out:
             check_output_file(out)
     data = load_dataset(dataset) if args.save else dataset
     fit = identify(model, data, method=args.method, seed=args.seed, **options)
-    print(fit.summary())
-    if args.json:
+    to_stdout = args.json == STDOUT
+    print(fit.summary(), file=sys.stderr if to_stdout else sys.stdout)
+    if to_stdout:
+        write_json(STDOUT, fit.to_dict())
+    elif args.json:
         ensure_dir(Path(args.json).resolve().parent)
         write_json(args.json, fit.to_dict())
         print(f"\nwrote {args.json}")

@@ -18,8 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from hysbench.data.files import ensure_dir
-from hysbench.data.dataset import DatasetError, load_dataset, shared_datasets_root
+from hysbench.data.files import ensure_dir, shown
+from hysbench.data.dataset import DatasetError, fitting_problems, load_dataset, shared_datasets_root
 from hysbench.data.virtual_dea import default_waveforms_path
 from hysbench.models.errors import HysbenchError
 
@@ -109,6 +109,9 @@ def main(args) -> int:
     methods = comma_list(args.methods, "--methods")
     user_options = parse_method_options(args.option)
     datasets, skipped = _suite_datasets(args)
+    for path, ds in datasets:  # refused before any work: a matrix of cells that cannot fit says nothing
+        for problem in fitting_problems(ds):
+            raise CommandError(f"{shown(path)}: {problem}")
     if args.suite == "measured" and models is None:
         models = measured.suite_models()
     for line in skipped:  # never silent: each folder not scored is named

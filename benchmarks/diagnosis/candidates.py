@@ -22,15 +22,9 @@ from hysbench.models.base import HysteresisModel
 
 MAX_ROWS = 10_000  # rows per record in the screen
 MAX_RELAXATION = 4
-BIC_THRESHOLD = 10.0  # screen-internal: one more term must lower BIC (effective sample size) by this much
-MIN_EXPLAINED = 0.01  # a cause must remove this share of the base's held-out sum of squares
-CREEP_PERIODS = 2.0  # creep's time scale is at least this many of the longest drive period
-MAX_DAMPING = 1.0  # a resonance (a mode) is underdamped
-MAX_CLIPPED_SLOPE = 0.5  # where a clip cuts, the output varies with the model at less than half its slope, either way
-INTERFERENCE_MIN_CYCLES = 2.0  # an interference completes at least this many cycles in every fitted record
-DUPLICATE_TAU_RATIO = 1.25  # relaxation time constants closer than this factor are one (merged or not admitted)
 LOG_SCALE = ("tau", "creep_time", "natural_frequency", "damping_ratio")
-NO_CUT = ("the level cuts fewer than three samples of the prediction: not a clip (what it gains comes from "
+NO_CUT = ("the level cuts too few samples of the prediction (policy min_clipped_samples): not a clip (what it gains "
+          "comes from "
           "leaving the output's extreme samples out of the fit)")  # a saturation's limit (``Screen.limit_of``)
 DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                 "not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)

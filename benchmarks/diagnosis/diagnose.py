@@ -69,7 +69,7 @@ from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 from hysbench.models.errors import HysbenchError
 
-from .candidates import MAX_RELAXATION, MAX_ROWS, MIN_EXPLAINED, Candidate
+from .candidates import MAX_RELAXATION, MAX_ROWS, Candidate
 from .experiment import RESHAPING_CAUSES, one_drive, suggest
 from .extensions import gain, residuals_of_fit, scores_by_file
 from .residuals import RecordResidual, ResidualSummary, periodic_structure, summarise
@@ -78,10 +78,10 @@ from .search import run_screen
 from .secondary import complete_partial, complete_promising, drop_redundant_primary, not_identified, secondary_causes
 from .slow_part import predicts_as_well, slow_part_composite
 from .validation import borne_out, check_also, check_unexplained, fit_extension, refit_base_whole
-from .selection import (EXPLAIN_SHARE, PARTIAL_SE, SAME_SLICE, STRONG_GAIN, STRUCTURE_F, Z_CONFIRM, Z_PASS,
-                        Z_SAME, Verdict, decide)
+from .policy import Policy
+from .selection import Verdict, decide, step
 
-FORMAT = "hysbench-diagnosis/2"
+FORMAT = "hysbench-diagnosis/3"  # 3: the thresholds in "policy" (not "settings"), the rule "trace"
 
 
 class DiagnosisError(HysbenchError):
@@ -123,6 +123,7 @@ class Diagnosis:
     also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    trace: list = field(default_factory=list)  # every rule that decided or changed the verdict, in order (``step``)
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
@@ -178,29 +179,35 @@ class Diagnosis:
         return self.chosen.uncertainty if self.chosen is not None else {}
 
     @property
+    def policy(self) -> Policy:
+        """The decision policy every step used (the screen's)."""
+        return self.screen.policy
+
+    @property
     def decision_rule(self) -> str:
+        p = self.policy
         return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
-                f"a cause passes with held-out gain >= {self.settings['min_explained']:.0%} in a majority of folds "
-                f"and z >= {Z_PASS:g} (signed-rank test over blocks) or a gain >= {STRONG_GAIN:.0%} in every fold "
+                f"a cause passes with held-out gain >= {p.min_explained:.0%} in a majority of folds "
+                f"and z >= {p.z_pass:g} (signed-rank test over blocks) or a gain >= {p.strong_gain:.0%} in every fold "
                 f"(an interference, scored on top of the base's own held-out prediction, found at one frequency and "
-                f"amplitude on each fold's other records: any gain, every fold improved, z >= {Z_PASS:g}), "
+                f"amplitude on each fold's other records: any gain, every fold improved, z >= {p.z_pass:g}), "
                 f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
-                f"within z = {Z_SAME:g} of the best is "
+                f"within z = {p.z_same:g} of the best is "
                 f"named (creep rather than a relaxation slower than every drive period that creep predicts as well; "
                 f"a relaxation whose slowest time constant is slower than every drive period is compared with its "
                 f"faster ones plus creep, which is listed as ambiguous if it predicts as well); "
-                f"if it removes < {EXPLAIN_SHARE:.0%} of the held-out misfit beyond white noise it is named "
-                f"only if specific (z >= {Z_PASS:g}, fold estimates within {PARTIAL_SE:.0%}: a mode's frequency, its "
-                f"damping reported; every other cause within z = {Z_SAME:g} removing the same part, held-out "
-                f"improvements with cosine >= {SAME_SLICE:g}: "
+                f"if it removes < {p.explain_share:.0%} of the held-out misfit beyond white noise it is named "
+                f"only if specific (z >= {p.z_pass:g}, fold estimates within {p.partial_se:.0%}: a mode's frequency, its "
+                f"damping reported; every other cause within z = {p.z_same:g} removing the same part, held-out "
+                f"improvements with cosine >= {p.same_slice:g}: "
                 f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
-                f"cause predicting most among those that are specific (three or more records), else the best "
+                f"cause predicting most among those that are specific ({p.min_records_check} or more records), else the best "
                 f"partial cause (if it passes) with the causes kept on top of it by held-out forward selection if "
-                f"together they remove >= {EXPLAIN_SHARE:.0%} (two causes at once), else unexplained; "
+                f"together they remove >= {p.explain_share:.0%} (two causes at once), else unexplained; "
                 f"nothing passing: unexplained if the residual is structured (period-to-period "
-                f"F > {STRUCTURE_F:g} or a significant but inadmissible candidate), else none. Validation "
+                f"F > {p.structure_f:g} or a significant but inadmissible candidate), else none. Validation "
                 f"records take no part; they confirm the named extension if it lowers their residual with "
-                f"z >= {Z_CONFIRM:.3g} against their own noise (correlated noise counted); an unexplained verdict "
+                f"z >= {p.z_confirm:.3g} against their own noise (correlated noise counted); an unexplained verdict "
                 f"resting on a candidate alone (no period-to-period structure) becomes none unless that candidate's "
                 f"extension lowers the validation records' residual the same way; each cause under also is checked "
                 f"the same way on top of what was kept before it (reported, the verdict unchanged)")
@@ -222,11 +229,12 @@ class Diagnosis:
     def confirmed(self) -> bool | None:
         """Whether the named extension lowers the validation residual against the base model refitted
         on the same whole records, on the windows and by more than the records' noise explains (z >=
-        ``Z_CONFIRM``); an interference (phase fitted per validation record) by the same amplitude there."""
+        the policy's ``z_confirm``); an interference (phase fitted per validation record) by the same amplitude
+        there."""
         v = self.gain().get("validation")
         if not v:
             return None
-        return borne_out(v, self.cause, self.interference_check)
+        return borne_out(v, self.cause, self.interference_check, self.policy)
 
     @property
     def warning(self) -> str:
@@ -235,7 +243,7 @@ class Diagnosis:
         v = self.gain()["validation"]
         return (f"the extension does not improve the validation records beyond their noise against the base model "
                 f"refitted the same way (residual sum of squares removed: {100 * v['explained_whole']:.1f} % whole, "
-                f"z = {v['z_whole']:.2f} against the noise, needs {Z_CONFIRM:.3g}; "
+                f"z = {v['z_whole']:.2f} against the noise, needs {self.policy.z_confirm:.3g}; "
                 f"{100 * v['explained_window']:.1f} % on the windows"
                 + (f"; interference amplitude there {self.interference_check.get('validation_amplitude', 0):.3g}"
                    if self.cause == "interference" else "")
@@ -279,7 +287,7 @@ class Diagnosis:
         as_good = {c.cause: alike for c in self.also if (alike := self.as_good_as(c))}
         data = {
             "format": FORMAT, "model": self.model, "dataset": self.dataset.name,
-            "dataset_hash": self.dataset.content_hash(), "seed": self.seed,
+            "dataset_hash": self.dataset.content_hash(), "seed": self.seed, "policy": self.policy.as_dict(),
             "cause": self.cause, "reason": v.reason, "parameters": self.parameters,
             "uncertainty": self.uncertainty, "not_identified": v.not_identified,
             "ambiguous_with": [c.cause for c in v.ambiguous_with], "suggested_experiments": self.experiments,
@@ -303,6 +311,7 @@ class Diagnosis:
                                            "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
                                           for a in alike] for cause, alike in as_good.items()},
             "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
+            "trace": self.trace,
             "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))
@@ -319,12 +328,19 @@ def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callab
                                result["relaxation_variants"])
     diag.slow_part = comp
     taken = {c.cause for c in (*v.ambiguous_with, *diag.also)}
-    if comp is None or "creep" in taken or not predicts_as_well(result["folds"], result["errors"], v.chosen, comp):
+    if comp is None:
+        return
+    as_well = predicts_as_well(result["folds"], result["errors"], v.chosen, comp)
+    ambiguous = as_well and "creep" not in taken
+    diag.trace.append(step("slow-part-twin", "creep ambiguous" if ambiguous else "relaxation alone",
+                           composite=comp.label, gain=comp.heldout.get("gain"), z=comp.heldout.get("z"),
+                           predicts_as_well=as_well, creep_already=sorted(taken & {"creep"})))
+    if not ambiguous:
         return
     v.ambiguous_with.append(comp)
     v.reason += (f"; its slowest time constant ({max(v.chosen.estimates['tau_s']):.3g} s) is longer than the longest "
                  f"drive period, and the faster ones plus a drift since the start predict the held-out records as well "
-                 f"(z < {Z_SAME:g}): that part may be creep")
+                 f"(z < {diag.policy.z_same:g}): that part may be creep")
     if experiments:
         diag.experiments.append({"causes": [v.chosen.cause, "creep"], **suggest(diag.screen, v.chosen, comp)})
 
@@ -354,14 +370,16 @@ def _held_out_in_part(screen) -> list[dict]:
 def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
              max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
              extend: bool = True, experiments: bool = True, segments: int | None = None,
-             progress: Callable[[str], None] | None = None, thorough: bool = False) -> Diagnosis:
+             progress: Callable[[str], None] | None = None, thorough: bool = False,
+             policy: Policy = Policy()) -> Diagnosis:
     """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
     record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
     recording. ``thorough``: every cause tried afresh on top of the named one also on long records
-    (``secondary.secondary_causes``; slower)."""
+    (``secondary.secondary_causes``; slower). ``policy``: the thresholds of the decision rule
+    (``policy.Policy``; the default is the documented rule)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-                         segments, progress, thorough)
+                         segments, progress, thorough, policy)
 
 
 def _check(dataset: Dataset, base: HysteresisModel) -> None:
@@ -378,10 +396,11 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
 
 
 def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_rows: int = MAX_ROWS,
-                 say: Callable[[str], None] = lambda s: None, timings: dict | None = None):
+                 say: Callable[[str], None] = lambda s: None, timings: dict | None = None,
+                 policy: Policy = Policy()):
     """The base model identified on the windows (varpro), its residuals and their summaries, the noise sd
-    (median over the identification records) and the candidate screen on the whole records' rows:
-    ``(base_fit, before, summaries, noise_sd, screen)``."""
+    (median over the identification records) and the candidate screen on the whole records' rows, carrying
+    ``policy``: ``(base_fit, before, summaries, noise_sd, screen)``."""
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")
@@ -394,13 +413,13 @@ def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_row
     timings["residuals"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     screen = Screen(base, base_fit.params, base_fit.input_range, dataset.identification,
-                    data_scale(dataset.identification), noise_sd=noise, max_rows=max_rows, seed=seed)
+                    data_scale(dataset.identification), noise_sd=noise, max_rows=max_rows, seed=seed, policy=policy)
     timings["null_fit"] = time.perf_counter() - t1
     return base_fit, before, summaries, noise, screen
 
 
 def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-              segments, progress, thorough=False) -> Diagnosis:
+              segments, progress, thorough, policy) -> Diagnosis:
     say = progress or (lambda s: None)
     if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
         dataset = load_dataset(dataset)
@@ -414,12 +433,12 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     _check(dataset, base)
     timings = {}
     t0 = time.perf_counter()
-    base_fit, before, summaries, noise, screen = build_screen(dataset, base, seed, max_rows, say, timings)
+    base_fit, before, summaries, noise, screen = build_screen(dataset, base, seed, max_rows, say, timings, policy)
     t1 = time.perf_counter()
     say("fitting candidate causes on the identification records' whole length")
     result = run_screen(screen, before, max_relaxation=max_relaxation, progress=say)
     structure = periodic_structure(screen.null_residuals())
-    structured = bool(structure["F"] > STRUCTURE_F) if structure["records"] else False
+    structured = bool(structure["F"] > policy.structure_f) if structure["records"] else False
     verdict = decide(screen, result["folds"], result["candidates"], result["relaxation_variants"],
                      result["errors"], result["errors"][id(screen.null)], structured)
     timings["screen"] = time.perf_counter() - t1
@@ -428,10 +447,8 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
-                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation, "min_explained": MIN_EXPLAINED,
-                               "z_pass": Z_PASS, "z_same": Z_SAME, "z_confirm": Z_CONFIRM,
-                               "explain_share": EXPLAIN_SHARE,
-                               "same_slice": SAME_SLICE, "structure_f": STRUCTURE_F,
+                     trace=list(verdict.trace),
+                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
                                "not_held_out": _held_out_in_part(screen),
                                "thorough": thorough})
@@ -474,6 +491,11 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
     t1 = time.perf_counter()
     diag.extended_fit, diag.after, diag.interference_check = fit_extension(diag, diag.chosen, say)
     timings["extended_fit"] = time.perf_counter() - t1
+    v = diag.gain().get("validation") or {}
+    diag.trace.append(step("validation", "confirmed" if diag.confirmed else "not confirmed", cause=diag.cause,
+                           **{k: v.get(k) for k in ("explained_whole", "explained_window", "z_whole")},
+                           **({"same_amplitude": diag.interference_check.get("same_amplitude")}
+                              if diag.cause == "interference" else {})))
     if diag.also:
         t1 = time.perf_counter()
         check_also(diag, say)

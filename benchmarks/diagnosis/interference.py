@@ -7,16 +7,16 @@ the most prominent peaks of the pooled incoherent spectrum of the null's
 residual (records' powers added), harmonics common to every drive left out,
 each refined by a line search. The line is estimated jointly with the part it
 sits on (the base, or a named cause; ``JointLine``): fitted on the part's
-residual alone, a line close to a harmonic of the drive is partly taken up by
-the part first, so its amplitude came out low and its frequency pushed off the
-harmonic (before session 40). On a held-out record the frequency and the
+residual alone, a line close to a harmonic of the drive would be partly taken up
+by the part first, its amplitude low and its frequency pushed off the
+harmonic. On a held-out record the frequency and the
 amplitude come from the other records, so estimated, and only the phase is
 fitted there, on top of the part's own held-out prediction (``joint_line``):
 a disturbance does not change what the input drives, so the part is fitted on
 the other records alone on both sides of the comparison, and a line is judged
 only by what it removes from each held-out record (solved together with the
-line, the part's prediction of a record it predicts poorly moved by more than
-the line removed: session 25). Scored with its own parameters refitted per
+line, the part's prediction of a record it predicts poorly can move by more
+than the line removes). Scored with its own parameters refitted per
 fold, the frequency too is searched afresh on the other records, so a held-out
 record takes no part in choosing the frequency it is scored at. A fold chooses
 its frequency the way it is scored: each of its records predicted with the
@@ -29,7 +29,7 @@ same way. On top of a clip (not linear) the line is fitted on its residual
 disturbance: the base's own misfit at a harmonic, shown as a rival of a
 partial cause, ``selection.not_specific``): fitted jointly, the base takes
 up part of its misfit there, which the base fitted alone, as it predicts a
-held-out record, does not, and the line understated it (session 41).
+held-out record, does not, and the line would understate it.
 """
 
 from __future__ import annotations
@@ -44,8 +44,6 @@ from scipy.optimize import minimize_scalar
 from .candidates import Candidate, prominence
 from .residuals import coherent_spectrum, spectral_peaks
 from .screen import column_basis
-
-LINE_AMPLITUDE = 0.25  # fold amplitudes of one line agree within this (relative)
 
 
 def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
@@ -126,10 +124,10 @@ def fit_interference(screen, n_peaks: int = 5) -> Candidate:
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
     """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
     within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within ``LINE_AMPLITUDE`` (relative to their mean)."""
+    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
-    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= LINE_AMPLITUDE * a.mean())
+    return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
 
 
 def fold_tolerance_hz(screen) -> float:

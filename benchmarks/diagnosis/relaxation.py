@@ -9,11 +9,14 @@ import numpy as np
 
 from hysbench.models.extended import TAU_BOUNDS
 
-from .candidates import BIC_THRESHOLD, MAX_RELAXATION, Candidate, is_log
+from .candidates import MAX_RELAXATION, Candidate, is_log
 
 
 def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
-               powers: Sequence[int] = (1,), stop_threshold: float = BIC_THRESHOLD) -> list[Candidate]:
+               powers: Sequence[int] = (1,), stop_threshold: float | None = None) -> list[Candidate]:
+    """Relaxation variants of 1, 2, ... time constants, one more fitted while it lowers BIC by ``stop_threshold``
+    (default: the policy's ``bic_threshold``)."""
+    stop_threshold = screen.policy.bic_threshold if stop_threshold is None else stop_threshold
     T = screen.drive_time
     lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
     grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25))) + [float(s) for s in seeds if lo <= s <= hi]

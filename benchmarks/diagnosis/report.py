@@ -11,9 +11,7 @@ from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
-from .screen import BEYOND_RANGE
 from .secondary import not_identified
-from .selection import Z_CONFIRM
 
 MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
 
@@ -217,11 +215,11 @@ def figure_candidates(diag, path: Path) -> None:
     names = [c.cause for c in cands]
     colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
     axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)
-    axes[0].axvline(100 * diag.settings["min_explained"], color="k", ls=":", lw=0.8)
+    axes[0].axvline(100 * diag.policy.min_explained, color="k", ls=":", lw=0.8)
     axes[0].set_xlabel("held-out gain over the base model (%, leave one record out; floored at -100)")
     axes[0].invert_yaxis()
     axes[1].barh(names, [max(min(c.heldout.get("z", 0.0), 40.0), -10.0) for c in cands], color=colors)
-    axes[1].axvline(diag.settings["z_pass"], color="k", ls=":", lw=0.8)
+    axes[1].axvline(diag.policy.z_pass, color="k", ls=":", lw=0.8)
     axes[1].set_xlabel("z (signed-rank test over blocks)")
     axes[1].invert_yaxis()
     fig.suptitle("candidate causes (red: named)", fontsize=9)
@@ -266,7 +264,7 @@ def not_held_out_lines(d) -> list[str]:
     names = ", ".join(f"{s['record']} ({until(s)}; beyond by {100 * s['beyond_others_range']:.0f} % of the input "
                       "span)" for s in skipped)
     return ["", f"Held out in part: {names}. A record that goes beyond the other identification records' input "
-                f"range by more than {100 * BEYOND_RANGE:.0f} % of the span is predicted only up to where it first "
+                f"range by more than {100 * d.policy.beyond_range:.0f} % of the span is predicted only up to where it first "
                 "does (a fit on the others would extrapolate beyond); it takes part whole in every other fold's fit, "
                 "and the held-out scores cover the rows predicted."]
 
@@ -321,7 +319,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      f"fitted on the identification records' whole length): {100 * u['explained_whole']:.2f} % of "
                      f"their residual removed, z = {u['z_whole']:.2f} "
                      + ("(borne out: the verdict stays unexplained)" if u["borne_out"] else
-                        f"(not borne out, needs {Z_CONFIRM:.3g}: the verdict is none)"))
+                        f"(not borne out, needs {d.policy.z_confirm:.3g}: the verdict is none)"))
     elif u:
         lines.append(f"the best partial candidate not checked on validation records: {u['note']}")
     for c in d.verdict.ambiguous_with:
@@ -356,7 +354,7 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         lines.append(f"validation gain (records {', '.join(v['records'])}, against the base model refitted on the "
                      "same whole records): " + strong(f"{100 * v['explained_whole']:.2f} %") + " of its residual sum "
                      f"of squares removed over whole records (z = {v['z_whole']:.2f} against the records' own noise, "
-                     f"correlated noise counted; confirmed from {Z_CONFIRM:.3g}), "
+                     f"correlated noise counted; confirmed from {d.policy.z_confirm:.3g}), "
                      f"{100 * v['explained_window']:.2f} % on the scored "
                      f"windows; mean e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
         vw = g["validation_vs_base_fitted_on_windows"]
@@ -368,6 +366,25 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         if caution:
             lines.append(strong("caution:") + f" {caution}")
     return lines
+
+
+def _inputs_text(value) -> str:
+    """A trace entry's inputs in one line: numbers to 3 significant digits, a candidate's score by its cause."""
+    if isinstance(value, dict):
+        if "cause" in value and "gain" in value:
+            return f"{value['cause']} (gain {_fmt(value['gain'], 3)}, z {_fmt(value.get('z'), 3)})"
+        return ", ".join(f"{k} {_inputs_text(v)}" for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_inputs_text(v) for v in value) + "]"
+    if isinstance(value, float):
+        return _fmt(value, 3)
+    return str(value)
+
+
+def trace_lines(d) -> list[str]:
+    """The rules that decided the verdict, in order (``Diagnosis.trace``): rule id, outcome, inputs."""
+    return [f"{i}. `{t['rule']}` -> **{t['outcome']}**" + (f" ({_inputs_text(t['inputs'])})" if t["inputs"] else "")
+            for i, t in enumerate(d.trace, start=1)]
 
 
 def markdown(diag, figures: dict[str, str], note: str = "") -> str:
@@ -391,11 +408,15 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
         lines += ["Every cause was tried afresh on top of the named one (`--thorough`), also on these long records.", ""]
     lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
+    lines += ["", "## Why: the rules that decided, in order", "",
+              "Each rule of docs/diagnosis.md (\"The decision rule\") that decided or changed the verdict, with what "
+              "it decided and on what.", "", *trace_lines(d)]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
-              f"Rule: {d.decision_rule}.", *not_held_out_lines(d), "",
+              f"Rule: {d.decision_rule}.", "", f"P{d.policy.summary()[1:]}; every field is in the JSON "
+              "(`policy`).", *not_held_out_lines(d), "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],

@@ -9,7 +9,7 @@ import numpy as np
 from hysbench.models.extended import RESONANCE_HZ_BOUNDS
 from hysbench.models.filter_kernels import lowpass2_rows, second_order_foh
 
-from .candidates import MAX_DAMPING, Candidate
+from .candidates import Candidate
 
 
 def _resonant_null(screen, z):
@@ -42,7 +42,7 @@ def fit_resonance(screen) -> Candidate:
     starts = []
     z = screen.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
                     max_nfev=12, residual=lambda q: _resonant_null(screen, q)[2])
-    z = {**z, "damping_ratio": min(z["damping_ratio"], MAX_DAMPING)}
+    z = {**z, "damping_ratio": min(z["damping_ratio"], screen.policy.max_damping)}
     if not (screen.promising(_resonant_null(screen, z)[0]) or screen.small):  # one exact evaluation
         return screen.candidate("resonance", "second-order mode", model, z)
     starts.append(z)
@@ -50,7 +50,7 @@ def fit_resonance(screen) -> Candidate:
     if screen.small:  # cheap: the best points of an exact coarse grid too
         exact = [screen.evaluate(model, q)[0] for q in pts]
         starts += [pts[i] for i in np.argsort(exact)[:2]]
-    starts = [{**q, "damping_ratio": min(q["damping_ratio"], MAX_DAMPING)} for q in starts]
+    starts = [{**q, "damping_ratio": min(q["damping_ratio"], screen.policy.max_damping)} for q in starts]
     z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
     z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
     return screen.candidate("resonance", "second-order mode", model, z)

@@ -9,7 +9,7 @@ import numpy as np
 
 from scipy.optimize import least_squares, minimize_scalar
 
-from .candidates import MAX_CLIPPED_SLOPE, Candidate, estimates_of
+from .candidates import Candidate, estimates_of
 
 
 def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -32,11 +32,12 @@ def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
     return float(r @ r), theta, r
 
 
-def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float) -> float:
+def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float, min_samples: int) -> float:
     """Where the unclipped prediction passes the level: the slope of the output against it (least squares
-    with an intercept; 0 for a flat top, 1 for no clip); nan with fewer than three such samples."""
+    with an intercept; 0 for a flat top, 1 for no clip); nan with fewer than ``min_samples`` such samples
+    (policy ``min_clipped_samples``)."""
     cut = pred > level if side == "upper" else pred < level
-    if cut.sum() < 3:
+    if cut.sum() < min_samples:
         return math.nan
     p = pred[cut] - pred[cut].mean()
     ss = float(p @ p)
@@ -44,13 +45,14 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
-    """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on three
-    or more samples and the output there is flat against it (slope within +-``MAX_CLIPPED_SLOPE``)."""
+    """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on enough
+    samples and the output there is flat against it (policy ``min_clipped_samples``,
+    ``max_clipped_slope``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
-    slope = slope_where_clipped(A @ theta, y, side, level)
-    return math.isfinite(slope) and abs(slope) < MAX_CLIPPED_SLOPE
+    slope = slope_where_clipped(A @ theta, y, side, level, screen.policy.min_clipped_samples)
+    return math.isfinite(slope) and abs(slope) < screen.policy.max_clipped_slope
 
 
 def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],
@@ -98,7 +100,7 @@ def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str,
     model = screen.extension(("saturation",), saturation_side=side)
     params = {**dict(base_nl), **dict(zip(screen.base_lin, map(float, theta))), "saturation_level": float(level)}
     estimates = estimates_of("saturation", params, model)
-    slope = slope_where_clipped(A @ theta, screen.y, side, level)
+    slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
     if math.isfinite(slope):  # else the level cuts no sample
         estimates["slope_where_clipped"] = slope
     c = Candidate("saturation", f"clipped from {'above' if side == 'upper' else 'below'}", model, params,
@@ -135,7 +137,7 @@ def columns_of(screen, part: Candidate) -> np.ndarray:
 def clip_on_top(screen, kept: Candidate) -> Candidate | None:
     """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
     nonlinear parameters, the level fitted on each side as for the base, the better side kept. It must cut
-    the prediction (three or more samples, ``candidates.NO_CUT``) and leave the output flat there (``limit_of``)."""
+    the prediction (enough samples, ``candidates.NO_CUT``) and leave the output flat there (``limit_of``)."""
     A = columns_of(screen, kept)
     out = None
     for side in ("upper", "lower"):
@@ -145,7 +147,7 @@ def clip_on_top(screen, kept: Candidate) -> Candidate | None:
             continue
         params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
         estimates = {"level": float(level), "side": side}
-        slope = slope_where_clipped(A @ theta, screen.y, side, level)
+        slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
         if math.isfinite(slope):
             estimates["slope_where_clipped"] = slope
         c = Candidate("saturation", f"{kept.label} + clipped from {'above' if side == 'upper' else 'below'}",

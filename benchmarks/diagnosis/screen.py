@@ -41,18 +41,13 @@ from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
 
-from .candidates import (CREEP_PERIODS, DRIVE_LOCKED, DUPLICATE_TAU_RATIO, INTERFERENCE_MIN_CYCLES,
-                         MAX_DAMPING, MAX_CLIPPED_SLOPE, MAX_ROWS, MIN_EXPLAINED, NO_CUT, Candidate, estimates_of,
-                         is_log)
+from .candidates import DRIVE_LOCKED, MAX_ROWS, NO_CUT, Candidate, estimates_of, is_log
+from .policy import Policy
 from .residuals import RecordResidual, harmonic_phase_turn
 
 EXACT_GRID_SAMPLES = 300_000
 COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of another (``composite``)
-LOCKED_PHASE = math.pi / 4  # an interference at a drive harmonic must differ in phase between records by more
-LOCKED_TURN = math.pi / 16  # ... or turn in phase from drive period to period by more than this (rad per period)
-LOCKED_TURN_Z = 4.0  # ... and by this many standard errors
 RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 40 MB per record)
-BEYOND_RANGE = 0.05  # a record whose input leaves the others' range by more than this share of the span: no target
 
 
 def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
@@ -78,23 +73,24 @@ def first_excursion(u: np.ndarray, lo: float, hi: float, margin: float) -> int |
     return int(beyond[0]) if beyond.size else None
 
 
-def held_out_windows(inputs: Sequence[np.ndarray]) -> list[int]:
+def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[int]:
     """How many samples of each record, from its start, the held-out test predicts (``selection.Folds``):
-    all of a record whose input stays within the other records' range (to ``BEYOND_RANGE`` of the span), and
+    all of a record whose input stays within the other records' range (to ``beyond_range`` of the span,
+    policy ``beyond_range``), and
     of one that leaves it, the samples before it first does. Fitted on the others, the base model would
     extrapolate beyond (weights of its hysteresis operators that only that record moves), and the comparison
     would measure that, not the cause. The record still takes part whole in every other fold's fit. All
     records are predicted whole if fewer than two stay within."""
     sizes = [int(u.size) for u in inputs]
     beyond = beyond_others(inputs)
-    if sum(b <= BEYOND_RANGE for b in beyond) < 2:
+    if sum(b <= beyond_range for b in beyond) < 2:
         return sizes
     lo, hi = [float(np.min(u)) for u in inputs], [float(np.max(u)) for u in inputs]
-    margin = BEYOND_RANGE * (max(hi) - min(lo))
+    margin = beyond_range * (max(hi) - min(lo))
     out = []
     for m, u in enumerate(inputs):
         k = None
-        if beyond[m] > BEYOND_RANGE:
+        if beyond[m] > beyond_range:
             others = [j for j in range(len(inputs)) if j != m]
             k = first_excursion(u, min(lo[j] for j in others), max(hi[j] for j in others), margin)
         out.append(sizes[m] if k is None else k)
@@ -148,12 +144,14 @@ class Screen:
     parameters held at the null's; only the components' columns are new, so
     they are projected off the base's columns and regressed on the null's
     residual (cheap). Stage 2 (``joint``): a candidate refined with the
-    base's nonlinear parameters free as well (every column recomputed).
+    base's nonlinear parameters free as well (every column recomputed). ``policy``: the decision policy
+    (``policy.Policy``), carried for every step that works on the screen.
     """
 
     def __init__(self, base: HysteresisModel, base_params: Mapping[str, float], input_range,
                  identification: Sequence[Record], scale: DataScale,
-                 noise_sd: float, max_rows: int = MAX_ROWS, seed: int = 0):
+                 noise_sd: float, max_rows: int = MAX_ROWS, seed: int = 0, policy: Policy = Policy()):
+        self.policy = policy
         self.base = base
         self.input_range = tuple(input_range)
         self.scale = scale
@@ -170,7 +168,7 @@ class Screen:
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
         inputs = [p.record.u for p in self.parts]
-        windows = held_out_windows(inputs)
+        windows = held_out_windows(inputs, policy.beyond_range)
         self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, windows)]  # predicted rows
         self.held_out_windows = windows  # per record: samples predicted from its start
         self.beyond_range = beyond_others(inputs)
@@ -211,7 +209,7 @@ class Screen:
         scored duration (a spectrum's lowest bins hold a record's fade-in and length, not a drive period)."""
         periods = [1.0 / p.record.frequency_hz for p in self.parts if p.record.frequency_hz]
         spans = [1.0 / r.frequency_hz if r.frequency_hz else r.n_scored * r.dt for r in (p.record for p in self.parts)]
-        return max(CREEP_TIME_BOUNDS[0] * min(spans), CREEP_PERIODS * max(periods, default=0.0))
+        return max(CREEP_TIME_BOUNDS[0] * min(spans), self.policy.creep_periods * max(periods, default=0.0))
 
     @property
     def shortest_span(self) -> float:
@@ -226,7 +224,7 @@ class Screen:
                 if name == "creep_time":
                     return max(float(p.min), self.creep_min), float(p.max)
                 if name == "damping_ratio":  # a resonance is a mode: underdamped
-                    return float(p.min), min(float(p.max), MAX_DAMPING)
+                    return float(p.min), min(float(p.max), self.policy.max_damping)
                 if name == "natural_frequency":  # down to a broadband drive's band; nothing above Nyquist
                     return min(float(p.min), self.mode_floor), min(float(p.max), self.nyquist)
                 if name == "interference_frequency":  # the samples show nothing faster
@@ -365,29 +363,30 @@ class Screen:
         """Why estimates fall outside the cause's meaning: a resonance must be a mode (underdamped),
         creep slower than the drive, a delay at least one sample long; a fit pinned at those limits is not
         named."""
-        if cause == "resonance" and estimates["damping_ratio"] >= 0.98 * MAX_DAMPING:
-            return f"damping ratio at the limit {MAX_DAMPING:g}: no mode"
+        pol = self.policy
+        if cause == "resonance" and estimates["damping_ratio"] >= pol.damping_limit_share * pol.max_damping:
+            return f"damping ratio at the limit {pol.max_damping:g}: no mode"
         if cause == "relaxation":
             taus = estimates["tau_s"]
-            if any(b < DUPLICATE_TAU_RATIO * a for a, b in zip(taus, taus[1:])):
-                return (f"time constants closer than a factor {DUPLICATE_TAU_RATIO:g}: their difference is a "
+            if any(b < pol.duplicate_tau_ratio * a for a, b in zip(taus, taus[1:])):
+                return (f"time constants closer than a factor {pol.duplicate_tau_ratio:g}: their difference is a "
                         "band-pass, not a relaxation")
-        if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < INTERFERENCE_MIN_CYCLES:
-            return (f"fewer than {INTERFERENCE_MIN_CYCLES:g} cycles in the shortest record "
+        if cause == "interference" and estimates["frequency_hz"] * self.shortest_span < pol.interference_min_cycles:
+            return (f"fewer than {pol.interference_min_cycles:g} cycles in the shortest record "
                     f"({self.shortest_span:.3g} s): with its phase free per record, a slower sinusoid is a per-record drift, not a disturbance")
         if cause == "interference" and self.drive_locked(estimates):
             return DRIVE_LOCKED
         if cause == "saturation" and "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
             return NO_CUT
-        if cause == "saturation" and abs(estimates["slope_where_clipped"]) >= MAX_CLIPPED_SLOPE:
+        if cause == "saturation" and abs(estimates["slope_where_clipped"]) >= pol.max_clipped_slope:
             moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
             return (f"where it would clip, the output still {moves} the model (slope "
                     f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
         if cause == "delay" and estimates["delay_s"] < (dt := max(p.record.dt for p in self.parts)):
             return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
                     "plus a first difference of it (a rate term), not a resolved delay")
-        if cause == "creep" and estimates["time_scale_s"] <= 1.02 * self.creep_min:
-            return f"time scale at the limit {self.creep_min:.3g} s ({CREEP_PERIODS:g} drive periods): not slow"
+        if cause == "creep" and estimates["time_scale_s"] <= pol.creep_limit_margin * self.creep_min:
+            return f"time scale at the limit {self.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
         return ""
 
     # --- nonlinear search --------------------------------------------------
@@ -457,9 +456,9 @@ class Screen:
         return best, best_rss
 
     def promising(self, rss: float) -> bool:
-        """Whether a first-order fit explains at least ``MIN_EXPLAINED`` of the null's sum of squares (in sample;
-        only a gate for the costlier exact search)."""
-        return rss < (1.0 - MIN_EXPLAINED) * self.null.rss
+        """Whether a first-order fit explains at least the policy's ``min_explained`` of the null's sum of squares
+        (in sample; only a gate for the costlier exact search)."""
+        return rss < (1.0 - self.policy.min_explained) * self.null.rss
 
     @property
     def small(self) -> bool:
@@ -483,19 +482,21 @@ class Screen:
     def drive_locked(self, estimates: Mapping) -> bool:
         """A sinusoid within the spectral resolution (half a cycle over the longest record) of a harmonic of
         every record's drive whose phases in the records (each from its own start) agree within
-        ``LOCKED_PHASE`` rad, and which does not turn in phase from one drive period to the next (in the base
+        ``locked_phase`` rad, and which does not turn in phase from one drive period to the next (in the base
         model's residual, at the harmonic; ``residuals.harmonic_phase_turn``): a turn of more than
-        ``LOCKED_TURN`` rad per period and ``LOCKED_TURN_Z`` standard errors is a line off the harmonic, closer
+        ``locked_turn`` rad per period and ``locked_turn_z`` standard errors (policy fields) is a line off the
+        harmonic, closer
         to it than the records resolve, not a misfit that the drive repeats."""
         phases = estimates.get("phase_rad_per_record") or []
         longest = max(p.record.t.size * p.record.dt for p in self.parts)
         if len(phases) < 2 or not self.drive_harmonic(np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
             return False
         spread = max(abs(math.remainder(a - b, 2 * math.pi)) for i, a in enumerate(phases) for b in phases[i + 1:])
-        if spread >= LOCKED_PHASE:
+        pol = self.policy
+        if spread >= pol.locked_phase:
             return False
         turn = harmonic_phase_turn(self.null_residuals(), estimates["frequency_hz"])
-        return turn is None or not (abs(turn[0]) > LOCKED_TURN and abs(turn[0]) > LOCKED_TURN_Z * turn[1])
+        return turn is None or not (abs(turn[0]) > pol.locked_turn and abs(turn[0]) > pol.locked_turn_z * turn[1])
 
     def drive_harmonic(self, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
         """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
@@ -530,7 +531,7 @@ class Screen:
         (separable causes only). With ``search`` the other cause's own parameters are also started from a
         coarse grid over their search bounds (the primary held): its fit against the base alone can be far
         off when the base misses something larger; the best start is refined only if it removes at least
-        ``MIN_EXPLAINED`` of the primary's sum of squares (else None: nothing to add, and a refinement with
+        the policy's ``min_explained`` of the primary's sum of squares (else None: nothing to add, and a refinement with
         every nonlinear parameter free is the costly part)."""
         parts = tuple(getattr(primary.model, "components", (primary.cause,)))
         if {"saturation", "interference"} & {*parts, other.cause} or other.cause in parts:
@@ -543,7 +544,7 @@ class Screen:
             if other.cause == "resonance" and "delay" in primary.params:
                 starts += [lag_shared(q) for q in starts[1:]]
             rss = [self.evaluate(model, z)[0] for z in starts]
-            if min(rss) > (1.0 - MIN_EXPLAINED) * primary.rss:
+            if min(rss) > (1.0 - self.policy.min_explained) * primary.rss:
                 return None
             start = starts[int(np.argmin(rss))]
         free = [(n, is_log(n)) for n in model.nonlinear_names if n != "interference_frequency"]

@@ -66,7 +66,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
     # stage 2: the base's nonlinear parameters free as well, for what predicts some of the held-out misfit
     best_of = {}
     for c in variants + cands:  # the best promising candidate of each cause
-        if promising(c) and (c.cause not in best_of or c.heldout_gain > best_of[c.cause].heldout_gain):
+        if promising(c, screen.policy) and (c.cause not in best_of or c.heldout_gain > best_of[c.cause].heldout_gain):
             best_of[c.cause] = c
     for c in sorted(best_of.values(), key=lambda c: -c.heldout_gain)[:max_joint]:
         say(f"{c.label} (joint)")
@@ -76,7 +76,8 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             if j.heldout_gain > c.heldout_gain:
                 pool = variants if c in variants else cands
                 pool[pool.index(c)] = j
-    for c in [v for v in variants if promising(v)]:  # a time constant at its bound: one fewer, from the others
+    # a time constant at its bound: one fewer, from the others
+    for c in [v for v in variants if promising(v, screen.policy)]:
         r = without_pinned(screen, c, c.heldout["at_bound"])
         if r is None:
             continue
@@ -90,7 +91,7 @@ def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int 
             variants[variants.index(same[0])] = r
     say("held-out scores with each finalist's own parameters refitted per fold")
     for c in variants + cands:
-        if (passes(c) or line_worth_refit(c)) and not c.heldout["refit_per_fold"]:
+        if (passes(c, screen.policy) or line_worth_refit(c, screen.policy)) and not c.heldout["refit_per_fold"]:
             score_candidate(screen, folds, e_null, errors, c, refit=True)
     best_relax = max(variants, key=lambda c: c.heldout_gain)
     return {"library": library, "candidates": [best_relax] + cands, "relaxation_variants": variants,

@@ -24,15 +24,14 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-from .candidates import CREEP_PERIODS, Candidate
+from .candidates import Candidate
 from .interference import (fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top,
                            on_top_estimates)
 from .saturation import clip_on_top
-from .selection import (EXPLAIN_SHARE, OPEN_ENDED_NOTE, Z_PASS, Z_SAME, Verdict, at_bound, bound_flags,
-                        carried_by_one_record, evidence, fold_uncertainty, heldout_errors, own_nonlinear,
-                        passes, promising, score, share_of_misfit)
-
-MAX_SECONDARY = 4  # other causes tried on top of the named one
+from .policy import Policy
+from .selection import (OPEN_ENDED_NOTE, Verdict, at_bound, bound_flags, carried_by_one_record, evidence,
+                        fold_uncertainty, heldout_errors, own_nonlinear, passes, promising, score, share_of_misfit,
+                        step)
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
@@ -43,8 +42,8 @@ def refit_errors(screen, folds, result: dict, c: Candidate):
     return heldout_errors(screen, folds, c, refit=True)[0]
 
 
-def _admissible(comp: Candidate) -> bool:
-    return evidence(comp.heldout) and not comp.limit and not comp.heldout["at_bound"]
+def _admissible(comp: Candidate, policy: Policy) -> bool:
+    return evidence(comp.heldout, policy) and not comp.limit and not comp.heldout["at_bound"]
 
 
 def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
@@ -130,7 +129,7 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
     e = judged = kept.with_line(screen, folds, part_e, part_train, part_designs)
     flags = bound_flags(screen, comp) if kept.part is not None else {"at_bound": [], "open_ended": []}
     comp.heldout = {**score(folds, kept.reference, e), **flags, "refit_per_fold": False}
-    if _admissible(comp):  # the honest score: the added cause's parameters refitted per fold
+    if _admissible(comp, folds.policy):  # the honest score: the added cause's parameters refitted per fold
         refit_train, refit_designs = [], []
         refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
                                            only=added_names(screen, kept.part, comp), designs=refit_designs)
@@ -142,17 +141,18 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
 
 def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[Candidate]]:
     """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
-    ``Z_SAME`` and that removes at least ``EXPLAIN_SHARE`` of what is kept leaves beyond noise (as in
+    ``z_same`` and that removes at least ``explain_share`` of what is kept leaves beyond noise (policy; as in
     ``selection.decide``), and the others as good (not told apart on these records; their names are listed
     with it)."""
-    ok = [t for t in tried if _admissible(t[0])]
+    pol = folds.policy
+    ok = [t for t in tried if _admissible(t[0], pol)]
     if not ok:
         return None, []
     best = max(ok, key=lambda t: t[0].heldout["gain"])
     for t in ok:  # of what is kept leaves beyond noise
         t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
-    same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < Z_SAME
-                                           and t[0].heldout["share_of_misfit"] >= EXPLAIN_SHARE)]
+    same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < pol.z_same
+                                           and t[0].heldout["share_of_misfit"] >= pol.explain_share)]
     chosen = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
     alike = [t[0] for t in same if t[0] is not chosen[0]]  # not told apart here
     chosen[0].heldout["as_good"] = [c.cause for c in alike]
@@ -160,6 +160,14 @@ def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[C
 
 
 def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
+    """``_forward`` (below), its outcome added to the trace."""
+    tried = len(diag.secondary_tried)
+    _forward(diag, result, say)
+    diag.trace.append(step("also", ", ".join(c.cause for c in diag.also) or "nothing", on_top_of=diag.cause,
+                           tried=[c.cause for c in diag.secondary_tried[tried:]]))
+
+
+def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
     """Forward selection on top of the named cause: in each round every other cause is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
@@ -172,20 +180,22 @@ def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
     (``Screen.small``), or on any with ``diag.settings["thorough"]``, every cause is tried and searched afresh,
     not only those that predict better than the base alone: a second cause can show only once the first is
     accounted for (a delay or a mode under a plant's own relaxation). Otherwise, on long records (cost: about
-    three times the diagnosis on the default dataset), only those are tried, from their own fits."""
+    three times the diagnosis on the default dataset), only those are tried, from their own fits. At most the
+    policy's ``max_secondary`` are kept."""
     screen, chosen = diag.screen, diag.chosen
     folds = result["folds"]
+    pol = folds.policy
     taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
     fresh = screen.small or bool(diag.settings.get("thorough"))
 
     def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
-        return not c.limit and (promising(c) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= Z_PASS))
+        return not c.limit and (promising(c, pol) or (c.heldout_gain > 0 and c.heldout.get("z", 0.0) >= pol.z_pass))
 
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
             and not (c.cause == "interference" and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
     kept = _start(screen, folds, chosen)
-    while pool and len(diag.also) < MAX_SECONDARY:
+    while pool and len(diag.also) < pol.max_secondary:
         say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
         tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
         for cause, c in pool.items():
@@ -219,24 +229,27 @@ def _forward_on(diag, result: dict, say: Callable[[str], None], p: Candidate) ->
 
 def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
     """An ``unexplained`` verdict whose best partial cause passes the held-out test by itself but removes less
-    than ``EXPLAIN_SHARE`` of the base's held-out misfit beyond noise: the forward selection is run on top of it
+    than ``explain_share`` of the base's held-out misfit beyond noise: the forward selection is run on top of it
     (``secondary_causes``, each added cause judged on held-out records against what is kept). If what is then
-    kept removes at least ``EXPLAIN_SHARE``, the partial cause is named with those under "also" (two causes at
+    kept removes at least ``explain_share``, the partial cause is named with those under "also" (two causes at
     once: neither explains the misfit alone). Otherwise the verdict stays ``unexplained``. True if named."""
     v = diag.verdict
     p = v.partial
-    if v.cause != "unexplained" or p is None or not passes(p):
+    pol = result["folds"].policy
+    if v.cause != "unexplained" or p is None or not passes(p, pol):
         return False
     say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
     tried = _forward_on(diag, result, say, p)
     e_null = result["errors"][id(diag.screen.null)]
     null_sse = float(e_null @ e_null)
     share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
-    if share < EXPLAIN_SHARE:
+    diag.trace.append(step("complete-partial", p.cause if share >= pol.explain_share else "unexplained",
+                           partial=p.cause, kept=[c.cause for c in diag.also], share_of_misfit=share))
+    if share < pol.explain_share:
         diag.verdict, diag.also = v, []
         v.reason += ("" if not tried else
                      f"; with other causes tried on top of {p.cause}, what is kept removes {100 * share:.0f} % "
-                     f"(< {100 * EXPLAIN_SHARE:.0f} %)")
+                     f"(< {100 * pol.explain_share:.0f} %)")
         return False
     alone = p.heldout.get("share_of_misfit", share_of_misfit(diag.screen, null_sse, p.heldout["sse"]))
     diag.verdict.reason = (
@@ -256,9 +269,10 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
     drive shows on a plant that also relaxes. The promising cause is named with those kept under "also" only if
     all of them together, every nonlinear parameter refitted per fold, show held-out evidence against the base
     model that more than one record carries (``selection.carried_by_one_record``) and remove at least
-    ``EXPLAIN_SHARE`` of its held-out misfit beyond noise; otherwise the verdict stays ``none``. True if named."""
+    ``explain_share`` of its held-out misfit beyond noise; otherwise the verdict stays ``none``. True if named."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
-    pool = [c for c in diag.candidates if promising(c) and not c.heldout.get("at_bound")]
+    pol = folds.policy
+    pool = [c for c in diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
     if v.cause != "none" or not pool:
         return False
     p = max(pool, key=lambda c: c.heldout_gain)
@@ -271,13 +285,16 @@ def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
         e = refit_errors(screen, folds, result, diag.also[-1])
         h = score(folds, e_null, e)
         share = share_of_misfit(screen, float(e_null @ e_null), h["sse"])
-        named = evidence(h) and share >= EXPLAIN_SHARE and not carried_by_one_record(folds, e_null, e)
+        named = evidence(h, pol) and share >= pol.explain_share and not carried_by_one_record(folds, e_null, e)
+    diag.trace.append(step("complete-promising", p.cause if named else "none", promising=p.cause,
+                           kept=[c.cause for c in diag.also],
+                           **({"gain": h["gain"], "z": h["z"], "share_of_misfit": share} if diag.also else {})))
     if not named:
         diag.verdict, diag.also = v, []
         if tried:
             v.reason += (f"; with other causes tried on top of {p.cause}, no combination predicts the held-out "
                          "records better with evidence that more than one record carries and removes "
-                         f"{100 * EXPLAIN_SHARE:.0f} % of the misfit")
+                         f"{100 * pol.explain_share:.0f} % of the misfit")
         return False
     h1 = p.heldout
     diag.verdict.reason = (
@@ -303,7 +320,7 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
 
 def _creep_time_unidentified(screen, c: Candidate) -> bool:
     """A creep (alone or in a composite) whose only flaw is its time scale at an end: the fastest its meaning
-    allows (``CREEP_PERIODS`` drive periods) or the slowest searched (a straight drift over these records).
+    allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over these records).
     Replacing a relaxation slower than every drive period, whose own time constant these records do not pin
     down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
     identified."""
@@ -312,15 +329,25 @@ def _creep_time_unidentified(screen, c: Candidate) -> bool:
             and set(at_bound(screen, c)) <= {"creep_time"})
 
 
-def _pinned_creep(screen, chain: list[Candidate]) -> str:
-    """What the backward step says of a creep in ``chain`` whose time scale sits at an end ("" if none does)."""
+def _creep_end(screen, chain: list[Candidate]) -> dict | None:
+    """The first creep in ``chain`` whose time scale sits at an end (None if none does): ``end`` ``limit`` (the
+    fastest its meaning allows) or ``search`` (open-ended, the slowest searched), ``alone`` (creep first, before
+    the others were composed on top), ``creep_time_s``."""
     for c in chain:
         flags = bound_flags(screen, c)
         if "creep_time" in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
-            where = "its limit" if "creep_time" in flags["at_bound"] else "the end of its search"
-            alone = " alone" if c is chain[0] and len(chain) > 1 else ""
-            return f"creep's time scale{alone} sits at {where}, {float(c.params['creep_time']):.3g} s: not identified"
-    return ""
+            return {"end": "limit" if "creep_time" in flags["at_bound"] else "search",
+                    "alone": c is chain[0] and len(chain) > 1, "creep_time_s": float(c.params["creep_time"])}
+    return None
+
+
+def _pinned_creep(end: dict | None) -> str:
+    """What the backward step says of a creep whose time scale sits at an end (``_creep_end``; "" if none)."""
+    if end is None:
+        return ""
+    where = "its limit" if end["end"] == "limit" else "the end of its search"
+    return (f"creep's time scale{' alone' if end['alone'] else ''} sits at {where}, {end['creep_time_s']:.3g} s: "
+            "not identified")
 
 
 def not_identified(c: Candidate) -> str:
@@ -338,33 +365,34 @@ def strongest_first(own: dict, causes: list[str]) -> list[str]:
     """The causes ordered by what each predicts of the held-out records against the base alone (its own
     held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
     on top of the named cause is no guide without it, and each is searched with the ones before it held: a
-    delay searched before a larger creep takes up part of the drift (seen: 25.7 ms found for 15.3 ms planted,
-    which the composite's refinement did not undo; 15.5 ms with the creep first)."""
+    delay searched before a larger creep takes up part of the drift, which the composite's refinement does not
+    undo."""
     gain = {c: own[c].heldout_gain for c in causes}
     return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
 
 
-def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float) -> list[list[str]]:
+def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
+                 policy: Policy) -> list[list[str]]:
     """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
     for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
-    ``CREEP_PERIODS``), also the same with creep after them, standing for that slow part."""
+    ``creep_periods``), also the same with creep after them, standing for that slow part."""
     options = [strongest_first(own, causes)]
-    if slow_relaxation(chosen, creep_min) and "creep" in own and "creep" not in causes:
+    if slow_relaxation(chosen, creep_min, policy) and "creep" in own and "creep" not in causes:
         options.append([*options[0], "creep"])
     return options
 
 
-def slow_relaxation(chosen: Candidate, creep_min: float) -> bool:
-    """A relaxation whose slowest time constant is at least ``creep_min`` / ``CREEP_PERIODS`` (slower than every
+def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
+    """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
     drive period): creep may stand for that slow part."""
-    return chosen.cause == "relaxation" and max(chosen.estimates["tau_s"]) >= creep_min / CREEP_PERIODS
+    return chosen.cause == "relaxation" and max(chosen.estimates["tau_s"]) >= creep_min / policy.creep_periods
 
 
 def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
     """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
     causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
-    predict the held-out records as well as all of them together (together not better by z >= ``Z_SAME``), show
-    held-out evidence against the base, remove at least ``EXPLAIN_SHARE`` of its held-out misfit beyond white
+    predict the held-out records as well as all of them together (together not better by z >= ``z_same``), show
+    held-out evidence against the base, remove at least ``explain_share`` of its held-out misfit beyond white
     noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
     their search bounds: the first of them is named, the others stay under "also". A named relaxation whose
     slowest time constant is longer than the longest drive period may be creep there
@@ -375,14 +403,15 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
     (not interference or saturation)."""
     v, screen, folds = diag.verdict, diag.screen, result["folds"]
+    pol = folds.policy
     causes = [c.cause for c in diag.also]
     if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
             or {"interference", "saturation"} & {v.chosen.cause, *causes}):
         return
     say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
     own = {c.cause: c for c in diag.candidates}
-    options = replacements(v.chosen, own, causes, screen.creep_min)
-    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min)
+    options = replacements(v.chosen, own, causes, screen.creep_min, pol)
+    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min, pol)
     together = None  # all of them, scored once a replacement is worth comparing
     e_null = result["errors"][id(screen.null)]
     null_sse = float(e_null @ e_null)
@@ -401,10 +430,11 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
             together = refit_errors(screen, folds, result, diag.also[-1])
         errors = [refit_errors(screen, folds, result, c) for c in chain]
         without = score(folds, errors[-1], together)  # how much better all together predict
-        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= EXPLAIN_SHARE
-        if without["z"] < Z_SAME and evidence(score(folds, e_null, errors[-1])) and explains:
+        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= pol.explain_share
+        if without["z"] < pol.z_same and evidence(score(folds, e_null, errors[-1]), pol) and explains:
             break
     else:
+        diag.trace.append(step("drop-redundant-primary", v.chosen.cause, also=causes))
         return
     old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
     first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
@@ -414,8 +444,11 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
         also.append(c)
     diag.dropped = old
     diag.also = also
+    end = _creep_end(screen, chain)
+    diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
+                           creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
     v.chosen, v.cause = first, first.cause
-    pinned = _pinned_creep(screen, chain)
+    pinned = _pinned_creep(end)
     slow = ""
     if standing_in:
         slow = (f", with creep standing for its time constant of {max(old.estimates['tau_s']):.3g} s (slower than "
@@ -423,7 +456,7 @@ def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> No
     elif pinned:
         slow = f" ({pinned}; it stands for a time constant of {max(old.estimates['tau_s']):.3g} s)"
     how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
-           f"as well without it (with it better by z = {without['z']:.1f} < {Z_SAME:g})")
+           f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
     v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
                 f"{old.cause} is not needed, and "
                 f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "

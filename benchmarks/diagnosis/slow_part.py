@@ -6,7 +6,7 @@ the input. ``selection`` already names creep when creep alone predicts as well a
 the relaxation has faster time constants too, creep alone cannot; then the relaxation without its
 slowest time constant plus creep (a composite, refined from both fits and scored like every finalist,
 its nonlinear parameters refitted per fold) is compared with it. If that passes and the relaxation does
-not predict better by z >= ``Z_SAME``, the slow part is ambiguous between the two causes, and the
+not predict better by z >= ``z_same`` (policy), the slow part is ambiguous between the two causes, and the
 verdict says so.
 """
 
@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import copy
 
-from .candidates import CREEP_PERIODS, Candidate
+from .candidates import Candidate
 from .search import score_candidate
-from .selection import Z_SAME, Folds, pairwise_z, passes
+from .selection import Folds, pairwise_z, passes
 
 
 def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | None, candidates, variants
@@ -26,7 +26,7 @@ def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | 
     if chosen is None or chosen.cause != "relaxation":
         return None
     taus = sorted(chosen.estimates["tau_s"])
-    if len(taus) < 2 or taus[-1] < screen.creep_min / CREEP_PERIODS:
+    if len(taus) < 2 or taus[-1] < screen.creep_min / screen.policy.creep_periods:
         return None
     fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1]
     creep = [c for c in candidates if c.cause == "creep"]
@@ -46,5 +46,5 @@ def slow_part_composite(screen, folds: Folds, errors: dict, chosen: Candidate | 
 
 
 def predicts_as_well(folds: Folds, errors: dict, chosen: Candidate, comp: Candidate) -> bool:
-    """The composite passes on its own and the named relaxation does not predict better by z >= Z_SAME."""
-    return passes(comp) and pairwise_z(folds, errors, chosen, comp) < Z_SAME
+    """The composite passes on its own and the named relaxation does not predict better by z >= ``z_same``."""
+    return passes(comp, folds.policy) and pairwise_z(folds, errors, chosen, comp) < folds.policy.z_same

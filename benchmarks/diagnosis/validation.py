@@ -21,25 +21,25 @@ from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
 from .interference import amplitude_at, phase_fitted
 from .residuals import RecordResidual
-from .selection import Z_CONFIRM, Verdict
+from .policy import Policy
+from .selection import Verdict, step
 
-INTERFERENCE_AMPLITUDE_TOLERANCE = 0.3  # validation amplitude within this relative distance
 
-
-def borne_out(v: dict, cause: str, interference_check: dict) -> bool:
+def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
     """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
-    records' residual over whole records and on the windows, by more than their noise explains (z >=
-    ``Z_CONFIRM``); an interference, by the same amplitude there."""
+    records' residual over whole records and on the windows, by more than their noise explains (z >= the
+    policy's ``z_confirm``); an interference, by the same amplitude there (``interference_on_validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
     if cause == "interference":
         return ok and bool(interference_check.get("same_amplitude"))
-    return ok and bool(v["z_whole"] >= Z_CONFIRM)
+    return ok and bool(v["z_whole"] >= policy.z_confirm)
 
 
-def interference_on_validation(before: list[RecordResidual], c: Candidate) -> tuple[list[RecordResidual], dict]:
+def interference_on_validation(before: list[RecordResidual], c: Candidate,
+                               policy: Policy) -> tuple[list[RecordResidual], dict]:
     """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
     whole records), its phase fitted per record: the residuals after it, and the validation records' own
-    amplitude there against ``c``'s."""
+    amplitude there against ``c``'s (the same within the policy's ``interference_amplitude_tolerance``)."""
     f = c.estimates["frequency_hz"]
     amplitude = c.estimates["amplitude"]
     after, amps = [], []
@@ -51,7 +51,7 @@ def interference_on_validation(before: list[RecordResidual], c: Candidate) -> tu
             amps.append(amplitude_at(rr.residual, t, f))
     a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
     return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
-                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= INTERFERENCE_AMPLITUDE_TOLERANCE)}
+                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
@@ -59,7 +59,7 @@ def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit |
     interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
     record and the interference check."""
     if c.cause == "interference":
-        after, check = interference_on_validation(diag.base_whole, c)
+        after, check = interference_on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
     base = diag.screen.base
     ext = registered_extension(base.name, c.cause, c.hyperparameters, base.get_hyperparameters())
@@ -98,23 +98,26 @@ def check_unexplained(diag, say: Callable[[str], None]) -> None:
     say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
     _, after, check = fit_extension(diag, p, say)
     g = gain(diag.base_whole, after, "validation")
-    borne = borne_out(g, p.cause, check)
+    borne = borne_out(g, p.cause, check, diag.screen.policy)
     diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": True, "borne_out": borne,
                               **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
                               **({"interference_check": check} if check else {})}
+    diag.trace.append(step("unexplained-check", "unexplained" if borne else "none", partial=p.cause,
+                           **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")}))
     if borne:
         return
     diag.verdict = Verdict("none", None, reason=(
         f"{v.reason}; but fitted on the identification records {p.label} does not predict the validation records "
         f"beyond their noise ({100 * g['explained_whole']:.1f} % of their residual removed, z = {g['z_whole']:.2f}, "
-        f"needs {Z_CONFIRM:.3g}): the structure it pointed to is not borne out on data that took no part, so "
+        f"needs {diag.screen.policy.z_confirm:.3g}): the structure it pointed to is not borne out on data that took "
+        "no part, so "
         f"nothing is named"), not_identified=v.not_identified, partial=p)
 
 
-def _with_lines(residuals: list[RecordResidual], lines: list[Candidate]) -> list[RecordResidual]:
+def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
     """Every kept interference on top: each a sinusoid at its frequency and amplitude, phase fitted per record."""
     for c in lines:
-        residuals = interference_on_validation(residuals, c)[0]
+        residuals = interference_on_validation(residuals, c, policy)[0]
     return residuals
 
 
@@ -142,13 +145,13 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         say(f"checking {c.label} on the validation records")
         check = {}
         if c.cause == "interference":
-            after, check = interference_on_validation(before, c)
+            after, check = interference_on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
-            after = _with_lines(part, lines)
+            after = _with_lines(part, lines, diag.screen.policy)
         g = gain(before, after, "validation")
-        out.append({**entry, "checked": True, "borne_out": borne_out(g, c.cause, check),
+        out.append({**entry, "checked": True, "borne_out": borne_out(g, c.cause, check, diag.screen.policy),
                     **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
                     **({"interference_check": check} if check else {})})
         before = after

@@ -27,6 +27,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.selection import Folds, evidence, out_of_fold, score
 
 NO_NAMED_REFERENCE = ("interference", "saturation")  # named causes whose held-out design is not one matrix
@@ -46,7 +47,7 @@ def planted_column(screen, signal: Mapping[str, np.ndarray]) -> np.ndarray | Non
 
 def _summary(h: dict) -> dict:
     return {"gain": h["gain"], "z": h["z"], "folds_improved": h["folds_improved"], "n_folds": h["n_folds"],
-            "evidence": evidence(h)}
+            "evidence": evidence(h, Policy())}
 
 
 def effect_evidence(diag, truth: Mapping) -> dict:

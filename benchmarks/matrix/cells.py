@@ -18,7 +18,7 @@ import hysbench.identification
 import hysbench.models
 from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.identification import METHODS, applicable_methods as identifier_methods, identify
-from hysbench.identification.api import resolve_method, split_options
+from hysbench.identification.api import NATIVE, resolve_method, split_options
 from hysbench.models import get_model, list_models
 from hysbench.models.errors import HysbenchError
 
@@ -107,8 +107,9 @@ class CellResult:
         return cls(**d)
 
 
-# The default matrix runs the three identifiers; chains such as varpro+lsq are run when named.
-DEFAULT_METHODS = ("varpro", "mpso", "lsq")
+# The default matrix runs the three identifiers, and "native" (the only method of the black-box learners,
+# which train with their own library); chains such as varpro+lsq are run when named.
+DEFAULT_METHODS = ("varpro", "mpso", "lsq", "native")
 
 # The matrix's default budget per cell, so that every model x identifier on the virtual DEA fits in
 # well under five minutes on two cores: mpso gets 400 model evaluations (20 particles x 20 iterations),
@@ -148,7 +149,7 @@ def hyperparameters_key(model_name: str) -> str:
 def plan_cells(datasets: list[tuple[str, Dataset]], models: list[str] | None, methods: list[str] | None,
                seed: int, method_options: dict | None = None) -> list[Cell]:
     """Every requested model x applicable method x dataset (unknown names raise HysbenchError)."""
-    known_methods = list(METHODS)
+    known_methods = list(METHODS) + [NATIVE]
     models = models or list_models(matrix_only=True)
     for m in models:
         get_model(m)  # raises on an unknown name

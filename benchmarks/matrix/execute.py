@@ -3,13 +3,18 @@
 Every finished cell is written to the store the moment it arrives, and
 matrix.csv is rewritten (atomically) after each, so an interrupted run loses
 nothing that finished. Worker processes run numba single-threaded: the
-parallelism is across cells.
+parallelism is across cells. On SIGINT the workers are killed at once (a running
+cell is recomputed by the next run); a worker whose parent dies exits with it.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import sys
+import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from multiprocessing import get_context
 from typing import Callable
@@ -20,10 +25,47 @@ from .cells import Cell, run_cell
 from .store import KEPT, CellStore
 
 
-def _single_threaded_worker():
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _worker_init(parent_pid: int) -> None:
+    """Each worker: numba single-threaded, SIGINT left to the parent (which stops the workers itself: a
+    Ctrl-C reaches the whole process group), and dying with its parent (``_die_with_parent``)."""
     import numba
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent_pid)
     numba.set_num_threads(1)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """A worker whose parent is gone (even killed with SIGKILL) exits at once: on Linux the kernel sends it
+    SIGKILL (prctl PR_SET_PDEATHSIG); elsewhere a daemon thread checks the parent's pid every second."""
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            armed = ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    if not armed:
+        def watch():
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(1)
+
+        threading.Thread(target=watch, name="hysbench-parent-watch", daemon=True).start()
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's worker processes now (a running cell is not waited for: the cells that finished are
+    already in the store)."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        try:
+            proc.kill()
+        except (OSError, ValueError):
+            pass
 
 
 def _progress(total: int, quiet: bool):
@@ -76,7 +118,7 @@ def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, 
 def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
     ctx = get_context("spawn")  # numba's threads do not survive fork
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=ctx,
-                             initializer=_single_threaded_worker) as pool:
+                             initializer=_worker_init, initargs=(os.getpid(),)) as pool:
         pending = {pool.submit(run_cell, c): c for c in todo}
         try:
             while pending:
@@ -86,9 +128,10 @@ def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
                 for fut in done:
                     pending.pop(fut)
                     finished(fut.result())
-        except BaseException:
+        except BaseException:  # e.g. SIGINT: stop within a second, keeping what finished
             for fut in pending:
                 fut.cancel()
+            _stop_workers(pool)
             pool.shutdown(wait=False, cancel_futures=True)
             raise
 

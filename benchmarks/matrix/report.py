@@ -13,6 +13,8 @@ from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import write_atomic
 from hysbench.data.dataset import Dataset
 from hysbench.identification import Fit
+from hysbench.models import get_model
+from hysbench.models.errors import HysbenchError
 
 CSV_COLUMNS = ("dataset", "model", "method", "record", "frequency_hz", "role", "e_m", "e_rms", "fitness",
                "fit_seconds", "simulate_seconds", "n_params", "n_evaluations", "seed")
@@ -94,16 +96,24 @@ def _freq_label(rec: dict) -> str:
     return f"{rec['frequency_hz']:g}" if rec["frequency_hz"] else rec["file"]
 
 
+def kind_of(model_name: str) -> str:
+    """grey-box (a structure of hysteresis or of the physics) or black-box (a learner, docs/black_box.md)."""
+    try:
+        return getattr(get_model(model_name), "kind", "grey-box")
+    except HysbenchError:
+        return "–"
+
+
 def ranking_table(ranked) -> list[str]:
     on = ranked[0][1]["ranked_on"] if ranked else "validation"
     lines = [
-        f"| rank | model | method | parameters | {on} e_rms mean (%) | {on} e_rms worst (%) | {on} e_m worst (%) "
+        f"| rank | model | kind | method | parameters | {on} e_rms mean (%) | {on} e_rms worst (%) | {on} e_m worst (%) "
         "| fitness (eq. 9) | fit (s) | simulate all records (s) |",
-        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for i, (res, s) in enumerate(ranked, 1):
         lines.append(
-            f"| {i} | {res['model']} | {res['method']} | {res['n_params']} | {_fmt(s['val_mean'])} | "
+            f"| {i} | {res['model']} | {kind_of(res['model'])} | {res['method']} | {res['n_params']} | {_fmt(s['val_mean'])} | "
             f"{_fmt(s['val_worst'])} | {_fmt(s['val_em_worst'])} | {res['fitness']:.4g} | "
             f"{_secs(res['fit_seconds'])} | {_secs(res['simulate_seconds'])} |"
         )

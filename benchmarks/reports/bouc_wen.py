@@ -30,6 +30,7 @@ from hysbench.data.files import check_output_dir, ensure_dir, write_atomic, writ
 from hysbench.identification import identify
 from hysbench.identification.problem import data_scale
 from hysbench.models import get_model
+from hysbench.models.recurrent import torch_available
 
 DEFAULT_DATASET = shared_datasets_root() / "bouc_wen_benchmark"
 TRUE_PARAMS = {"m": 2.0, "c": 10.0, "k": 5e4, "alpha": 5e4, "gamma": 0.8, "delta": -1.1}  # beta = 1e3, nu = 1
@@ -47,6 +48,24 @@ def rmse(a, b) -> float:
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
 
 
+def nrmse(predicted, measured) -> float:
+    """RMSE / standard deviation of the measured output (the nonlinear benchmarks' NRMSE)."""
+    return rmse(predicted, measured) / float(np.std(np.asarray(measured)))
+
+
+def fit_percent(predicted, measured) -> float:
+    """100 (1 - ||y - y_hat|| / ||y - mean(y)||) = 100 (1 - NRMSE): the benchmarks' fit (%)."""
+    return 100.0 * (1.0 - nrmse(predicted, measured))
+
+
+def kind(model) -> str:
+    """grey-box (a structure of hysteresis or of the physics) or black-box (a learner)."""
+    return getattr(model, "kind", "grey-box")
+
+
+BLACK_BOX = ("narx-sparse", "narx-mlp", "gru")
+
+
 def steady_state(model, params, record: Record, input_range=None) -> np.ndarray:
     """The response to a periodic record in steady state: run one period first, keep the second."""
     n = record.u.size
@@ -56,7 +75,12 @@ def steady_state(model, params, record: Record, input_range=None) -> np.ndarray:
 def validation_scores(model, params, dataset: Dataset, input_range=None) -> dict[str, float]:
     train = dataset.identification[0]
     ms, sweep = dataset.record("val_multisine.csv"), dataset.record("val_sinesweep.csv")
+    rest, steady = model.simulate(ms.u, ms.dt, params, input_range=input_range), steady_state(model, params, ms, input_range)
     return {
+        "val_multisine_from_rest_nrmse": nrmse(rest, ms.y),
+        "val_multisine_from_rest_fit": fit_percent(rest, ms.y),
+        "val_multisine_steady_state_nrmse": nrmse(steady, ms.y),
+        "val_multisine_steady_state_fit": fit_percent(steady, ms.y),
         "train_window": rmse(model.simulate(train.u, train.dt, params, input_range=input_range)[train.scored],
                              train.y[train.scored]),
         "val_multisine_from_rest": rmse(model.simulate(ms.u, ms.dt, params, input_range=input_range), ms.y),
@@ -89,8 +113,17 @@ def fit_comparison(name: str, dataset: Dataset, seed: int, method: str = "lsq") 
     return _row(model, fit, dataset, seconds, how)
 
 
+def fit_black_box(name: str, dataset: Dataset, seed: int) -> dict:
+    """A black-box learner with its default hyperparameters, trained by its own library."""
+    model = get_model(name)
+    t0 = time.perf_counter()
+    fit = identify(model, dataset, "native", seed=seed)
+    seconds = time.perf_counter() - t0
+    return _row(model, fit, dataset, seconds, "native (its library, default hyperparameters)")
+
+
 def _row(model, fit, dataset, seconds, how) -> dict:
-    return {"model": model.name, "hyperparameters": model.get_hyperparameters(), "how": how,
+    return {"model": model.name, "kind": kind(model), "hyperparameters": model.get_hyperparameters(), "how": how,
             "n_params": model.n_params, "params": fit.params, "seconds": seconds, "fit_seconds": fit.fit_seconds,
             "n_evaluations": fit.n_evaluations, "notes": list(fit.notes),
             "rmse_m": validation_scores(model, fit.params, dataset, fit.input_range)}
@@ -110,6 +143,7 @@ def build(dataset_path: Path, out: Path, seed: int) -> dict:
     rows = [fit_oscillator(dataset, seed), fit_oscillator(dataset, seed, fixed_nu=None)]
     rows += [fit_comparison(name, dataset, seed) for name in ("bouc-wen", "classical-pi")]
     rows.append(fit_comparison("classical-pi", dataset, seed, "varpro"))  # its weights solved exactly
+    rows += [fit_black_box(name, dataset, seed) for name in BLACK_BOX if name != "gru" or torch_available()]
     result = {"dataset": dataset.name, "seed": seed, "published": PUBLISHED, "rows": rows,
               "true_parameters": interpolation_check(dataset), "load_average": os.getloadavg()[0]}
     out = ensure_dir(out)
@@ -125,6 +159,14 @@ def _e(x: float) -> str:
 def _cells(e: dict) -> str:
     return " | ".join(_e(e[k]) for k in ("val_multisine_from_rest", "val_multisine_steady_state",
                                          "val_sinesweep_from_rest", "train_window"))
+
+
+def _with_fit(e: dict, protocol: str) -> str:
+    """RMSE / NRMSE / fit (%) of the validation multisine under one protocol."""
+    key = f"val_multisine_{protocol}"
+    if not np.isfinite(e[key]):
+        return "not finite"
+    return f"{_e(e[key])} / {e[key + '_nrmse']:.3g} / {e[key + '_fit']:.1f}"
 
 
 def _label(row: dict) -> str:
@@ -150,12 +192,21 @@ def render(r: dict) -> str:
         "",
         "## hysbench",
         "",
-        "| model | identified by | params | val multisine, from rest | val multisine, steady state | "
-        "val sine sweep, from rest | training window | identification (s) | evaluations |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "RMSE in metres; NRMSE = RMSE / standard deviation of the measured output; fit (%) = 100 (1 - NRMSE), as "
+        "the nonlinear system identification benchmarks report them. Grey-box: a structure of hysteresis or of "
+        "the physics (the oscillator is the true model class); black-box: a learner with no such structure "
+        "(docs/black_box.md), parameters = its weights plus 5 scaling constants.",
+        "",
+        "| model | kind | identified by | params | val multisine, steady state: RMSE / NRMSE / fit % | "
+        "val multisine, from rest: RMSE / NRMSE / fit % | val sine sweep, from rest | training window | "
+        "identification (s) | evaluations |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in r["rows"]:
-        lines.append(f"| {_label(row)} | {row['how']} | {row['n_params']} | {_cells(row['rmse_m'])} | "
+        e = row["rmse_m"]
+        lines.append(f"| {_label(row)} | {row.get('kind', 'grey-box')} | {row['how']} | {row['n_params']} | "
+                     f"{_with_fit(e, 'steady_state')} | {_with_fit(e, 'from_rest')} | "
+                     f"{_e(e['val_sinesweep_from_rest'])} | {_e(e['train_window'])} | "
                      f"{row['seconds']:.1f} | {row['n_evaluations']} |")
     lines += ["", f"Identification time: wall clock of the start fit plus `identify`, after JIT warm-up, on a shared "
               f"2-core machine (load average {r['load_average']:.1f} at the end of the run): indicative only.", ""]
@@ -180,7 +231,7 @@ def render(r: dict) -> str:
     osc, p = r["rows"][0]["rmse_m"], r["rows"][0]["params"]
     floor = r["true_parameters"][0]["rmse_m"]
     f0 = np.sqrt((p["k"] + p["alpha"]) / p["m"]) / (2 * np.pi)
-    others = [row for row in r["rows"] if row["model"] != "bouc-wen-oscillator"]
+    others = [row for row in r["rows"] if row["model"] != "bouc-wen-oscillator" and row.get("kind") != "black-box"]
     best_other = min(row["rmse_m"]["val_multisine_steady_state"] for row in others)
     dev = max(abs(p[k] / v - 1.0) for k, v in TRUE_PARAMS.items())
     nu_row = next((row for row in r["rows"] if "nu" in row["params"]), None)
@@ -214,6 +265,16 @@ def render(r: dict) -> str:
         "lines below 150 Hz, so the band-limited (fourier) interpolation of the 750 Hz samples is the force it "
         "integrated; with the true parameters it predicts best (table above).",
     ]
+    boxes = [row for row in r["rows"] if row.get("kind") == "black-box"]
+    if boxes:
+        finite = [row for row in boxes if np.isfinite(row["rmse_m"]["val_multisine_steady_state"])]
+        text = "; ".join(f"{row['model']} {_e(row['rmse_m']['val_multisine_steady_state'])} m "
+                         f"(fit {row['rmse_m']['val_multisine_steady_state_fit']:.1f} %, {row['n_params']} parameters)"
+                         if np.isfinite(row["rmse_m"]["val_multisine_steady_state"]) else f"{row['model']} not finite"
+                         for row in boxes)
+        lines.append(f"- Black-box learners at their default hyperparameters, validation multisine in steady state: "
+                     f"{text}. " + (f"The best of them is {min(row['rmse_m']['val_multisine_steady_state'] for row in finite) / osc['val_multisine_steady_state']:.0f} "
+                                    "times the grey-box oscillator's RMSE." if finite else ""))
     return "\n".join(lines) + "\n"
 
 

@@ -1,4 +1,4 @@
-"""Speed of a deployed model (issue 72): the generated C, the Python stepper, the batch kernel.
+"""Speed of a deployed model: the generated C, the Python stepper, the batch kernel.
 
 * ns per step of the generated C for MRPIM with 13 plays (Table 2), compiled -O2 (goal <= 50 ns);
 * the Python stepper per ``step`` call (goal <= 2 us);
