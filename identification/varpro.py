@@ -52,8 +52,13 @@ from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_sp
                      spectrum_from_qr, undetermined_count)
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
-# a column whose spread on the scored rows is below this fraction of its largest magnitude is nearly constant
-# (its level more than 20 times the variation the data show: the level is an extrapolation)
+# a column whose spread on the scored rows is below this fraction of its largest magnitude is nearly constant:
+# a weight fitted to that spread acts from rest (where the column is 0) on a level more than 20 times the
+# largest change it was fitted on, an extrapolation the data cannot check. The fraction lies in the gap between
+# the columns a drive excites and those it does not: on the virtual DEA's varpro fits of every matrix model
+# with an intercept, the former vary by at least 12 % of their level (plays that turn, polynomial and state
+# terms), the latter by at most 1.1 % (plays whose threshold lies above the input's span, moved only by the rate
+# envelopes); any fraction in between sorts them alike (docs/identification.md)
 NEAR_CONSTANT = 0.05
 # fixing an undetermined direction may cost at most this relative increase of the fitness (rounding, the
 # ridge); a bounded solve whose bounds pin the direction down costs more, and is kept whole
