@@ -154,6 +154,7 @@ class Identifier(ABC):
             n_rows=n_rows,
             aic=aic(fitness, n_rows, k) if finite else math.nan,
             bic=bic(fitness, n_rows, k) if finite else math.nan,
+            undetermined=[str(n) for n in diagnostics[self.stages()[-1].name].get("undetermined", {})],
             _instance=model,
         )
 

@@ -6,7 +6,9 @@ every record of the dataset (identification and validation), the number of
 model evaluations, the wall time, the convergence history, the input range
 that fixes the model's structure, the bounds, options and seed; whether it
 succeeded (``success`` is False when the model's output is not finite at the
-identified parameters: such a fit is never scored), how many evaluated
+identified parameters: such a fit is never scored), which parameters the
+scored data do not determine and were fixed (``undetermined``; varpro's
+linear solve, identification/linear.py), how many evaluated
 parameter sets gave non-finite output, and AIC / BIC computed once from eq. 9's
 fitness as a Gaussian likelihood with n = the scored rows of the fit records
 and k = the free parameters (identification/criteria.py; residuals are
@@ -72,6 +74,7 @@ class Fit:
     n_rows: int = 0  # scored rows of the fit records
     aic: float = math.nan
     bic: float = math.nan
+    undetermined: list[str] = field(default_factory=list)  # parameters the scored data do not determine (fixed)
     _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
 
     # --- the fitted model ----------------------------------------------------
@@ -147,6 +150,9 @@ class Fit:
         items = [f"{k} = {_shown(v, '.6g')}" for k, v in self.params.items()]
         for i in range(0, len(items), 4):
             lines.append("   ".join(f"{it:<20}" for it in items[i:i + 4]).rstrip())
+        if self.undetermined:
+            lines += ["", "undetermined by the scored data (fixed): " + ", ".join(
+                f"{n} = {_shown(self.params.get(n, math.nan), '.6g')}" for n in self.undetermined)]
         for note in self.notes:
             lines += ["", f"note: {note}"]
         return "\n".join(lines)
@@ -182,6 +188,7 @@ class Fit:
             "n_rows": self.n_rows,
             "aic": self.aic,
             "bic": self.bic,
+            "undetermined": list(self.undetermined),
         })
 
     @classmethod
@@ -218,6 +225,7 @@ class Fit:
                 n_rows=int(d.get("n_rows", 0)),
                 aic=_float(d.get("aic")),
                 bic=_float(d.get("bic")),
+                undetermined=[str(n) for n in d.get("undetermined", [])],
             )
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise IdentificationError(f"malformed fit record: {exc!r}") from None

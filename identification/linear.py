@@ -15,6 +15,17 @@ alpha = s_max / max_condition when the condition number exceeds
 ``max_condition``, and drops the directions whose eigenvalue is below
 ``ev_cutoff`` * ev_max (minimum-norm solution there).
 
+Directions the data do not determine. A direction of A_s whose singular value is below
+``UNDETERMINED_TOL`` * s_max (the QR spectrum is exact to ~1e-16 * s_max, so this is six
+decades above rounding) changes the fit by nothing the data can see: a regressor that is
+constant on every scored row next to the intercept, two equal columns. No value of its
+coefficient is supported by the data, yet it moves the model wherever the columns differ
+(outside the scored rows: from rest, in transients). ``dependent_columns`` names the
+parameters to fix there: a Householder QR of the columns in a stated priority order
+(unpivoted), and a column whose diagonal |R_jj| is below ``UNDETERMINED_TOL`` * s_max (its
+part not explained by the columns before it) is dependent; its coefficient is fixed and the
+rest solved without it (``solve_fixing``).
+
 ``scaled_lstsq(A, b)`` is the plain-matrix entry point: the truncated-SVD
 minimum-norm solution of the column-scaled problem (numpy's ``lstsq`` on
 A_s with ``rcond``), for one right-hand side or several.
@@ -30,6 +41,8 @@ import scipy.linalg
 
 # directions whose eigenvalue of A_s^T A_s is below this fraction of the largest are dropped
 DEFAULT_EV_CUTOFF = 1e-15
+# a direction whose singular value of A_s is below this fraction of the largest is undetermined by the data
+UNDETERMINED_TOL = 1e-10
 
 
 def column_norms(A: np.ndarray) -> np.ndarray:
@@ -124,3 +137,29 @@ def scaled_lstsq(A: np.ndarray, b: np.ndarray, rcond: float = 1e-10, max_conditi
     ev, V, rhs = spectrum_from_qr(A, b, column_scale=D)
     x = solve_spectrum(ev, V, rhs, max_condition, rcond**2).x_scaled
     return x / (D[:, None] if x.ndim == 2 else D)
+
+
+def undetermined_count(ev: np.ndarray, tol: float = UNDETERMINED_TOL) -> int:
+    """How many directions of A_s (eigenvalues ``ev`` of A_s^T A_s, descending) have a singular value below
+    ``tol`` * s_max."""
+    ev = np.maximum(np.asarray(ev, dtype=float), 0.0)
+    if ev.size == 0 or not ev[0] > 0:
+        return int(ev.size)
+    return int(np.count_nonzero(ev < ev[0] * tol * tol))
+
+
+def dependent_columns(A: np.ndarray, order: np.ndarray, column_scale: np.ndarray | None = None,
+                      tol: float = UNDETERMINED_TOL) -> np.ndarray:
+    """Boolean mask of the columns of A_s = A / column_scale that the columns before them in ``order`` (a
+    permutation of the columns, highest priority first) already span to within ``tol`` * s_max: |R_jj| of a
+    Householder QR of A_s[:, order]. Keeping the others leaves a design of full numerical rank."""
+    A = np.asarray(A, dtype=float)
+    D = column_norms(A) if column_scale is None else column_scale
+    order = np.asarray(order, dtype=int)
+    R = qr_triangle(A[:, order], np.zeros((A.shape[0], 0)), D[order])
+    s_max = np.linalg.svd(R, compute_uv=False)[0] if R.size else 0.0
+    diag = np.abs(np.diag(R))
+    diag = np.concatenate([diag, np.zeros(order.size - diag.size)])  # fewer rows than columns
+    dependent = np.zeros(A.shape[1], dtype=bool)
+    dependent[order] = diag <= tol * s_max
+    return dependent

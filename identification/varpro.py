@@ -38,7 +38,7 @@ region and the merge radius all see log z.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
@@ -48,8 +48,22 @@ from scipy.stats import qmc
 from .base import Identifier
 from .errors import IdentificationError
 from .jacobian import CachedResidual, forward_difference
-from .linear import column_norms, solve_spectrum, spectrum_from_gram, spectrum_from_qr
+from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_spectrum, spectrum_from_gram,
+                     spectrum_from_qr, undetermined_count)
 from .problem import MAX_BATCH_ELEMENTS, Problem
+
+# a column whose spread on the scored rows is below this fraction of its largest magnitude is nearly constant:
+# a weight fitted to that spread acts from rest (where the column is 0) on a level more than 20 times the
+# largest change it was fitted on, an extrapolation the data cannot check. The fraction lies in the gap between
+# the columns a drive excites and those it does not: on the virtual DEA's varpro fits of every matrix model
+# with an intercept, the former vary by at least 12 % of their level (plays that turn, polynomial and state
+# terms), the latter by at most 1.1 % (plays whose threshold lies above the input's span, moved only by the rate
+# envelopes); any fraction in between sorts them alike (docs/identification.md)
+NEAR_CONSTANT = 0.05
+# fixing an undetermined direction may cost at most this relative increase of the fitness (rounding, the
+# ridge); a bounded solve whose bounds pin the direction down costs more, and is kept whole
+FREE_FIX = 1e-6
+
 
 class Varpro(Identifier):
     """Separable least squares; see the module docstring."""
@@ -95,6 +109,10 @@ class LinearSolution:
     ridge: float  # alpha / s_max (0 when not regularised)
     bounded: bool  # the bounded solve was needed
     weak_directions: list  # [(singular value / s_max, {name: loading})] below 1 / max_condition
+    n_undetermined: int = 0  # directions with singular value below UNDETERMINED_TOL * s_max (accurate solve only)
+    fixed: dict = field(default_factory=dict)  # {name: value} linear parameters fixed because the data do not determine them
+    condition_number_full: float = math.nan  # of the design before rank-deficient columns were fixed
+    nearly_constant: list = field(default_factory=list)  # of ``fixed``: columns nearly constant on the scored rows
 
 
 class SeparableProblem:
@@ -164,12 +182,77 @@ class SeparableProblem:
         its error (~cond^2 * 1e-16 in the weakest direction) changes the
         fitness only at second order. ``accurate`` (the reported optimum): a
         Householder QR of [A_s, b] and the SVD of its small triangle
-        (condition numbers exact up to ~1e16). A model output that is not
+        (condition numbers exact up to ~1e16); there, directions the data do
+        not determine (singular value below ``linear.UNDETERMINED_TOL`` * s_max)
+        are found and their parameters fixed at 0 (``linear.dependent_columns``, columns kept in
+        ``column_priority``). In both paths, next to an intercept, a column nearly constant on the
+        scored rows is fixed at 0 (``varying_columns``). A model output that is not
         finite gives an infinite fitness and is counted in the problem's ``n_nonfinite``.
         """
+        keep = self.varying_columns(blocks)
+        sol = self._solve(blocks, accurate, None if keep.all() else keep)
+        sol.nearly_constant = [n for n, k in zip(self.linear_names, keep) if not k]
+        if not (accurate and sol.n_undetermined and math.isfinite(sol.fitness)):
+            return sol
+        cols = np.flatnonzero(keep)
+        A = np.concatenate([wm * Phi[:, cols] for wm, Phi in zip(self.problem.row_weights, blocks)])
+        dependent = dependent_columns(A, self.column_priority([Phi[:, cols] for Phi in blocks]))
+        if not dependent.any():
+            return sol
+        keep[cols[dependent]] = False
+        reduced = self._solve(blocks, True, keep)
+        if not reduced.fitness <= sol.fitness * (1.0 + FREE_FIX):  # the bounds determine those directions
+            return sol
+        reduced.condition_number_full = sol.condition_number
+        reduced.nearly_constant = sol.nearly_constant
+        return reduced
+
+    @staticmethod
+    def column_groups(blocks: list[np.ndarray]) -> np.ndarray:
+        """Per column: 0 an intercept (1 on every scored row), 2 nearly constant on the scored rows (spread
+        below ``NEAR_CONSTANT`` of its largest magnitude), 1 the others."""
+        stacked = np.concatenate(blocks)
+        ones = np.all(stacked == 1.0, axis=0)
+        span = np.ptp(stacked, axis=0) if stacked.shape[0] else np.zeros(stacked.shape[1])
+        constant = span <= NEAR_CONSTANT * np.max(np.abs(stacked), axis=0, initial=0.0)
+        return np.where(ones, 0, np.where(constant, 2, 1))
+
+    def varying_columns(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The columns solved for: all but those nearly constant on the scored rows, when the design has
+        an intercept. Such a column (a play whose threshold lies above the scored input's span moves only
+        through the rate envelopes, by a fraction of its level) repeats the intercept there up to that
+        fraction; a weight fitted to the remainder multiplies a level that the intercept absorbs in the
+        scored windows but not where the column differs (from rest, before the play first turns)."""
+        group = self.column_groups(blocks)
+        if not np.any(group == 0):
+            return np.ones(group.size, dtype=bool)
+        return group != 2
+
+    def column_priority(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The order in which columns are kept when some must be fixed (``linear.dependent_columns``):
+        an intercept first, then the columns that vary on the scored rows, then those nearly constant
+        there, each group in the model's order."""
+        group = self.column_groups(blocks)
+        return np.lexsort((np.arange(group.size), group))
+
+    def _solve(self, blocks: list[np.ndarray], accurate: bool, keep: np.ndarray | None) -> LinearSolution:
+        """``solve_blocks`` on the columns ``keep`` (None: all); the others are fixed at 0 (or the bound
+        nearest 0) and their contribution taken off the data."""
         w = self.problem.row_weights
-        ys = self._ys
         n = len(self.linear_names)
+        names = list(self.linear_names)
+        lo, hi = self.lin_lower, self.lin_upper
+        ys = self._ys
+        b = self.b
+        x_fixed = np.zeros(0)
+        if keep is not None:
+            x_fixed = np.clip(0.0, lo[~keep], hi[~keep])
+            if np.any(x_fixed != 0.0):
+                ys = [y - Phi[:, ~keep] @ x_fixed for Phi, y in zip(blocks, ys)]
+                b = np.concatenate([wm * y for wm, y in zip(w, ys)])
+            blocks = [np.ascontiguousarray(Phi[:, keep]) for Phi in blocks]
+            names = [nm for nm, k in zip(names, keep) if k]
+            lo, hi = lo[keep], hi[keep]
         blown_up = LinearSolution(np.zeros(n), math.inf, np.full(self.b.size, np.inf), math.inf, False, 0.0, False,
                                   [])
 
@@ -182,11 +265,11 @@ class SeparableProblem:
             if not np.all(np.isfinite(D)):
                 self.problem.n_nonfinite += 1
                 return blown_up
-            ev, V, rhs = spectrum_from_qr(A, self.b, column_scale=D)
+            ev, V, rhs = spectrum_from_qr(A, b, column_scale=D)
         else:
             with np.errstate(over="ignore", invalid="ignore"):
                 G = sum((wm * wm) * (Phi.T @ Phi) for wm, Phi in zip(w, blocks))
-                Atb = self._Atb(blocks)
+                Atb = sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(w, blocks, ys))
             if not (np.all(np.isfinite(G)) and np.all(np.isfinite(Atb))):
                 self.problem.n_nonfinite += 1
                 return blown_up
@@ -199,7 +282,6 @@ class SeparableProblem:
         denom, safe = spec.denominators, spec.kept
         x = spec.x_scaled / D
         bounded = False
-        lo, hi = self.lin_lower, self.lin_upper
         if np.any(x < lo) or np.any(x > hi):
             bounded = True
             # min ||A_s xs - b||^2 + alpha2 ||xs||^2 as the small system M xs ~ c
@@ -217,10 +299,18 @@ class SeparableProblem:
                 load = load / np.max(np.abs(load))
                 top = np.argsort(-np.abs(load))[:4]
                 weak.append((math.sqrt(ev[k] / ev_max) if ev_max > 0 else 0.0,
-                             {self.linear_names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
+                             {names[i]: float(load[i]) for i in top if abs(load[i]) >= 0.05}))
         scale = self.output_scale
-        return LinearSolution(x * scale, fit * scale * scale, r, cond, regularised, math.sqrt(alpha2 / ev_max) if regularised else 0.0,
-                              bounded, weak)
+        fixed: dict = {}
+        if keep is not None:
+            x_all = np.zeros(n)
+            x_all[keep] = x
+            x_all[~keep] = x_fixed
+            fixed = {nm: float(v * scale) for nm, v in zip(np.array(self.linear_names)[~keep], x_fixed)}
+            x = x_all
+        return LinearSolution(x * scale, fit * scale * scale, r, cond, regularised,
+                              math.sqrt(alpha2 / ev_max) if regularised else 0.0, bounded, weak,
+                              undetermined_count(ev) if accurate else 0, fixed)
 
     def _Atb(self, blocks):
         return sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(self.problem.row_weights, blocks, self._ys))
@@ -366,6 +456,21 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
     diag.update(condition_number=final.condition_number, regularised=final.regularised, ridge=final.ridge,
                 bounded_linear_solve=final.bounded, max_condition=sep.max_condition)
     notes = []
+    if final.fixed:
+        diag["undetermined"] = dict(final.fixed)
+        rank = [n for n in final.fixed if n not in final.nearly_constant]
+        if final.nearly_constant:
+            notes.append(
+                f"varpro: {', '.join(final.nearly_constant)}: regressor(s) nearly constant on the scored rows (spread "
+                f"below {NEAR_CONSTANT:g} of the level) next to the intercept: the data determine their weights only "
+                "through that spread while the level trades with the intercept; fixed at 0")
+        if rank:
+            diag["condition_number_all_columns"] = final.condition_number_full
+            notes.append(
+                f"varpro: the scored data do not determine {', '.join(rank)} (the column-scaled design has condition "
+                f"number {final.condition_number_full:.3g}, a direction with singular value below "
+                f"{UNDETERMINED_TOL:g} * s_max): fixed at {', '.join(f'{final.fixed[n]:g}' for n in rank)}, the rest "
+                f"solved without (condition number {final.condition_number:.3g})")
     if final.regularised:
         dirs = "; ".join(
             " ".join(f"{v:+.2f}*{n}" for n, v in load.items()) + f" (s/s_max {sv:.1e})"
