@@ -21,7 +21,8 @@ from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data import load_dataset
 from hysbench.identification import Fit
-from hysbench.models import HysteresisModel, Parameter, list_models, register
+from hysbench.models import HysteresisModel, Parameter
+from hysbench.models import registry as model_registry
 from hysbench.data.protocol import simulated_dataset
 from hysbench.data import save_dataset
 from hysbench.models import get_model
@@ -276,24 +277,25 @@ class _NaNModel(HysteresisModel):
         return np.full((P.shape[0], np.size(u)), np.nan)
 
 
-def _non_finite_cell(small_dataset):
-    if "test-nan-model" not in list_models():
-        register("test-nan-model", _NaNModel, in_matrix=False)
+def _non_finite_cell(small_dataset, monkeypatch):
+    """The test model is registered for this test only: tests over every registered model must not see it."""
+    monkeypatch.setitem(model_registry._REGISTRY, _NaNModel.name, _NaNModel)
+    monkeypatch.setattr(model_registry, "_NOT_IN_MATRIX", model_registry._NOT_IN_MATRIX | {_NaNModel.name})
     ds = load_dataset(small_dataset)
     cell = plan_cells([(small_dataset, ds)], ["test-nan-model"], ["lsq"], seed=0)[0]
     return ds, cell, run_cell(cell)
 
 
-def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tmp_path):
-    ds, _, result = _non_finite_cell(small_dataset)
+def test_a_model_with_non_finite_output_is_reported_not_scored(small_dataset, tmp_path, monkeypatch):
+    ds, _, result = _non_finite_cell(small_dataset, monkeypatch)
     assert result["status"] == "nonfinite"
     assert set(result["nonfinite_records"]) == {r.file for r in ds.records}
     assert "non-finite" in result["error"]
     assert matrix_rows([result]) == []  # not in the ranked table
 
 
-def test_a_non_finite_cell_is_stored_as_strict_json_and_read_back(small_dataset, tmp_path):
-    _, cell, result = _non_finite_cell(small_dataset)
+def test_a_non_finite_cell_is_stored_as_strict_json_and_read_back(small_dataset, tmp_path, monkeypatch):
+    _, cell, result = _non_finite_cell(small_dataset, monkeypatch)
     assert not np.isfinite(result["records"][0]["e_rms"])
     store = CellStore(tmp_path)
     path = store.put(result)
