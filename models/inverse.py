@@ -101,7 +101,7 @@ from numba import njit
 from .errors import ModelError
 from .hyperparameters import check_int, check_number
 from .kernels import KERNEL_FASTMATH, backward_rates, pi_sample, play_update
-from .stepper import ArrayStepper, InverseStepper, check_state_keys, check_step_input
+from .stepper import ArrayInverseStepper, InverseStepper, check_state_keys, check_step_input
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
@@ -412,7 +412,7 @@ class KernelInvertible:
         return self.inverse_stepper_class(self, dt, vec, rng, a, self.clip_tolerance(vec, rng, a.tol))
 
 
-class KernelInverseStepper(ArrayStepper, InverseStepper):
+class KernelInverseStepper(ArrayInverseStepper):
     """Base of the constant-time inverse steppers of the ``KernelInvertible`` models: the state is the
     forward stepper's array (``ArrayStepper``) plus the previous input u(k-1) where the forward state
     lacks it; each step is one call of the model's jitted per-sample inverse, the function its step
@@ -426,11 +426,6 @@ class KernelInverseStepper(ArrayStepper, InverseStepper):
         self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol, clip_tol])
         self._search_state = np.empty(SEARCH_SIZE)
 
-    def reset(self) -> None:
-        super().reset()
-        self.clipped = False
-        self.n_clipped = 0
-
     def _search(self, y_ref: float) -> float:
         raise NotImplementedError
 
@@ -439,16 +434,6 @@ class KernelInverseStepper(ArrayStepper, InverseStepper):
         self.clipped = bool(search_clipped(self._search_state))
         self.n_clipped += self.clipped
         return u
-
-    @property
-    def state(self) -> dict:
-        return dict(super().state, n_clipped=int(self.n_clipped))
-
-    def set_state(self, state: dict) -> None:
-        if not isinstance(state, dict) or "n_clipped" not in state:
-            raise ModelError(f"{self.model.name}: state keys do not match (missing ['n_clipped'])")
-        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
-        self.n_clipped = int(state["n_clipped"])
 
 
 class ReplayInverseStepper(InverseStepper):

@@ -211,3 +211,24 @@ class ArrayStepper(Stepper):
         if not self._valid(new):
             raise ModelError(f"{name}: a state holds values this model cannot be in (non-finite)")
         self._state[:] = new
+
+
+class ArrayInverseStepper(ArrayStepper, InverseStepper):
+    """An ``ArrayStepper`` of an inverse: ``reset`` also clears ``clipped`` and ``n_clipped``, and the
+    state snapshot carries ``n_clipped`` beside the array's fields. Subclasses' ``_advance(y_ref)``
+    sets ``clipped`` and counts it."""
+
+    def reset(self) -> None:
+        super().reset()
+        self.clipped = False
+        self.n_clipped = 0
+
+    @property
+    def state(self) -> dict:
+        return dict(super().state, n_clipped=int(self.n_clipped))
+
+    def set_state(self, state: dict) -> None:
+        if not isinstance(state, dict) or "n_clipped" not in state:
+            raise ModelError(f"{self.model.name}: state keys do not match (missing ['n_clipped'])")
+        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
+        self.n_clipped = int(state["n_clipped"])

@@ -49,7 +49,7 @@ from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
 from .inverse import Inversion, check_max_rate
-from .stepper import ArrayStepper, InverseStepper
+from .stepper import ArrayInverseStepper, ArrayStepper
 
 
 class ViscoelasticStepper(ArrayStepper):
@@ -84,7 +84,7 @@ class ViscoelasticStepper(ArrayStepper):
                                           self._head, self._inv_6tau, self._work)
         return self._length * dlam + self._offset
 
-class ViscoelasticInverseStepper(ArrayStepper, InverseStepper):
+class ViscoelasticInverseStepper(ArrayInverseStepper):
     """The constant-time inverse stepper of ``viscoelastic``: ``step(y_ref) -> u``, the batch ``invert``'s
     root search for one sample (``dea_physics.inverse_stepper_sample``, the per-sample function of
     ``invert_stretch``). State (first, the previous input in kV, the RK4 substeps per sample, failed,
@@ -117,11 +117,6 @@ class ViscoelasticInverseStepper(ArrayStepper, InverseStepper):
         # the physics may hold what a failed interval left (as the batch inverse carries it on)
         return bool(np.all(np.isfinite(array[:4])) and array[2] >= 1 and array[2] == int(array[2]))
 
-    def reset(self) -> None:
-        super().reset()
-        self.clipped = False
-        self.n_clipped = 0
-
     def _advance(self, y_ref: float) -> float:
         head = self._head
         head[:4] = self._state[:4]
@@ -132,16 +127,6 @@ class ViscoelasticInverseStepper(ArrayStepper, InverseStepper):
         self.clipped = bool(head[4] != 0.0)
         self.n_clipped += self.clipped
         return u_kv / self._kv
-
-    @property
-    def state(self) -> dict:
-        return dict(super().state, n_clipped=int(self.n_clipped))
-
-    def set_state(self, state: dict) -> None:
-        if not isinstance(state, dict) or "n_clipped" not in state:
-            raise ModelError(f"{self.model.name}: state keys do not match (missing ['n_clipped'])")
-        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
-        self.n_clipped = int(state["n_clipped"])
 
 
 # Default bounds in units of the data's stress scale S (kPa) and time scale T (s).
