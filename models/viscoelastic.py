@@ -52,6 +52,21 @@ from .inverse import Inversion, check_max_rate
 from .stepper import ArrayInverseStepper, ArrayStepper
 
 
+def _physics_setup(stepper, model: "Viscoelastic", dt: float, params) -> int:
+    """The state layout and the fitted physics of a viscoelastic stepper (forward or inverse); returns
+    the physics state's length."""
+    n = 1 + 4 * model.n_branches
+    stepper._setup(model, dt, (("first", 0), ("u1_kv", 0), ("substeps", 0), ("failed", 0), ("physics", n)))
+    P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
+    K = model.n_branches
+    stepper._phys = np.ascontiguousarray(model.physical_vectors(P)[0])
+    stepper._length = float(P[0, 2 + 2 * K])
+    stepper._offset = float(P[0, 3 + 2 * K]) if model.offset else 0.0
+    stepper._kv = model.volts_per_input_unit / 1000.0
+    stepper._inv_6tau = dea_physics._inv_6tau(stepper._phys, K)
+    return n
+
+
 class ViscoelasticStepper(ArrayStepper):
     """The constant-time stepper of ``viscoelastic``: state (first, the previous input in kV, the RK4
     substeps per sample, failed, the physics state); each step integrates one sample interval with
@@ -59,15 +74,7 @@ class ViscoelasticStepper(ArrayStepper):
     (the model has no input-dependent structure)."""
 
     def __init__(self, model: "Viscoelastic", dt: float, params):
-        n = 1 + 4 * model.n_branches
-        self._setup(model, dt, (("first", 0), ("u1_kv", 0), ("substeps", 0), ("failed", 0), ("physics", n)))
-        P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
-        K = model.n_branches
-        self._phys = np.ascontiguousarray(model.physical_vectors(P)[0])
-        self._length = float(P[0, 2 + 2 * K])
-        self._offset = float(P[0, 3 + 2 * K]) if model.offset else 0.0
-        self._kv = model.volts_per_input_unit / 1000.0
-        self._inv_6tau = dea_physics._inv_6tau(self._phys, K)
+        n = _physics_setup(self, model, dt, params)
         self._work = np.empty((5, n))
         self._head, self._x = self._state[:4], self._state[4:]  # views: the state array is updated in place
         self.reset()
@@ -94,17 +101,9 @@ class ViscoelasticInverseStepper(ArrayInverseStepper):
 
     def __init__(self, model: "Viscoelastic", dt: float, params, limits_kv: tuple, u_start_kv: float,
                  max_step_kv: float, reference_scale: float):
-        n = 1 + 4 * model.n_branches
-        self._setup(model, dt, (("first", 0), ("u1_kv", 0), ("substeps", 0), ("failed", 0), ("physics", n)))
-        P = model._check_param_sets(model.pack(params) if isinstance(params, Mapping) else params)
-        K = model.n_branches
-        self._phys = np.ascontiguousarray(model.physical_vectors(P)[0])
-        self._length = float(P[0, 2 + 2 * K])
-        self._offset = float(P[0, 3 + 2 * K]) if model.offset else 0.0
-        self._kv = model.volts_per_input_unit / 1000.0
+        n = _physics_setup(self, model, dt, params)
         tol = 1e-12 * (1.0 + abs(float(reference_scale)) / self._length)
         self._limits = np.array([limits_kv[0], limits_kv[1], u_start_kv, max_step_kv, tol])
-        self._inv_6tau = dea_physics._inv_6tau(self._phys, K)
         self._work = np.empty((6, n))
         self._head = np.zeros(5)  # the state's head and the last sample's clipped flag
         self._x = self._state[4:]
