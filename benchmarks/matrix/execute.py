@@ -117,23 +117,25 @@ def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, 
 
 def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
     ctx = get_context("spawn")  # numba's threads do not survive fork
-    with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=ctx,
-                             initializer=_worker_init, initargs=(os.getpid(),)) as pool:
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=ctx, initializer=_worker_init,
+                               initargs=(os.getpid(),))
+    pending = {}
+    try:
         pending = {pool.submit(run_cell, c): c for c in todo}
-        try:
-            while pending:
-                running = ", ".join(c.name for c in list(pending.values())[:jobs])
-                bar.set_description(running)
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    pending.pop(fut)
-                    finished(fut.result())
-        except BaseException:  # e.g. SIGINT: stop within a second, keeping what finished
-            for fut in pending:
-                fut.cancel()
-            _stop_workers(pool)
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+        while pending:
+            running = ", ".join(c.name for c in list(pending.values())[:jobs])
+            bar.set_description(running)
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                pending.pop(fut)
+                finished(fut.result())
+    except BaseException:  # e.g. SIGINT: stop within a second, keeping what finished; the killed pool is
+        for fut in pending:  # not joined (its manager thread may wait on the dead workers' queues)
+            fut.cancel()
+        _stop_workers(pool)
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _run_dask(todo: list[Cell], address: str, finished, bar) -> None:
