@@ -55,8 +55,9 @@ def _wait_for(condition, timeout: float, what: str):
 
 
 def _start(out: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, *RUN, "--out", str(out)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, start_new_session=True)
+    # stdin from /dev/null: under xdist the test process's own stdin is its channel to the controller
+    return subprocess.Popen([sys.executable, *RUN, "--out", str(out)], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
