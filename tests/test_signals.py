@@ -55,9 +55,17 @@ def _wait_for(condition, timeout: float, what: str):
 
 
 def _start(out: Path) -> subprocess.Popen:
-    # stdin from /dev/null: under xdist the test process's own stdin is its channel to the controller
-    return subprocess.Popen([sys.executable, *RUN, "--out", str(out)], stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    """The run, its output to files beside ``out``: a pipe nobody reads until the run ends would stop it at
+    its first 64 KiB of output (its workers write warnings to the same stderr). stdin from /dev/null:
+    under xdist the test process's own stdin is its channel to the controller."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out.parent / "run.stdout", "wb") as so, open(out.parent / "run.stderr", "wb") as se:
+        return subprocess.Popen([sys.executable, *RUN, "--out", str(out)], stdin=subprocess.DEVNULL, stdout=so,
+                                stderr=se, start_new_session=True)
+
+
+def _stderr(out: Path) -> str:
+    return (out.parent / "run.stderr").read_bytes().decode(errors="replace")
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
@@ -84,7 +92,7 @@ def test_sigint_stops_a_run_within_two_seconds_keeping_finished_cells(tmp_path):
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=10)
         stopped_after = time.monotonic() - t0
-        stderr = proc.stderr.read().decode(errors="replace")
+        stderr = _stderr(out)
     finally:
         _kill_group(proc)
     assert stopped_after < 2.0, f"stopped {stopped_after:.1f} s after SIGINT"
