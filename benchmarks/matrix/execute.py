@@ -125,7 +125,9 @@ def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
         while pending:
             running = ", ".join(c.name for c in list(pending.values())[:jobs])
             bar.set_description(running)
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            # a timeout: a SIGINT the kernel hands to a helper thread runs its handler only when the main thread
+            # next runs Python code, which a wait without one would put off until the next cell finishes
+            done, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             for fut in done:
                 pending.pop(fut)
                 finished(fut.result())
