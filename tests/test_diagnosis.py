@@ -1244,24 +1244,29 @@ def test_a_line_below_the_gain_floor_is_one_line_on_every_fold():
     assert h["same_line"] and h["refit_per_fold"] and 0 < h["gain"] < d.policy.min_explained
 
 
-@same_worker("relaxation-dropped-for-delay-with-creep-standing-in")
-def test_a_creep_replacing_a_relaxation_may_sit_at_either_end_of_its_time_scale():
+@pytest.mark.parametrize("name, end, alone", [
+    pytest.param(name, end, alone, marks=same_worker(name)) for name, end, alone in (
+        ("creep-standing-in-at-its-limit", "limit", False),
+        ("creep-standing-in-at-the-end-of-its-search", "search", False),
+        ("relaxation-dropped-creep-alone-at-its-limit", "limit", True))])
+def test_a_creep_replacing_a_relaxation_may_sit_at_either_end_of_its_time_scale(name, end, alone):
     """Creep standing for a relaxation slower than every drive period: its time scale at the fastest its meaning
     allows or the slowest searched; reported as not identified, in the trace, the JSON and the also line."""
-    for name, end, alone in (("creep-standing-in-at-its-limit", "limit", False),
-                             ("creep-standing-in-at-the-end-of-its-search", "search", False),
-                             ("relaxation-dropped-creep-alone-at-its-limit", "limit", True)):
-        d, _ = pinned(name)
-        step_ = next(t for t in d.trace if t["rule"] == "drop-redundant-primary")
-        assert step_["inputs"]["creep_time_end"]["end"] == end and step_["inputs"]["creep_time_end"]["alone"] is alone
-        if d.cause == "delay":
-            assert list(d.to_json()["also_not_identified"]) == ["creep"]
-            assert any(line.startswith("also: creep (not identified: ") for line in verdict_lines(d))
-            assert d.one_drive_caution == ""  # the protocol's seven frequencies
-        lines = verdict_lines(d)
-        pinned_base = any(n.startswith("parameters at their bounds") for n in d.base_fit.notes)
-        assert any(line.startswith("caution: the base model's fit has parameters at their search bounds")
-                   for line in lines) == pinned_base
+    d, _ = pinned(name)
+    step_ = next(t for t in d.trace if t["rule"] == "drop-redundant-primary")
+    assert step_["inputs"]["creep_time_end"]["end"] == end and step_["inputs"]["creep_time_end"]["alone"] is alone
+    if d.cause == "delay":
+        assert list(d.to_json()["also_not_identified"]) == ["creep"]
+        assert any(line.startswith("also: creep (not identified: ") for line in verdict_lines(d))
+        assert d.one_drive_caution == ""  # the protocol's seven frequencies
+    lines = verdict_lines(d)
+    pinned_base = any(n.startswith("parameters at their bounds") for n in d.base_fit.notes)
+    assert any(line.startswith("caution: the base model's fit has parameters at their search bounds")
+               for line in lines) == pinned_base
+
+
+@same_worker("relaxation-dropped-for-delay-with-creep-standing-in")
+def test_a_dropped_relaxation_is_in_the_json_with_the_creep_that_stands_in_for_it():
     d, _ = pinned("relaxation-dropped-for-delay-with-creep-standing-in")
     assert next(t for t in d.trace if t["rule"] == "drop-redundant-primary")["inputs"]["creep_standing_in"]
     assert d.to_json()["dropped_as_redundant"]["cause"] == "relaxation"
@@ -1278,21 +1283,29 @@ def test_a_creep_running_to_its_upper_bound_is_open_ended_not_at_bound():
 
 
 @same_worker("clip-searched-on-top-of-the-named-cause")
-def test_a_clip_on_top_is_flat_where_it_cuts_and_a_level_that_cuts_nothing_is_outside_its_meaning():
+def test_a_clip_on_top_is_flat_where_it_cuts():
     d, _ = pinned("clip-searched-on-top-of-the-named-cause")
     clip = next(c for c in d.also if c.cause == "saturation")
     assert abs(clip.estimates["slope_where_clipped"]) < d.policy.max_clipped_slope
+
+
+@same_worker("level-that-cuts-nothing-is-no-clip-on-top")
+def test_a_clip_level_on_top_that_cuts_nothing_is_outside_its_meaning():
     d, _ = pinned("level-that-cuts-nothing-is-no-clip-on-top")
     tried = [c for c in d.secondary_tried if c.cause == "saturation"]
     assert tried and all(c.limit for c in tried)
 
 
 @same_worker("gain-modulation-is-no-clip")
-def test_a_clip_candidate_that_does_not_leave_the_output_flat_is_outside_its_meaning():
-    """Where a fitted clip cuts, an output that still rises with the model, or moves against it, is no clip."""
+def test_a_clip_candidate_where_the_output_still_rises_with_the_model_is_outside_its_meaning():
+    """Where a fitted clip cuts, an output that still rises with the model is no clip."""
     d, _ = pinned("gain-modulation-is-no-clip")
     clip = next(c for c in d.candidates if c.cause == "saturation")
     assert clip.estimates["slope_where_clipped"] > d.policy.max_clipped_slope and clip.limit
+
+
+@same_worker("clip-against-the-model-is-none")
+def test_a_clip_candidate_where_the_output_moves_against_the_model_is_outside_its_meaning():
     d, _ = pinned("clip-against-the-model-is-none")
     clip = next(c for c in d.candidates if c.cause == "saturation")
     assert clip.estimates["slope_where_clipped"] < -d.policy.max_clipped_slope and clip.limit

@@ -262,7 +262,9 @@ def misspecified_coverage(request):
     return generator, cov, calibrations
 
 
-GENERATORS = ["virtual DEA", "planted relaxation"]
+# the tests of one generator share a worker, so its fixture is computed once (pyproject: --dist loadgroup)
+GENERATORS = [pytest.param(g, marks=pytest.mark.xdist_group(f"misspecified {g}"))
+              for g in ("virtual DEA", "planted relaxation")]
 
 
 @pytest.mark.parametrize("misspecified_coverage", GENERATORS, indirect=True)

@@ -64,6 +64,11 @@ def _start(out: Path) -> subprocess.Popen:
                                 stderr=se, start_new_session=True)
 
 
+def _signal_masks(pid: int) -> str:
+    lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    return " ".join(l.replace("\t", "") for l in lines if l.startswith(("SigBlk", "SigIgn", "SigCgt")))
+
+
 def _stderr(out: Path) -> str:
     return (out.parent / "run.stderr").read_bytes().decode(errors="replace")
 
@@ -89,8 +94,12 @@ def test_sigint_stops_a_run_within_two_seconds_keeping_finished_cells(tmp_path):
         assert proc.poll() is None, "the run finished before the long cell could be interrupted"
         workers = _children(proc.pid)
         t0 = time.monotonic()
+        masks = _signal_masks(proc.pid)
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=10)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"still running 10 s after SIGINT; run {masks}; test process {_signal_masks(os.getpid())}")
         stopped_after = time.monotonic() - t0
         stderr = _stderr(out)
     finally:
