@@ -182,19 +182,21 @@ STATE_HEAD = 5  # first, u(k-1), direction, xi(k-1), xi_t
 
 
 @njit(cache=True, nogil=True)
+def state_views(state, work, n_centre, n_half):
+    """The stepper state's parts (memory, previous bases, previous row) and the scratch parts, as views."""
+    nc = n_centre + n_half
+    o = STATE_HEAD
+    return (state[o:o + nc], state[o + nc:o + nc + n_centre], state[o + nc + n_centre:o + 2 * nc],
+            state[o + 2 * nc:o + 3 * nc], work[:n_centre], work[n_centre:nc], work[nc:2 * nc], work[2 * nc:3 * nc])
+
+
+@njit(cache=True, nogil=True)
 def branch_advance(u, state, coef, offset, x_lo, x_hi, square, kind, n_centre, n_half, work):
     """One sample of ``BranchStepper``: ``branch_candidate`` at u from the state after the previous
     sample, then committed (as ``branch_steps`` commits). state = [first, u(k-1), direction,
     xi(k-1), xi_t, jump (nc), G_prev (n_centre), K_prev (n_half), prev_row (nc)]; work: 2 nc
     floats of scratch. Returns y(k)."""
-    nc = n_centre + n_half
-    o = STATE_HEAD
-    jump = state[o:o + nc]
-    G_prev = state[o + nc:o + nc + n_centre]
-    K_prev = state[o + nc + n_centre:o + 2 * nc]
-    prev_row = state[o + 2 * nc:o + 3 * nc]
-    G, K = work[:n_centre], work[n_centre:nc]
-    jump_c, row = work[nc:2 * nc], work[2 * nc:3 * nc]
+    jump, G_prev, K_prev, prev_row, G, K, jump_c, row = state_views(state, work, n_centre, n_half)
     y, xi, sk, xt = branch_candidate(u, state[0] != 0.0, state[1], int(state[2]), state[3], state[4], jump, G_prev,
                                      K_prev, prev_row, coef, offset, x_lo, x_hi, square, kind, G, K, jump_c, row)
     jump[:] = jump_c
@@ -245,14 +247,7 @@ def branch_inverse_sample(yd, u_given, k, state, coef, offset, x_lo, x_hi, squar
     output yd, or with a non-empty ``u_given`` the forward model at u_given[k]: (u, y), the state
     (``branch_advance``'s layout, u(k-1) at state[1]) committed by ``branch_advance``;
     limits = [u_lo, u_hi, max_step, n_grid, tol, clip_tol]."""
-    nc = n_centre + n_half
-    o = STATE_HEAD
-    jump = state[o:o + nc]
-    G_prev = state[o + nc:o + nc + n_centre]
-    K_prev = state[o + nc + n_centre:o + 2 * nc]
-    prev_row = state[o + 2 * nc:o + 3 * nc]
-    G, K = work[:n_centre], work[n_centre:nc]
-    jump_c, row = work[nc:2 * nc], work[2 * nc:3 * nc]
+    jump, G_prev, K_prev, prev_row, G, K, jump_c, row = state_views(state, work, n_centre, n_half)
     first = state[0] != 0.0
     x = search_start(st, u_given, k, state[1], limits[0], limits[1], limits[2], int(limits[3]), limits[4],
                      limits[5])
