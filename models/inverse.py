@@ -253,6 +253,14 @@ def guided_output(u, first, g, g1, g2, dt, base, w, xg, r_lo, r_hi, g_lo, g_hi, 
 
 
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
+def guide_step(mapped, g1, max_step):
+    """The guide at this sample: the mapped reference (``mapped_reference``) followed at most
+    ``max_step`` per sample from the previous guide g1 (the input's own rate limit: a reference that
+    jumps would otherwise ask the rate terms for a rate no input reaches)."""
+    return g1 + min(max(mapped - g1, -max_step), max_step)
+
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
 def guided_invert_sample(yd, g, first, u1, g1, g2, dt, base, u_limit_lo, u_limit_hi, max_step, n_grid, tol, st, w, xg,
                          r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """One sample of the reference-driven inverse: the input x that makes ``guided_output`` equal yd
@@ -269,10 +277,11 @@ def guided_invert_sample(yd, g, first, u1, g1, g2, dt, base, u_limit_lo, u_limit
 
 
 @njit(cache=True, fastmath=KERNEL_FASTMATH)
-def guided_invert_steps(yd, guide, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi, g_lo,
-                        g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
-    """The reference-driven inverse over a record: (u, clipped) for desired outputs yd with the
-    guide ``guide`` (one value per sample, ``reference_guide``)."""
+def guided_invert_steps(yd, mapped, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi,
+                        g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """The reference-driven inverse over a record: (u, clipped) for desired outputs yd and the
+    mapped reference ``mapped`` (one value per sample, ``mapped_reference``; the guide follows it
+    through ``guide_step``)."""
     n = yd.shape[0]
     u_out = np.empty(n)
     clipped = np.zeros(n, dtype=np.bool_)
@@ -280,17 +289,18 @@ def guided_invert_steps(yd, guide, dt, base, u_limit_lo, u_limit_hi, u_start, ma
     xg = np.zeros(fa.shape[0])
     st = np.empty(SEARCH_SIZE)
     u1 = min(max(u_start, u_limit_lo), u_limit_hi)
-    g1 = g2 = guide[0]
+    g1 = g2 = mapped[0]
     for k in range(n):
         first = k == 0
-        x = guided_invert_sample(yd[k], guide[k], first, u1, g1, g2, dt, base[k], u_limit_lo, u_limit_hi, max_step,
+        g = guide_step(mapped[k], g1, max_step)
+        x = guided_invert_sample(yd[k], g, first, u1, g1, g2, dt, base[k], u_limit_lo, u_limit_hi, max_step,
                                  n_grid, tol, st, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
                                  fw)
         u_out[k] = x
         clipped[k] = search_clipped(st)
         u1 = x
-        g2 = guide[k] if first else g1
-        g1 = guide[k]
+        g2 = g if first else g1
+        g1 = g
     return u_out, clipped
 
 
@@ -329,7 +339,7 @@ def guide_gain(s: "StepStructure", input_range) -> float:
     return (loading(hi) - loading(lo)) / (hi - lo)
 
 
-def reference_guide(yd: np.ndarray, u_start: float, gain: float, y_first: float | None = None) -> np.ndarray:
+def mapped_reference(yd: np.ndarray, u_start: float, gain: float, y_first: float | None = None) -> np.ndarray:
     """The reference mapped to input units: u_start + (y_d(k) - y_d(0)) / gain (``y_first``: y_d(0)
     when yd does not start the record). The inverse stepper computes each value the same way."""
     y0 = float(yd[0]) if y_first is None else float(y_first)
@@ -451,8 +461,8 @@ class StepInvertible:
             u, clipped = invert_steps(a.yd, float(dt), base, a.lo, a.hi, a.u_start, a.max_step, a.n_grid, a.tol,
                                       r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
         else:
-            guide = reference_guide(a.yd, a.u_start, gain)
-            u, clipped = guided_invert_steps(a.yd, guide, float(dt), base, a.lo, a.hi, a.u_start, a.max_step,
+            mapped = mapped_reference(a.yd, a.u_start, gain)
+            u, clipped = guided_invert_steps(a.yd, mapped, float(dt), base, a.lo, a.hi, a.u_start, a.max_step,
                                              a.n_grid, a.tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1,
                                              fpow, fw)
         radius = recursion_radius(u, float(dt), base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,

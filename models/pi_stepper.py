@@ -20,8 +20,8 @@ from numba import njit
 
 from .errors import ModelError
 from .kernels import KERNEL_FASTMATH
-from .inverse import (DEFAULT_GRID, InverseArguments, StepInvertible, StepStructure, guided_invert_sample, invert_sample,
-                      step_commit)
+from .inverse import (DEFAULT_GRID, InverseArguments, StepInvertible, StepStructure, guide_step, guided_invert_sample,
+                      invert_sample, step_commit)
 from .root_search import SEARCH_SIZE, search_clipped
 from .stepper import InverseStepper, Stepper, check_state_keys, check_step_input
 
@@ -83,9 +83,10 @@ def pi_inverse_step(yd, base, coef, state, fpow, limits, st):
 
 
 @njit(cache=True, nogil=True, fastmath=KERNEL_FASTMATH)
-def pi_guided_inverse_step(yd, g, base, coef, state, fpow, limits, st, guide):
+def pi_guided_inverse_step(yd, mapped, base, coef, state, fpow, limits, st, guide):
     """The reference-driven inverse at this sample (``inverse.guided_invert_sample``): the input for
-    desired output yd with guide value g; guide = [g(k-1), g(k-2)] and the state advance."""
+    desired output yd, the mapped reference ``mapped`` (``inverse.mapped_reference``) giving the guide
+    (``inverse.guide_step``); guide = [g(k-1), g(k-2)] and the state advance."""
     f = fpow.shape[0]
     n = (state.shape[0] - HEAD - f)
     m = coef.shape[0] - HEAD - 3 * n - 4 * f
@@ -94,7 +95,8 @@ def pi_guided_inverse_step(yd, g, base, coef, state, fpow, limits, st, guide):
     xg = state[HEAD + n:HEAD + n + f]
     first = state[0] != 0.0
     if first:
-        guide[0] = guide[1] = g
+        guide[0] = guide[1] = mapped
+    g = guide_step(mapped, guide[0], limits[2])
     x = guided_invert_sample(yd, g, first, state[1], guide[0], guide[1], coef[0], base, limits[0], limits[1],
                              limits[2], int(limits[3]), limits[4], st, w, xg, r_lo, r_hi, coef[1], coef[2], weights,
                              poly, coef[3], fa, fb0, fb1, fpow, fw)
@@ -229,8 +231,8 @@ class PIInverseStepper(_PIBase, InverseStepper):
         else:
             if self._state[0] != 0.0:
                 self._y_first = y_ref
-            g = self.u_start + (y_ref - self._y_first) * self._inv_gain  # as inverse.reference_guide
-            u = pi_guided_inverse_step(y_ref, g, base, self._coef, self._state, self._fpow, self._limits,
+            mapped = self.u_start + (y_ref - self._y_first) * self._inv_gain  # as inverse.mapped_reference
+            u = pi_guided_inverse_step(y_ref, mapped, base, self._coef, self._state, self._fpow, self._limits,
                                        self._search, self._guide)
         self.clipped = bool(search_clipped(self._search))
         self.n_clipped += self.clipped
