@@ -432,12 +432,12 @@ class StepInvertible:
         option (``INVERSES``) and the model's step structure."""
         if inverse not in INVERSES:
             raise ModelError(f"{self.name}: inverse must be one of {', '.join(INVERSES)}; got {inverse!r}")
-        if inverse == "auto":
-            dynamic = s.g_lo != 0.0 or s.g_hi != 0.0 or s.q != 0.0 or np.size(s.filter_a) > 0
-            inverse = "reference-driven" if dynamic else "exact"
-        if inverse == "exact":
-            return inverse, float("nan")
+        dynamic = s.g_lo != 0.0 or s.g_hi != 0.0 or s.q != 0.0 or np.size(s.filter_a) > 0
+        if inverse == "exact" or (inverse == "auto" and not dynamic):
+            return "exact", float("nan")
         gain = guide_gain(s, input_range)
+        if inverse == "auto" and not (gain > 0 and np.isfinite(gain)):
+            return "exact", float("nan")  # no increasing loading curve to map the reference by
         if not (gain > 0 and np.isfinite(gain)):
             raise ModelError(f"{self.name}: the reference-driven inverse needs an increasing loading curve; its "
                              f"quasi-static gain over the input range is {gain:.4g} (use inverse='exact')")
