@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import HysbenchError
-from .inverse import InverseArguments, StepInvertible
+from .inverse import DEFAULT_GUIDE_TIME, InverseArguments, StepInvertible, check_guide_time, guide_rate
 from .model_file import FittedModel
 from .root_search import NEWTON_ITERATIONS
 
@@ -60,7 +60,8 @@ INVERSE_TEXT = {
     "exact": " (y(u(k); u(k-1), u(k-2)) = y_ref(k) solved each sample; gives back a reachable input exactly "
              "where its error recursion is stable)",
     "reference-driven": " (the rate and relaxation terms driven by the reference mapped to the input, "
-                        "U_START + (y_ref(k) - y_ref(0)) * INV_GAIN, followed at most MAX_STEP per sample: no "
+                        "U_START + (y_ref(k) - y_ref(0)) * INV_GAIN, through a second-order follower (GUIDE_C per "
+                        "sample) at most MAX_STEP per sample: no "
                         "recursion through the input's differences; approximate, see hysbench docs/deploying.md)",
 }
 
@@ -124,7 +125,9 @@ INVERSE_GUIDED = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
     if (s->first) s->y_first = y_ref;
     mapped = U_START + (y_ref - s->y_first) * INV_GAIN;
     if (s->first) s->g1 = s->g2 = mapped;
-    dg = mapped - s->g1;  /* the guide follows the mapped reference at most MAX_STEP per sample */
+    /* the guide follows the mapped reference (hysbench.models.inverse.guide_step), at most MAX_STEP per sample */
+    if (GUIDE_C >= 1.0) dg = mapped - s->g1;
+    else dg = (s->g1 - s->g2) * (1.0 - 2.0 * GUIDE_C) + GUIDE_C * GUIDE_C * (mapped - s->g1);
     dg = dg > -MAX_STEP ? dg : -MAX_STEP;
     gd = s->g1 + (dg < MAX_STEP ? dg : MAX_STEP);
     x = search(s, y_ref, gd);
@@ -167,10 +170,11 @@ def _base_code(fitted: FittedModel) -> tuple[str, float]:
 def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha256: str = "", version: str = "",
              input_limits=None, max_rate: float | None = None, u_start: float | None = None,
              reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "",
-             inverse: str = "auto") -> tuple[str, str]:
+             inverse: str = "auto", guide_time: float = DEFAULT_GUIDE_TIME) -> tuple[str, str]:
     """(header, source) of the C export; the inverse options as ``PIInverseStepper``
     (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1;
-    ``inverse``: "auto", "exact" or "reference-driven", ``inverse.INVERSES``);
+    ``inverse``: "auto", "exact" or "reference-driven", ``inverse.INVERSES``; ``guide_time``: the
+    reference-driven inverse's follower time constant, s);
     ``inverse_note``: the inverse's check (``check_inverse``), written into the header."""
     if not prefix.isidentifier() or not prefix.isascii():
         raise ExportError(f"prefix must be a C identifier (letters, digits, _), got {prefix!r}")
@@ -183,6 +187,7 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
     s = model._structure(dt, fitted.params, fitted.input_range, 1)
     inverse, gain = model.resolve_inverse(inverse, s, fitted.input_range)
     guided = inverse != "exact"
+    guide_c = guide_rate(dt, check_guide_time(model.name, guide_time))
     r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
     base_expr, base0 = _base_code(fitted)
     n, m, f = r_lo.size, poly.size, fa.size
@@ -249,6 +254,7 @@ double {P}_inverse_step({P}_state *s, double y_ref);
 #define TOL {_num(a.tol)}
 #define NEWTON_ITERATIONS {NEWTON_ITERATIONS}
 #define INV_GAIN {_num(1.0 / gain if guided else 0.0)}
+#define GUIDE_C {_num(guide_c)}
 
 {_array("R_LO", r_lo)}
 {_array("R_HI", r_hi)}

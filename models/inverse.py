@@ -108,6 +108,9 @@ DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
 #: the P-I family's causal inverses (``StepInvertible.invert``'s ``inverse``); "auto" picks
 #: "reference-driven" for a model with rate or relaxation terms, else "exact" (the two are then equal)
 INVERSES = ("auto", "exact", "reference-driven")
+#: the reference-driven inverse's guide follower time constant (s) unless given (docs/deploying.md
+#: has the measurement behind it: shorter lets the inverse of a fitted MRPIM ring on its own sines)
+DEFAULT_GUIDE_TIME = 0.02
 
 
 @dataclass
@@ -253,11 +256,21 @@ def guided_output(u, first, g, g1, g2, dt, base, w, xg, r_lo, r_hi, g_lo, g_hi, 
 
 
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
-def guide_step(mapped, g1, max_step):
-    """The guide at this sample: the mapped reference (``mapped_reference``) followed at most
-    ``max_step`` per sample from the previous guide g1 (the input's own rate limit: a reference that
-    jumps would otherwise ask the rate terms for a rate no input reaches)."""
-    return g1 + min(max(mapped - g1, -max_step), max_step)
+def guide_step(mapped, g1, g2, max_step, c):
+    """The guide at this sample from the mapped reference (``mapped_reference``) and the guide's two
+    previous values: a critically damped second-order follower, c = dt / guide_time per sample
+    (c >= 1: the mapped reference itself), its step limited to ``max_step`` (the input's rate limit).
+    The follower keeps the reference's sharp features (a corner, a jump, the model's own
+    acceleration term) from becoming input rates and accelerations no input has."""
+    if c >= 1.0:
+        return g1 + min(max(mapped - g1, -max_step), max_step)
+    v = (g1 - g2) * (1.0 - 2.0 * c) + c * c * (mapped - g1)
+    return g1 + min(max(v, -max_step), max_step)
+
+
+def guide_rate(dt: float, guide_time: float) -> float:
+    """The follower's c per sample for a guide time constant (s); 0: no follower (c = 1)."""
+    return 1.0 if guide_time == 0.0 else min(1.0, float(dt) / guide_time)
 
 
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
@@ -277,8 +290,8 @@ def guided_invert_sample(yd, g, first, u1, g1, g2, dt, base, u_limit_lo, u_limit
 
 
 @njit(cache=True, fastmath=KERNEL_FASTMATH)
-def guided_invert_steps(yd, mapped, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, r_lo, r_hi,
-                        g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+def guided_invert_steps(yd, mapped, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, guide_c, r_lo,
+                        r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """The reference-driven inverse over a record: (u, clipped) for desired outputs yd and the
     mapped reference ``mapped`` (one value per sample, ``mapped_reference``; the guide follows it
     through ``guide_step``)."""
@@ -292,7 +305,7 @@ def guided_invert_steps(yd, mapped, dt, base, u_limit_lo, u_limit_hi, u_start, m
     g1 = g2 = mapped[0]
     for k in range(n):
         first = k == 0
-        g = guide_step(mapped[k], g1, max_step)
+        g = guide_step(mapped[k], g1, g2, max_step, guide_c)
         x = guided_invert_sample(yd[k], g, first, u1, g1, g2, dt, base[k], u_limit_lo, u_limit_hi, max_step,
                                  n_grid, tol, st, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
                                  fw)
@@ -441,18 +454,20 @@ class StepInvertible:
         if not (gain > 0 and np.isfinite(gain)):
             raise ModelError(f"{self.name}: the reference-driven inverse needs an increasing loading curve; its "
                              f"quasi-static gain over the input range is {gain:.4g} (use inverse='exact')")
-        return inverse, gain
+        return "reference-driven", gain
 
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
                n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None,
-               inverse: str = "auto") -> Inversion:
+               inverse: str = "auto", guide_time: float = DEFAULT_GUIDE_TIME) -> Inversion:
         """The causal numerical inverse: the input within ``input_limits`` (default: ``input_range``)
         that makes the model output ``y_desired``, sample by sample (module docstring).
         ``max_rate``: largest |du/dt| (input units per second; None: none); ``u_start``: the
         input before the first sample (default: the lower limit, an actuator at rest);
         ``inverse``: "exact", "reference-driven" or "auto" (``INVERSES``; the result names the one
-        that ran and the exact inverse's recursion radius along its input)."""
+        that ran and the exact inverse's recursion radius along its input); ``guide_time``: the
+        reference-driven inverse's follower time constant (s, 0: none; ``guide_step``)."""
         a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        guide_time = check_guide_time(self.name, guide_time)
         s = self._structure(dt, params, a.input_range, a.yd.size)
         inverse, gain = self.resolve_inverse(inverse, s, a.input_range)
         r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
@@ -463,11 +478,18 @@ class StepInvertible:
         else:
             mapped = mapped_reference(a.yd, a.u_start, gain)
             u, clipped = guided_invert_steps(a.yd, mapped, float(dt), base, a.lo, a.hi, a.u_start, a.max_step,
-                                             a.n_grid, a.tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1,
+                                             a.n_grid, a.tol, guide_rate(dt, guide_time), r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1,
                                              fpow, fw)
         radius = recursion_radius(u, float(dt), base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
                                   fw)
         return Inversion(u, clipped, inverse=inverse, exact_recursion_radius=float(np.max(radius, initial=0.0)))
+
+
+def check_guide_time(name: str, guide_time) -> float:
+    """The reference-driven inverse's follower time (s): 0 (none) or a positive, finite number."""
+    if guide_time == 0 and not isinstance(guide_time, bool):
+        return 0.0
+    return check_number(name, "guide_time", guide_time, positive=True)
 
 
 def check_max_rate(name: str, max_rate) -> float | None:

@@ -20,8 +20,8 @@ from numba import njit
 
 from .errors import ModelError
 from .kernels import KERNEL_FASTMATH
-from .inverse import (DEFAULT_GRID, InverseArguments, StepInvertible, StepStructure, guide_step, guided_invert_sample,
-                      invert_sample, step_commit)
+from .inverse import (DEFAULT_GRID, DEFAULT_GUIDE_TIME, InverseArguments, StepInvertible, StepStructure,
+                      check_guide_time, guide_rate, guide_step, guided_invert_sample, invert_sample, step_commit)
 from .root_search import SEARCH_SIZE, search_clipped
 from .stepper import InverseStepper, Stepper, check_state_keys, check_step_input
 
@@ -86,7 +86,7 @@ def pi_inverse_step(yd, base, coef, state, fpow, limits, st):
 def pi_guided_inverse_step(yd, mapped, base, coef, state, fpow, limits, st, guide):
     """The reference-driven inverse at this sample (``inverse.guided_invert_sample``): the input for
     desired output yd, the mapped reference ``mapped`` (``inverse.mapped_reference``) giving the guide
-    (``inverse.guide_step``); guide = [g(k-1), g(k-2)] and the state advance."""
+    (``inverse.guide_step``; limits[5] its follower's c); guide = [g(k-1), g(k-2)] and the state advance."""
     f = fpow.shape[0]
     n = (state.shape[0] - HEAD - f)
     m = coef.shape[0] - HEAD - 3 * n - 4 * f
@@ -96,7 +96,7 @@ def pi_guided_inverse_step(yd, mapped, base, coef, state, fpow, limits, st, guid
     first = state[0] != 0.0
     if first:
         guide[0] = guide[1] = mapped
-    g = guide_step(mapped, guide[0], limits[2])
+    g = guide_step(mapped, guide[0], guide[1], limits[2], limits[5])
     x = guided_invert_sample(yd, g, first, state[1], guide[0], guide[1], coef[0], base, limits[0], limits[1],
                              limits[2], int(limits[3]), limits[4], st, w, xg, r_lo, r_hi, coef[1], coef[2], weights,
                              poly, coef[3], fa, fb0, fb1, fpow, fw)
@@ -193,13 +193,14 @@ class PIInverseStepper(_PIBase, InverseStepper):
     """The causal inverse stepper of a P-I-family model: ``step(y_ref) -> u``, equal to the batch
     ``invert`` given the same options (``reference_scale``: the |y| the reach tolerance
     1e-12 (1 + scale) is relative to; the batch inverse takes max |y_d| of its reference).
-    ``inverse`` as ``invert`` (``inverse.INVERSES``); ``self.inverse`` names the one that runs.
+    ``inverse``, ``guide_time`` as ``invert`` (``inverse.INVERSES``); ``self.inverse`` names the one that runs.
     The reference-driven inverse's state adds "guide": [y_ref(0), g(k-1), g(k-2)] (its filter
     slots hold the guide's filters)."""
 
     def __init__(self, model, dt: float, params, input_range, input_limits=None, n_grid: int = DEFAULT_GRID,
                  max_rate: float | None = None, u_start: float | None = None,
-                 reference_scale: float | None = None, inverse: str = "auto"):
+                 reference_scale: float | None = None, inverse: str = "auto",
+                 guide_time: float = DEFAULT_GUIDE_TIME):
         self._setup(model, dt, params, input_range)
         scale = abs(float(reference_scale)) if reference_scale is not None else 0.0
         a = InverseArguments.check(model.name, [scale], dt, self.input_range, input_limits, n_grid, max_rate,
@@ -208,7 +209,8 @@ class PIInverseStepper(_PIBase, InverseStepper):
         self._inv_gain = 1.0 / gain if self.inverse != "exact" else 0.0
         self.input_limits = (a.lo, a.hi)
         self.u_start = a.u_start
-        self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol])
+        self.guide_time = check_guide_time(model.name, guide_time)
+        self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol, guide_rate(self.dt, self.guide_time)])
         self._search = np.empty(SEARCH_SIZE)
         self._guide = np.zeros(2)
         self._y_first = 0.0
@@ -278,7 +280,7 @@ class SteppableStructure(StepInvertible):
 
     def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
         """The causal inverse one sample at a time (``PIInverseStepper``); options as ``invert``
-        (n_grid, max_rate, u_start) and ``reference_scale``."""
+        (n_grid, max_rate, u_start, inverse, guide_time) and ``reference_scale``."""
         reason = self.inverse_unavailable
         if reason:
             raise ModelError(f"model {self.name!r} cannot be inverted: {reason}")
