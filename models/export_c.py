@@ -13,7 +13,10 @@ per-sample update is ``kernels.pi_sample`` written out in C with the same operat
 same order (so it agrees with Python to rounding; the tests require 1e-9 relative), and the
 inverse is ``root_search``'s walk-and-refine search at one sample, as ``inverse.invert_sample``
 runs it; ``PREFIX_state.clipped`` / ``n_clipped`` report the samples whose reference was out of
-reach. Parameters, thresholds and the sample time are constants; the sample time is the model
+reach. ``inverse`` picks the inverse written (models/inverse.py): "exact" (the root search on
+``sample``) or "reference-driven" (the same search on ``guided_sample``, ``inverse.guided_output``
+in C, with the guide's follower of ``inverse.guide_step``); "auto" as ``invert``. The header names
+it. Parameters, thresholds and the sample time are constants; the sample time is the model
 file's: the generated code is valid only at that rate.
 
 Exports: classical-pi, mrpim, rate-dependent-pi and the mrpim extensions with a step structure

@@ -15,7 +15,8 @@ time from its state after the previous sample (k = 0, 1, ...; u = u(k)):
     mrpim+creep            base(k) = offset + s (1 - exp(-t_k / T_c))
 
 ``step_output`` evaluates y(k) and dy/du for a candidate u without touching the
-state; ``step_commit`` commits a chosen u. Both are ``kernels.pi_sample``, the per-sample
+state; ``step_commit`` commits a chosen u (``guided_output`` does both for the reference-driven
+inverse, below). Both are ``kernels.pi_sample``, the per-sample
 update the batch kernel (``kernels._pi_output_window``), the steppers (``pi_stepper``) and the
 exported C share. ``step_simulate`` runs the model forward through them (the tests check it
 against each model's own forward kernel).
@@ -67,6 +68,32 @@ of the model outside it) the recursion amplifies any error, rounding included, b
 per sample; no causal exact inverse is then stable. ``recursion_radius`` gives the largest
 modulus per sample (MRPIM fitted on the virtual DEA: up to 1.14 on the protocol's sines, with
 the envelopes the cause; docs/deploying.md); the export's inverse check reports it.
+
+The reference-driven inverse (``inverse="reference-driven"``; ``"auto"`` picks it for a model with
+rate or relaxation terms, the exact one otherwise, where the two coincide). The literature's
+feedforward for rate-dependent P-I models (Al Janaideh et al.) takes the rate from the
+reference, not from the input being solved for. Here: the reference is mapped to input units,
+m(k) = u_start + (y_d(k) - y_d(0)) / G, G the model's quasi-static gain (``guide_gain``: the
+secant of its first loading curve over the input range, rate terms off, filters at steady
+state); the guide g follows m through a critically damped second-order follower of time
+constant ``guide_time`` (default ``DEFAULT_GUIDE_TIME``; 0: g = m), its step limited by the rate
+limit (``guide_step``). Each sample then solves, for u alone (``guided_output``):
+
+    y(k) = base(k) + sum_j poly_j u^j + q g''(k) + sum_i a_i W_i(k)
+           + sum_j c_j (x_j(k) - g(k)^p_j + u^p_j),        x_j driven by g
+    W_i(k) = play_update(W_i(k-1), u - g_lo |g'| - r_lo_i, u + g_hi |g'| + r_hi_i)
+
+(g', g'' backward differences of the guide). With g = u it is the model (tested); with g given
+it has no recursion through u's differences, so its error does not grow through them (c1 = c2 =
+0); the memory left is the plays' (a P-I operator's) and the root search's choice of branch. It
+is the exact inverse of this reference-driven model, not of the model: a reachable trajectory's
+input comes back only as far as the guide matches it (on the DEA's fits, 0.1-0.5 kV where the
+rate-free loading falls after a reversal). It inherits two weaknesses: a reference with sharp
+features asks the rate terms for rates no input has (the follower and ``max_rate`` bound them),
+and where the rate-free part's slope after a reversal is negative (a1 < 0 with a small
+polynomial slope: Table 2's MRPIM, a1 = -4.37, below about 1.2 kV) the per-sample equation has
+no root near the previous input and the inverse clips or jumps (``export_c.check_inverse``
+measures it as ringing). docs/deploying.md has the measurements.
 
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
