@@ -91,7 +91,8 @@ input comes back only as far as the guide matches it (on the DEA's fits, 0.1-0.5
 rate-free loading falls after a reversal). It inherits two weaknesses: a reference with sharp
 features asks the rate terms for rates no input has (the follower and ``max_rate`` bound them),
 and where the rate-free part's slope after a reversal is negative (a1 < 0 with a small
-polynomial slope: Table 2's MRPIM, a1 = -4.37, below about 1.2 kV) the per-sample equation has
+polynomial slope: a1 + p'(u) < 0 below 0.82 kV for Table 2's MRPIM, a1 = -4.37, and below
+0.65 kV for the DEA's varpro fit, a1 = -1.32) the per-sample equation has
 no root near the previous input and the inverse clips or jumps (``export_c.check_inverse``
 measures it as ringing). docs/deploying.md has the measurements.
 
