@@ -13,7 +13,10 @@ per-sample update is ``kernels.pi_sample`` written out in C with the same operat
 same order (so it agrees with Python to rounding; the tests require 1e-9 relative), and the
 inverse is ``root_search``'s walk-and-refine search at one sample, as ``inverse.invert_sample``
 runs it; ``PREFIX_state.clipped`` / ``n_clipped`` report the samples whose reference was out of
-reach. Parameters, thresholds and the sample time are constants; the sample time is the model
+reach. ``inverse`` picks the inverse written (models/inverse.py): "exact" (the root search on
+``sample``) or "reference-driven" (the same search on ``guided_sample``, ``inverse.guided_output``
+in C, with the guide's follower of ``inverse.guide_step``); "auto" as ``invert``. The header names
+it. Parameters, thresholds and the sample time are constants; the sample time is the model
 file's: the generated code is valid only at that rate.
 
 Exports: classical-pi, mrpim, rate-dependent-pi and the mrpim extensions with a step structure
@@ -28,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import HysbenchError
-from .inverse import InverseArguments, StepInvertible
+from .inverse import DEFAULT_GUIDE_TIME, InverseArguments, StepInvertible, check_guide_time, guide_rate
 from .model_file import FittedModel
 from .root_search import NEWTON_ITERATIONS
 
@@ -54,6 +57,89 @@ def _array(name: str, values, ctype: str = "double") -> str:
         values = [0]  # C99 has no empty arrays; the loops over it run zero times
     body = ", ".join(_num(v) if ctype == "double" else str(int(v)) for v in values)
     return f"static const {ctype} {name}[{len(values)}] = {{{body}}};"
+
+
+INVERSE_TEXT = {
+    "exact": " (y(u(k); u(k-1), u(k-2)) = y_ref(k) solved each sample; gives back a reachable input exactly "
+             "where its error recursion is stable)",
+    "reference-driven": " (the rate and relaxation terms driven by the reference mapped to the input, "
+                        "U_START + (y_ref(k) - y_ref(0)) * INV_GAIN, through a second-order follower (GUIDE_C per "
+                        "sample) at most MAX_STEP per sample: no "
+                        "recursion through the input's differences; approximate, see hysbench docs/deploying.md)",
+}
+
+# hysbench.models.inverse.guided_output in C (same operations, same order)
+GUIDED_SAMPLE = """
+/* The reference-driven model (hysbench.models.inverse.guided_output): the rates are the guide's
+   (gd now, s->g1, s->g2 before), the filters (s->xf) follow the guide and add their lag to u^p;
+   dy/du has no rate or lag term. */
+static double guided_sample(PREFIX_state *s, double u, double gd, int commit, double *slope)
+{
+    const long k = s->k;
+    double a = 0.0, d2 = 0.0, acc = 0.0, dy = 0.0, p = 0.0, dp = 0.0, y;
+    int i, j;
+    (void)k;
+    if (!s->first) {
+        a = fabs(gd - s->g1) * INV_DT;
+        d2 = (gd - 2.0 * s->g1 + s->g2) * (INV_DT * INV_DT);
+    }
+    for (i = 0; i < N_PLAYS; i++) {
+        const double lower = u - G_LO * a - R_LO[i];
+        const double upper = u + G_HI * a + R_HI[i];
+        double v = upper < s->w[i] ? upper : s->w[i];
+        v = v > lower ? v : lower;
+        if (commit) s->w[i] = v;
+        acc += WEIGHTS[i] * v;
+        if (slope && (v == lower || v == upper)) dy += WEIGHTS[i];
+    }
+    for (j = N_POLY - 1; j >= 0; j--) {
+        const double t = p + POLY[j];
+        dp = dp * u + t;
+        p = t * u;
+    }
+    y = acc + p + Q * d2 + BASE_EXPR;
+    dy += dp;
+    for (j = 0; j < N_FILTERS; j++) {
+        double x = 0.0;
+        if (!s->first) {
+            x = FA[j] * s->xf[j] + FB0[j] * ipow(s->g1, FPOW[j]) + FB1[j] * ipow(gd, FPOW[j]);
+            y += FW[j] * (x - ipow(gd, FPOW[j]) + ipow(u, FPOW[j]));
+            dy += FW[j] * FPOW[j] * ipow(u, FPOW[j] - 1);
+        }
+        if (commit) s->xf[j] = x;
+    }
+    if (slope) *slope = dy;
+    return y;
+}
+"""
+
+INVERSE_EXACT = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
+{
+    const double x = search(s, y_ref, 0.0);
+    advance(s, x);
+    return x;
+}
+"""
+
+# as hysbench.models.pi_stepper.PIInverseStepper.step / pi_guided_inverse_step
+INVERSE_GUIDED = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
+{
+    double mapped, gd, x, dg;
+    if (s->first) s->y_first = y_ref;
+    mapped = U_START + (y_ref - s->y_first) * INV_GAIN;
+    if (s->first) s->g1 = s->g2 = mapped;
+    /* the guide follows the mapped reference (hysbench.models.inverse.guide_step), at most MAX_STEP per sample */
+    if (GUIDE_C >= 1.0) dg = mapped - s->g1;
+    else dg = (s->g1 - s->g2) * (1.0 - 2.0 * GUIDE_C) + GUIDE_C * GUIDE_C * (mapped - s->g1);
+    dg = dg > -MAX_STEP ? dg : -MAX_STEP;
+    gd = s->g1 + (dg < MAX_STEP ? dg : MAX_STEP);
+    x = search(s, y_ref, gd);
+    s->g2 = s->first ? gd : s->g1;
+    s->g1 = gd;
+    advance(s, x);
+    return x;
+}
+"""
 
 
 def check_exportable(fitted: FittedModel) -> None:
@@ -86,9 +172,12 @@ def _base_code(fitted: FittedModel) -> tuple[str, float]:
 
 def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha256: str = "", version: str = "",
              input_limits=None, max_rate: float | None = None, u_start: float | None = None,
-             reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "") -> tuple[str, str]:
+             reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "",
+             inverse: str = "auto", guide_time: float = DEFAULT_GUIDE_TIME) -> tuple[str, str]:
     """(header, source) of the C export; the inverse options as ``PIInverseStepper``
-    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1);
+    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1;
+    ``inverse``: "auto", "exact" or "reference-driven", ``inverse.INVERSES``; ``guide_time``: the
+    reference-driven inverse's follower time constant, s);
     ``inverse_note``: the inverse's check (``check_inverse``), written into the header."""
     if not prefix.isidentifier() or not prefix.isascii():
         raise ExportError(f"prefix must be a C identifier (letters, digits, _), got {prefix!r}")
@@ -99,6 +188,9 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
     a = InverseArguments.check(model.name, [abs(float(reference_scale))], dt, fitted.input_range, input_limits,
                                n_grid, max_rate, u_start)
     s = model._structure(dt, fitted.params, fitted.input_range, 1)
+    inverse, gain = model.resolve_inverse(inverse, s, fitted.input_range)
+    guided = inverse != "exact"
+    guide_c = guide_rate(dt, check_guide_time(model.name, guide_time))
     r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
     base_expr, base0 = _base_code(fitted)
     n, m, f = r_lo.size, poly.size, fa.size
@@ -111,11 +203,12 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
               f"{fitted.metadata.get('output_unit', '')!r}.")
     header = f"""/* {origin}
  *
+ * Inverse: {inverse}{INVERSE_TEXT[inverse]}
  * Inverse check: {inverse_note or 'not run'}
  *
  * {P}_step(s, u): the model's output at this sample for input u (call once per sample, every
  * {dt!r} s, after {P}_init). {P}_inverse_step(s, y_ref): the input within [{a.lo!r}, {a.hi!r}]
- * that makes the model output y_ref at this sample; s->clipped says the reference was out of
+ * that makes the {'reference-driven ' if guided else ''}model output y_ref at this sample; s->clipped says the reference was out of
  * reach (the nearest reachable output was taken), s->n_clipped counts those. Use one state
  * for either the forward model or the inverse.
  */
@@ -130,6 +223,7 @@ typedef struct {{
     int first;        /* 1 before the first sample */
     long k;           /* samples since init */
     double u1, u2;    /* the input one and two samples ago */
+    double y_first, g1, g2;  /* reference-driven inverse: the first reference, the guide one and two samples ago */
     double w[{P.upper()}_N_PLAYS];     /* play operators */
     double xf[{P.upper()}_N_FILTERS];  /* relaxation filters */
     int clipped;      /* inverse: the last reference was out of reach */
@@ -162,6 +256,8 @@ double {P}_inverse_step({P}_state *s, double y_ref);
 #define WALK_STEP {_num((a.hi - a.lo) / a.n_grid)}
 #define TOL {_num(a.tol)}
 #define NEWTON_ITERATIONS {NEWTON_ITERATIONS}
+#define INV_GAIN {_num(1.0 / gain if guided else 0.0)}
+#define GUIDE_C {_num(guide_c)}
 
 {_array("R_LO", r_lo)}
 {_array("R_HI", r_hi)}
@@ -229,6 +325,7 @@ static double sample({P}_state *s, double u, int commit, double *slope)
     return y;
 }}
 
+{GUIDED_SAMPLE.replace("PREFIX", P).replace("BASE_EXPR", base_expr) if guided else ""}
 static void advance({P}_state *s, double u)
 {{
     s->u2 = s->first ? u : s->u1;
@@ -243,6 +340,8 @@ void {P}_init({P}_state *s)
     s->first = 1;
     s->k = 0;
     s->u1 = s->u2 = U_START;
+    s->y_first = 0.0;
+    s->g1 = s->g2 = U_START;
     for (i = 0; i < {P.upper()}_N_PLAYS; i++) s->w[i] = 0.0;
     for (i = 0; i < {P.upper()}_N_FILTERS; i++) s->xf[i] = 0.0;
     s->clipped = 0;
@@ -259,8 +358,9 @@ double {P}_step({P}_state *s, double u)
 /* hysbench.models.root_search at one sample: walk out from the previous input, up and down
    alternately in steps of WALK_STEP, to the first sign change of g = y(u) - y_ref; refine it by
    safeguarded Newton steps (bisection when a step leaves the bracket or does not halve |g|);
-   with no sign change take the visited input of smallest |g| and report the sample clipped. */
-double {P}_inverse_step({P}_state *s, double y_ref)
+   with no sign change take the visited input of smallest |g| and report the sample clipped.
+   {'The output is the reference-driven model (guided_sample) at guide value gd.' if guided else ''} */
+static double search({P}_state *s, double y_ref, double gd)
 {{
     const double start = s->u1;
     const double lo = U_LO > start - MAX_STEP ? U_LO : start - MAX_STEP;
@@ -268,7 +368,8 @@ double {P}_inverse_step({P}_state *s, double y_ref)
     double x = start, g, dy, best_u, best_g, up_x, up_g, dn_x, dn_g, px = 0.0, pg = 0.0;
     double xa, ga, xb, gb, g_prev, j = 1.0;
     int up_done, dn_done, side = 0, bracket = 0, clipped = 0, iter;
-    g = sample(s, x, 0, &dy) - y_ref;
+    (void)gd;
+    g = {{EVAL}} - y_ref;
     best_u = x;
     best_g = fabs(g);
     if (fabs(g) <= TOL) goto done;
@@ -300,7 +401,7 @@ double {P}_inverse_step({P}_state *s, double y_ref)
             x = start - j * WALK_STEP;
             x = x > lo ? x : lo;
         }}
-        g = sample(s, x, 0, &dy) - y_ref;
+        g = {{EVAL}} - y_ref;
         if (fabs(g) < best_g) {{
             best_u = x;
             best_g = fabs(g);
@@ -332,7 +433,7 @@ double {P}_inverse_step({P}_state *s, double y_ref)
         x = fabs(pg) < fabs(g) ? px : x;
         for (iter = 0;;) {{
             double l, h, xn, x_next;
-            g = sample(s, x, 0, &dy) - y_ref;
+            g = {{EVAL}} - y_ref;
             if (fabs(g) <= TOL) break;
             if ((g > 0) == (ga > 0)) {{
                 xa = x;
@@ -359,14 +460,15 @@ double {P}_inverse_step({P}_state *s, double y_ref)
         }}
     }}
 done:
-    sample(s, x, 1, 0);
-    advance(s, x);
+    {'guided_sample(s, x, gd, 1, 0)' if guided else 'sample(s, x, 1, 0)'};
     s->clipped = clipped;
     s->n_clipped += clipped;
     return x;
 }}
-"""
-    return header, source
+
+{INVERSE_GUIDED.replace("PREFIX", P) if guided else INVERSE_EXACT.replace("PREFIX", P)}"""
+    evaluation = "guided_sample(s, x, gd, 0, &dy)" if guided else "sample(s, x, 0, &dy)"
+    return header, source.replace("{EVAL}", evaluation)
 
 
 @dataclass(frozen=True)
@@ -383,10 +485,21 @@ class InverseCheck:
     n_samples: int
     tolerance: float
     stable: bool
-    max_root: float = float("nan")  # largest root modulus of the inverse's linearised error recursion (nan: not known)
+    max_root: float = float("nan")  # largest root modulus of the exact inverse's linearised error recursion (nan: not known)
     share_unstable: float = float("nan")  # share of the samples where that modulus exceeds 1
+    inverse: str = "exact"  # the inverse checked ("exact" or "reference-driven", models/inverse.py)
+    variation_ratio: float = float("nan")  # total variation of the inverse's input / the sine's (ringing raises it)
 
     def message(self, name: str) -> str:
+        if self.inverse != "exact":
+            roots = (f"; the exact inverse's error recursion has roots up to {self.max_root:.3g} per sample"
+                     if self.max_root == self.max_root else "")
+            head = (f"{name}: the reference-driven inverse (approximate by design: its rate and relaxation terms "
+                    f"follow the reference) gives back a reachable trajectory's input to {self.max_error:.3g} of "
+                    f"the input span ({self.n_samples} samples, {self.n_clipped} clipped); its input varies "
+                    f"{self.variation_ratio:.3g} times as much as the sine's{roots}")
+            return head + ("" if self.stable else f" (above {VARIATION_LIMIT:g}: it rings, so it is not safe as a "
+                                                  "feedforward)")
         if self.stable:
             return (f"{name}: the inverse gives back a reachable trajectory's input to {self.max_error:.1e} of the "
                     f"input span ({self.n_samples} samples, {self.n_clipped} clipped)")
@@ -400,14 +513,20 @@ class InverseCheck:
                 + ", so it is not safe as a feedforward")
 
 
+VARIATION_LIMIT = 2.0  # the reference-driven inverse's input may vary at most this many times as much as the sine's
+
+
 def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2, **options) -> InverseCheck:
     """Drive the model with sines over its input range, invert the model's own output with the
-    inverse's ``options`` (input_limits, max_rate, u_start, ...) and measure how far the inverse's
-    input strays from the sine's where it did not clip. The sines sweep a decade of drive periods
-    from the data scale's time (the shortest drive period the model was identified on) to ten
-    times it (three log-spaced, ``periods`` periods each), no faster than ``max_rate`` allows. A
-    stable inverse gives the input back to rounding; an unstable recursion (e.g. through q u'' with
-    rate-dependent envelopes) amplifies rounding errors until the input is lost. The worst sine counts."""
+    inverse's ``options`` (input_limits, max_rate, u_start, inverse, ...) and measure how far the
+    inverse's input strays from the sine's where it did not clip. The sines sweep a decade of drive
+    periods from the data scale's time (the shortest drive period the model was identified on) to ten
+    times it (three log-spaced, ``periods`` periods each), no faster than ``max_rate`` allows. The
+    exact inverse passes when it gives the input back to ``tolerance`` of the span (a stable one does,
+    to rounding; an unstable recursion, e.g. through q u'' with rate-dependent envelopes, amplifies
+    rounding errors until the input is lost). The reference-driven inverse is approximate by design
+    (its error is reported); it passes when it does not ring: its input's total variation is at most
+    ``VARIATION_LIMIT`` times the sine's. The worst sine counts."""
     lo, hi = fitted.input_range
     shortest = float((fitted.metadata.get("scale") or {}).get("time") or 1.0)
     if options.get("max_rate"):
@@ -423,9 +542,13 @@ def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2
         over = np.flatnonzero(err > tolerance)
         roots = (fitted.model.inverse_recursion_radius(u, fitted.sample_time, fitted.params, fitted.input_range)
                  if hasattr(fitted.model, "inverse_recursion_radius") else np.full(u.size, np.nan))
+        variation = float(np.sum(np.abs(np.diff(inv.u))) / np.sum(np.abs(np.diff(u))))
+        exact = inv.inverse == "exact"
+        stable = float(np.max(err)) <= tolerance if exact else bool(variation <= VARIATION_LIMIT)
         check = InverseCheck(float(np.max(err)), int(over[0]) if over.size else -1, inv.n_clipped, u.size, tolerance,
-                             float(np.max(err)) <= tolerance, float(np.max(roots)),
-                             float(np.mean(roots > 1.0 + 1e-9)))
-        if worst is None or check.max_error > worst.max_error:
+                             stable, float(np.max(roots)), float(np.mean(roots > 1.0 + 1e-9)), inv.inverse,
+                             variation if np.isfinite(variation) else float("inf"))
+        key = (not check.stable, check.max_error)
+        if worst is None or key > (not worst.stable, worst.max_error):
             worst = check
     return worst

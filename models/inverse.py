@@ -15,7 +15,8 @@ time from its state after the previous sample (k = 0, 1, ...; u = u(k)):
     mrpim+creep            base(k) = offset + s (1 - exp(-t_k / T_c))
 
 ``step_output`` evaluates y(k) and dy/du for a candidate u without touching the
-state; ``step_commit`` commits a chosen u. Both are ``kernels.pi_sample``, the per-sample
+state; ``step_commit`` commits a chosen u (``guided_output`` does both for the reference-driven
+inverse, below). Both are ``kernels.pi_sample``, the per-sample
 update the batch kernel (``kernels._pi_output_window``), the steppers (``pi_stepper``) and the
 exported C share. ``step_simulate`` runs the model forward through them (the tests check it
 against each model's own forward kernel).
@@ -68,6 +69,33 @@ per sample; no causal exact inverse is then stable. ``recursion_radius`` gives t
 modulus per sample (MRPIM fitted on the virtual DEA: up to 1.14 on the protocol's sines, with
 the envelopes the cause; docs/deploying.md); the export's inverse check reports it.
 
+The reference-driven inverse (``inverse="reference-driven"``; ``"auto"`` picks it for a model with
+rate or relaxation terms, the exact one otherwise, where the two coincide). The literature's
+feedforward for rate-dependent P-I models (Al Janaideh et al.) takes the rate from the
+reference, not from the input being solved for. Here: the reference is mapped to input units,
+m(k) = u_start + (y_d(k) - y_d(0)) / G, G the model's quasi-static gain (``guide_gain``: the
+secant of its first loading curve over the input range, rate terms off, filters at steady
+state); the guide g follows m through a critically damped second-order follower of time
+constant ``guide_time`` (default ``DEFAULT_GUIDE_TIME``; 0: g = m), its step limited by the rate
+limit (``guide_step``). Each sample then solves, for u alone (``guided_output``):
+
+    y(k) = base(k) + sum_j poly_j u^j + q g''(k) + sum_i a_i W_i(k)
+           + sum_j c_j (x_j(k) - g(k)^p_j + u^p_j),        x_j driven by g
+    W_i(k) = play_update(W_i(k-1), u - g_lo |g'| - r_lo_i, u + g_hi |g'| + r_hi_i)
+
+(g', g'' backward differences of the guide). With g = u it is the model (tested); with g given
+it has no recursion through u's differences, so its error does not grow through them (c1 = c2 =
+0); the memory left is the plays' (a P-I operator's) and the root search's choice of branch. It
+is the exact inverse of this reference-driven model, not of the model: a reachable trajectory's
+input comes back only as far as the guide matches it (on the DEA's fits, 0.1-0.5 kV where the
+rate-free loading falls after a reversal). It inherits two weaknesses: a reference with sharp
+features asks the rate terms for rates no input has (the follower and ``max_rate`` bound them),
+and where the rate-free part's slope after a reversal is negative (a1 < 0 with a small
+polynomial slope: a1 + p'(u) < 0 below 0.82 kV for Table 2's MRPIM, a1 = -4.37, and below
+0.65 kV for the DEA's varpro fit, a1 = -1.32) the per-sample equation has
+no root near the previous input and the inverse clips or jumps (``export_c.check_inverse``
+measures it as ringing). docs/deploying.md has the measurements.
+
 Why a rate limit: MRPIM's envelopes move its plays by gamma |u'| (gamma ~ 0.1 s when
 fitted on the virtual DEA): an input jump of 1 kV in one 1 ms sample shifts them by
 100 kV, a play memory no loop ever visits again, and the model never recovers. A jump
@@ -105,6 +133,12 @@ from .stepper import ArrayInverseStepper, InverseStepper, check_state_keys, chec
 from .root_search import NO_INPUT, SEARCH_SIZE, search_clipped, search_done, search_next, search_start
 
 DEFAULT_GRID = 32  # walk step = (u_hi - u_lo) / DEFAULT_GRID
+#: the P-I family's causal inverses (``StepInvertible.invert``'s ``inverse``); "auto" picks
+#: "reference-driven" for a model with rate or relaxation terms, else "exact" (the two are then equal)
+INVERSES = ("auto", "exact", "reference-driven")
+#: the reference-driven inverse's guide follower time constant (s) unless given (docs/deploying.md
+#: has the measurement behind it: shorter lets the inverse of a fitted MRPIM ring on its own sines)
+DEFAULT_GUIDE_TIME = 0.02
 
 
 @dataclass
@@ -140,6 +174,11 @@ class Inversion:
     u: np.ndarray
     clipped: np.ndarray  # bool per sample: the desired output was not reached
     method: str = "numerical"
+    #: which causal inverse ran (P-I family): "exact" or "reference-driven" (``INVERSES``)
+    inverse: str = "exact"
+    #: the largest root modulus of the exact inverse's error recursion along the returned input
+    #: (``recursion_radius``; above 1 the exact inverse is unstable there); NaN where not computed
+    exact_recursion_radius: float = float("nan")
 
     @property
     def n_clipped(self) -> int:
@@ -216,6 +255,136 @@ def invert_steps(yd, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid
         u2 = x if first else u1
         u1 = x
     return u_out, clipped
+
+
+# --- the reference-driven inverse ------------------------------------------------------
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def guided_output(u, first, g, g1, g2, dt, base, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
+                  fw, commit):
+    """(y(k), dy/du) of the reference-driven model (module docstring, "The reference-driven inverse")
+    for input u: the rates |u'|, u'' are the guide's (g = g(k), g1, g2 the two before), the filters
+    follow the guide and add their lag, x_j - g^p_j, to u^p_j. The plays (w) and the guide's filters
+    (xg) move to sample k only when ``commit``; dy/du has no rate or lag term (the guide does not
+    depend on u)."""
+    inv_dt = 1.0 / dt
+    a, s, d2 = backward_rates(g, g1, g2, first, inv_dt, inv_dt * inv_dt)
+    # s = 0, inv_dt = 0 in the slope: the rates do not move with u
+    y, dy = pi_sample(u, a, 0.0, d2, first, g1, 0.0, base, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
+                      fa[:0], fb0[:0], fb1[:0], fpow[:0], fw[:0], commit, not commit)
+    for j in range(fa.shape[0]):
+        x = 0.0
+        if not first:
+            pw = fpow[j]
+            x = fa[j] * xg[j] + fb0[j] * g1**pw + fb1[j] * g**pw
+            y += fw[j] * (x - g**pw + u**pw)
+            dy += fw[j] * pw * u ** (pw - 1)
+        if commit:
+            xg[j] = x
+    return y, dy
+
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def guide_step(mapped, g1, g2, max_step, c):
+    """The guide at this sample from the mapped reference (``mapped_reference``) and the guide's two
+    previous values: a critically damped second-order follower, c = dt / guide_time per sample
+    (c >= 1: the mapped reference itself), its step limited to ``max_step`` (the input's rate limit).
+    The follower keeps the reference's sharp features (a corner, a jump, the model's own
+    acceleration term) from becoming input rates and accelerations no input has."""
+    if c >= 1.0:
+        return g1 + min(max(mapped - g1, -max_step), max_step)
+    v = (g1 - g2) * (1.0 - 2.0 * c) + c * c * (mapped - g1)
+    return g1 + min(max(v, -max_step), max_step)
+
+
+def guide_rate(dt: float, guide_time: float) -> float:
+    """The follower's c per sample for a guide time constant (s); 0: no follower (c = 1)."""
+    return 1.0 if guide_time == 0.0 else min(1.0, float(dt) / guide_time)
+
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
+def guided_invert_sample(yd, g, first, u1, g1, g2, dt, base, u_limit_lo, u_limit_hi, max_step, n_grid, tol, st, w, xg,
+                         r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """One sample of the reference-driven inverse: the input x that makes ``guided_output`` equal yd
+    (the same root search as ``invert_sample``, around the previous input u1); the plays and the
+    guide's filters are committed to x."""
+    x = search_start(st, NO_INPUT, 0, u1, u_limit_lo, u_limit_hi, max_step, n_grid, tol, tol)
+    while not search_done(st):
+        y, dy = guided_output(x, first, g, g1, g2, dt, base, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0,
+                              fb1, fpow, fw, False)
+        x = search_next(st, y - yd, dy)
+    guided_output(x, first, g, g1, g2, dt, base, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw,
+                  True)
+    return x
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def guided_invert_steps(yd, mapped, dt, base, u_limit_lo, u_limit_hi, u_start, max_step, n_grid, tol, guide_c, r_lo,
+                        r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """The reference-driven inverse over a record: (u, clipped) for desired outputs yd and the
+    mapped reference ``mapped`` (one value per sample, ``mapped_reference``; the guide follows it
+    through ``guide_step``)."""
+    n = yd.shape[0]
+    u_out = np.empty(n)
+    clipped = np.zeros(n, dtype=np.bool_)
+    w = np.zeros(r_lo.shape[0])
+    xg = np.zeros(fa.shape[0])
+    st = np.empty(SEARCH_SIZE)
+    u1 = min(max(u_start, u_limit_lo), u_limit_hi)
+    g1 = g2 = mapped[0]
+    for k in range(n):
+        first = k == 0
+        g = guide_step(mapped[k], g1, g2, max_step, guide_c)
+        x = guided_invert_sample(yd[k], g, first, u1, g1, g2, dt, base[k], u_limit_lo, u_limit_hi, max_step,
+                                 n_grid, tol, st, w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
+                                 fw)
+        u_out[k] = x
+        clipped[k] = search_clipped(st)
+        u1 = x
+        g2 = g if first else g1
+        g1 = g
+    return u_out, clipped
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def guided_simulate(u, guide, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
+    """The reference-driven model's output for input u and guide (``guided_output`` committed per
+    sample): what the reference-driven inverse inverts exactly. With guide = u it is the model."""
+    n = u.shape[0]
+    out = np.empty(n)
+    w = np.zeros(r_lo.shape[0])
+    xg = np.zeros(fa.shape[0])
+    g1 = g2 = guide[0]
+    for k in range(n):
+        first = k == 0
+        out[k] = guided_output(u[k], first, guide[k], g1, g2, dt, base[k], w, xg, r_lo, r_hi, g_lo, g_hi, weights, poly,
+                               q, fa, fb0, fb1, fpow, fw, True)[0]
+        g2 = guide[k] if first else g1
+        g1 = guide[k]
+    return out
+
+
+def guide_gain(s: "StepStructure", input_range) -> float:
+    """The model's quasi-static gain: the secant of its first loading curve from rest (plays from 0,
+    no rate terms, the filters at their steady state) over the input range; the reference-driven
+    inverse maps the reference's changes to the input's by it."""
+    lo, hi = map(float, input_range)
+
+    def loading(u: float) -> float:
+        plays = np.maximum(np.minimum(0.0, u + np.asarray(s.r_hi, dtype=float)), u - np.asarray(s.r_lo, dtype=float))
+        poly = sum(c * u ** (j + 1) for j, c in enumerate(np.asarray(s.poly, dtype=float)))
+        dc = np.asarray(s.filter_b0, dtype=float) + np.asarray(s.filter_b1, dtype=float)
+        dc = np.divide(dc, 1.0 - np.asarray(s.filter_a, dtype=float), out=np.ones_like(dc), where=dc != 0)
+        filters = float(np.sum(np.asarray(s.filter_weight, dtype=float) * dc * u ** np.asarray(s.filter_power)))
+        return float(np.dot(np.asarray(s.weights, dtype=float), plays[:len(s.weights)])) + poly + filters
+
+    return (loading(hi) - loading(lo)) / (hi - lo)
+
+
+def mapped_reference(yd: np.ndarray, u_start: float, gain: float, y_first: float | None = None) -> np.ndarray:
+    """The reference mapped to input units: u_start + (y_d(k) - y_d(0)) / gain (``y_first``: y_d(0)
+    when yd does not start the record). The inverse stepper computes each value the same way."""
+    y0 = float(yd[0]) if y_first is None else float(y_first)
+    return u_start + (np.asarray(yd, dtype=float) - y0) * (1.0 / gain)
 
 
 @njit(cache=True, fastmath=KERNEL_FASTMATH)
@@ -299,18 +468,56 @@ class StepInvertible:
         return recursion_radius(u, float(dt), np.ascontiguousarray(s.base), r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                                 fa, fb0, fb1, fpow, fw)
 
+    def resolve_inverse(self, inverse: str, s: StepStructure, input_range) -> tuple[str, float]:
+        """(the inverse that runs, the guide's gain: NaN for the exact inverse) for an ``inverse``
+        option (``INVERSES``) and the model's step structure."""
+        if inverse not in INVERSES:
+            raise ModelError(f"{self.name}: inverse must be one of {', '.join(INVERSES)}; got {inverse!r}")
+        dynamic = s.g_lo != 0.0 or s.g_hi != 0.0 or s.q != 0.0 or np.size(s.filter_a) > 0
+        if inverse == "exact" or (inverse == "auto" and not dynamic):
+            return "exact", float("nan")
+        gain = guide_gain(s, input_range)
+        if inverse == "auto" and not (gain > 0 and np.isfinite(gain)):
+            return "exact", float("nan")  # no increasing loading curve to map the reference by
+        if not (gain > 0 and np.isfinite(gain)):
+            raise ModelError(f"{self.name}: the reference-driven inverse needs an increasing loading curve; its "
+                             f"quasi-static gain over the input range is {gain:.4g} (use inverse='exact')")
+        return "reference-driven", gain
+
     def invert(self, y_desired, dt: float, params, input_range=None, input_limits=None,
-               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None) -> Inversion:
+               n_grid: int = DEFAULT_GRID, max_rate: float | None = None, u_start: float | None = None,
+               inverse: str = "auto", guide_time: float = DEFAULT_GUIDE_TIME) -> Inversion:
         """The causal numerical inverse: the input within ``input_limits`` (default: ``input_range``)
         that makes the model output ``y_desired``, sample by sample (module docstring).
         ``max_rate``: largest |du/dt| (input units per second; None: none); ``u_start``: the
-        input before the first sample (default: the lower limit, an actuator at rest)."""
+        input before the first sample (default: the lower limit, an actuator at rest);
+        ``inverse``: "exact", "reference-driven" or "auto" (``INVERSES``; the result names the one
+        that ran and the exact inverse's recursion radius along its input); ``guide_time``: the
+        reference-driven inverse's follower time constant (s, 0: none; ``guide_step``)."""
         a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, n_grid, max_rate, u_start)
+        guide_time = check_guide_time(self.name, guide_time)
         s = self._structure(dt, params, a.input_range, a.yd.size)
+        inverse, gain = self.resolve_inverse(inverse, s, a.input_range)
         r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw = s.arguments()
-        u, clipped = invert_steps(a.yd, float(dt), np.ascontiguousarray(s.base), a.lo, a.hi, a.u_start, a.max_step,
-                                  a.n_grid, a.tol, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
-        return Inversion(u, clipped)
+        base = np.ascontiguousarray(s.base)
+        if inverse == "exact":
+            u, clipped = invert_steps(a.yd, float(dt), base, a.lo, a.hi, a.u_start, a.max_step, a.n_grid, a.tol,
+                                      r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw)
+        else:
+            mapped = mapped_reference(a.yd, a.u_start, gain)
+            u, clipped = guided_invert_steps(a.yd, mapped, float(dt), base, a.lo, a.hi, a.u_start, a.max_step,
+                                             a.n_grid, a.tol, guide_rate(dt, guide_time), r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1,
+                                             fpow, fw)
+        radius = recursion_radius(u, float(dt), base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow,
+                                  fw)
+        return Inversion(u, clipped, inverse=inverse, exact_recursion_radius=float(np.max(radius, initial=0.0)))
+
+
+def check_guide_time(name: str, guide_time) -> float:
+    """The reference-driven inverse's follower time (s): 0 (none) or a positive, finite number."""
+    if guide_time == 0 and not isinstance(guide_time, bool):
+        return 0.0
+    return check_number(name, "guide_time", guide_time, positive=True)
 
 
 def check_max_rate(name: str, max_rate) -> float | None:

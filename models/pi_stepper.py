@@ -20,7 +20,8 @@ from numba import njit
 
 from .errors import ModelError
 from .kernels import KERNEL_FASTMATH
-from .inverse import DEFAULT_GRID, InverseArguments, StepInvertible, StepStructure, invert_sample, step_commit
+from .inverse import (DEFAULT_GRID, DEFAULT_GUIDE_TIME, InverseArguments, StepInvertible, StepStructure,
+                      check_guide_time, guide_rate, guide_step, guided_invert_sample, invert_sample, step_commit)
 from .root_search import SEARCH_SIZE, search_clipped
 from .stepper import InverseStepper, Stepper, check_state_keys, check_step_input
 
@@ -77,6 +78,30 @@ def pi_inverse_step(yd, base, coef, state, fpow, limits, st):
     x = invert_sample(yd, state[0] != 0.0, state[1], state[2], coef[0], base, limits[0], limits[1], limits[2],
                       int(limits[3]), limits[4], st, w, xf, r_lo, r_hi, coef[1], coef[2], weights, poly, coef[3],
                       fa, fb0, fb1, fpow, fw)
+    _advance(state, x)
+    return x
+
+
+@njit(cache=True, nogil=True, fastmath=KERNEL_FASTMATH)
+def pi_guided_inverse_step(yd, mapped, base, coef, state, fpow, limits, st, guide):
+    """The reference-driven inverse at this sample (``inverse.guided_invert_sample``): the input for
+    desired output yd, the mapped reference ``mapped`` (``inverse.mapped_reference``) giving the guide
+    (``inverse.guide_step``; limits[5] its follower's c); guide = [g(k-1), g(k-2)] and the state advance."""
+    f = fpow.shape[0]
+    n = (state.shape[0] - HEAD - f)
+    m = coef.shape[0] - HEAD - 3 * n - 4 * f
+    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw = _unpack(coef, n, m, f)
+    w = state[HEAD:HEAD + n]
+    xg = state[HEAD + n:HEAD + n + f]
+    first = state[0] != 0.0
+    if first:
+        guide[0] = guide[1] = mapped
+    g = guide_step(mapped, guide[0], guide[1], limits[2], limits[5])
+    x = guided_invert_sample(yd, g, first, state[1], guide[0], guide[1], coef[0], base, limits[0], limits[1],
+                             limits[2], int(limits[3]), limits[4], st, w, xg, r_lo, r_hi, coef[1], coef[2], weights,
+                             poly, coef[3], fa, fb0, fb1, fpow, fw)
+    guide[1] = g if first else guide[0]
+    guide[0] = g
     _advance(state, x)
     return x
 
@@ -167,23 +192,34 @@ class PIStepper(_PIBase, Stepper):
 class PIInverseStepper(_PIBase, InverseStepper):
     """The causal inverse stepper of a P-I-family model: ``step(y_ref) -> u``, equal to the batch
     ``invert`` given the same options (``reference_scale``: the |y| the reach tolerance
-    1e-12 (1 + scale) is relative to; the batch inverse takes max |y_d| of its reference)."""
+    1e-12 (1 + scale) is relative to; the batch inverse takes max |y_d| of its reference).
+    ``inverse``, ``guide_time`` as ``invert`` (``inverse.INVERSES``); ``self.inverse`` names the one that runs.
+    The reference-driven inverse's state adds "guide": [y_ref(0), g(k-1), g(k-2)] (its filter
+    slots hold the guide's filters)."""
 
     def __init__(self, model, dt: float, params, input_range, input_limits=None, n_grid: int = DEFAULT_GRID,
                  max_rate: float | None = None, u_start: float | None = None,
-                 reference_scale: float | None = None):
+                 reference_scale: float | None = None, inverse: str = "auto",
+                 guide_time: float = DEFAULT_GUIDE_TIME):
         self._setup(model, dt, params, input_range)
         scale = abs(float(reference_scale)) if reference_scale is not None else 0.0
         a = InverseArguments.check(model.name, [scale], dt, self.input_range, input_limits, n_grid, max_rate,
                                    u_start)
+        self.inverse, gain = model.resolve_inverse(inverse, self.structure, self.input_range)
+        self._inv_gain = 1.0 / gain if self.inverse != "exact" else 0.0
         self.input_limits = (a.lo, a.hi)
         self.u_start = a.u_start
-        self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol])
+        self.guide_time = check_guide_time(model.name, guide_time)
+        self._limits = np.array([a.lo, a.hi, a.max_step, float(a.n_grid), a.tol, guide_rate(self.dt, self.guide_time)])
         self._search = np.empty(SEARCH_SIZE)
+        self._guide = np.zeros(2)
+        self._y_first = 0.0
         self.reset()
 
     def reset(self) -> None:
         self._start(self.u_start)
+        self._guide[:] = self.u_start
+        self._y_first = 0.0
         self.clipped = False
         self.n_clipped = 0
 
@@ -192,22 +228,40 @@ class PIInverseStepper(_PIBase, InverseStepper):
         if y_ref - y_ref != 0.0:
             check_step_input(self.model.name, y_ref)
         base = self._base0 if not self._varying else self._base_at(int(self._state[3]))
-        u = pi_inverse_step(y_ref, base, self._coef, self._state, self._fpow, self._limits, self._search)
+        if self.inverse == "exact":
+            u = pi_inverse_step(y_ref, base, self._coef, self._state, self._fpow, self._limits, self._search)
+        else:
+            if self._state[0] != 0.0:
+                self._y_first = y_ref
+            mapped = self.u_start + (y_ref - self._y_first) * self._inv_gain  # as inverse.mapped_reference
+            u = pi_guided_inverse_step(y_ref, mapped, base, self._coef, self._state, self._fpow, self._limits,
+                                       self._search, self._guide)
         self.clipped = bool(search_clipped(self._search))
         self.n_clipped += self.clipped
         return u
 
     def _keys(self):
-        return super()._keys() + ("n_clipped",)
+        return super()._keys() + ("n_clipped",) + (("guide",) if self.inverse != "exact" else ())
 
     @property
     def state(self) -> dict:
-        return dict(super().state, n_clipped=int(self.n_clipped))
+        extra = {"guide": [self._y_first, float(self._guide[0]), float(self._guide[1])]} \
+            if self.inverse != "exact" else {}
+        return dict(super().state, n_clipped=int(self.n_clipped), **extra)
 
     def set_state(self, state: dict) -> None:
         check_state_keys(self.model.name, state, self._keys())
-        super().set_state({k: v for k, v in state.items() if k != "n_clipped"})
+        guide = None
+        if self.inverse != "exact":
+            guide = [float(v) for v in state["guide"]]
+            if len(guide) != 3 or not np.all(np.isfinite(guide)):
+                raise ModelError(f"{self.model.name}: a reference-driven inverse's state needs a finite guide "
+                                 "[y_ref(0), g(k-1), g(k-2)]")
+        super().set_state({k: v for k, v in state.items() if k not in ("n_clipped", "guide")})
         self.n_clipped = int(state["n_clipped"])
+        if guide is not None:
+            self._y_first = guide[0]
+            self._guide[:] = guide[1:]
 
 
 class SteppableStructure(StepInvertible):
@@ -226,7 +280,7 @@ class SteppableStructure(StepInvertible):
 
     def inverse_stepper(self, dt: float, params, input_range=None, input_limits=None, **options):
         """The causal inverse one sample at a time (``PIInverseStepper``); options as ``invert``
-        (n_grid, max_rate, u_start) and ``reference_scale``."""
+        (n_grid, max_rate, u_start, inverse, guide_time) and ``reference_scale``."""
         reason = self.inverse_unavailable
         if reason:
             raise ModelError(f"model {self.name!r} cannot be inverted: {reason}")

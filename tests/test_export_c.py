@@ -87,18 +87,23 @@ def drive(n=2500):
 @needs_cc
 @pytest.mark.parametrize("name", ["classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxation", "mrpim+creep",
                                   "mrpim+interference"])
-def test_generated_c_agrees_with_simulate_and_the_inverse_stepper(tmp_path, name):
+@pytest.mark.parametrize("inverse, guide_time", [("exact", 0.02), ("reference-driven", 0.0),
+                                                 ("reference-driven", 0.02)])
+def test_generated_c_agrees_with_simulate_and_the_inverse_stepper(tmp_path, name, inverse, guide_time):
     fit = fitted(name)
-    exe = build(tmp_path, fit, max_rate=50.0)
+    options = dict(max_rate=50.0, inverse=inverse, guide_time=guide_time)
+    exe = build(tmp_path, fit, **options)
     u = drive()
     y = fit.simulate(u)
     y_c, _ = run(exe, 0, u)
     assert close(y_c, y, 1e-9)
-    inverse = fit.inverse_stepper(max_rate=50.0, reference_scale=10.0)
-    u_py = inverse.run(y)
+    inverse_stepper = fit.inverse_stepper(reference_scale=10.0, **options)
+    u_py = inverse_stepper.run(y)
     u_c, n_clipped = run(exe, 1, y)
     assert close(u_c, u_py, 1e-9)
-    assert n_clipped == inverse.n_clipped
+    assert n_clipped == inverse_stepper.n_clipped
+    header = (tmp_path / "hm.h").read_text()
+    assert f"Inverse: {inverse_stepper.inverse} (" in header
 
 
 @needs_cc
@@ -163,19 +168,41 @@ def test_the_inverse_check_passes_a_monotone_p_i_and_names_an_inverse_that_loses
     params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
     good = check_inverse(FittedModel(model, params, RANGE, DT, {}))
     assert good.stable and good.max_error < 1e-12 and good.first_sample == -1 and good.max_root <= 1.0
-    # Table 2's MRPIM: the sample-by-sample inverse through q u'' and the envelopes loses the input
-    bad = check_inverse(FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}))
+    assert good.inverse == "exact"  # auto: no rate terms
+    # Table 2's MRPIM: the sample-by-sample exact inverse through q u'' and the envelopes loses the input
+    bad = check_inverse(FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}), inverse="exact")
     assert not bad.stable and bad.max_error > 1e-3 and bad.first_sample > 0
     assert bad.max_root > 1.0 and 0.0 < bad.share_unstable <= 1.0
     assert "not safe as a feedforward" in bad.message("mrpim") and "roots of modulus up to" in bad.message("mrpim")
 
 
+def test_the_inverse_check_of_the_reference_driven_inverse_is_for_ringing():
+    """The DEA's MRPIM (varpro on data/virtual_dea; tests/test_inverse.py): its exact inverse fails the
+    check, its reference-driven inverse (approximate: its error is reported) does not ring; Table 2's
+    MRPIM, whose rate-free loading falls after a reversal (a1 = -4.37), rings even so."""
+    from hysbench.models.export_c import VARIATION_LIMIT, check_inverse
+    from test_inverse import DEA_MRPIM
+    fit = FittedModel(MRPIM(), DEA_MRPIM, RANGE, DT, {"scale": {"time": 1.0}})
+    assert not check_inverse(fit, inverse="exact").stable
+    driven = check_inverse(fit)
+    assert driven.inverse == "reference-driven" and driven.stable
+    assert driven.variation_ratio <= VARIATION_LIMIT and driven.max_error > 1e-3  # approximate, and said so
+    assert "approximate by design" in driven.message("mrpim") and "not safe" not in driven.message("mrpim")
+    paper = check_inverse(FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}))
+    assert not paper.stable and paper.variation_ratio > VARIATION_LIMIT
+    assert "it rings, so it is not safe as a feedforward" in paper.message("mrpim")
+
+
 def test_cli_export_warns_on_stderr_where_the_inverse_check_fails(tmp_path, capsys):
     path = FittedModel(MRPIM(), MRPIM().preset("paper"), RANGE, DT, {}).save(tmp_path / "m.json")
-    code = main(["export", str(path), "--out", str(tmp_path / "c"), "--prefix", "dea"])
+    code = main(["export", str(path), "--out", str(tmp_path / "c"), "--prefix", "dea", "--inverse", "exact"])
     err = capsys.readouterr().err
     assert code == 0 and "warning: mrpim: the inverse does not give back" in err
-    assert "Inverse check: mrpim: the inverse does not give back" in (tmp_path / "c" / "dea.h").read_text()
+    header = (tmp_path / "c" / "dea.h").read_text()
+    assert "Inverse check: mrpim: the inverse does not give back" in header and "Inverse: exact (" in header
+    code = main(["export", str(path), "--out", str(tmp_path / "c2"), "--prefix", "dea"])
+    err = capsys.readouterr().err
+    assert code == 0 and "warning: mrpim: the reference-driven inverse" in err and "it rings" in err
 
 
 @needs_cc

@@ -6,8 +6,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hysbench.models import get_model
+from hysbench.models import MRPIM, get_model
 from hysbench.models.errors import ModelError
+from hysbench.models.inverse import guide_gain, guided_simulate
 from test_baselines import _bouc_wen_reference, _branch_reference, _preisach_reference
 
 DT = 1e-3
@@ -92,7 +93,7 @@ def test_step_kernels_match_a_slow_reference_and_the_forward_kernels():
                                                           "classical-pi"]),
        gamma=st.floats(0.0, 0.01), lam=st.floats(-0.01, 0.01), q=st.floats(0.0, 1e-5))
 def test_model_driven_by_its_inverse_reproduces_the_desired_output(seed, name, gamma, lam, q):
-    """Reachable trajectories (outputs of the model for random inputs): wherever the inverse
+    """Reachable trajectories (outputs of the model for random inputs): wherever the exact inverse
     did not clip, the model driven by it gives the desired output to 1e-6 of its range."""
     rng = np.random.default_rng(seed)
     m = get_model(name)
@@ -101,7 +102,8 @@ def test_model_driven_by_its_inverse_reproduces_the_desired_output(seed, name, g
               if k in p})
     u = smooth_input(seed, 2000)
     y = m.simulate(u, DT, p, input_range=LIMITS)
-    inv = m.invert(y, DT, p, input_range=LIMITS)
+    inv = m.invert(y, DT, p, input_range=LIMITS, inverse="exact")
+    assert inv.inverse == "exact"
     achieved = m.simulate(inv.u, DT, p, input_range=LIMITS)
     ok = ~inv.clipped
     span = np.ptp(y)
@@ -197,7 +199,7 @@ def test_viscoelastic_driven_by_its_inverse_reproduces_the_desired_output(seed, 
 @pytest.mark.parametrize("name", ["mrpim+creep", "mrpim+interference"])
 def test_known_in_time_components_step_and_invert(name):
     """Creep and interference only shift the target: the step kernel equals the forward model
-    and the inverse reproduces a reachable output."""
+    and the exact inverse reproduces a reachable output."""
     rng = np.random.default_rng(5)
     m = get_model(name)
     p = mrpim_params(rng, m)
@@ -206,7 +208,7 @@ def test_known_in_time_components_step_and_invert(name):
     u = smooth_input(6, 3000)
     y = m.simulate(u, DT, p, input_range=LIMITS)
     np.testing.assert_allclose(m.simulate_steps(u, DT, p, input_range=LIMITS), y, rtol=1e-11, atol=1e-11)
-    inv = m.invert(y, DT, p, input_range=LIMITS)
+    inv = m.invert(y, DT, p, input_range=LIMITS, inverse="exact")
     ok = ~inv.clipped
     assert ok.mean() > 0.99
     assert np.max(np.abs(m.simulate(inv.u, DT, p, input_range=LIMITS) - y)[ok]) <= 1e-6 * np.ptp(y)
@@ -356,3 +358,160 @@ def test_a_rate_independent_model_has_no_inverse_recursion():
     params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
     u = 1.5 - np.cos(np.linspace(0, 6 * np.pi, 300))
     assert np.all(model.inverse_recursion_radius(u, 1e-3, params, (0.5, 2.5)) == 0.0)
+
+
+# --- the reference-driven inverse -------------------------------------------------------
+def slow_guided_model(u, guide, dt, s):
+    """The reference-driven model (models/inverse.py) written out plainly: the rates |u'| and u''
+    are the guide's backward differences, the filters follow the guide and add their lag x - g^p
+    to u^p; the rest is the step structure ``s`` (plays, polynomial, offset per sample)."""
+    w = [0.0] * len(s.r_lo)
+    filters = list(zip(s.filter_a, s.filter_b0, s.filter_b1, s.filter_power, s.filter_weight))
+    x = [0.0] * len(filters)
+    out = []
+    for k, uk in enumerate(u):
+        g = guide[k]
+        g1 = guide[k - 1] if k >= 1 else g
+        g2 = guide[k - 2] if k >= 2 else g1
+        rate = abs(g - g1) / dt
+        for i in range(len(s.r_lo)):
+            w[i] = max(uk - s.g_lo * rate - s.r_lo[i], min(uk + s.g_hi * rate + s.r_hi[i], w[i]))
+        y = s.base[k] + sum(c * uk ** (j + 1) for j, c in enumerate(s.poly)) + s.q * (g - 2 * g1 + g2) / dt ** 2
+        y += sum(a * wi for a, wi in zip(s.weights, w))
+        for j, (a, b0, b1, p, c) in enumerate(filters):
+            x[j] = 0.0 if k == 0 else a * x[j] + b0 * g1 ** p + b1 * g ** p
+            if k > 0:
+                y += c * (x[j] - g ** p + uk ** p)
+        out.append(y)
+    return np.array(out)
+
+
+def slow_guide(y, u_start, gain, dt, guide_time, max_rate=None):
+    """The guide, plainly: the reference mapped to the input, u_start + (y - y(0)) / gain, through
+    the critically damped follower g(k) = g(k-1) + v, v = (g(k-1) - g(k-2)) (1 - 2c) + c^2 (m - g(k-1)),
+    c = dt / guide_time (c = 1: v = m - g(k-1)), v limited to max_rate dt."""
+    mapped = u_start + (np.asarray(y) - y[0]) / gain
+    c = 1.0 if guide_time == 0 else min(1.0, dt / guide_time)
+    step = np.inf if max_rate is None else max_rate * dt
+    g = [mapped[0], mapped[0]]  # g(-2), g(-1): at rest
+    for m in mapped:
+        v = m - g[-1] if c >= 1.0 else (g[-1] - g[-2]) * (1 - 2 * c) + c * c * (m - g[-1])
+        g.append(g[-1] + min(max(v, -step), step))
+    return np.array(g[2:])
+
+
+def guided_arguments(m, p, n):
+    s = m.step_structure(DT, p, LIMITS, n)
+    return s, (DT, np.ascontiguousarray(s.base), *s.arguments())
+
+
+def test_reference_driven_model_matches_a_slow_reference_and_is_the_model_when_guided_by_its_input():
+    rng = np.random.default_rng(8)
+    u = smooth_input(3, 1500)
+    guide = smooth_input(4, 1500)
+    cases = [(get_model("mrpim"), mrpim_params(rng, get_model("mrpim"), gamma=0.02, lam=-0.01, q=1e-4))]
+    rd = get_model("rate-dependent-pi")
+    cases.append((rd, dict({n: float(rng.uniform(0.1, 1.0)) for n in rd.param_names}, beta=0.01)))
+    ext = get_model("mrpim+relaxation", relaxation_powers=(1, 2))
+    cases.append((ext, dict(mrpim_params(rng, ext), tau1=0.7, c1=0.4, c1_u2=-0.2)))
+    for m, p in cases:
+        s, args = guided_arguments(m, p, u.size)
+        np.testing.assert_allclose(guided_simulate(u, guide, *args), slow_guided_model(u, guide, DT, s),
+                                   rtol=1e-10, atol=1e-10)
+        # guided by its own input, the reference-driven model is the model
+        np.testing.assert_allclose(guided_simulate(u, u, *args), m.simulate(u, DT, p, input_range=LIMITS),
+                                   rtol=1e-10, atol=1e-10)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), name=st.sampled_from(["mrpim", "rate-dependent-pi", "mrpim+relaxation"]),
+       gamma=st.floats(0.0, 0.05), lam=st.floats(-0.05, 0.05), q=st.floats(0.0, 1e-4),
+       guide_time=st.sampled_from([0.0, 0.005, 0.02]), max_rate=st.sampled_from([None, 20.0]))
+def test_reference_driven_inverse_inverts_the_reference_driven_model(seed, name, gamma, lam, q, guide_time, max_rate):
+    """The reference-driven inverse is the exact inverse of the model with its rate and relaxation
+    terms driven by the guide (slow guide and model above): wherever it did not clip, that model
+    driven by its input gives the desired output to 1e-6 of its range; the input stays within the
+    limits and the rate limit."""
+    rng = np.random.default_rng(seed)
+    m = get_model(name)
+    p = {n: float(rng.uniform(0.05, 1.0)) for n in m.param_names}
+    p.update({k: v for k, v in {"gamma": gamma, "lambda": lam, "q": q, "beta": abs(gamma), "tau1": 0.5}.items()
+              if k in p})
+    u = smooth_input(seed, 1500)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    inv = m.invert(y, DT, p, input_range=LIMITS, u_start=u[0], inverse="reference-driven", guide_time=guide_time,
+                   max_rate=max_rate)
+    assert inv.inverse == "reference-driven"
+    s = m.step_structure(DT, p, LIMITS, u.size)
+    guide = slow_guide(y, u[0], guide_gain(s, LIMITS), DT, guide_time, max_rate)
+    achieved = slow_guided_model(inv.u, guide, DT, s)
+    ok = ~inv.clipped
+    assert np.all((inv.u >= LIMITS[0]) & (inv.u <= LIMITS[1]))
+    assert np.max(np.abs(achieved - y)[ok]) <= 1e-6 * np.ptp(y)
+    if max_rate is not None:
+        assert np.max(np.abs(np.diff(inv.u))) <= max_rate * DT * (1 + 1e-12)
+
+
+def test_reference_driven_inverse_of_a_rate_independent_model_is_the_exact_one():
+    m, p = positive_classical_pi(5)
+    u = smooth_input(9, 2000)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    auto = m.invert(y, DT, p, input_range=LIMITS)
+    forced = m.invert(y, DT, p, input_range=LIMITS, inverse="reference-driven")
+    assert auto.inverse == "exact" and forced.inverse == "reference-driven"
+    np.testing.assert_array_equal(forced.u, auto.u)
+    np.testing.assert_allclose(forced.u, u, atol=1e-9)
+    assert auto.exact_recursion_radius == 0.0
+
+
+# MRPIM fitted by varpro on the virtual DEA (data/virtual_dea; a fixed model, so no fit runs
+# here): its exact inverse's error recursion has roots up to about 1.1 per sample
+DEA_MRPIM = {"gamma": 0.1, "lambda": 0.07502, "p1": -1.34117, "p2": 2.19027, "p3": -0.138619, "p4": -0.0204397,
+             "q": 0.0237183, "a1": -1.31949, "a2": 1.55213, "a3": -0.405417, "a4": 0.19744, "a5": 0.0531297,
+             "a6": 0.161204, "a7": 0.176602, "a8": 0.243429, "a9": 0.321282, "a10": 0.447268, "a11": 2.28218,
+             "a12": 0.0, "a13": 0.0, "offset": 3.1498}
+
+
+def test_reference_driven_inverse_does_not_amplify_an_error_where_the_exact_one_does():
+    """One reference sample disturbed by d: the exact inverse of the DEA's MRPIM (recursion roots
+    above 1) carries the disturbance on with growth; the reference-driven inverse's input moves by a
+    bounded multiple of d and comes back; its input varies about as much as the drive (no ringing)."""
+    m = MRPIM()
+    t = np.arange(12000) * DT
+    u = 1.6 - 0.8 * np.cos(2 * np.pi * 0.2 * t)  # from rest: a reachable trajectory
+    y = m.simulate(u, DT, DEA_MRPIM, input_range=LIMITS)
+    d = 1e-6 * np.ptp(y)
+    disturbed = y.copy()
+    disturbed[1000] += d
+    response = {}
+    for inverse in ("exact", "reference-driven"):
+        a, b = (m.invert(r, DT, DEA_MRPIM, input_range=LIMITS, u_start=u[0], inverse=inverse) for r in (y, disturbed))
+        response[inverse] = np.abs(a.u - b.u) / d
+        if inverse == "reference-driven":
+            assert a.exact_recursion_radius > 1.0  # the exact recursion along this input is unstable
+            assert np.sum(np.abs(np.diff(a.u))) <= 1.3 * np.sum(np.abs(np.diff(u)))
+    assert np.max(response["exact"][-1000:]) > 10.0  # grown from the disturbance, 11 s later
+    assert np.max(response["reference-driven"]) < 20.0
+    assert np.max(response["reference-driven"][-1000:]) < 1e-3
+
+
+def test_inversion_names_its_inverse_and_the_exact_recursion_radius():
+    m = MRPIM()
+    t = np.arange(3000) * DT
+    u = 1.6 - 0.8 * np.cos(2 * np.pi * 1.0 * t)
+    y = m.simulate(u, DT, DEA_MRPIM, input_range=LIMITS)
+    inv = m.invert(y, DT, DEA_MRPIM, input_range=LIMITS, u_start=u[0])
+    assert inv.inverse == "reference-driven"  # auto: the model has rate terms
+    assert inv.exact_recursion_radius == np.max(m.inverse_recursion_radius(inv.u, DT, DEA_MRPIM, LIMITS))
+
+
+def test_bad_inverse_options_are_refused():
+    m = MRPIM()
+    for bad in ({"inverse": "damped"}, {"guide_time": -0.1}, {"guide_time": float("nan")}, {"guide_time": True}):
+        with pytest.raises(ModelError, match="inverse|guide_time"):
+            m.invert(np.ones(5), DT, DEA_MRPIM, input_range=LIMITS, **bad)
+    # a loading curve that falls over the input range: no gain to map the reference by
+    p = dict(DEA_MRPIM, p1=-5.0, p2=0.0, p3=0.0, p4=0.0)
+    with pytest.raises(ModelError, match="increasing loading curve"):
+        m.invert(np.ones(5), DT, p, input_range=LIMITS, inverse="reference-driven")
+    assert m.invert(np.ones(5), DT, p, input_range=LIMITS).inverse == "exact"  # auto falls back

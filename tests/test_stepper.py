@@ -284,3 +284,29 @@ def test_the_inverse_stepper_reports_clipping_and_reproduces_a_reachable_traject
     s.reset()
     s.step(10 * float(np.max(y)))  # far beyond the output the input limits reach
     assert s.clipped and s.n_clipped == 1
+
+
+@pytest.mark.parametrize("name", ["mrpim", "rate-dependent-pi", "mrpim+relaxation", "mrpim+creep"])
+@pytest.mark.parametrize("inverse, guide_time", [("exact", 0.02), ("reference-driven", 0.0),
+                                                 ("reference-driven", 0.02)])
+def test_each_p_i_inverse_steps_as_its_batch_and_resumes_from_a_saved_state(name, inverse, guide_time):
+    """Both P-I inverses (models/inverse.py): the stepper equals the batch inverse bit for bit, names
+    the inverse it runs, and a stepper given the state saved half way continues identically."""
+    model, params = model_and_params(name)
+    t = np.arange(1200) * DT
+    y = model.simulate(1.5 - 0.9 * np.cos(2 * np.pi * 1.5 * t), DT, params, input_range=RANGE)
+    options = dict(max_rate=50.0, inverse=inverse, guide_time=guide_time)
+    batch = model.invert(y, DT, params, input_range=RANGE, **options)
+    s = model.inverse_stepper(DT, params, input_range=RANGE, reference_scale=float(np.max(np.abs(y))), **options)
+    assert s.inverse == batch.inverse == inverse
+    first = [s.step(v) for v in y[:600]]
+    saved = json.loads(json.dumps(s.state))
+    resumed = model.inverse_stepper(DT, params, input_range=RANGE, reference_scale=float(np.max(np.abs(y))),
+                                    **options)
+    resumed.set_state(saved)
+    rest = [resumed.step(v) for v in y[600:]]
+    np.testing.assert_array_equal(np.array(first + rest), batch.u)
+    assert resumed.n_clipped == batch.n_clipped
+    if inverse == "reference-driven":
+        with pytest.raises(ModelError, match="guide"):
+            resumed.set_state(dict(saved, guide=[0.0, float("nan"), 0.0]))

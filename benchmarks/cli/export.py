@@ -5,11 +5,14 @@ Writes DIR/NAME.h and DIR/NAME.c (models/export_c.py describes the code): ``NAME
 and the sample time as constants and the model file's name, SHA-256 and the hysbench version
 in a comment at the top. Options of the inverse: ``--input-limits LO HI`` (default: the fit's
 input range), ``--max-rate`` (largest |du/dt|, input units per second; default none),
-``--u-start`` (the input before the first sample; default the lower limit). A model that
+``--u-start`` (the input before the first sample; default the lower limit), ``--inverse``
+(exact, reference-driven or auto; models/inverse.py), ``--guide-time`` (the reference-driven
+inverse's follower time constant). A model that
 cannot be exported says so in one line (exit status 2) and nothing is written.
 
-Before writing, the inverse is checked (``export_c.check_inverse``: it must give back the input of
-sines over the input range that the model itself answers); where it does not, the export still
+Before writing, the inverse is checked (``export_c.check_inverse``: the exact inverse must give back
+the input of sines over the input range that the model itself answers, the reference-driven one
+must not ring); where it does not, the export still
 writes both (the forward model is unaffected) and says so on stderr and in the header.
 """
 
@@ -22,6 +25,7 @@ from pathlib import Path
 
 from hysbench.data.files import check_output_dir, ensure_dir, write_atomic
 from hysbench.models.export_c import check_exportable, check_inverse, export_c
+from hysbench.models.inverse import DEFAULT_GUIDE_TIME, INVERSES
 from hysbench.models.model_file import file_sha256, load_model
 
 from .common import CommandError
@@ -36,6 +40,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--input-limits", nargs=2, type=float, metavar=("LO", "HI"),
                         help="the inverse's input limits (default: the fit's input range)")
     parser.add_argument("--max-rate", type=float, help="the inverse's largest |du/dt| (input units per second)")
+    parser.add_argument("--inverse", choices=INVERSES, default="auto",
+                        help="which causal inverse to export: exact (gives a reachable input back exactly where its "
+                             "error recursion is stable), reference-driven (rate and relaxation terms from the "
+                             "reference: no ringing, approximate) or auto (reference-driven for a model with rate or "
+                             "relaxation terms, else exact; default)")
+    parser.add_argument("--guide-time", type=float, default=DEFAULT_GUIDE_TIME,
+                        help="the reference-driven inverse's follower time constant in seconds (0: none; default "
+                             f"{DEFAULT_GUIDE_TIME:g})")
     parser.add_argument("--u-start", type=float, help="the input before the first sample (default: the lower limit)")
 
 
@@ -52,7 +64,8 @@ def main(args) -> int:
     fitted = load_model(args.model_file)
     check_exportable(fitted)
     check_output_dir(args.out)
-    options = {"input_limits": args.input_limits, "max_rate": args.max_rate}
+    options = {"input_limits": args.input_limits, "max_rate": args.max_rate, "inverse": args.inverse,
+               "guide_time": args.guide_time}
     check = check_inverse(fitted, **options, **({} if args.u_start is None else {"u_start": args.u_start}))
     note = check.message(fitted.name)
     header, source = export_c(fitted, args.prefix, model_file=Path(args.model_file).name,

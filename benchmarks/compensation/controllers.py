@@ -37,7 +37,7 @@ from hysbench.identification.api import identify
 from hysbench.identification.fit import Fit
 from hysbench.models import ClassicalPI, Viscoelastic, get_model
 from hysbench.models.errors import HysbenchError, ModelError
-from hysbench.models.inverse import Inversion
+from hysbench.models.inverse import Inversion, StepInvertible
 
 PI_BANDWIDTH_HZ = 5.0
 PI_ZERO_S = 0.016
@@ -86,7 +86,7 @@ class ModelInverse:
 
     name: str
     fit: Fit
-    inverse: str  # "analytic" or "numerical"
+    inverse: str  # "analytic", "numerical (exact)", "numerical (reference-driven)" (models/inverse.py), "numerical"
     identify_seconds: float
     max_rate: float | None  # the numerical inverse's |du/dt| limit (input units per second; None: none)
     identify_options: dict = field(default_factory=dict)
@@ -102,6 +102,11 @@ class ModelInverse:
         fit = identify(model, dataset, method=method, seed=seed, **options)
         seconds = time.perf_counter() - t0
         inverse = "numerical (physics kernel)" if isinstance(model, Viscoelastic) else "numerical"
+        if isinstance(model, StepInvertible):  # the P-I family: which causal inverse "auto" runs
+            dt = dataset.records[0].dt
+            chosen, _ = model.resolve_inverse("auto", model._structure(dt, fit.params, fit.input_range, 1),
+                                              fit.input_range)
+            inverse = f"numerical ({chosen})"
         if isinstance(model, ClassicalPI) and model.poly_order == 1:
             try:
                 model.invert_analytic(np.zeros(2), 1e-3, fit.params, fit.input_range)
