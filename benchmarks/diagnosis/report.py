@@ -202,8 +202,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
-              f"Rule: {d.decision_rule}.", "", f"P{d.policy.summary()[1:]}; every field is in the JSON "
-              "(`policy`).", *not_held_out_lines(d), "",
+              f"P{d.policy.summary()[1:]}; every field is in the JSON (`policy`); the rule with its values is at the "
+              "end of this report.", *not_held_out_lines(d), "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],
@@ -260,6 +260,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += ["", "## Figures", ""]
     for key, file in figures.items():
         lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]
+    lines += ["## The decision rule", "", d.decision_rule, ""]
     t = d.timings
     lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()) + ".", ""]
     if d.base_fit.notes:
