@@ -15,6 +15,7 @@ from .heldout import evidence, score, share_of_misfit
 from .policy import Policy
 from .secondary import refit_errors
 from .rule import Rule, Verdict, step
+from .selection import slower_than_drive
 
 
 def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
@@ -91,16 +92,9 @@ def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: flo
     ``creep_periods``), also the same with creep after them, standing for that slow part."""
     options = [strongest_first(own, causes)]
     twin = chosen.kind.slow_twin
-    if slow_relaxation(chosen, creep_min, policy) and twin in own and twin not in causes:
+    if slower_than_drive(chosen, creep_min, policy) and twin in own and twin not in causes:
         options.append([*options[0], twin])
     return options
-
-
-def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
-    """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
-    drive period): creep may stand for that slow part."""
-    kind = chosen.kind
-    return kind.slow_twin is not None and kind.slowest_time_s(chosen.estimates) >= creep_min / policy.creep_periods
 
 
 @dataclass
@@ -142,7 +136,7 @@ def gather_backward(ctx, v: Verdict) -> list[Option] | None:
     screen, folds, pol = ctx.diag.screen, ctx.folds, ctx.policy
     ctx.say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
     own = {c.cause: c for c in ctx.diag.candidates}
-    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min, pol)
+    creep_may_stand_in = slower_than_drive(v.chosen, screen.creep_min, pol)
     e_null = ctx.held.null
     together, out = None, []  # all of them, scored once a replacement is worth comparing
 

@@ -13,41 +13,14 @@
    (``screen``, one module per cause) and scored by leave-one-record-out
    prediction against the base model refitted the same way (``search``,
    ``selection``).
-4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
-   two causes that predict equally well are reported as ambiguous, with the
-   drive that separates them (``experiment``). An ``unexplained`` verdict
-   whose best partial cause passes by itself is completed by the forward
-   selection of step 5 on top of it; if the two explain half of the misfit,
-   it is named (``secondary.complete_partial``). A ``none`` verdict whose
-   best candidate is promising but short of evidence alone is completed the
-   same way; it is named if together they show evidence that more than one
-   record carries (``secondary.complete_promising``).
-5. Other causes are tried on top of the named one (composite extension)
-   and kept as "also" if they pass the held-out test against what is kept,
-   their own parameters refitted per fold (``secondary.secondary_causes``);
-   if those alone then predict as well without the named cause, it is
-   dropped and the first of them named (``backward.drop_redundant_primary``).
-6. A named relaxation slower than every drive period: its slowest part
-   replaced by creep (``slow_part``); if that predicts as well, creep is
-   reported as ambiguous with it.
-7. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
-   identified on the identification records' whole length, every parameter
-   free; the base model is refitted the same way; the validation records --
-   untouched so far -- measure the gain of the one over the other
-   (confirmed if it lowers their residual by more than their noise explains,
-   ``residuals.gain_z``: correlated noise counted). An interference is confirmed by
-   the same frequency and amplitude on the validation records, its phase
-   fitted per record.
-8. An ``unexplained`` verdict that rests on a candidate's held-out evidence
-   alone (no period-to-period structure) is checked the same way: that
-   candidate's extension, fitted on the identification records' whole
-   length, must predict the validation records beyond their noise, else what
-   looked structured is not borne out and the verdict is ``none``
-   (``validation.check_unexplained``; coloured noise fits a slow part of one record's
-   noise on the others).
-9. Each cause kept under "also" is checked on the validation records on top
-   of what was kept before it, by the same test (``validation.check_also``):
-   reported, the verdict unchanged.
+4. The verdict: ``selection.decide`` applies the rules that name one cause (``selection.SELECTION``) to the
+   held-out scores, then the rules after it (``rules.AFTER_SELECTION``) are applied in order, each on the
+   evidence its gathering step computes (completions and causes on top, ``secondary``; the backward step,
+   ``backward``; the slow part, ``slow_part``; the validation records, untouched so far, ``validation``).
+   Each rule is pure: it returns a new ``rule.Verdict`` and the trace entry it leaves. Their statements are
+   the rule's text (``rules.rule_text``, docs/diagnosis.md).
+5. Suggested experiments for what is ambiguous (``experiment``); each cause kept under "also" checked on
+   the validation records on top of what was kept before it (``validation.check_also``; reported only).
 """
 
 from __future__ import annotations
@@ -118,7 +91,7 @@ def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", see
     """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
     record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
     recording. ``thorough``: every cause tried afresh on top of the named one also on long records
-    (``secondary.secondary_causes``; slower). ``policy``: the thresholds of the decision rule
+    (``secondary.forward``; slower). ``policy``: the thresholds of the decision rule
     (``policy.Policy``; the default is the documented rule)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,

@@ -196,8 +196,8 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Why: the rules that decided, in order", "",
-              "Each rule of docs/diagnosis.md (\"The decision rule\") that decided or changed the verdict, with what "
-              "it decided and on what.", "", *trace_lines(d)]
+              "Each rule that decided or changed the verdict (by its id; the rules are stated at the end of this "
+              "report), with what it decided and on what.", "", *trace_lines(d)]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 from .candidates import OPEN_ENDED_NOTE, Candidate, bound_flags, own_nonlinear
 from .lines import fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top, on_top_estimates
@@ -71,6 +72,20 @@ class _Kept:
         return on_top(screen, folds, part_e, part_train, self.frequency)
 
 
+class Tried(NamedTuple):
+    """A cause tried on top of what is kept: the composite (its score in ``heldout``), the separable part that would
+    then be kept (None: the base) with its held-out errors and per-fold training residuals, the errors with what
+    is kept held, the errors it is judged on (its added parameters refitted per fold) and the part's designs."""
+
+    composite: Candidate
+    part: Candidate | None
+    part_errors: object
+    part_train: list
+    errors: object
+    judged: object
+    designs: list | None
+
+
 def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
@@ -92,7 +107,7 @@ def _folds_disagree(screen, fold_f: list) -> str:
             f"resolution {fold_tolerance_hz(screen):.3g} Hz: not one line")
 
 
-def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
+def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> Tried:
     """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
     records, from what is kept fitted on them alone, and checked at the frequencies scored."""
     comp = copy.copy(c)
@@ -106,10 +121,10 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
     comp.limit = screen.limit_of(c.cause, comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
-    return comp, kept.part, kept.errors, kept.train, e, e, kept.designs
+    return Tried(comp, kept.part, kept.errors, kept.train, e, e, kept.designs)
 
 
-def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
+def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Tried | None:
     """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
     admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
     comp = copy.copy(c) if kept.part is None else c.kind.on_top(screen, kept.part, c, fresh)
@@ -127,26 +142,27 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
         judged = kept.with_line(screen, folds, refit_e, refit_train, refit_designs)
         comp.heldout = {**score(folds, kept.reference, judged), **flags, "refit_per_fold": True}
         comp.uncertainty = fold_uncertainty(screen, fold_est)
-    return comp, comp, part_e, part_train, e, judged, part_designs or None
+    return Tried(comp, comp, part_e, part_train, e, judged, part_designs or None)
 
 
-def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[Candidate]]:
+def _choose(screen, folds, tried: list[Tried], reference) -> tuple[Tried | None, list[Candidate]]:
     """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
     ``z_same`` and that removes at least ``explain_share`` of what is kept leaves beyond noise (policy; as in
     ``selection.decide``), and the others as good (not told apart on these records; their names are listed
     with it)."""
     pol = folds.policy
-    ok = [t for t in tried if _admissible(t[0], pol)]
+    ok = [t for t in tried if _admissible(t.composite, pol)]
     if not ok:
         return None, []
-    best = max(ok, key=lambda t: t[0].heldout["gain"])
+    best = max(ok, key=lambda t: t.composite.heldout["gain"])
     for t in ok:  # of what is kept leaves beyond noise
-        t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
-    same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < pol.z_same
-                                           and t[0].heldout["share_of_misfit"] >= pol.explain_share)]
-    chosen = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
-    alike = [t[0] for t in same if t[0] is not chosen[0]]  # not told apart here
-    chosen[0].heldout["as_good"] = [c.cause for c in alike]
+        h = t.composite.heldout
+        h["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), h["sse"])
+    same = [t for t in ok if t is best or (score(folds, t.judged, best.judged)["z"] < pol.z_same
+                                           and t.composite.heldout["share_of_misfit"] >= pol.explain_share)]
+    chosen = min(same, key=lambda t: (t.composite.k, -t.composite.heldout["gain"]))
+    alike = [t.composite for t in same if t is not chosen]  # not told apart here
+    chosen.composite.heldout["as_good"] = [c.cause for c in alike]
     return chosen, alike
 
 
@@ -193,24 +209,24 @@ def forward(ctx, on: Candidate, taken: set) -> Forward:
     kept, also, tried_all, alternatives = _start(screen, folds, on), [], [], []
     while pool and len(also) < pol.max_secondary:
         ctx.say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([on.cause, *(a.cause for a in also)])}")
-        tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
+        tried = []
         for c in pool.values():
             if c.kind.disturbance:
                 t = _line_on_top(screen, folds, c, kept) if kept.frequency is None else None
             else:
                 t = _cause_on_top(screen, folds, c, kept, fresh)
             if t is not None:
-                tried_all.append(t[0])
+                tried_all.append(t.composite)
                 tried.append(t)
         pick, alike = _choose(screen, folds, tried, kept.reference)
         if pick is None:
             break
-        comp, part, part_e, part_train, e, _, designs = pick
+        comp = pick.composite
         alternatives.append((comp, alike))
         also.append(comp)
         pool.pop(comp.cause)
-        kept = _Kept(part, part_e, part_train, e,
-                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, designs)
+        kept = _Kept(pick.part, pick.part_errors, pick.part_train, pick.errors,
+                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, pick.designs)
         if not comp.kind.carries_others:  # nothing composes on top of a clip; a disturbance still adds
             pool = {k: v for k, v in pool.items() if v.kind.disturbance}
     diag.secondary_tried.extend(tried_all)

@@ -163,9 +163,9 @@ def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     chosen = v.chosen
     if chosen is None or v.remainder is not None or chosen.kind.slow_twin is None:
         return v, None
-    slowest = chosen.kind.slowest_time_s(chosen.estimates)
-    if slowest < ev.screen.creep_min / pol.creep_periods:
+    if not slower_than_drive(chosen, ev.screen.creep_min, pol):
         return v, None
+    slowest = chosen.kind.slowest_time_s(chosen.estimates)
     twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and significant(c, pol)
              and pairwise_z(ev.held, chosen, c) < pol.z_same]
     if not twins:
@@ -179,6 +179,13 @@ def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     return (replace(v, cause=twin.cause, chosen=twin, ambiguous_with=ambiguous, reason=reason),
             step("slow-relaxation-twin", twin.cause, relaxation=_score_of(chosen), creep=_score_of(twin),
                  slowest_tau_s=slowest))
+
+
+def slower_than_drive(c: Candidate, creep_min: float, policy: Policy) -> bool:
+    """A cause with a slow twin whose slowest time is at least ``creep_min`` / ``creep_periods`` (slower than every
+    drive period): its twin may stand for that slow part."""
+    kind = c.kind
+    return kind.slow_twin is not None and kind.slowest_time_s(c.estimates) >= creep_min / policy.creep_periods
 
 
 def _partial(ev: Scores, v: Verdict, pol: Policy) -> bool:
@@ -306,12 +313,6 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
     return norm > 0 and float(d_a @ d_b) / norm >= policy.same_slice
 
 
-def not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
-                 best: Candidate | None = None, e_null: np.ndarray | None = None) -> str:
-    """Why a cause that removes only part of the misfit is not named, as text ("" if it is): ``why_not_specific``."""
-    return why_not_specific(held, chosen, candidates, best, e_null)["text"]
-
-
 def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
                      best: Candidate | None = None, e_null: np.ndarray | None = None) -> dict:
     """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
@@ -344,7 +345,7 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
 
 def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
                   candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
-    """When the best-predicting partial explanation is not specific (``not_specific``), another passing cause
+    """When the best-predicting partial explanation is not specific (``why_not_specific``), another passing cause
     that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
     rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
     e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
@@ -353,6 +354,6 @@ def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
     if held.folds.n_scored < held.folds.policy.min_records_check:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):
-        if c is not partial and c.cause != partial.cause and not not_specific(held, c, candidates, c, e_null):
+        if c is not partial and c.cause != partial.cause and not why_not_specific(held, c, candidates, c, e_null)["text"]:
             return c
     return None

@@ -21,6 +21,7 @@ from .heldout import HeldOut, pairwise_z, passes
 from .policy import Policy
 from .rule import Rule, Verdict, step
 from .search import score_candidate
+from .selection import slower_than_drive
 
 
 def slow_part_composite(screen, held: HeldOut | None, chosen: Candidate | None, candidates, variants
@@ -31,7 +32,7 @@ def slow_part_composite(screen, held: HeldOut | None, chosen: Candidate | None, 
         return None
     twin = CAUSES[chosen.kind.slow_twin]
     taus = sorted(chosen.estimates["tau_s"])
-    if len(taus) < 2 or taus[-1] < screen.creep_min / screen.policy.creep_periods:
+    if len(taus) < 2 or not slower_than_drive(chosen, screen.creep_min, screen.policy):
         return None
     fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1]
     creep = [c for c in candidates if c.cause == twin.name]
