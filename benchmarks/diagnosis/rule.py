@@ -9,7 +9,6 @@ The ordered list of rules and the text rendered from their statements: ``rules``
 from __future__ import annotations
 
 import dataclasses
-import string
 from dataclasses import dataclass
 from typing import Callable
 
@@ -90,17 +89,7 @@ def apply(rule: Rule, evidence, verdict: Verdict, policy: Policy) -> Verdict:
     return dataclasses.replace(verdict, trace=verdict.trace + tuple(entries or ()))
 
 
-def values(policy: Policy) -> dict[str, str]:
-    """Every policy field (and ``z_confirm``) as a statement shows it: "`name` = value"."""
-    fields = {k: v for k, v in policy.as_dict().items() if k != "version"}
-    return {k: f"`{k}` = {v:.3g}" if k == "z_confirm" else f"`{k}` = {v:.4g}" for k, v in fields.items()}
-
-
 def render(statement: str, policy: Policy) -> str:
-    """A statement with the policy's values filled in (an unknown ``{field}`` is an error)."""
-    names = {name for _, name, _, _ in string.Formatter().parse(statement) if name}
-    shown = values(policy)
-    unknown = names - set(shown)
-    if unknown:
-        raise KeyError(f"statement names unknown policy fields: {sorted(unknown)}")
-    return statement.format_map(shown)
+    """A statement with every ``{field}`` shown as "`field` = value" (a name that is no policy field: KeyError)."""
+    return statement.format_map({k: f"`{k}` = {v:{'.3g' if k == 'z_confirm' else '.4g'}}"
+                                 for k, v in policy.as_dict().items() if k != "version"})

@@ -60,26 +60,24 @@ ALSO_CHECK = (
     "Each cause under `also` is checked as the named extension is (`validation`) on top of what was kept before "
     "it (a clip, and what follows it, is not checked). Reported; the verdict does not change.")
 
-def ordered() -> list[tuple[str, str, tuple]]:
-    """The sections of the rule in the order it is applied: (title, where in the code, items)."""
-    return [
-        ("Held-out targets", "`heldout`", (HELD_OUT,)),
-        ("Evidence and admission", "`heldout`; what keeps each cause's meaning: its class in `causes`", ADMISSION),
-        ("Naming one cause", "`selection.decide`", SELECTION),
-        ("After the verdict", "`secondary`, `backward`, `slow_part`, `validation`; applied in this order",
-         (*AFTER_SELECTION, ALSO_CHECK)),
-    ]
+
+SECTIONS = (  # (title, where in the code, definitions and rules), in the order they are applied
+    ("Held-out targets", "`heldout`", (HELD_OUT,)),
+    ("Evidence and admission", "`heldout`; what keeps each cause's meaning: its class in `causes`", ADMISSION),
+    ("Naming one cause", "`selection.decide`", SELECTION),
+    ("After the verdict", "`secondary`, `backward`, `slow_part`, `validation`; applied in this order",
+     (*AFTER_SELECTION, ALSO_CHECK)),
+)
 
 
 def rule_text(policy: Policy) -> str:
     """The decision rule as numbered markdown, each rule with its trace id and the policy's values."""
     out, n = [render(NOTATION, policy), ""], 0
-    for title, where, items in ordered():
+    for title, where, items in SECTIONS:
         out += [f"**{title}** ({where})", ""]
         for item in items:
             n += 1
-            body = item.statement if isinstance(item, Rule) else item
-            head = f"`{item.id}`: " if isinstance(item, Rule) else ""
+            head, body = (f"`{item.id}`: ", item.statement) if isinstance(item, Rule) else ("", item)
             out.append(f"{n}. {head}{render(body, policy)}")
         out.append("")
     return "\n".join(out).rstrip("\n")
