@@ -101,14 +101,12 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
                      f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
     u = d.unexplained_check
-    if u and u["checked"]:
+    if u:
         lines.append(f"the best partial candidate on the validation records (records {', '.join(u['records'])}, "
                      f"fitted on the identification records' whole length): {100 * u['explained_whole']:.2f} % of "
                      f"their residual removed, z = {u['z_whole']:.2f} "
                      + ("(borne out: the verdict stays unexplained)" if u["borne_out"] else
                         f"(not borne out, needs {d.policy.z_confirm:.3g}: the verdict is none)"))
-    elif u:
-        lines.append(f"the best partial candidate not checked on validation records: {u['note']}")
     for c in d.verdict.ambiguous_with:
         lines.append(strong(f"ambiguous with {c.cause}") + f": {c.label} predicts the held-out records as well "
                      f"(gain {100 * c.heldout_gain:.2f} %; {_estimates(c)})")

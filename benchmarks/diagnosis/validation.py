@@ -34,6 +34,14 @@ def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> 
     return ok and bool(v["z_whole"] >= policy.z_confirm)
 
 
+def validation_record(c: Candidate, g: dict, check: dict, policy: Policy) -> dict:
+    """What a candidate's extension did on the validation records (``gain``; an interference's ``check``), as
+    reported: its scores and whether they bear it out."""
+    return {"cause": c.cause, "label": c.label, "checked": True, "borne_out": borne_out(g, c.cause, check, policy),
+            **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
+            **({"interference_check": check} if check else {})}
+
+
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
     """``c``'s extension identified on the identification records' whole length, every parameter free (an
     interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
@@ -70,23 +78,16 @@ def refit_base_whole(diag, say: Callable[[str], None]) -> None:
 def gather_unexplained(ctx, v: Verdict) -> dict | None:
     """An ``unexplained`` verdict resting on its best partial candidate alone (the residual not structured):
     that candidate's extension on the validation records, against the base refitted the same way (recorded on
-    the diagnosis as ``unexplained_check``); None without a validation record."""
+    the diagnosis as ``unexplained_check``)."""
     diag, p = ctx.diag, v.partial
     if not ctx.extend or v.cause != UNEXPLAINED or p is None or diag.structure["structured"]:
-        return None
-    if not diag.dataset.validation:
-        diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": False,
-                                  "note": "no validation record"}
         return None
     refit_base_whole(diag, ctx.say)
     ctx.say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
     _, after, check = fit_extension(diag, p, ctx.say)
     g = gain(diag.base_whole, after, "validation")
-    out = {"cause": p.cause, "label": p.label, "checked": True,
-           **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
-           **({"interference_check": check} if check else {})}
-    diag.unexplained_check = {**out, "borne_out": borne_out(g, p.cause, check, ctx.policy)}
-    return out
+    diag.unexplained_check = {**validation_record(p, g, check, ctx.policy), "records": g["records"]}
+    return diag.unexplained_check
 
 
 def decide_unexplained(check: dict, v: Verdict, policy: Policy) -> tuple[Verdict, dict]:
@@ -163,10 +164,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
     is unchanged."""
     if not diag.also or not diag.after:
         return
-    if not diag.dataset.validation:
-        diag.also_check = [{"cause": c.cause, "label": c.label, "checked": False, "note": "no validation record"}
-                           for c in diag.also]
-        return
     lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
     before, out, clipped = diag.after, [], False
     for c in diag.also:
@@ -183,9 +180,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         else:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
             after = _with_lines(part, lines, diag.screen.policy)
-        g = gain(before, after, "validation")
-        out.append({**entry, "checked": True, "borne_out": borne_out(g, c.cause, check, diag.screen.policy),
-                    **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
-                    **({"interference_check": check} if check else {})})
+        out.append(validation_record(c, gain(before, after, "validation"), check, diag.screen.policy))
         before = after
     diag.also_check = out
