@@ -272,6 +272,12 @@ class Completion:
     one_record: bool = False
 
 
+def _completed(v: Verdict, ev: Completion, reason: str) -> Verdict:
+    """The completed candidate named, with what was kept on top of it under "also"."""
+    return replace(v, cause=ev.candidate.cause, chosen=ev.candidate, ambiguous_with=(), reason=reason, partial=None,
+                   remainder=None, also=ev.forward.kept)
+
+
 def gather_partial(ctx, v: Verdict) -> Completion | None:
     """An ``unexplained`` verdict whose best partial candidate passes by itself: the forward selection on it."""
     p, pol = v.partial, ctx.policy
@@ -301,8 +307,7 @@ def decide_partial(ev: Completion, v: Verdict, policy: Policy) -> tuple[Verdict,
               f"the base model's held-out misfit beyond white noise by itself ({v.reason}); with "
               f"{' + '.join(a.cause for a in kept)} on top, each predicting the held-out records better than what "
               f"was kept before it, {100 * ev.share:.0f} % (two causes at once)")
-    return replace(v, cause=p.cause, chosen=p, ambiguous_with=(), reason=reason, partial=None, remainder=None,
-                   also=kept), entries
+    return _completed(v, ev, reason), entries
 
 
 COMPLETE_PARTIAL = Rule("complete-partial", (
@@ -351,8 +356,7 @@ def decide_promising(ev: Completion, v: Verdict, policy: Policy) -> tuple[Verdic
               f"parameter refitted per fold predict them better than the base model (gain {100 * h['gain']:.2f} %, "
               f"z = {h['z']:.1f}) and remove {100 * ev.share:.0f} % of its held-out misfit beyond white noise (two "
               "causes at once)")
-    return replace(v, cause=p.cause, chosen=p, ambiguous_with=(), reason=reason, partial=None, remainder=None,
-                   also=kept), entries
+    return _completed(v, ev, reason), entries
 
 
 COMPLETE_PROMISING = Rule("complete-promising", (
