@@ -82,6 +82,6 @@ def test_the_documented_rule_is_the_rule_text_of_the_default_policy():
 
     doc = (ROOT / "docs" / "diagnosis.md").read_text()
     section = doc.split("<!-- rule_text(Policy()) begins -->")[1].split("<!-- rule_text(Policy()) ends -->")[0]
-    assert section.strip() == rule_text(Policy())
+    assert section.strip() == rule_text(Policy()), "docs/diagnosis.md: put rules.rule_text(Policy()) between the markers"
     table = re.findall(r"^\| `([a-z-]+)` \|", doc.split("| trace id | outcome |")[1].split("\n\n")[0], re.M)
     assert table == [r.id for r in (*SELECTION, *AFTER_SELECTION)]

@@ -51,6 +51,7 @@ from .rules import AFTER_SELECTION
 from .selection import decide
 from .validation import check_also
 
+
 class DiagnosisError(HysbenchError):
     """A dataset or model the diagnosis cannot work with."""
 

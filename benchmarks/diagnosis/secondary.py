@@ -360,8 +360,8 @@ def decide_promising(ev: Completion, v: Verdict, policy: Policy) -> tuple[Verdic
 
 
 COMPLETE_PROMISING = Rule("complete-promising", (
-    "*Two causes at once, promising.* A `none` verdict with a *promising* candidate ({min_explained} of the "
-    "held-out misfit removed in more than half of the records, keeping its meaning, off its bounds): the "
+    "*Two causes at once, promising.* A `none` verdict with a *promising* candidate (G >= {min_explained} "
+    "in more than half of the records, keeping its meaning, off its bounds): the "
     "forward selection runs on top of the best such; if everything kept, every parameter refitted per fold, is "
     "evidence against the base that does not rest on one record and removes at least {explain_share}, it is "
     "named with them under `also`; otherwise the verdict stays `none`."), decide_promising, gather_promising)
