@@ -65,7 +65,7 @@ from hysbench.benchmarks.diagnosis.composite import composite_starts
 from hysbench.benchmarks.diagnosis.causes.interference import same_line
 from hysbench.benchmarks.diagnosis.lines import drive_locked, fold_frequencies, frequencies_agree, on_top
 from hysbench.benchmarks.diagnosis.backward import replacements, strongest_first
-from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree
+from hysbench.benchmarks.diagnosis.secondary import Tried, _choose, _folds_disagree
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.segments import own_samples
 from hysbench.data.protocol import paper_voltage, protocol_time
@@ -639,7 +639,7 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     def tried(cause, k, e):
         c = Candidate(cause, cause, None, {}, k, 1.0, 12000)
         c.heldout = {**score(folds, kept, e), "at_bound": [], "open_ended": []}
-        return (c, c, e, [], e, e)
+        return Tried(c, c, e, [], e, e, None)
 
     e1, e2 = 0.1 * misfit + noise, 0.1 * misfit + rng.normal(0, 0.05, 12000)
     e_mode, e_delay = sorted((e1, e2), key=lambda e: float(e @ e))  # the mode a little better, by chance
@@ -647,11 +647,11 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     assert score(folds, e_delay, e_mode)["z"] < POLICY.z_same
     creep = tried("creep", 1, 0.8 * misfit + noise)  # clearly worse than the mode
     pick, alike = _choose(screen, folds, [mode, creep, delay], kept)
-    assert pick is delay and alike == [mode[0]]
-    assert delay[0].heldout["as_good"] == ["resonance"]
+    assert pick is delay and alike == [mode.composite]
+    assert delay.composite.heldout["as_good"] == ["resonance"]
     assert _choose(screen, folds, [creep], kept) == (creep, [])
     none_ok = tried("delay", 1, kept)
-    none_ok[0].heldout["at_bound"] = ["delay"]
+    none_ok.composite.heldout["at_bound"] = ["delay"]
     assert _choose(screen, folds, [none_ok], kept) == (None, [])
 
 
