@@ -12,6 +12,7 @@ from hysbench.benchmarks.diagnosis.policy import Policy
 from hysbench.benchmarks.diagnosis.rule import Verdict, apply, render
 from hysbench.benchmarks.diagnosis.rules import AFTER_SELECTION, SELECTION, rule_text
 from hysbench.benchmarks.diagnosis.secondary import ALSO, Forward
+from hysbench.benchmarks.diagnosis.selection import UNDECIDED, Scores
 from hysbench.benchmarks.diagnosis.slow_part import SLOW_PART_TWIN, SlowPart
 from hysbench.benchmarks.diagnosis.validation import UNEXPLAINED_CHECK, VALIDATION, Validation
 from hysbench.models import get_model
@@ -129,6 +130,23 @@ def test_the_slow_part_rule_lists_creep_as_ambiguous_unless_the_relaxation_does_
     assert (entry["rule"], entry["outcome"], entry["inputs"]["creep_already"]) == (
         "slow-part-twin", outcome, list(also))
     assert out.ambiguous_with == ((comp,) if outcome == "creep ambiguous" else ())
+
+
+def rule(rule_id: str):
+    return next(r for r in (*SELECTION, *AFTER_SELECTION) if r.id == rule_id)
+
+
+@pytest.mark.parametrize("structured, outcome", [(False, "none"), (True, "unexplained")])
+def test_with_nothing_passing_the_verdict_is_unexplained_only_on_a_structured_residual(structured, outcome):
+    weak = candidate("delay", gain=0.005, z=1.0)  # no evidence: it does not make the residual look structured
+    ev = Scores(None, None, (weak,), (), structured)
+    undecided = Verdict(UNDECIDED, None)
+    out = apply(rule("nothing-passes"), ev, undecided, POLICY)
+    assert only_entry(undecided, out) == {"rule": "nothing-passes", "outcome": outcome,
+                                          "inputs": {"structured": structured, "evidence": []}}
+    assert (out.cause, out.chosen, out.partial) == (outcome, None, None)
+    decided = Verdict("creep", candidate("creep"))
+    assert apply(rule("nothing-passes"), ev, decided, POLICY) == decided  # decided already: the rule is silent
 
 
 def test_every_rule_has_its_own_id_and_states_itself_with_policy_fields_only():
