@@ -70,3 +70,18 @@ def test_the_backward_steps_reason_names_a_slow_time_only_for_a_cause_that_has_o
     pinned = "creep's time scale sits at its limit, 40 s: not identified"
     assert slow_part_clause(old, standing_in, pinned) == expected
     assert slow_part_clause(old, False, "") == ""
+
+
+def test_the_documented_rule_is_the_rule_text_of_the_default_policy():
+    """docs/diagnosis.md's numbered rule is generated from the rules' statements (``rules.rule_text``), and its
+    table of trace ids lists every rule's id in the order the rules are applied."""
+    import re
+
+    from hysbench.benchmarks.diagnosis.policy import Policy
+    from hysbench.benchmarks.diagnosis.rules import AFTER_SELECTION, SELECTION, rule_text
+
+    doc = (ROOT / "docs" / "diagnosis.md").read_text()
+    section = doc.split("<!-- rule_text(Policy()) begins -->")[1].split("<!-- rule_text(Policy()) ends -->")[0]
+    assert section.strip() == rule_text(Policy()), "docs/diagnosis.md: put rules.rule_text(Policy()) between the markers"
+    table = re.findall(r"^\| `([a-z-]+)` \|", doc.split("| trace id | outcome |")[1].split("\n\n")[0], re.M)
+    assert table == [r.id for r in (*SELECTION, *AFTER_SELECTION)]

@@ -58,14 +58,14 @@ from hysbench.benchmarks.diagnosis.residuals import (
 from hysbench.benchmarks.diagnosis.candidates import DRIVE_LOCKED, NO_CUT, Candidate
 from hysbench.benchmarks.diagnosis.policy import Policy, PolicyError
 from hysbench.benchmarks.diagnosis.screen import Screen
-from hysbench.benchmarks.diagnosis.heldout import Folds, HeldOut, heldout_errors, heldout_null, passes, score
+from hysbench.benchmarks.diagnosis.heldout import Folds, HeldOut, heldout_errors, heldout_null, pairwise_z, passes, score
 from hysbench.benchmarks.diagnosis.selection import decide
 from hysbench.benchmarks.diagnosis.causes import get_cause
 from hysbench.benchmarks.diagnosis.composite import composite_starts
 from hysbench.benchmarks.diagnosis.causes.interference import same_line
 from hysbench.benchmarks.diagnosis.lines import drive_locked, fold_frequencies, frequencies_agree, on_top
 from hysbench.benchmarks.diagnosis.backward import replacements, strongest_first
-from hysbench.benchmarks.diagnosis.secondary import _choose, _folds_disagree
+from hysbench.benchmarks.diagnosis.secondary import Tried, _choose, _folds_disagree
 from hysbench.data.dataset import Record, save_dataset
 from hysbench.data.segments import own_samples
 from hysbench.data.protocol import paper_voltage, protocol_time
@@ -464,7 +464,8 @@ def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_tha
     """The composite (faster time constants + creep) is built only for a named relaxation of two or more time
     constants whose slowest is longer than the longest drive period (creep_min / creep_periods); it is called
     as good when it passes and the relaxation does not predict better by z >= z_same (the policy)."""
-    from hysbench.benchmarks.diagnosis.slow_part import predicts_as_well, slow_part_composite
+    from hysbench.benchmarks.diagnosis.rule import Verdict
+    from hysbench.benchmarks.diagnosis.slow_part import SlowPart, decide_slow_part, slow_part_composite
 
     screen = SimpleNamespace(creep_min=20.0, policy=POLICY)  # longest drive period 10 s
     relax = Candidate("relaxation", "relaxation", get_model("mrpim"), {}, 25, 1.0, 10)
@@ -480,7 +481,12 @@ def test_the_slowest_relaxation_part_is_compared_with_creep_only_when_slower_tha
     e_null, e_relax = drift + noise, 0.05 * drift + noise
     for e_comp, same in ((0.05 * drift + rng.normal(0, 0.01, 12000), True), (0.5 * drift + noise, False)):
         chosen, comp = _scored("relaxation", folds, e_null, e_relax), _scored("creep", folds, e_null, e_comp)
-        assert predicts_as_well(HeldOut(folds, e_null, [(chosen, e_relax), (comp, e_comp)]), chosen, comp) is same
+        chosen.estimates = {"tau_s": [0.5, 30.0]}
+        z = pairwise_z(HeldOut(folds, e_null, [(chosen, e_relax), (comp, e_comp)]), chosen, comp)
+        v, entry = decide_slow_part(SlowPart(comp, z), Verdict("relaxation", chosen), POLICY)
+        assert (entry["rule"], entry["outcome"], entry["inputs"]["predicts_as_well"]) == (
+            "slow-part-twin", "creep ambiguous" if same else "relaxation alone", same)
+        assert [c.cause for c in v.ambiguous_with] == (["creep"] if same else [])
 
 
 def _sine_residuals(f: float, n_records: int = 2, n: int = 2000, noise: float = 0.0, seed: int = 0):
@@ -633,7 +639,7 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     def tried(cause, k, e):
         c = Candidate(cause, cause, None, {}, k, 1.0, 12000)
         c.heldout = {**score(folds, kept, e), "at_bound": [], "open_ended": []}
-        return (c, c, e, [], e, e)
+        return Tried(c, c, e, [], e, e, None)
 
     e1, e2 = 0.1 * misfit + noise, 0.1 * misfit + rng.normal(0, 0.05, 12000)
     e_mode, e_delay = sorted((e1, e2), key=lambda e: float(e @ e))  # the mode a little better, by chance
@@ -641,11 +647,11 @@ def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with
     assert score(folds, e_delay, e_mode)["z"] < POLICY.z_same
     creep = tried("creep", 1, 0.8 * misfit + noise)  # clearly worse than the mode
     pick, alike = _choose(screen, folds, [mode, creep, delay], kept)
-    assert pick is delay and alike == [mode[0]]
-    assert delay[0].heldout["as_good"] == ["resonance"]
+    assert pick is delay and alike == [mode.composite]
+    assert delay.composite.heldout["as_good"] == ["resonance"]
     assert _choose(screen, folds, [creep], kept) == (creep, [])
     none_ok = tried("delay", 1, kept)
-    none_ok[0].heldout["at_bound"] = ["delay"]
+    none_ok.composite.heldout["at_bound"] = ["delay"]
     assert _choose(screen, folds, [none_ok], kept) == (None, [])
 
 
@@ -920,14 +926,30 @@ def test_a_mode_started_on_top_of_a_delay_keeps_the_low_frequency_lag(fn, zeta, 
     assert short["delay"] == 0.0  # never negative
 
 
+def _completion_context(monkeypatch, on: Candidate, kept: Candidate, folds, e_null, result=None):
+    """A stand-in for the forward selection (it keeps ``kept`` on top of ``on``) and the context it runs in."""
+    from hysbench.benchmarks.diagnosis import secondary
+    from hysbench.benchmarks.diagnosis.rule import Context
+
+    def forward(ctx, p, taken):
+        assert p is on and taken == {on.cause}  # the forward selection runs on top of the completed cause
+        return secondary.Forward(p, (kept,), (kept,), ())
+
+    monkeypatch.setattr(secondary, "forward", forward)
+    t = np.arange(e_null.size)
+    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object(), policy=POLICY)
+    diag = SimpleNamespace(screen=screen, candidates=[on], structure={"structured": False})
+    return Context(diag, result or {"heldout": HeldOut(folds, e_null), "folds": folds}, lambda m: None)
+
+
 @pytest.mark.parametrize("left_by_both, named", [(0.3, True), (0.7, False)])
 def test_a_partial_cause_is_named_only_if_the_causes_on_top_explain_half_the_misfit_with_it(monkeypatch,
                                                                                              left_by_both, named):
-    """``complete_partial``: the forward selection on top of a partial cause (here a stand-in adding one cause
+    """``complete-partial``: the forward selection on top of a partial cause (here a stand-in adding one cause
     whose held-out residual leaves a given share of the misfit beyond noise) names it only if what is then kept
     removes at least half of the base's held-out misfit beyond noise; otherwise the verdict stays unexplained."""
-    from hysbench.benchmarks.diagnosis import secondary
-    from hysbench.benchmarks.diagnosis.selection import Verdict
+    from hysbench.benchmarks.diagnosis.rule import Verdict, apply
+    from hysbench.benchmarks.diagnosis.secondary import COMPLETE_PARTIAL
 
     rng = np.random.default_rng(5)
     folds = Folds(np.array([0, 4000, 8000, 12000]))
@@ -937,40 +959,31 @@ def test_a_partial_cause_is_named_only_if_the_causes_on_top_explain_half_the_mis
     e_null = signal_ + noise
     partial = _scored("relaxation", folds, e_null, 0.75 * signal_ + noise)  # 44 % of the misfit: partial
     both = np.sqrt(left_by_both) * signal_ + noise
-    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object())
     excess = float(e_null @ e_null) - t.size * 0.05**2
     assert (float(e_null @ e_null) - float(both @ both)) / excess == pytest.approx(1 - left_by_both, abs=0.03)
-
-    def on_top(diag, result, say):
-        assert diag.chosen is partial  # the forward selection runs on top of the partial cause
-        diag.also.append(_scored("delay", folds, e_null, both))
-        diag.secondary_tried.append(diag.also[-1])
-
-    monkeypatch.setattr(secondary, "secondary_causes", on_top)
+    ctx = _completion_context(monkeypatch, partial, _scored("delay", folds, e_null, both), folds, e_null)
     unexplained = Verdict("unexplained", None, reason="the best-predicting cause removes only 44 %", partial=partial)
-    result = {"heldout": HeldOut(folds, e_null), "folds": folds}
-    diag = type("D", (), {"chosen": property(lambda self: self.verdict.chosen)})()
-    diag.verdict, diag.screen, diag.also, diag.secondary_tried, diag.trace = unexplained, screen, [], [], []
-    assert secondary.complete_partial(diag, result, lambda m: None) is named
-    assert [(t["rule"], t["outcome"], t["inputs"]["kept"]) for t in diag.trace] == [
-        ("complete-partial", "relaxation" if named else "unexplained", ["delay"])]
+    v = apply(COMPLETE_PARTIAL, COMPLETE_PARTIAL.gather(ctx, unexplained), unexplained, POLICY)
+    assert [(t["rule"], t["outcome"], t["inputs"].get("kept")) for t in v.trace] == [
+        ("also", "delay", None), ("complete-partial", "relaxation" if named else "unexplained", ["delay"])]
     if named:
-        assert diag.verdict.cause == "relaxation" and diag.verdict.chosen is partial and len(diag.also) == 1
+        assert v.cause == "relaxation" and v.chosen is partial and v.partial is None and len(v.also) == 1
     else:
-        assert diag.verdict is unexplained and diag.also == []
+        assert (v.cause, v.partial, v.also) == ("unexplained", partial, ())
+        assert unexplained.trace == ()  # the verdict passed in is not changed
 
 
 @pytest.mark.parametrize("case, named", [("on every record", True), ("on one record", False),
                                          ("a third of the misfit", False)])
 def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_records_show_evidence(monkeypatch,
                                                                                                 case, named):
-    """``complete_promising``: a ``none`` verdict whose best candidate predicts most held-out records better but
+    """``complete-promising``: a ``none`` verdict whose best candidate predicts most held-out records better but
     short of evidence runs the forward selection on top of it (a stand-in adding one cause). It is named only if
     what is then kept, refitted per fold, shows evidence against the base that more than one record carries and
     removes at least half of the misfit beyond noise; otherwise the verdict stays ``none``."""
-    from hysbench.benchmarks.diagnosis import secondary
     from hysbench.benchmarks.diagnosis.heldout import evidence, promising
-    from hysbench.benchmarks.diagnosis.selection import Verdict
+    from hysbench.benchmarks.diagnosis.rule import Verdict, apply
+    from hysbench.benchmarks.diagnosis.secondary import COMPLETE_PROMISING
 
     rng = np.random.default_rng(8)
     folds = Folds(np.array([0, 4000, 8000, 12000]))
@@ -987,31 +1000,20 @@ def test_a_promising_cause_is_named_only_if_with_the_causes_on_top_several_recor
             "on one record": np.where(t >= 8000 * DT, 0.1, 0.998) * signal_,  # evidence, but that record's
             "a third of the misfit": np.sqrt(0.67) * signal_}[case]
     both = left + noise
-    screen = SimpleNamespace(n=t.size, n_held_out_rows=t.size, noise_sd=0.05, null=object())
     kept = _scored("relaxation", folds, e_null, both)
     kept.heldout["refit_per_fold"] = True
     result = {"heldout": HeldOut(folds, e_null, [(kept, both)]), "folds": folds}
-
-    def on_top(diag, result, say):
-        assert diag.chosen is p  # the forward selection runs on top of the promising cause
-        diag.also.append(kept)
-        diag.secondary_tried.append(kept)
-
-    monkeypatch.setattr(secondary, "secondary_causes", on_top)
+    ctx = _completion_context(monkeypatch, p, kept, folds, e_null, result)
     none = Verdict("none", None, reason="the best is not evidence")
-    diag = type("D", (), {"chosen": property(lambda self: self.verdict.chosen)})()
-    diag.verdict, diag.screen, diag.also, diag.secondary_tried, diag.candidates = none, screen, [], [], [p]
-    diag.trace = []
-    assert secondary.complete_promising(diag, result, lambda m: None) is named
-    assert [(t["rule"], t["outcome"], t["inputs"]["kept"]) for t in diag.trace] == [
-        ("complete-promising", "delay" if named else "none", ["relaxation"])]
+    v = apply(COMPLETE_PROMISING, COMPLETE_PROMISING.gather(ctx, none), none, POLICY)
+    assert [(t["rule"], t["outcome"], t["inputs"].get("kept")) for t in v.trace] == [
+        ("also", "relaxation", None), ("complete-promising", "delay" if named else "none", ["relaxation"])]
     if named:
-        assert diag.verdict.cause == "delay" and diag.verdict.chosen is p and diag.also == [kept]
+        assert v.cause == "delay" and v.chosen is p and v.also == (kept,)
     else:
-        assert diag.verdict is none and diag.also == []
+        assert (v.cause, v.chosen, v.also) == ("none", None, ())
     p.limit = "outside its meaning"  # a candidate outside its cause's meaning is not completed
-    diag.verdict, diag.also = Verdict("none", None, reason=""), []
-    assert secondary.complete_promising(diag, result, lambda m: None) is False and diag.also == []
+    assert COMPLETE_PROMISING.gather(ctx, none) is None
 
 
 def test_a_base_fit_pinned_at_a_bound_is_a_caution_on_the_verdict():

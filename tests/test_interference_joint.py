@@ -104,7 +104,7 @@ def _piezo_dead_zone():
 def test_a_line_locked_to_the_drive_is_scored_on_the_residual_of_the_base_fitted_alone():
     """A dead zone (outside the vocabulary) on the piezo recording. The whole-record line sits
     at a drive harmonic with one phase in both records: no disturbance but the base's own misfit there, which
-    shows as a rival of the partial clip (``selection.not_specific``). Its held-out residual against a slow
+    shows as a rival of the partial clip (``selection.why_not_specific``). Its held-out residual against a slow
     reference: per fold the base fitted on the other record alone (``screen.solve``), the line's amplitude the
     rms of that record's amplitude at the frequency in the base's training residual (numpy lstsq of a sin and a
     cos), its phase fitted on the held-out record's scored rows. (Fitted jointly, the base would take up part of

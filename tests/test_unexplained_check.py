@@ -1,6 +1,6 @@
 """An ``unexplained`` verdict claims structure that no cause explains; when the claim rests on a candidate's
 held-out evidence alone (no period-to-period structure), that candidate must predict the validation records
-too (``validation.check_unexplained``). The cases are draws of the accuracy benchmark's plans (``planted``: AR(1)
+too (rule ``unexplained-check``, ``validation``). The cases are draws of the accuracy benchmark's plans (``planted``: AR(1)
 noise and a gain modulation, neither made with an extension's code)."""
 
 from __future__ import annotations

@@ -7,14 +7,15 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Callable
+from dataclasses import dataclass, replace
 
 from .candidates import Candidate, at_bound, bound_flags
 from .causes import CAUSES, cause_of_parameter
 from .heldout import evidence, score, share_of_misfit
 from .policy import Policy
 from .secondary import refit_errors
-from .selection import step
+from .rule import Rule, Verdict, step
+from .selection import slower_than_drive
 
 
 def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
@@ -91,82 +92,105 @@ def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: flo
     ``creep_periods``), also the same with creep after them, standing for that slow part."""
     options = [strongest_first(own, causes)]
     twin = chosen.kind.slow_twin
-    if slow_relaxation(chosen, creep_min, policy) and twin in own and twin not in causes:
+    if slower_than_drive(chosen, creep_min, policy) and twin in own and twin not in causes:
         options.append([*options[0], twin])
     return options
 
 
-def slow_relaxation(chosen: Candidate, creep_min: float, policy: Policy) -> bool:
-    """A relaxation whose slowest time constant is at least ``creep_min`` / ``creep_periods`` (slower than every
-    drive period): creep may stand for that slow part."""
-    kind = chosen.kind
-    return kind.slow_twin is not None and kind.slowest_time_s(chosen.estimates) >= creep_min / policy.creep_periods
+@dataclass
+class Option:
+    """One set of causes tried in place of the named one (``replacements``): the composite chain, whether a link
+    is outside its meaning or at a bound (``flawed``; not scored then), and its scores with every nonlinear
+    parameter refitted per fold: ``without`` (all together against it; positive: together better), ``against_base``,
+    ``share`` (of the base's held-out misfit beyond noise). For the one the rule accepts, the cause it names
+    (``first``), those kept with it (``also``, each scored against the ones before it) and where an open-ended time
+    scale sits at an end (``end_cause``, ``end``: ``_time_scale_end``)."""
+
+    causes: list
+    chain: list | None
+    flawed: bool = True
+    without: dict | None = None
+    against_base: dict | None = None
+    share: float = 0.0
+    standing_in: bool = False
+    first: Candidate | None = None
+    also: tuple = ()
+    end_cause: str = ""
+    end: dict | None = None
 
 
-def drop_redundant_primary(diag, result: dict, say: Callable[[str], None]) -> None:
-    """Backward step after the forward one: with secondary causes kept, the named cause is dropped if the secondary
-    causes alone (a composite, each searched on top of the ones before, the strongest first: ``strongest_first``)
-    predict the held-out records as well as all of them together (together not better by z >= ``z_same``), show
-    held-out evidence against the base, remove at least ``explain_share`` of its held-out misfit beyond white
-    noise (as a cause named without a remainder must, ``selection.decide``), and are within their meaning and off
-    their search bounds: the first of them is named, the others stay under "also". A named relaxation whose
-    slowest time constant is longer than the longest drive period may be creep there
-    (``selection.slow_relaxation_twin``): if the secondary causes alone do not do, they are tried again,
-    strongest first, with creep after them, creep standing for that slow part (the weaker claim, as in
-    ``selection.decide``); for such a relaxation a creep, appended or kept, may have its time scale at an end
-    (``_time_unidentified``). Every score here with the nonlinear parameters refitted per fold, since it
-    names a new cause. Only for a clean verdict (no ambiguity, no unexplained remainder) of causes that compose
-    (not interference or saturation)."""
-    v, screen, folds = diag.verdict, diag.screen, result["folds"]
-    pol = folds.policy
-    causes = [c.cause for c in diag.also]
-    if (not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
+def accepts(o: Option, policy: Policy) -> bool:
+    """The named cause is redundant beside ``o``: scored, as good without it, evidence, explaining enough."""
+    return (not o.flawed and o.without["z"] < policy.z_same and evidence(o.against_base, policy)
+            and o.share >= policy.explain_share)
+
+
+def gather_backward(ctx, v: Verdict) -> list[Option] | None:
+    """The replacements of a clean verdict (no ambiguity, no remainder) of causes that compose (not interference or
+    saturation) with causes kept on top, scored in order until one is accepted (``accepts``): the rest would not
+    be looked at."""
+    causes = [c.cause for c in v.also]
+    if (not ctx.extend or not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
             or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):
-        return
-    say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
-    own = {c.cause: c for c in diag.candidates}
-    options = replacements(v.chosen, own, causes, screen.creep_min, pol)
-    creep_may_stand_in = slow_relaxation(v.chosen, screen.creep_min, pol)
-    together = None  # all of them, scored once a replacement is worth comparing
-    e_null = result["heldout"].null
-    null_sse = float(e_null @ e_null)
-    for replacement in options:
+        return None
+    screen, folds, pol = ctx.diag.screen, ctx.folds, ctx.policy
+    ctx.say(f"is {v.chosen.cause} still needed beside {' + '.join(causes)}?")
+    own = {c.cause: c for c in ctx.diag.candidates}
+    creep_may_stand_in = slower_than_drive(v.chosen, screen.creep_min, pol)
+    e_null = ctx.held.null
+    together, out = None, []  # all of them, scored once a replacement is worth comparing
+
+    def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
+        if creep_may_stand_in and _time_unidentified(screen, c, CAUSES[v.chosen.kind.slow_twin]):
+            return False
+        return bool(c.limit or at_bound(screen, c))
+
+    for replacement in replacements(v.chosen, own, causes, screen.creep_min, pol):
         chain = _chain(screen, own, replacement)
-        standing_in = len(replacement) > len(causes)  # creep last, for the relaxation's slowest part
-
-        def flawed(c: Candidate) -> bool:  # outside its meaning or at a bound (creep for a slow relaxation: above)
-            if creep_may_stand_in and _time_unidentified(screen, c, CAUSES[v.chosen.kind.slow_twin]):
-                return False
-            return bool(c.limit or at_bound(screen, c))
-
-        if chain is None or any(flawed(c) for c in chain):
+        o = Option(replacement, chain, chain is None or any(flawed(c) for c in chain),
+                   standing_in=len(replacement) > len(causes))  # creep last, for the relaxation's slowest part
+        out.append(o)
+        if o.flawed:
             continue
         if together is None:
-            together = refit_errors(screen, folds, result, diag.also[-1])
-        errors = [refit_errors(screen, folds, result, c) for c in chain]
-        without = score(folds, errors[-1], together)  # how much better all together predict
-        explains = share_of_misfit(screen, null_sse, float(errors[-1] @ errors[-1])) >= pol.explain_share
-        if without["z"] < pol.z_same and evidence(score(folds, e_null, errors[-1]), pol) and explains:
+            together = refit_errors(screen, folds, ctx.result, v.also[-1])
+        errors = [refit_errors(screen, folds, ctx.result, c) for c in chain]
+        o.without, o.against_base = score(folds, errors[-1], together), score(folds, e_null, errors[-1])
+        o.share = share_of_misfit(screen, float(e_null @ e_null), float(errors[-1] @ errors[-1]))
+        if accepts(o, pol):
+            o.first = copy.copy(chain[0])
+            o.first.params = {**o.first.params, **{n: chain[-1].params[n] for n in o.first.model.nonlinear_names
+                                                   if n in chain[-1].params}}
+            for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
+                c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
+            o.also = tuple(chain[1:])
+            o.end_cause, o.end = _time_scale_end(screen, chain)
             break
-    else:
-        diag.trace.append(step("drop-redundant-primary", v.chosen.cause, also=causes))
-        return
-    old, first, kept = v.chosen, copy.copy(chain[0]), chain[-1]
-    first.params = {**first.params, **{n: kept.params[n] for n in first.model.nonlinear_names if n in kept.params}}
-    also = []
-    for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
-        c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
-        also.append(c)
-    diag.dropped = old
-    diag.also = also
-    end_cause, end = _time_scale_end(screen, chain)
-    diag.trace.append(step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(replacement[1:]),
-                           creep_standing_in=standing_in, creep_time_end=end, z_together_over_without=without["z"]))
-    v.chosen, v.cause = first, first.cause
-    slow = slow_part_clause(old, standing_in, _pinned_time(end_cause, end))
-    how = (f"better without it (with it worse, z = {without['z']:.1f})" if without["z"] < 0 else
-           f"as well without it (with it better by z = {without['z']:.1f} < {pol.z_same:g})")
-    v.reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
-                f"{old.cause} is not needed, and "
-                f"{first.cause} is named with {', '.join(replacement[1:]) or 'nothing'} also (first named: "
-                f"{old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")
+    return out
+
+
+def decide_backward(options: list[Option], v: Verdict, policy: Policy) -> tuple[Verdict, dict]:
+    causes = [c.cause for c in v.also]
+    o = next((o for o in options if accepts(o, policy)), None)
+    if o is None:
+        return v, step("drop-redundant-primary", v.chosen.cause, also=causes)
+    old, first, z = v.chosen, o.first, o.without["z"]
+    entry = step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(o.causes[1:]),
+                 creep_standing_in=o.standing_in, creep_time_end=o.end, z_together_over_without=z)
+    slow = slow_part_clause(old, o.standing_in, _pinned_time(o.end_cause, o.end))
+    how = (f"better without it (with it worse, z = {z:.1f})" if z < 0 else
+           f"as well without it (with it better by z = {z:.1f} < {policy.z_same:g})")
+    reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "
+              f"{old.cause} is not needed, and {first.cause} is named with {', '.join(o.causes[1:]) or 'nothing'} "
+              f"also (first named: {old.label}, held-out gain {100 * old.heldout_gain:.2f} %)")
+    return replace(v, chosen=first, cause=first.cause, also=o.also, dropped=old, reason=reason), entry
+
+
+DROP_REDUNDANT_PRIMARY = Rule("drop-redundant-primary", (
+    "*Backward step.* With causes under `also`, a clean verdict (no ambiguity, no remainder, neither cause an "
+    "interference or a clip) drops the named cause if those causes alone (composed strongest first; for a "
+    "relaxation slower than every drive period, also with creep after them) predict as well as all of them "
+    "together (together not better by {z_same}), are evidence against the base, remove at least "
+    "{explain_share}, and keep their meaning off their bounds (creep standing for a slow relaxation may have "
+    "its time scale at an end); the first of them is named, the others stay under `also`."),
+    decide_backward, gather_backward)

@@ -13,41 +13,14 @@
    (``screen``, one module per cause) and scored by leave-one-record-out
    prediction against the base model refitted the same way (``search``,
    ``selection``).
-4. The verdict (``selection.decide``): a cause, ``none`` or ``unexplained``;
-   two causes that predict equally well are reported as ambiguous, with the
-   drive that separates them (``experiment``). An ``unexplained`` verdict
-   whose best partial cause passes by itself is completed by the forward
-   selection of step 5 on top of it; if the two explain half of the misfit,
-   it is named (``secondary.complete_partial``). A ``none`` verdict whose
-   best candidate is promising but short of evidence alone is completed the
-   same way; it is named if together they show evidence that more than one
-   record carries (``secondary.complete_promising``).
-5. Other causes are tried on top of the named one (composite extension)
-   and kept as "also" if they pass the held-out test against what is kept,
-   their own parameters refitted per fold (``secondary.secondary_causes``);
-   if those alone then predict as well without the named cause, it is
-   dropped and the first of them named (``backward.drop_redundant_primary``).
-6. A named relaxation slower than every drive period: its slowest part
-   replaced by creep (``slow_part``); if that predicts as well, creep is
-   reported as ambiguous with it.
-7. The named extension (a registered model, e.g. ``mrpim+relaxation``) is
-   identified on the identification records' whole length, every parameter
-   free; the base model is refitted the same way; the validation records --
-   untouched so far -- measure the gain of the one over the other
-   (confirmed if it lowers their residual by more than their noise explains,
-   ``residuals.gain_z``: correlated noise counted). An interference is confirmed by
-   the same frequency and amplitude on the validation records, its phase
-   fitted per record.
-8. An ``unexplained`` verdict that rests on a candidate's held-out evidence
-   alone (no period-to-period structure) is checked the same way: that
-   candidate's extension, fitted on the identification records' whole
-   length, must predict the validation records beyond their noise, else what
-   looked structured is not borne out and the verdict is ``none``
-   (``validation.check_unexplained``; coloured noise fits a slow part of one record's
-   noise on the others).
-9. Each cause kept under "also" is checked on the validation records on top
-   of what was kept before it, by the same test (``validation.check_also``):
-   reported, the verdict unchanged.
+4. The verdict: ``selection.decide`` applies the rules that name one cause (``selection.SELECTION``) to the
+   held-out scores, then the rules after it (``rules.AFTER_SELECTION``) are applied in order, each on the
+   evidence its gathering step computes (completions and causes on top, ``secondary``; the backward step,
+   ``backward``; the slow part, ``slow_part``; the validation records, untouched so far, ``validation``).
+   Each rule is pure: it returns a new ``rule.Verdict`` and the trace entry it leaves. Their statements are
+   the rule's text (``rules.rule_text``, docs/diagnosis.md).
+5. Suggested experiments for what is ambiguous (``experiment``); each cause kept under "also" checked on
+   the validation records on top of what was kept before it (``validation.check_also``; reported only).
 """
 
 from __future__ import annotations
@@ -65,7 +38,6 @@ from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 from hysbench.models.errors import HysbenchError
 
-from .backward import drop_redundant_primary
 from .candidates import MAX_RELAXATION, MAX_ROWS
 from .experiment import suggest
 from .extensions import residuals_of_fit
@@ -74,48 +46,25 @@ from .residuals import periodic_structure, summarise
 from .result import Diagnosis
 from .screen import Screen
 from .search import run_screen
-from .secondary import complete_partial, complete_promising, secondary_causes
-from .selection import UNEXPLAINED, decide, step
-from .slow_part import predicts_as_well, slow_part_composite
-from .validation import check_also, check_unexplained, fit_extension, refit_base_whole
+from .rule import Context, apply
+from .rules import AFTER_SELECTION
+from .selection import decide
+from .validation import check_also
+
 
 class DiagnosisError(HysbenchError):
     """A dataset or model the diagnosis cannot work with."""
 
 
-def slow_part_twin(diag: Diagnosis, result: dict, experiments: bool, say: Callable[[str], None]) -> None:
-    """Creep as ambiguous with the named relaxation's slowest part (``slow_part``), unless creep is
-    already named, ambiguous, or kept on top of the relaxation ("also": then the records show both)."""
-    v = diag.verdict
-    if v.chosen is None or v.chosen.kind.slow_twin is None:
+def suggest_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
+    """A suggested experiment for each cause ambiguous with the named one, and for each secondary cause kept with
+    others as good on top of the same part (the simpler one kept, ``secondary._choose``): the drive on which the
+    two fits' predictions differ most."""
+    if diag.chosen is None:
         return
-    twin = v.chosen.kind.slow_twin
-    say("the slowest time constant or creep")
-    comp = slow_part_composite(diag.screen, result["heldout"], v.chosen, result["candidates"],
-                               result["relaxation_variants"])
-    diag.slow_part = comp
-    taken = {c.cause for c in (*v.ambiguous_with, *diag.also)}
-    if comp is None:
-        return
-    as_well = predicts_as_well(result["heldout"], v.chosen, comp)
-    ambiguous = as_well and twin not in taken
-    diag.trace.append(step("slow-part-twin", f"{twin} ambiguous" if ambiguous else f"{v.chosen.cause} alone",
-                           composite=comp.label, gain=comp.heldout.get("gain"), z=comp.heldout.get("z"),
-                           predicts_as_well=as_well, creep_already=sorted(taken & {twin})))
-    if not ambiguous:
-        return
-    v.ambiguous_with.append(comp)
-    slowest = v.chosen.kind.slowest_time_s(v.chosen.estimates)
-    v.reason += (f"; its slowest time constant ({slowest:.3g} s) is longer than the longest "
-                 f"drive period, and the faster ones plus a drift since the start predict the held-out records as well "
-                 f"(z < {diag.policy.z_same:g}): that part may be creep")
-    if experiments:
-        diag.experiments.append({"causes": [v.chosen.cause, twin], **suggest(diag.screen, v.chosen, comp)})
-
-
-def also_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """A suggested experiment for each secondary cause kept with others as good on top of the same part (the
-    simpler one kept, ``secondary._choose``): the drive on which the two composites' predictions differ most."""
+    for other in diag.verdict.ambiguous_with:
+        say(f"suggesting an experiment to separate {diag.cause} from {other.cause}")
+        diag.experiments.append({"causes": [diag.cause, other.cause], **suggest(diag.screen, diag.chosen, other)})
     for c in diag.also:
         for other in diag.as_good_as(c):
             say(f"suggesting an experiment to separate {c.cause} from {other.cause} on top of what was kept")
@@ -143,7 +92,7 @@ def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", see
     """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
     record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
     recording. ``thorough``: every cause tried afresh on top of the named one also on long records
-    (``secondary.secondary_causes``; slower). ``policy``: the thresholds of the decision rule
+    (``secondary.forward``; slower). ``policy``: the thresholds of the decision rule
     (``policy.Policy``; the default is the documented rule)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
@@ -214,56 +163,25 @@ def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiment
                      summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
                      candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
                      verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
-                     trace=list(verdict.trace),
                      settings={"max_rows": max_rows, "max_relaxation": max_relaxation,
                                "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
                                "not_held_out": _held_out_in_part(screen),
                                "thorough": thorough})
-    t1 = time.perf_counter()
-    if experiments and verdict.chosen is not None:
-        for other in verdict.ambiguous_with:
-            say(f"suggesting an experiment to separate {verdict.chosen.cause} from {other.cause}")
-            diag.experiments.append({"causes": [verdict.chosen.cause, other.cause],
-                                     **suggest(screen, verdict.chosen, other)})
-    if diag.experiments:
-        timings["experiments"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    completed = verdict.chosen is None and extend and (complete_partial(diag, result, say)
-                                                       or complete_promising(diag, result, say))
-    secondary_s = time.perf_counter() - t1  # a completion runs the secondary causes on the partial or promising cause
-    if extend and diag.cause == UNEXPLAINED and diag.verdict.partial is not None and not structured:
+    ctx = Context(diag, result, say, extend)
+    for rule in AFTER_SELECTION:
         t1 = time.perf_counter()
-        refit_base_whole(diag, say)
-        check_unexplained(diag, say)
-        timings["unexplained_check"] = time.perf_counter() - t1
-    if diag.chosen is None or not extend:
-        t1 = time.perf_counter()
-        slow_part_twin(diag, result, experiments, say)
-        timings["secondary"] = secondary_s + time.perf_counter() - t1
-        timings["total"] = time.perf_counter() - t0
-        return diag
+        evidence = rule.gather(ctx, diag.verdict)
+        spent = time.perf_counter() - t1
+        if evidence is not None or spent > 0.01:
+            timings[rule.timing] = timings.get(rule.timing, 0.0) + spent
+        if evidence is not None:
+            diag.verdict = apply(rule, evidence, diag.verdict, policy)
     t1 = time.perf_counter()
-    refit_base_whole(diag, say)
-    timings["base_refit"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    if not completed:  # a completed partial cause has its secondary causes already
-        secondary_causes(diag, result, say)
-    drop_redundant_primary(diag, result, say)
-    slow_part_twin(diag, result, experiments, say)
-    timings["secondary"] = secondary_s + time.perf_counter() - t1
-    if experiments and any(diag.as_good_as(c) for c in diag.also):
-        t1 = time.perf_counter()
-        also_experiments(diag, say)
-        timings["experiments"] = timings.get("experiments", 0.0) + time.perf_counter() - t1
-    t1 = time.perf_counter()
-    diag.extended_fit, diag.after, diag.interference_check = fit_extension(diag, diag.chosen, say)
-    timings["extended_fit"] = time.perf_counter() - t1
-    v = diag.gain().get("validation") or {}
-    diag.trace.append(step("validation", "confirmed" if diag.confirmed else "not confirmed", cause=diag.cause,
-                           **{k: v.get(k) for k in ("explained_whole", "explained_window", "z_whole")},
-                           **({"same_amplitude": diag.interference_check.get("same_amplitude")}
-                              if diag.chosen.kind.disturbance else {})))
-    if diag.also:
+    if experiments:
+        suggest_experiments(diag, say)
+        if diag.experiments:
+            timings["experiments"] = time.perf_counter() - t1
+    if extend and diag.also and diag.after:
         t1 = time.perf_counter()
         check_also(diag, say)
         timings["also_check"] = time.perf_counter() - t1

@@ -28,7 +28,7 @@ whose frequency is the one reported. The validation records confirm it the
 same way. On top of a clip (not linear) the line is fitted on its residual
 (``fold_frequencies``, ``on_top``), and so is a line locked to the drive (no
 disturbance: the base's own misfit at a harmonic, shown as a rival of a
-partial cause, ``selection.not_specific``): fitted jointly, the base takes
+partial cause, ``selection.why_not_specific``): fitted jointly, the base takes
 up part of its misfit there, which the base fitted alone, as it predicts a
 held-out record, does not, and the line would understate it.
 """

@@ -101,14 +101,12 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
                      f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
     u = d.unexplained_check
-    if u and u["checked"]:
+    if u:
         lines.append(f"the best partial candidate on the validation records (records {', '.join(u['records'])}, "
                      f"fitted on the identification records' whole length): {100 * u['explained_whole']:.2f} % of "
                      f"their residual removed, z = {u['z_whole']:.2f} "
                      + ("(borne out: the verdict stays unexplained)" if u["borne_out"] else
                         f"(not borne out, needs {d.policy.z_confirm:.3g}: the verdict is none)"))
-    elif u:
-        lines.append(f"the best partial candidate not checked on validation records: {u['note']}")
     for c in d.verdict.ambiguous_with:
         lines.append(strong(f"ambiguous with {c.cause}") + f": {c.label} predicts the held-out records as well "
                      f"(gain {100 * c.heldout_gain:.2f} %; {_estimates(c)})")
@@ -196,14 +194,14 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += ["## Verdict", ""]
     lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
     lines += ["", "## Why: the rules that decided, in order", "",
-              "Each rule of docs/diagnosis.md (\"The decision rule\") that decided or changed the verdict, with what "
-              "it decided and on what.", "", *trace_lines(d)]
+              "Each rule that decided or changed the verdict (by its id; the rules are stated at the end of this "
+              "report), with what it decided and on what.", "", *trace_lines(d)]
     lines += ["", "## Evidence: candidate causes (held-out)", "",
               f"Rows: {d.screen.n} samples of the identification records (whole length, at most "
               f"{d.settings['max_rows']} per record). The causes' bounds scale with the shortest drive period, "
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
-              f"Rule: {d.decision_rule}.", "", f"P{d.policy.summary()[1:]}; every field is in the JSON "
-              "(`policy`).", *not_held_out_lines(d), "",
+              f"P{d.policy.summary()[1:]}; every field is in the JSON (`policy`); the rule with its values is at the "
+              "end of this report.", *not_held_out_lines(d), "",
               "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],
@@ -260,6 +258,7 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
     lines += ["", "## Figures", ""]
     for key, file in figures.items():
         lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]
+    lines += ["## The decision rule", "", d.decision_rule, ""]
     t = d.timings
     lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()) + ".", ""]
     if d.base_fit.notes:

@@ -18,7 +18,8 @@ from .policy import Policy
 from .residuals import RecordResidual, ResidualSummary
 from .screen import Screen
 from .secondary import not_identified
-from .selection import Verdict
+from .rule import Verdict
+from .rules import rule_text
 from .validation import borne_out
 
 
@@ -45,11 +46,9 @@ class Diagnosis:
     relaxation_variants: list[Candidate]
     verdict: Verdict
     structure: dict
-    also: list[Candidate] = field(default_factory=list)
     secondary_tried: list[Candidate] = field(default_factory=list)
     also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
-    dropped: Candidate | None = None  # the first named cause, if the secondary ones made it redundant
     experiments: list[dict] = field(default_factory=list)
     extended_fit: Fit | None = None
     after: list[RecordResidual] = field(default_factory=list)
@@ -60,7 +59,6 @@ class Diagnosis:
     also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
     timings: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
-    trace: list = field(default_factory=list)  # every rule that decided or changed the verdict, in order (``step``)
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
@@ -70,6 +68,21 @@ class Diagnosis:
     @property
     def cause(self) -> str:
         return self.verdict.cause
+
+    @property
+    def also(self) -> list[Candidate]:
+        """The causes kept on top of the named one, in the order kept."""
+        return list(self.verdict.also)
+
+    @property
+    def dropped(self) -> Candidate | None:
+        """The first named cause, if the causes kept on top of it made it redundant."""
+        return self.verdict.dropped
+
+    @property
+    def trace(self) -> list[dict]:
+        """Every rule that decided or changed the verdict, in order (``rule.step``)."""
+        return list(self.verdict.trace)
 
     def as_good_as(self, c: Candidate) -> list[Candidate]:
         """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
@@ -110,32 +123,8 @@ class Diagnosis:
 
     @property
     def decision_rule(self) -> str:
-        p = self.policy
-        return (f"leave-one-identification-record-out prediction against the base model refitted the same way: "
-                f"a cause passes with held-out gain >= {p.min_explained:.0%} in a majority of folds "
-                f"and z >= {p.z_pass:g} (signed-rank test over blocks) or a gain >= {p.strong_gain:.0%} in every fold "
-                f"(an interference, scored on top of the base's own held-out prediction, found at one frequency and "
-                f"amplitude on each fold's other records: any gain, every fold improved, z >= {p.z_pass:g}), "
-                f"parameters within the cause's meaning and not at a search bound; the simplest passing cause "
-                f"within z = {p.z_same:g} of the best is "
-                f"named (creep rather than a relaxation slower than every drive period that creep predicts as well; "
-                f"a relaxation whose slowest time constant is slower than every drive period is compared with its "
-                f"faster ones plus creep, which is listed as ambiguous if it predicts as well); "
-                f"if it removes < {p.explain_share:.0%} of the held-out misfit beyond white noise it is named "
-                f"only if specific (z >= {p.z_pass:g}, fold estimates within {p.partial_se:.0%}: a mode's frequency, its "
-                f"damping reported; every other cause within z = {p.z_same:g} removing the same part, held-out "
-                f"improvements with cosine >= {p.same_slice:g}: "
-                f"those are ambiguous with it) with the rest reported as unexplained remainder, else the passing "
-                f"cause predicting most among those that are specific ({p.min_records_check} or more records), else the best "
-                f"partial cause (if it passes) with the causes kept on top of it by held-out forward selection if "
-                f"together they remove >= {p.explain_share:.0%} (two causes at once), else unexplained; "
-                f"nothing passing: unexplained if the residual is structured (period-to-period "
-                f"F > {p.structure_f:g} or a significant but inadmissible candidate), else none. Validation "
-                f"records take no part; they confirm the named extension if it lowers their residual with "
-                f"z >= {p.z_confirm:.3g} against their own noise (correlated noise counted); an unexplained verdict "
-                f"resting on a candidate alone (no period-to-period structure) becomes none unless that candidate's "
-                f"extension lowers the validation records' residual the same way; each cause under also is checked "
-                f"the same way on top of what was kept before it (reported, the verdict unchanged)")
+        """The decision rule with this diagnosis's policy values (``rules.rule_text``)."""
+        return rule_text(self.policy)
 
     def gain(self) -> dict:
         """The named extension's gain on the validation and identification records (computed once for the

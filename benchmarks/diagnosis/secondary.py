@@ -18,15 +18,15 @@ its frequency per fold too.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 from .candidates import OPEN_ENDED_NOTE, Candidate, bound_flags, own_nonlinear
 from .lines import fold_frequencies, fold_tolerance_hz, frequencies_agree, joint_line, on_top, on_top_estimates
 from .policy import Policy
 from .heldout import (carried_by_one_record, evidence, fold_uncertainty, heldout_errors, passes, promising, score,
                       share_of_misfit)
-from .selection import NONE, UNEXPLAINED, Verdict, step
+from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
@@ -72,6 +72,20 @@ class _Kept:
         return on_top(screen, folds, part_e, part_train, self.frequency)
 
 
+class Tried(NamedTuple):
+    """A cause tried on top of what is kept: the composite (its score in ``heldout``), the separable part that would
+    then be kept (None: the base) with its held-out errors and per-fold training residuals, the errors with what
+    is kept held, the errors it is judged on (its added parameters refitted per fold) and the part's designs."""
+
+    composite: Candidate
+    part: Candidate | None
+    part_errors: object
+    part_train: list
+    errors: object
+    judged: object
+    designs: list | None
+
+
 def _start(screen, folds, chosen: Candidate) -> _Kept:
     """The named cause as what is kept; a named interference as the base with its line on top, its frequency
     per fold chosen on the other records as it was scored."""
@@ -93,7 +107,7 @@ def _folds_disagree(screen, fold_f: list) -> str:
             f"resolution {fold_tolerance_hz(screen):.3g} Hz: not one line")
 
 
-def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
+def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> Tried:
     """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
     records, from what is kept fitted on them alone, and checked at the frequencies scored."""
     comp = copy.copy(c)
@@ -107,10 +121,10 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> tuple:
     comp.limit = screen.limit_of(c.cause, comp.estimates) or _folds_disagree(screen, fold_f)
     comp.heldout = {**score(folds, kept.reference, e), "at_bound": [], "refit_per_fold": True,
                     "fold_frequencies_hz": fold_f}
-    return comp, kept.part, kept.errors, kept.train, e, e, kept.designs
+    return Tried(comp, kept.part, kept.errors, kept.train, e, e, kept.designs)
 
 
-def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tuple | None:
+def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Tried | None:
     """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
     admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
     comp = copy.copy(c) if kept.part is None else c.kind.on_top(screen, kept.part, c, fresh)
@@ -128,39 +142,47 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> tupl
         judged = kept.with_line(screen, folds, refit_e, refit_train, refit_designs)
         comp.heldout = {**score(folds, kept.reference, judged), **flags, "refit_per_fold": True}
         comp.uncertainty = fold_uncertainty(screen, fold_est)
-    return comp, comp, part_e, part_train, e, judged, part_designs or None
+    return Tried(comp, comp, part_e, part_train, e, judged, part_designs or None)
 
 
-def _choose(screen, folds, tried: list, reference) -> tuple[tuple | None, list[Candidate]]:
+def _choose(screen, folds, tried: list[Tried], reference) -> tuple[Tried | None, list[Candidate]]:
     """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
     ``z_same`` and that removes at least ``explain_share`` of what is kept leaves beyond noise (policy; as in
     ``selection.decide``), and the others as good (not told apart on these records; their names are listed
     with it)."""
     pol = folds.policy
-    ok = [t for t in tried if _admissible(t[0], pol)]
+    ok = [t for t in tried if _admissible(t.composite, pol)]
     if not ok:
         return None, []
-    best = max(ok, key=lambda t: t[0].heldout["gain"])
+    best = max(ok, key=lambda t: t.composite.heldout["gain"])
     for t in ok:  # of what is kept leaves beyond noise
-        t[0].heldout["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), t[0].heldout["sse"])
-    same = [t for t in ok if t is best or (score(folds, t[5], best[5])["z"] < pol.z_same
-                                           and t[0].heldout["share_of_misfit"] >= pol.explain_share)]
-    chosen = min(same, key=lambda t: (t[0].k, -t[0].heldout["gain"]))
-    alike = [t[0] for t in same if t[0] is not chosen[0]]  # not told apart here
-    chosen[0].heldout["as_good"] = [c.cause for c in alike]
+        h = t.composite.heldout
+        h["share_of_misfit"] = share_of_misfit(screen, float(reference @ reference), h["sse"])
+    same = [t for t in ok if t is best or (score(folds, t.judged, best.judged)["z"] < pol.z_same
+                                           and t.composite.heldout["share_of_misfit"] >= pol.explain_share)]
+    chosen = min(same, key=lambda t: (t.composite.k, -t.composite.heldout["gain"]))
+    alike = [t.composite for t in same if t is not chosen]  # not told apart here
+    chosen.composite.heldout["as_good"] = [c.cause for c in alike]
     return chosen, alike
 
 
-def secondary_causes(diag, result: dict, say: Callable[[str], None]) -> None:
-    """``_forward`` (below), its outcome added to the trace."""
-    tried = len(diag.secondary_tried)
-    _forward(diag, result, say)
-    diag.trace.append(step("also", ", ".join(c.cause for c in diag.also) or "nothing", on_top_of=diag.cause,
-                           tried=[c.cause for c in diag.secondary_tried[tried:]]))
+@dataclass(frozen=True)
+class Forward:
+    """What the forward selection kept on top of ``on`` (in order), every composite it tried, and for each kept
+    one those tried on top of the same part that predict as well (``_choose``)."""
+
+    on: Candidate
+    kept: tuple
+    tried: tuple
+    alternatives: tuple  # (a kept composite, [those as good])
+
+    def entry(self) -> dict:
+        return step("also", ", ".join(c.cause for c in self.kept) or "nothing", on_top_of=self.on.cause,
+                    tried=[c.cause for c in self.tried])
 
 
-def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
-    """Forward selection on top of the named cause: in each round every other cause is added to what is
+def forward(ctx, on: Candidate, taken: set) -> Forward:
+    """Forward selection on top of ``on``: in each round every other cause (not in ``taken``) is added to what is
     kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
     interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
     ``causes.saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
@@ -168,16 +190,14 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
     Those with held-out evidence are scored again with the added cause's own nonlinear parameters (a
     clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
     parameters are then chosen without the record they predict. Of those that still show evidence, within
-    the cause's meaning and off their search bounds, one is kept ("also"; ``_choose``). On short records
-    (``Screen.small``), or on any with ``diag.settings["thorough"]``, every cause is tried and searched afresh,
-    not only those that predict better than the base alone: a second cause can show only once the first is
-    accounted for (a delay or a mode under a plant's own relaxation). Otherwise, on long records (cost: about
-    three times the diagnosis on the default dataset), only those are tried, from their own fits. At most the
-    policy's ``max_secondary`` are kept."""
-    screen, chosen = diag.screen, diag.chosen
-    folds = result["folds"]
+    the cause's meaning and off their search bounds, one is kept (``_choose``). On short records
+    (``Screen.small``), or with the ``thorough`` setting, every cause is tried and searched afresh, not only
+    those that predict better than the base alone: a second cause can show only once the first is accounted
+    for (a delay or a mode under a plant's own relaxation). Otherwise, on long records (cost: about three times
+    the diagnosis on the default dataset), only those are tried, from their own fits. At most the policy's
+    ``max_secondary`` are kept. The composites tried and the alternatives are recorded on the diagnosis."""
+    diag, screen, folds = ctx.diag, ctx.diag.screen, ctx.folds
     pol = folds.policy
-    taken = {chosen.cause, *(c.cause for c in diag.verdict.ambiguous_with)}
     fresh = screen.small or bool(diag.settings.get("thorough"))
 
     def near_pass(c: Candidate) -> bool:  # passed or nearly passed against the base alone
@@ -186,117 +206,165 @@ def _forward(diag, result: dict, say: Callable[[str], None]) -> None:
     pool = {c.cause: c for c in diag.candidates if c.cause not in taken
             and not (c.kind.disturbance and c.limit)  # a drive-locked or too slow sinusoid: no disturbance
             and (fresh or near_pass(c))}
-    kept = _start(screen, folds, chosen)
-    while pool and len(diag.also) < pol.max_secondary:
-        say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([chosen.cause, *(a.cause for a in diag.also)])}")
-        tried = []  # (composite, separable part, its errors and training residuals held, errors held, judged)
-        for cause, c in pool.items():
+    kept, also, tried_all, alternatives = _start(screen, folds, on), [], [], []
+    while pool and len(also) < pol.max_secondary:
+        ctx.say(f"trying {', '.join(sorted(pool))} on top of {' + '.join([on.cause, *(a.cause for a in also)])}")
+        tried = []
+        for c in pool.values():
             if c.kind.disturbance:
                 t = _line_on_top(screen, folds, c, kept) if kept.frequency is None else None
             else:
                 t = _cause_on_top(screen, folds, c, kept, fresh)
             if t is not None:
-                diag.secondary_tried.append(t[0])
+                tried_all.append(t.composite)
                 tried.append(t)
         pick, alike = _choose(screen, folds, tried, kept.reference)
         if pick is None:
-            return
-        comp, part, part_e, part_train, e, _, designs = pick
-        diag.also_alternatives.append((comp, alike))
-        diag.also.append(comp)
+            break
+        comp = pick.composite
+        alternatives.append((comp, alike))
+        also.append(comp)
         pool.pop(comp.cause)
-        kept = _Kept(part, part_e, part_train, e,
-                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, designs)
+        kept = _Kept(pick.part, pick.part_errors, pick.part_train, pick.errors,
+                     comp.heldout["fold_frequencies_hz"] if comp.kind.disturbance else kept.frequency, pick.designs)
         if not comp.kind.carries_others:  # nothing composes on top of a clip; a disturbance still adds
             pool = {k: v for k, v in pool.items() if v.kind.disturbance}
+    diag.secondary_tried.extend(tried_all)
+    diag.also_alternatives.extend(alternatives)
+    return Forward(on, tuple(also), tuple(tried_all), tuple(alternatives))
 
 
-def _forward_on(diag, result: dict, say: Callable[[str], None], p: Candidate) -> int:
-    """Name ``p`` for now and run the forward selection on top of it; the number of causes it tried."""
-    diag.verdict = Verdict(p.cause, p, [], "", diag.verdict.not_identified)
-    tried = len(diag.secondary_tried)
-    secondary_causes(diag, result, say)
-    return len(diag.secondary_tried) - tried
+def gather_also(ctx, v: Verdict) -> Forward | None:
+    """The forward selection on top of the named cause, the causes ambiguous with it not tried; not run where a
+    completion has kept causes on top already."""
+    if not ctx.extend or v.chosen is None or v.also:
+        return None
+    return forward(ctx, v.chosen, {v.chosen.cause, *(c.cause for c in v.ambiguous_with)})
 
 
-def complete_partial(diag, result: dict, say: Callable[[str], None]) -> bool:
-    """An ``unexplained`` verdict whose best partial cause passes the held-out test by itself but removes less
-    than ``explain_share`` of the base's held-out misfit beyond noise: the forward selection is run on top of it
-    (``secondary_causes``, each added cause judged on held-out records against what is kept). If what is then
-    kept removes at least ``explain_share``, the partial cause is named with those under "also" (two causes at
-    once: neither explains the misfit alone). Otherwise the verdict stays ``unexplained``. True if named."""
-    v = diag.verdict
-    p = v.partial
-    pol = result["folds"].policy
-    if v.cause != UNEXPLAINED or p is None or not passes(p, pol):
-        return False
-    say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
-    tried = _forward_on(diag, result, say, p)
-    e_null = result["heldout"].null
+def decide_also(ev: Forward, v: Verdict, policy: Policy) -> tuple[Verdict, dict]:
+    return replace(v, also=ev.kept), ev.entry()
+
+
+ALSO = Rule("also", (
+    "*Also (forward selection).* Every other cause is tried on top of what is kept, scored against what is "
+    "kept; one with evidence, keeping its meaning and off its bounds is scored again with its added parameters "
+    "refitted per fold, and judged on that. Among those, the one with fewest parameters that the best predicts "
+    "no better than by {z_same} and that removes at least {explain_share} of what is kept leaves is kept; "
+    "repeated while something is kept, up to {max_secondary} causes. On short records (or with `--thorough`) "
+    "every cause is tried and searched afresh; otherwise only those that passed or nearly passed (promising, "
+    "or G > 0 with z >= {z_pass}) against the base alone."), decide_also, gather_also)
+
+
+@dataclass(frozen=True)
+class Completion:
+    """A cause named by no rule yet (``candidate``), the forward selection on top of it, and what all that is
+    kept removes of the base's held-out misfit beyond noise (``share``; 0 if nothing is kept). For a promising
+    candidate also the score of all that is kept against the base, every parameter refitted per fold
+    (``score``), and whether that score is evidence only through the one record it improves most
+    (``one_record``, ``heldout.carried_by_one_record``)."""
+
+    candidate: Candidate
+    forward: Forward
+    share: float
+    alone: float = 0.0  # what the candidate removes by itself
+    score: dict | None = None
+    one_record: bool = False
+
+
+def _completed(v: Verdict, ev: Completion, reason: str) -> Verdict:
+    """The completed candidate named, with what was kept on top of it under "also"."""
+    return replace(v, cause=ev.candidate.cause, chosen=ev.candidate, ambiguous_with=(), reason=reason, partial=None,
+                   remainder=None, also=ev.forward.kept)
+
+
+def gather_partial(ctx, v: Verdict) -> Completion | None:
+    """An ``unexplained`` verdict whose best partial candidate passes by itself: the forward selection on it."""
+    p, pol = v.partial, ctx.policy
+    if not ctx.extend or v.cause != UNEXPLAINED or p is None or not passes(p, pol):
+        return None
+    ctx.say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
+    fwd = forward(ctx, p, {p.cause})
+    e_null = ctx.held.null
     null_sse = float(e_null @ e_null)
-    share = (share_of_misfit(diag.screen, null_sse, diag.also[-1].heldout["sse"]) if diag.also else 0.0)
-    diag.trace.append(step("complete-partial", p.cause if share >= pol.explain_share else "unexplained",
-                           partial=p.cause, kept=[c.cause for c in diag.also], share_of_misfit=share))
-    if share < pol.explain_share:
-        diag.verdict, diag.also = v, []
-        v.reason += ("" if not tried else
-                     f"; with other causes tried on top of {p.cause}, what is kept removes {100 * share:.0f} % "
-                     f"(< {100 * pol.explain_share:.0f} %)")
-        return False
-    alone = p.heldout.get("share_of_misfit", share_of_misfit(diag.screen, null_sse, p.heldout["sse"]))
-    diag.verdict.reason = (
-        f"predicts the held-out identification records better than the base model refitted the same way (gain "
-        f"{100 * p.heldout_gain:.2f} %, z = {p.heldout['z']:.1f}) but removes only {100 * alone:.0f} % of the "
-        f"base model's held-out misfit beyond white noise by itself ({v.reason}); with "
-        f"{' + '.join(a.cause for a in diag.also)} on top, each predicting the held-out records better than what "
-        f"was kept before it, {100 * share:.0f} % (two causes at once)")
-    diag.verdict.partial = None
-    return True
+    share = share_of_misfit(ctx.diag.screen, null_sse, fwd.kept[-1].heldout["sse"]) if fwd.kept else 0.0
+    alone = p.heldout.get("share_of_misfit", share_of_misfit(ctx.diag.screen, null_sse, p.heldout["sse"]))
+    return Completion(p, fwd, share, alone)
 
 
-def complete_promising(diag, result: dict, say: Callable[[str], None]) -> bool:
-    """A ``none`` verdict whose best candidate is promising (a held-out gain in most folds, within its meaning
-    and off its bounds) but short of evidence by itself: the forward selection is run on top of it
-    (``secondary_causes``). Two causes at once can each fall short alone, e.g. a delay that only the fastest
-    drive shows on a plant that also relaxes. The promising cause is named with those kept under "also" only if
-    all of them together, every nonlinear parameter refitted per fold, show held-out evidence against the base
-    model that more than one record carries (``heldout.carried_by_one_record``) and remove at least
-    ``explain_share`` of its held-out misfit beyond noise; otherwise the verdict stays ``none``. True if named."""
-    v, screen, folds = diag.verdict, diag.screen, result["folds"]
-    pol = folds.policy
-    pool = [c for c in diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
-    if v.cause != NONE or not pool:
-        return False
-    p = max(pool, key=lambda c: c.heldout_gain)
-    say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other causes "
-        "on top")
-    tried = _forward_on(diag, result, say, p)
-    e_null = result["heldout"].null
-    named = False
-    if diag.also:
-        e = refit_errors(screen, folds, result, diag.also[-1])
-        h = score(folds, e_null, e)
-        share = share_of_misfit(screen, float(e_null @ e_null), h["sse"])
-        named = evidence(h, pol) and share >= pol.explain_share and not carried_by_one_record(folds, e_null, e)
-    diag.trace.append(step("complete-promising", p.cause if named else "none", promising=p.cause,
-                           kept=[c.cause for c in diag.also],
-                           **({"gain": h["gain"], "z": h["z"], "share_of_misfit": share} if diag.also else {})))
+def decide_partial(ev: Completion, v: Verdict, policy: Policy) -> tuple[Verdict, list]:
+    p, kept = ev.candidate, ev.forward.kept
+    named = ev.share >= policy.explain_share
+    entries = [ev.forward.entry(), step("complete-partial", p.cause if named else UNEXPLAINED, partial=p.cause,
+                                        kept=[c.cause for c in kept], share_of_misfit=ev.share)]
     if not named:
-        diag.verdict, diag.also = v, []
-        if tried:
-            v.reason += (f"; with other causes tried on top of {p.cause}, no combination predicts the held-out "
-                         "records better with evidence that more than one record carries and removes "
-                         f"{100 * pol.explain_share:.0f} % of the misfit")
-        return False
+        more = ("" if not ev.forward.tried else
+                f"; with other causes tried on top of {p.cause}, what is kept removes {100 * ev.share:.0f} % "
+                f"(< {100 * policy.explain_share:.0f} %)")
+        return replace(v, reason=v.reason + more), entries
+    reason = (f"predicts the held-out identification records better than the base model refitted the same way (gain "
+              f"{100 * p.heldout_gain:.2f} %, z = {p.heldout['z']:.1f}) but removes only {100 * ev.alone:.0f} % of "
+              f"the base model's held-out misfit beyond white noise by itself ({v.reason}); with "
+              f"{' + '.join(a.cause for a in kept)} on top, each predicting the held-out records better than what "
+              f"was kept before it, {100 * ev.share:.0f} % (two causes at once)")
+    return _completed(v, ev, reason), entries
+
+
+COMPLETE_PARTIAL = Rule("complete-partial", (
+    "*Two causes at once, partial.* An `unexplained` verdict whose best partial candidate passes: the forward "
+    "selection (`also`) runs on top of it; if what is then kept removes at least {explain_share} of the "
+    "misfit, the partial candidate is named with the kept causes under `also`."), decide_partial, gather_partial)
+
+
+def gather_promising(ctx, v: Verdict) -> Completion | None:
+    """A ``none`` verdict with a promising candidate off its bounds: the forward selection on the best such, and
+    all that is kept scored against the base with every parameter refitted per fold."""
+    pol = ctx.policy
+    pool = [c for c in ctx.diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
+    if not ctx.extend or v.cause != NONE or not pool:
+        return None
+    p = max(pool, key=lambda c: c.heldout_gain)
+    ctx.say(f"completing {p.cause}, which predicts the held-out records better but short of evidence, with other "
+            "causes on top")
+    fwd = forward(ctx, p, {p.cause})
+    if not fwd.kept:
+        return Completion(p, fwd, 0.0)
+    screen, folds, e_null = ctx.diag.screen, ctx.folds, ctx.held.null
+    e = refit_errors(screen, folds, ctx.result, fwd.kept[-1])
+    h = score(folds, e_null, e)
+    return Completion(p, fwd, share_of_misfit(screen, float(e_null @ e_null), h["sse"]), score=h,
+                      one_record=carried_by_one_record(folds, e_null, e))
+
+
+def decide_promising(ev: Completion, v: Verdict, policy: Policy) -> tuple[Verdict, list]:
+    p, kept, h = ev.candidate, ev.forward.kept, ev.score
+    named = bool(kept) and evidence(h, policy) and ev.share >= policy.explain_share and not ev.one_record
+    entries = [ev.forward.entry(), step(
+        "complete-promising", p.cause if named else NONE, promising=p.cause, kept=[c.cause for c in kept],
+        **({"gain": h["gain"], "z": h["z"], "share_of_misfit": ev.share} if kept else {}))]
+    if not named:
+        more = ("" if not ev.forward.tried else
+                f"; with other causes tried on top of {p.cause}, no combination predicts the held-out records "
+                "better with evidence that more than one record carries and removes "
+                f"{100 * policy.explain_share:.0f} % of the misfit")
+        return replace(v, reason=v.reason + more), entries
     h1 = p.heldout
-    diag.verdict.reason = (
-        f"predicts the held-out identification records better than the base model refitted the same way (gain "
-        f"{100 * h1['gain']:.2f} %, better in {h1['folds_improved']} of {h1['n_folds']} records) but short of "
-        f"evidence by itself (z = {h1['z']:.1f}); with {' + '.join(a.cause for a in diag.also)} on top, each "
-        f"predicting the held-out records better than what was kept before it, all of them with every parameter "
-        f"refitted per fold predict them better than the base model (gain {100 * h['gain']:.2f} %, z = "
-        f"{h['z']:.1f}) and remove {100 * share:.0f} % of its held-out misfit beyond white noise (two causes at once)")
-    return True
+    reason = (f"predicts the held-out identification records better than the base model refitted the same way (gain "
+              f"{100 * h1['gain']:.2f} %, better in {h1['folds_improved']} of {h1['n_folds']} records) but short of "
+              f"evidence by itself (z = {h1['z']:.1f}); with {' + '.join(a.cause for a in kept)} on top, each "
+              f"predicting the held-out records better than what was kept before it, all of them with every "
+              f"parameter refitted per fold predict them better than the base model (gain {100 * h['gain']:.2f} %, "
+              f"z = {h['z']:.1f}) and remove {100 * ev.share:.0f} % of its held-out misfit beyond white noise (two "
+              "causes at once)")
+    return _completed(v, ev, reason), entries
+
+
+COMPLETE_PROMISING = Rule("complete-promising", (
+    "*Two causes at once, promising.* A `none` verdict with a *promising* candidate (G >= {min_explained} "
+    "in more than half of the records, keeping its meaning, off its bounds): the "
+    "forward selection runs on top of the best such; if everything kept, every parameter refitted per fold, is "
+    "evidence against the base that does not rest on one record and removes at least {explain_share}, it is "
+    "named with them under `also`; otherwise the verdict stays `none`."), decide_promising, gather_promising)
 
 
 def not_identified(c: Candidate) -> str:

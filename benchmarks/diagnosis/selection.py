@@ -1,59 +1,15 @@
 """Choosing the cause on records that took no part in fitting it, from their held-out scores (``heldout``).
 
-Decision rule (``decide``; every threshold named here is a field of the policy, ``policy.Policy``, carried by
-the folds and the screen):
-
-1. A candidate *passes* if G >= ``min_explained``, it improves more than half
-   of the folds, z >= ``z_pass`` (or G >= ``strong_gain`` with every fold
-   improved: a transient misfit concentrates in few blocks), its parameters
-   are within the cause's meaning and none is at its search bound (else:
-   "not identified (at bound)"). An interference whose frequency, searched
-   on each fold's training records alone, and amplitude agree across the
-   folds (one line) passes with any G > 0 if it improves every fold with
-   z >= ``z_pass`` (``line_evidence``).
-2. Parsimony: among the passing candidates that the best (highest G) does not
-   beat by z >= ``z_same`` and that would be a verdict themselves (rule 3),
-   the one with fewest parameters is named. Another cause in that set is
-   reported as ambiguous with it, with the drive that would separate them
-   (``experiment``). When the named relaxation's slowest time constant is
-   longer than the longest drive period and creep predicts as well (a slow
-   low-pass of a drive with one mean level and a drift since the start are
-   nearly the same function), creep is named instead -- the weaker claim: the
-   records do not show that the slow part depends on the input -- with the
-   relaxation as ambiguous, even with creep's own time scale at its limit.
-   Relaxation variants with time constants closer than a factor ``duplicate_tau_ratio`` are not
-   admitted (two nearly equal low-passes with opposite gains are a band-pass,
-   not a relaxation); closer than their fold uncertainty, the variant with one
-   fewer is named if it predicts as well.
-3. A named cause that removes less than ``explain_share`` of the base's
-   held-out misfit beyond white noise (n sd^2) is still named, with the rest
-   reported as unexplained remainder, if it is *specific*: the part it removes
-   passes the block test (z >= ``z_pass``), its fold estimates agree within
-   ``partial_se`` (a mode's: its frequency, ``Cause.identifying``; its damping is
-   reported), and every other passing cause that predicts as well
-   (z < ``z_same``) removes the *same* part (held-out improvements
-   e_null - e with cosine >= ``same_slice``): those are rival explanations of
-   one part, so the one with fewest parameters is named and the others are
-   ambiguous with it (as in rule 2). A rival that removes another part makes
-   it a guess -- if the rival's own parameters agree across the folds; one
-   whose fold estimates disagree is no explanation either. So does a
-   sinusoid at a drive harmonic with the same phase in every record (no
-   interference: misfit locked to the drive) that has held-out evidence.
-   If the best-predicting partial cause is not specific, another passing
-   cause that is (by the same test, with ``min_records_check`` or more records) is named
-   with the rest as unexplained remainder (``specific_part``).
-   Otherwise the verdict is ``unexplained``; so it is if nothing passes
-   while the residual is structured (a candidate has held-out evidence but
-   fails the rest, or removes >= ``strong_gain`` of the held-out
-   squared error in all though not in most records -- either still evidence
-   without the record it improves most, ``carried_by_one_record`` -- or the
-   residual repeats from period to period: ``residuals.periodic_structure``).
-   Otherwise nothing passes: ``none``.
+``decide`` applies the rules of ``SELECTION`` in order to the held-out scores (``Scores``); their statements
+are the rule's text (``rules.rule_text``, docs/diagnosis.md). Every threshold is a field of the policy
+(``policy.Policy``), carried by the folds and the screen. The tests they use: ``identified`` (fold estimates
+agree), ``same_slice`` (two causes remove the same part of the misfit), ``why_not_specific`` (a partial cause
+that may be named) and ``specific_part``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -61,24 +17,9 @@ import numpy as np
 from .candidates import DRIVE_LOCKED, OPEN_ENDED_NOTE, Candidate
 from .heldout import HeldOut, carried_by_one_record, pairwise_z, passes, share_of_misfit, significant
 from .policy import Policy
+from .rule import NONE, UNEXPLAINED, Rule, Verdict, apply, step
 
-NONE, UNEXPLAINED = "none", "unexplained"  # the verdicts that name no cause
-@dataclass
-class Verdict:
-    cause: str  # none, unexplained or a vocabulary cause
-    chosen: Candidate | None
-    ambiguous_with: list[Candidate] = field(default_factory=list)
-    reason: str = ""
-    not_identified: list[str] = field(default_factory=list)  # "cause: parameter (at bound)"
-    partial: Candidate | None = None  # the best candidate when the verdict is unexplained
-    remainder: float | None = None  # share of the held-out misfit (beyond noise) the named cause leaves
-    trace: list = field(default_factory=list)  # the rules that decided it, in order (``step``)
-
-
-def step(rule: str, outcome: str, **inputs) -> dict:
-    """One entry of a diagnosis's trace: the rule's id (docs/diagnosis.md, "The decision rule"), what it
-    decided (a cause, ``none``, ``unexplained``, or what it changed) and the inputs it decided on."""
-    return {"rule": rule, "outcome": outcome, "inputs": inputs}
+UNDECIDED = ""  # no rule has decided yet
 
 
 def _score_of(c: Candidate) -> dict:
@@ -101,107 +42,234 @@ def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
             f"meaning; the best, {best.label} (held-out gain {100 * best.heldout_gain:.2f} %), is {why}")
 
 
+@dataclass(frozen=True)
+class Scores:
+    """What the cause is chosen on: the held-out residuals (``held``; its folds carry the policy), every
+    candidate and relaxation variant once (``candidates``), the variants alone, whether the base's residual
+    repeats from period to period (``structured``) and the screen (its held-out rows, noise sd and creep's least
+    time scale)."""
+
+    screen: object
+    held: HeldOut
+    candidates: tuple
+    variants: tuple
+    structured: bool
+
+    @property
+    def e_null(self) -> np.ndarray:
+        return self.held.null
+
+    def share(self, c: Candidate) -> float:
+        """The share of the base's held-out misfit beyond white noise that ``c`` removes."""
+        return share_of_misfit(self.screen, float(self.e_null @ self.e_null), c.heldout["sse"])
+
+    def passing(self, policy: Policy) -> list[Candidate]:
+        return [c for c in self.candidates if passes(c, policy)]
+
+    def best(self, policy: Policy) -> Candidate:
+        return max(self.passing(policy), key=lambda c: c.heldout_gain)
+
+
 def decide(screen, held: HeldOut, candidates: Sequence[Candidate], variants: Sequence[Candidate],
            structured: bool) -> Verdict:
-    """See the module docstring (every variant competes, not only the best); ``held``: the held-out residuals
-    of the base model and the candidates. The thresholds: ``held.folds.policy``."""
-    folds, e_null = held.folds, held.null
-    pol = folds.policy
-    null_sse = float(e_null @ e_null)
-    candidates = list({id(c): c for c in [*candidates, *variants]}.values())
-    ok = [c for c in candidates if passes(c, pol)]
-    not_identified = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
-                      if c.heldout.get("at_bound") and c.heldout_gain > 0]  # would predict something, unidentified
-    not_identified += [f"{c.cause}: {', '.join(c.heldout['open_ended'])} ({OPEN_ENDED_NOTE})" for c in candidates
-                       if c.heldout.get("open_ended") and not c.heldout.get("at_bound") and c.heldout_gain > 0]
-    not_identified = list(dict.fromkeys(not_identified))  # relaxation variants may repeat a line
-    evidence = [c for c in candidates if (significant(c, pol) or c.heldout_gain >= pol.strong_gain)  # partly predicted
-                and not carried_by_one_record(folds, e_null, held.of(c))]
-    if not ok:
-        seen = {"structured": structured, "evidence": [c.cause for c in evidence]}
-        if structured or evidence:
-            partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
-            why = ("the residual is structured (it repeats from period to period)" if structured else
-                   f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
-                   "or not within its meaning")
-            return Verdict("unexplained", None, reason=why + "; no cause's extension predicts it on held-out records",
-                           not_identified=not_identified, partial=partial,
-                           trace=[step("nothing-passes", "unexplained", **seen)])
-        return Verdict("none", None, reason=none_reason(candidates, pol), not_identified=not_identified,
-                       trace=[step("nothing-passes", "none", **seen)])
+    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best);
+    ``held``: the held-out residuals of the base model and the candidates. The thresholds: ``held.folds.policy``.
+    The share of the misfit is recorded on every passing candidate and on the one named."""
+    pol = held.folds.policy
+    ev = Scores(screen, held, tuple({id(c): c for c in [*candidates, *variants]}.values()), tuple(variants),
+                structured)
+    for c in ev.passing(pol):
+        c.heldout["share_of_misfit"] = ev.share(c)
+    v = Verdict(UNDECIDED, None, not_identified=unidentified(ev.candidates))
+    for rule in SELECTION:
+        v = apply(rule, ev, v, pol)
+    if v.chosen is None and v.partial is not None and ev.passing(pol):  # a partial cause named first
+        v.partial.heldout.setdefault("share_of_misfit", ev.share(v.partial))
+    if v.chosen is not None:
+        v.chosen.heldout.setdefault("share_of_misfit", ev.share(v.chosen))
+        v = replace(v, reason=v.reason + loose_note(v.chosen, pol))
+    return v
 
-    def record_share(c: Candidate) -> None:
-        c.heldout["share_of_misfit"] = share_of_misfit(screen, null_sse, c.heldout["sse"])
 
-    for c in ok:
-        record_share(c)
-    best = max(ok, key=lambda c: c.heldout_gain)
+def unidentified(candidates: Sequence[Candidate]) -> list[str]:
+    """The candidates that would predict something with a parameter at a search bound or open-ended."""
+    out = [f"{c.cause}: {', '.join(c.heldout['at_bound'])} (at bound)" for c in candidates
+           if c.heldout.get("at_bound") and c.heldout_gain > 0]
+    out += [f"{c.cause}: {', '.join(c.heldout['open_ended'])} ({OPEN_ENDED_NOTE})" for c in candidates
+            if c.heldout.get("open_ended") and not c.heldout.get("at_bound") and c.heldout_gain > 0]
+    return list(dict.fromkeys(out))  # relaxation variants may repeat a line
+
+
+def _predicts(c: Candidate) -> str:
+    return (f"predicts the held-out identification records better than the base model refitted the same way "
+            f"(gain {100 * c.heldout_gain:.2f} %, z = {c.heldout['z']:.1f})")
+
+
+def _named_reason(c: Candidate, best: Candidate, policy: Policy) -> str:
+    simpler = (f"; simpler than {best.label}, which does not predict better by z >= {policy.z_same:g}"
+               if c is not best else "")
+    return _predicts(c) + simpler
+
+
+def nothing_passes(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if v.cause != UNDECIDED or ev.passing(pol):
+        return v, None
+    held = ev.held
+    evidence = [c for c in ev.candidates if (significant(c, pol) or c.heldout_gain >= pol.strong_gain)
+                and not carried_by_one_record(held.folds, ev.e_null, held.of(c))]  # partly predicted
+    seen = {"structured": ev.structured, "evidence": [c.cause for c in evidence]}
+    if not (ev.structured or evidence):
+        return replace(v, cause=NONE, reason=none_reason(ev.candidates, pol)), step("nothing-passes", NONE, **seen)
+    partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
+    why = ("the residual is structured (it repeats from period to period)" if ev.structured else
+           f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
+           "or not within its meaning")
+    return (replace(v, cause=UNEXPLAINED, partial=partial,
+                    reason=why + "; no cause's extension predicts it on held-out records"),
+            step("nothing-passes", UNEXPLAINED, **seen))
+
+
+def simplest_as_good(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if v.cause != UNDECIDED:
+        return v, None
+    held, ok, best = ev.held, ev.passing(pol), ev.best(pol)
     # as good as the best: not worse by z >= z_same, and explaining enough of the misfit to be a verdict itself
-    same = [c for c in ok if c is best or (pairwise_z(held, best, c) < pol.z_same
-                                           and c.heldout["share_of_misfit"] >= pol.explain_share)]
-    if best.heldout["share_of_misfit"] < pol.explain_share:  # a partial explanation: rivals for the same slice of it
+    same = [c for c in ok if c is best or (pairwise_z(held, best, c) < pol.z_same and ev.share(c) >= pol.explain_share)]
+    if ev.share(best) < pol.explain_share:  # a partial explanation: rivals for the same slice of it
         same += [c for c in ok if c is not best and pairwise_z(held, best, c) < pol.z_same
-                 and same_slice(e_null, held.of(best), held.of(c), pol) and identified(c, pol)]
+                 and same_slice(ev.e_null, held.of(best), held.of(c), pol) and identified(c, pol)]
     chosen = min(same, key=lambda c: (c.k, -c.heldout_gain))
-    trace = [step("simplest-as-good", chosen.cause, best=_score_of(best), as_good=[_score_of(c) for c in same],
-                  passing=[c.cause for c in ok])]
-    merged = chosen.kind.merged(chosen, variants, held)
-    if merged is not chosen:
-        trace.append(step("merge-duplicates", merged.label, named=chosen.label, tau_s=chosen.estimates["tau_s"]))
-        chosen = merged
     others = {}
     for c in same:
         if c.cause != chosen.cause and (c.cause not in others or c.heldout_gain > others[c.cause].heldout_gain):
             others[c.cause] = c
-    slow_twin = slow_relaxation_twin(screen, held, chosen, candidates)
-    drift_note = ""
-    if slow_twin is not None:  # the weaker claim: a drift since the start, not a dependence on the input
-        others.pop(slow_twin.cause, None)
-        others = {chosen.cause: chosen, **others}
-        slowest = chosen.kind.slowest_time_s(chosen.estimates)
-        drift_note = (f"; named rather than relaxation: the relaxation's slowest time constant "
-                      f"({slowest:.3g} s) is longer than the longest drive period, so these "
-                      "records do not show that it depends on the input, and a drift since the start predicts "
-                      f"them as well (z < {pol.z_same:g})")
-        trace.append(step("slow-relaxation-twin", slow_twin.cause, relaxation=_score_of(chosen),
-                          creep=_score_of(slow_twin), slowest_tau_s=slowest))
-        chosen = slow_twin
-        if "share_of_misfit" not in chosen.heldout:
-            record_share(chosen)
-    share = chosen.heldout.get("share_of_misfit", 1.0)
-    reason = (f"predicts the held-out identification records better than the base model refitted the same way "
-              f"(gain {100 * chosen.heldout_gain:.2f} %, z = {chosen.heldout['z']:.1f})")
-    if chosen is not best and not drift_note:
-        reason += f"; simpler than {best.label}, which does not predict better by z >= {pol.z_same:g}"
-    reason += drift_note
-    remainder = None
-    if share < pol.explain_share:
-        verdict_on = why_not_specific(held, chosen, candidates, best, e_null)
-        why_not = verdict_on["text"]
-        not_named = {k: verdict_on[k] for k in ("why", "rivals")}
-        if why_not:
-            other = specific_part(held, ok, chosen, candidates, e_null)  # their shares recorded above
-            if other is not None:
-                share = other.heldout["share_of_misfit"]
-                trace.append(step("specific-part", other.cause, partial=_score_of(chosen), named=_score_of(other),
-                                  not_specific=not_named))
-                return Verdict(other.cause, other, [], (
-                    f"predicts the held-out identification records better than the base model refitted the same "
-                    f"way (gain {100 * other.heldout_gain:.2f} %, z = {other.heldout['z']:.1f}); it removes "
-                    f"{100 * share:.0f} % of the base model's held-out misfit beyond white noise: the other "
-                    f"{100 * (1 - share):.0f} % is unexplained ({chosen.label} predicts more of it, but {why_not})"
-                    + loose_note(other, pol)), not_identified, remainder=1.0 - share, trace=trace)
-            trace.append(step("partial-not-specific", "unexplained", partial=_score_of(chosen), not_specific=not_named))
-            return Verdict("unexplained", None, reason=(
-                f"the best-predicting cause ({chosen.cause}) removes only {100 * share:.0f} % of the base model's "
-                f"held-out misfit beyond white noise, and {why_not}"), not_identified=not_identified, partial=chosen,
-                trace=trace)
-        trace.append(step("partial-specific", chosen.cause, share_of_misfit=share))
-        remainder = 1.0 - share
-        reason += (f"; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
-                   f"the other {100 * remainder:.0f} % is unexplained")
-    return Verdict(chosen.cause, chosen, list(others.values()), reason + loose_note(chosen, pol), not_identified,
-                   remainder=remainder, trace=trace)
+    return (replace(v, cause=chosen.cause, chosen=chosen, ambiguous_with=tuple(others.values()),
+                    reason=_named_reason(chosen, best, pol)),
+            step("simplest-as-good", chosen.cause, best=_score_of(best), as_good=[_score_of(c) for c in same],
+                 passing=[c.cause for c in ok]))
+
+
+def merge_duplicates(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if v.chosen is None or v.remainder is not None:
+        return v, None
+    merged = v.chosen.kind.merged(v.chosen, ev.variants, ev.held)
+    if merged is v.chosen:
+        return v, None
+    return (replace(v, chosen=merged, reason=_named_reason(merged, ev.best(pol), pol)),
+            step("merge-duplicates", merged.label, named=v.chosen.label, tau_s=v.chosen.estimates["tau_s"]))
+
+
+def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    chosen = v.chosen
+    if chosen is None or v.remainder is not None or chosen.kind.slow_twin is None:
+        return v, None
+    if not slower_than_drive(chosen, ev.screen.creep_min, pol):
+        return v, None
+    slowest = chosen.kind.slowest_time_s(chosen.estimates)
+    twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and significant(c, pol)
+             and pairwise_z(ev.held, chosen, c) < pol.z_same]
+    if not twins:
+        return v, None
+    twin = max(twins, key=lambda c: c.heldout_gain)
+    # the weaker claim: a drift since the start, not a dependence on the input
+    reason = (_predicts(twin) + f"; named rather than relaxation: the relaxation's slowest time constant "
+              f"({slowest:.3g} s) is longer than the longest drive period, so these records do not show that it "
+              f"depends on the input, and a drift since the start predicts them as well (z < {pol.z_same:g})")
+    ambiguous = (chosen, *(c for c in v.ambiguous_with if c.cause != twin.cause))
+    return (replace(v, cause=twin.cause, chosen=twin, ambiguous_with=ambiguous, reason=reason),
+            step("slow-relaxation-twin", twin.cause, relaxation=_score_of(chosen), creep=_score_of(twin),
+                 slowest_tau_s=slowest))
+
+
+def slower_than_drive(c: Candidate, creep_min: float, policy: Policy) -> bool:
+    """A cause with a slow twin whose slowest time is at least ``creep_min`` / ``creep_periods`` (slower than every
+    drive period): its twin may stand for that slow part."""
+    kind = c.kind
+    return kind.slow_twin is not None and kind.slowest_time_s(c.estimates) >= creep_min / policy.creep_periods
+
+
+def _partial(ev: Scores, v: Verdict, pol: Policy) -> bool:
+    """The named cause removes less than ``explain_share`` and no partial rule has decided yet."""
+    return v.chosen is not None and v.remainder is None and ev.share(v.chosen) < pol.explain_share
+
+
+def _why_not(ev: Scores, v: Verdict, pol: Policy) -> dict:
+    return why_not_specific(ev.held, v.chosen, ev.candidates, ev.best(pol), ev.e_null)
+
+
+def partial_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if not _partial(ev, v, pol) or _why_not(ev, v, pol)["text"]:
+        return v, None
+    share = ev.share(v.chosen)
+    return (replace(v, remainder=1.0 - share, reason=(
+        f"{v.reason}; it removes {100 * share:.0f} % of the base model's held-out misfit beyond white noise: "
+        f"the other {100 * (1.0 - share):.0f} % is unexplained")),
+        step("partial-specific", v.chosen.cause, share_of_misfit=share))
+
+
+def _not_named(verdict_on: dict) -> dict:
+    return {k: verdict_on[k] for k in ("why", "rivals")}
+
+
+def specific_part_named(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if not _partial(ev, v, pol):
+        return v, None
+    other = specific_part(ev.held, ev.passing(pol), v.chosen, ev.candidates, ev.e_null)
+    if other is None:
+        return v, None
+    verdict_on, share = _why_not(ev, v, pol), ev.share(other)
+    reason = (f"{_predicts(other)}; it removes {100 * share:.0f} % of the base model's held-out misfit beyond "
+              f"white noise: the other {100 * (1 - share):.0f} % is unexplained ({v.chosen.label} predicts more "
+              f"of it, but {verdict_on['text']})")
+    return (replace(v, cause=other.cause, chosen=other, ambiguous_with=(), reason=reason, remainder=1.0 - share),
+            step("specific-part", other.cause, partial=_score_of(v.chosen), named=_score_of(other),
+                 not_specific=_not_named(verdict_on)))
+
+
+def partial_not_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
+    if not _partial(ev, v, pol):
+        return v, None
+    verdict_on, p = _why_not(ev, v, pol), v.chosen
+    return (replace(v, cause=UNEXPLAINED, chosen=None, ambiguous_with=(), partial=p, reason=(
+        f"the best-predicting cause ({p.cause}) removes only {100 * ev.share(p):.0f} % of the base model's "
+        f"held-out misfit beyond white noise, and {verdict_on['text']}")),
+        step("partial-not-specific", UNEXPLAINED, partial=_score_of(p), not_specific=_not_named(verdict_on)))
+
+
+SELECTION = (
+    Rule("nothing-passes", (
+        "If nothing passes: the verdict is `unexplained` if the residual is structured (period-to-period F > "
+        "{structure_f}) or some candidate has evidence or G >= {strong_gain} that does not rest on one record "
+        "(with {min_records_check} or more records, it is still evidence without the record it improves most); "
+        "otherwise `none`."), nothing_passes),
+    Rule("simplest-as-good", (
+        "Let *best* be the passing candidate with the highest G. The candidates *as good* are best and every "
+        "passing candidate that predicts as well as best and removes at least {explain_share} of the misfit; if "
+        "best removes less, also every passing candidate that predicts as well, removes the same part "
+        "(improvements e_r - e with cosine >= {same_slice}) and is identified. The one with fewest parameters is "
+        "named (ties: higher G); the as-good candidates of other causes are *ambiguous with* it."),
+        simplest_as_good),
+    Rule("merge-duplicates", (
+        "A named relaxation with two time constants closer than the larger of a factor {duplicate_tau_ratio} "
+        "and twice their fold spread gives way to the variant with one fewer, if that passes and predicts as "
+        "well."), merge_duplicates),
+    Rule("slow-relaxation-twin", (
+        "A named relaxation whose slowest time constant is longer than the longest drive period (creep's least "
+        "time scale / {creep_periods}) gives way to creep if creep has evidence and predicts as well; the "
+        "relaxation is then ambiguous with it."), slow_relaxation_twin),
+    Rule("partial-specific", (
+        "If the named cause removes less than {explain_share} of the misfit it is named, with the rest as "
+        "*unexplained remainder*, only if it is *specific*: the best predictor of that part has z >= {z_pass}, "
+        "it is identified, and no rival that predicts as well removes another part (cosine < {same_slice}). "
+        "Rivals: passing, identified candidates of other causes, and a drive-locked sinusoid with evidence."),
+        partial_specific),
+    Rule("specific-part", (
+        "If it is not specific, the passing candidate with the highest G that is specific is named with the "
+        "remainder (only with {min_records_check} or more records)."), specific_part_named),
+    Rule("partial-not-specific", (
+        "Otherwise the verdict is `unexplained`, with the named cause as the best partial candidate."),
+        partial_not_specific),
+)
 
 
 def identified(c: Candidate, policy: Policy) -> bool:
@@ -245,12 +313,6 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
     return norm > 0 and float(d_a @ d_b) / norm >= policy.same_slice
 
 
-def not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
-                 best: Candidate | None = None, e_null: np.ndarray | None = None) -> str:
-    """Why a cause that removes only part of the misfit is not named, as text ("" if it is): ``why_not_specific``."""
-    return why_not_specific(held, chosen, candidates, best, e_null)["text"]
-
-
 def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
                      best: Candidate | None = None, e_null: np.ndarray | None = None) -> dict:
     """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
@@ -283,7 +345,7 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
 
 def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
                   candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
-    """When the best-predicting partial explanation is not specific (``not_specific``), another passing cause
+    """When the best-predicting partial explanation is not specific (``why_not_specific``), another passing cause
     that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
     rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
     e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
@@ -292,21 +354,6 @@ def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
     if held.folds.n_scored < held.folds.policy.min_records_check:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):
-        if c is not partial and c.cause != partial.cause and not not_specific(held, c, candidates, c, e_null):
+        if c is not partial and c.cause != partial.cause and not why_not_specific(held, c, candidates, c, e_null)["text"]:
             return c
     return None
-
-
-def slow_relaxation_twin(screen, held: HeldOut, chosen: Candidate,
-                         candidates: Sequence[Candidate]) -> Candidate | None:
-    """Creep, when the named relaxation's slowest time constant is longer than the longest drive period and
-    creep predicts the held-out records as well (z < ``z_same``), even with its own time scale at its limit
-    (``creep_periods`` drive periods): under drives of one mean level a slow low-pass of the input and a
-    drift since the start are nearly the same function."""
-    pol = held.folds.policy
-    kind = chosen.kind
-    if kind.slow_twin is None or kind.slowest_time_s(chosen.estimates) < screen.creep_min / pol.creep_periods:
-        return None
-    twins = [c for c in candidates if c.cause == kind.slow_twin and significant(c, pol)
-             and pairwise_z(held, chosen, c) < pol.z_same]
-    return max(twins, key=lambda c: c.heldout_gain) if twins else None

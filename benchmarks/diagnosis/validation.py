@@ -3,7 +3,7 @@
 * The named cause (``fit_extension``): its extension identified on the identification records' whole length
   against the base model refitted the same way (``refit_base_whole``); borne out (``borne_out``) if it lowers
   the validation records' residual by more than their noise explains; an interference, by the same amplitude.
-* An ``unexplained`` verdict resting on a candidate's held-out evidence alone (``check_unexplained``): that
+* An ``unexplained`` verdict resting on a candidate's held-out evidence alone (rule ``unexplained-check``): that
   candidate, by the same test; if not, the verdict is ``none``.
 * The causes kept under "also" (``check_also``): each on top of what was kept before it, by the same test;
   reported, the verdict unchanged.
@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 from typing import Callable
 
 from hysbench.identification import Fit
@@ -20,7 +21,7 @@ from .extensions import gain, identify_whole, registered_extension, residuals_of
 from .causes import CAUSES
 from .residuals import RecordResidual
 from .policy import Policy
-from .selection import Verdict, step
+from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
@@ -31,6 +32,14 @@ def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> 
     if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
     return ok and bool(v["z_whole"] >= policy.z_confirm)
+
+
+def validation_record(c: Candidate, g: dict, check: dict, policy: Policy) -> dict:
+    """What a candidate's extension did on the validation records (``gain``; an interference's ``check``), as
+    reported: its scores and whether they bear it out."""
+    return {"cause": c.cause, "label": c.label, "checked": True, "borne_out": borne_out(g, c.cause, check, policy),
+            **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
+            **({"interference_check": check} if check else {})}
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
@@ -58,39 +67,85 @@ def identified_whole(diag, model, start) -> Fit:
 
 def refit_base_whole(diag, say: Callable[[str], None]) -> None:
     """The baseline an extension is measured against: the base model refitted on the identification records'
-    whole length (on the screen's rows), from its fit on their windows."""
+    whole length (on the screen's rows), from its fit on their windows; once."""
+    if diag.base_whole_fit is not None:
+        return
     say(f"refitting {diag.screen.base.name} on the identification records' whole length (the baseline)")
     diag.base_whole_fit = identified_whole(diag, diag.screen.base, diag.base_fit.params)
     diag.base_whole = residuals_of_fit(diag.base_whole_fit, diag.dataset)
 
 
-def check_unexplained(diag, say: Callable[[str], None]) -> None:
-    """An ``unexplained`` verdict resting on its best partial candidate alone: that candidate's extension must
-    predict the validation records as a named cause must (``borne_out``); if it does not, the held-out evidence
-    that made the residual look structured is not borne out on data that took no part, and the verdict is
-    ``none`` (the candidate kept as the best partial one)."""
-    v, p = diag.verdict, diag.verdict.partial
-    if not diag.dataset.validation:
-        diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": False,
-                                  "note": "no validation record"}
-        return
-    say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
-    _, after, check = fit_extension(diag, p, say)
+def gather_unexplained(ctx, v: Verdict) -> dict | None:
+    """An ``unexplained`` verdict resting on its best partial candidate alone (the residual not structured):
+    that candidate's extension on the validation records, against the base refitted the same way (recorded on
+    the diagnosis as ``unexplained_check``)."""
+    diag, p = ctx.diag, v.partial
+    if not ctx.extend or v.cause != UNEXPLAINED or p is None or diag.structure["structured"]:
+        return None
+    refit_base_whole(diag, ctx.say)
+    ctx.say(f"checking on the validation records what {p.label} predicted of the unexplained residual")
+    _, after, check = fit_extension(diag, p, ctx.say)
     g = gain(diag.base_whole, after, "validation")
-    borne = borne_out(g, p.cause, check, diag.screen.policy)
-    diag.unexplained_check = {"cause": p.cause, "label": p.label, "checked": True, "borne_out": borne,
-                              **{k: g[k] for k in ("records", "explained_whole", "explained_window", "z_whole")},
-                              **({"interference_check": check} if check else {})}
-    diag.trace.append(step("unexplained-check", "unexplained" if borne else "none", partial=p.cause,
-                           **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")}))
+    diag.unexplained_check = {**validation_record(p, g, check, ctx.policy), "records": g["records"]}
+    return diag.unexplained_check
+
+
+def decide_unexplained(check: dict, v: Verdict, policy: Policy) -> tuple[Verdict, dict]:
+    p = v.partial
+    borne = borne_out(check, p.cause, check.get("interference_check", {}), policy)
+    entry = step("unexplained-check", UNEXPLAINED if borne else NONE, partial=p.cause,
+                 **{k: check[k] for k in ("explained_whole", "explained_window", "z_whole")})
     if borne:
-        return
-    diag.verdict = Verdict("none", None, reason=(
+        return v, entry
+    return replace(v, cause=NONE, chosen=None, ambiguous_with=(), remainder=None, reason=(
         f"{v.reason}; but fitted on the identification records {p.label} does not predict the validation records "
-        f"beyond their noise ({100 * g['explained_whole']:.1f} % of their residual removed, z = {g['z_whole']:.2f}, "
-        f"needs {diag.screen.policy.z_confirm:.3g}): the structure it pointed to is not borne out on data that took "
-        "no part, so "
-        f"nothing is named"), not_identified=v.not_identified, partial=p)
+        f"beyond their noise ({100 * check['explained_whole']:.1f} % of their residual removed, z = "
+        f"{check['z_whole']:.2f}, needs {policy.z_confirm:.3g}): the structure it pointed to is not borne out on "
+        "data that took no part, so nothing is named")), entry
+
+
+UNEXPLAINED_CHECK = Rule("unexplained-check", (
+    "An `unexplained` verdict that rests on a candidate's held-out evidence alone (the residual not "
+    "structured) must have that candidate's extension confirmed as a named cause is (`validation`); otherwise "
+    "the verdict is `none`."), decide_unexplained, gather_unexplained, timing="unexplained_check")
+
+
+@dataclass(frozen=True)
+class Validation:
+    """The named extension's gain on the validation records (``extensions.gain``; empty without one) and, for
+    an interference, its check there (``Cause.on_validation``)."""
+
+    gain: dict
+    interference_check: dict
+
+
+def gather_validation(ctx, v: Verdict) -> Validation | None:
+    """The named extension identified on the identification records' whole length, its residuals and the base
+    refitted the same way recorded on the diagnosis."""
+    diag = ctx.diag
+    if not ctx.extend or v.chosen is None:
+        return None
+    refit_base_whole(diag, ctx.say)
+    diag.extended_fit, diag.after, diag.interference_check = fit_extension(diag, v.chosen, ctx.say)
+    return Validation(diag.gain().get("validation") or {}, diag.interference_check)
+
+
+def decide_validation(ev: Validation, v: Verdict, policy: Policy) -> tuple[Verdict, dict]:
+    g = ev.gain
+    confirmed = bool(g) and borne_out(g, v.cause, ev.interference_check, policy)
+    return v, step("validation", "confirmed" if confirmed else "not confirmed", cause=v.cause,
+                   **{k: g.get(k) for k in ("explained_whole", "explained_window", "z_whole")},
+                   **({"same_amplitude": ev.interference_check.get("same_amplitude")}
+                      if v.chosen.kind.disturbance else {}))
+
+
+VALIDATION = Rule("validation", (
+    "The named extension is identified on the identification records' whole length; it is *confirmed* if it "
+    "lowers the validation records' residual (against the base refitted the same way) over whole records and "
+    "on the scored windows, with z >= {z_confirm} (the normal quantile of 1 - {confirm_p}; z counts correlated "
+    "noise). An interference is confirmed by its amplitude on the validation records, phase fitted per record, "
+    "within {interference_amplitude_tolerance} of the identified one. Reported; the verdict is unchanged."),
+    decide_validation, gather_validation, timing="extended_fit")
 
 
 def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
@@ -109,10 +164,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
     is unchanged."""
     if not diag.also or not diag.after:
         return
-    if not diag.dataset.validation:
-        diag.also_check = [{"cause": c.cause, "label": c.label, "checked": False, "note": "no validation record"}
-                           for c in diag.also]
-        return
     lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
     before, out, clipped = diag.after, [], False
     for c in diag.also:
@@ -129,9 +180,6 @@ def check_also(diag, say: Callable[[str], None]) -> None:
         else:
             part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
             after = _with_lines(part, lines, diag.screen.policy)
-        g = gain(before, after, "validation")
-        out.append({**entry, "checked": True, "borne_out": borne_out(g, c.cause, check, diag.screen.policy),
-                    **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
-                    **({"interference_check": check} if check else {})})
+        out.append(validation_record(c, gain(before, after, "validation"), check, diag.screen.policy))
         before = after
     diag.also_check = out
