@@ -50,15 +50,19 @@ def _advance(state, u):
     state[3] += 1.0
 
 
+@njit(inline="always")
+def _views(coef, state, fpow):
+    """The parameter arrays in ``coef`` and the state's plays and filters, as views (sizes from the arrays)."""
+    f = fpow.shape[0]
+    n = state.shape[0] - HEAD - f
+    m = coef.shape[0] - HEAD - 3 * n - 4 * f
+    return _unpack(coef, n, m, f) + (state[HEAD:HEAD + n], state[HEAD + n:HEAD + n + f])
+
+
 @njit(cache=True, nogil=True, fastmath=KERNEL_FASTMATH)
 def pi_step(u, base, coef, state, fpow):
     """The output at this sample for input u (the state advances); sizes from the arrays."""
-    f = fpow.shape[0]
-    n = (state.shape[0] - HEAD - f)
-    m = coef.shape[0] - HEAD - 3 * n - 4 * f
-    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw = _unpack(coef, n, m, f)
-    w = state[HEAD:HEAD + n]
-    xf = state[HEAD + n:HEAD + n + f]
+    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw, w, xf = _views(coef, state, fpow)
     y = step_commit(u, state[0] != 0.0, state[1], state[2], coef[0], base, w, xf, r_lo, r_hi, coef[1], coef[2],
                     weights, poly, coef[3], fa, fb0, fb1, fpow, fw)
     _advance(state, u)
@@ -69,12 +73,7 @@ def pi_step(u, base, coef, state, fpow):
 def pi_inverse_step(yd, base, coef, state, fpow, limits, st):
     """The input for desired output yd at this sample (the state advances); limits = [u_lo, u_hi,
     max_step, n_grid, tol]; ``search_clipped(st)`` tells whether it clipped."""
-    f = fpow.shape[0]
-    n = (state.shape[0] - HEAD - f)
-    m = coef.shape[0] - HEAD - 3 * n - 4 * f
-    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw = _unpack(coef, n, m, f)
-    w = state[HEAD:HEAD + n]
-    xf = state[HEAD + n:HEAD + n + f]
+    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw, w, xf = _views(coef, state, fpow)
     x = invert_sample(yd, state[0] != 0.0, state[1], state[2], coef[0], base, limits[0], limits[1], limits[2],
                       int(limits[3]), limits[4], st, w, xf, r_lo, r_hi, coef[1], coef[2], weights, poly, coef[3],
                       fa, fb0, fb1, fpow, fw)
@@ -87,12 +86,7 @@ def pi_guided_inverse_step(yd, mapped, base, coef, state, fpow, limits, st, guid
     """The reference-driven inverse at this sample (``inverse.guided_invert_sample``): the input for
     desired output yd, the mapped reference ``mapped`` (``inverse.mapped_reference``) giving the guide
     (``inverse.guide_step``; limits[5] its follower's c); guide = [g(k-1), g(k-2)] and the state advance."""
-    f = fpow.shape[0]
-    n = (state.shape[0] - HEAD - f)
-    m = coef.shape[0] - HEAD - 3 * n - 4 * f
-    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw = _unpack(coef, n, m, f)
-    w = state[HEAD:HEAD + n]
-    xg = state[HEAD + n:HEAD + n + f]
+    r_lo, r_hi, weights, poly, fa, fb0, fb1, fw, w, xg = _views(coef, state, fpow)
     first = state[0] != 0.0
     if first:
         guide[0] = guide[1] = mapped
