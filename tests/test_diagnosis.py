@@ -1065,7 +1065,9 @@ class Pin:
     not; ``dropped``: the first named cause dropped by the backward step (False: none dropped); ``confirmed``
     (None: not checked); ``remainder``: the least unexplained remainder said with it; ``ambiguous``: causes
     listed as ambiguous with it; ``rules``: (rule id, outcome) entries its trace must hold (outcome None: any);
-    ``errors``: {cause: {parameter: largest relative error}}, of the named cause or of one kept under also."""
+    ``errors``: {cause: {parameter: largest relative error}}, of the named cause or of one kept under also;
+    ``variant``: the same rule path and outcome as another pinned case (another seed, drive or plant), run with
+    ``-m slow`` (pyproject's addopts leave the slow tests out of the default run)."""
 
     kinds: tuple
     base: str
@@ -1084,6 +1086,7 @@ class Pin:
     ambiguous: tuple = ()
     rules: tuple = ()
     errors: dict = field(default_factory=dict)
+    variant: bool = False
 
     def diagnosed(self):
         if self.base == "piezo" and not piezo_available():
@@ -1100,9 +1103,10 @@ PINNED = {
                                                    cause="relaxation", errors={"relaxation": {"tau_s": 0.05}}),
     "white-noise-is-none": Pin(("null-white",), "mrpim", "sines", 0, cause="none"),
     "ar1-noise-is-none": Pin(("null-ar1",), "mrpim", "sines", 1, {"null-ar1": {"ar1": 0.99}}, cause="none"),
-    "ar1-noise-is-none-again": Pin(("null-ar1",), "mrpim", "sines", 2, {"null-ar1": {"ar1": 0.99}}, cause="none"),
+    "ar1-noise-is-none-again": Pin(("null-ar1",), "mrpim", "sines", 2, {"null-ar1": {"ar1": 0.99}}, cause="none",
+                                   variant=True),
     "gain-modulation-is-no-vocabulary-cause": Pin(("gain-modulation",), "mrpim", "sines", 3, cause=NOT_A_CAUSE),
-    "dead-zone-is-no-vocabulary-cause": Pin(("dead-zone",), "mrpim", "sines", 3, cause=NOT_A_CAUSE),
+    "dead-zone-is-no-vocabulary-cause": Pin(("dead-zone",), "mrpim", "sines", 3, cause=NOT_A_CAUSE, variant=True),
     # a sinusoid of under two cycles per record is a per-record drift, not an interference
     "modulation-slower-than-the-records": Pin(
         ("gain-modulation",), "mrpim", "multisines", 5,
@@ -1122,13 +1126,13 @@ PINNED = {
         rules=(("drop-redundant-primary", "delay"),), errors={"delay": {"delay_s": 0.25}}),
     "relaxation-dropped-causes-composed-strongest-first": Pin(
         ("delay", "creep"), "mrpim", "sines", 3700057, cause="creep", also=("delay",), dropped="relaxation",
-        rules=(("drop-redundant-primary", "creep"),), errors={"delay": {"delay_s": 0.25}}),
+        rules=(("drop-redundant-primary", "creep"),), errors={"delay": {"delay_s": 0.25}}, variant=True),
     "relaxation-dropped-creep-alone-at-its-limit": Pin(
         ("delay", "creep"), "mrpim", "sines", 3800177, cause="creep", also=("delay",), dropped="relaxation",
         rules=(("drop-redundant-primary", "creep"),), errors={"delay": {"delay_s": 0.25}}),
     "creep-standing-in-at-its-limit": Pin(
         ("delay", "creep"), "mrpim", "sines", 3100177, cause="delay", also=("creep",), dropped="relaxation",
-        rules=(("drop-redundant-primary", "delay"),), errors={"delay": {"delay_s": 0.25}}),
+        rules=(("drop-redundant-primary", "delay"),), errors={"delay": {"delay_s": 0.25}}, variant=True),
     "creep-standing-in-at-the-end-of-its-search": Pin(
         ("delay", "creep"), "mrpim", "sines", 3200177, cause="delay", also=("creep",), dropped="relaxation",
         rules=(("drop-redundant-primary", "delay"),), errors={"delay": {"delay_s": 0.25}}),
@@ -1169,7 +1173,7 @@ PINNED = {
     "delay-found-by-the-exact-scan": Pin(("delay",), "mrpim", "triangles", 3600093, extend=False, cause="delay",
                                          errors={"delay": {"delay_s": 0.01}}),
     "delay-at-triangle-corners": Pin(("delay",), "mrpim", "triangles", 63, {"delay": {"delay_s": 0.0231}},
-                                     extend=False, cause="delay", errors={"delay": {"delay_s": 0.05}}),
+                                     extend=False, cause="delay", errors={"delay": {"delay_s": 0.05}}, variant=True),
     "short-delay-at-triangle-corners": Pin(("delay",), "mrpim", "triangles", 63, {"delay": {"delay_s": 0.012}},
                                            extend=False, cause="delay", errors={"delay": {"delay_s": 0.05}}),
     "line-within-a-broadband-drives-reach": Pin(
@@ -1195,7 +1199,13 @@ PINNED = {
 }
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=same_worker(n)) for n in PINNED])
+def pinned_param(name: str, *values):
+    """A test parameter that reads the pinned case ``name``: in its worker, and slow if it is a variant."""
+    marks = [same_worker(name)] + ([pytest.mark.slow] if PINNED[name].variant else [])
+    return pytest.param(*(values or (name,)), marks=marks)
+
+
+@pytest.mark.parametrize("name", [pinned_param(n) for n in PINNED])
 def test_a_pinned_planted_case_gives_its_verdict(name):
     pin = PINNED[name]
     d, truth = pin.diagnosed()
@@ -1247,7 +1257,7 @@ def test_a_line_below_the_gain_floor_is_one_line_on_every_fold():
 
 
 @pytest.mark.parametrize("name, end, alone", [
-    pytest.param(name, end, alone, marks=same_worker(name)) for name, end, alone in (
+    pinned_param(name, name, end, alone) for name, end, alone in (
         ("creep-standing-in-at-its-limit", "limit", False),
         ("creep-standing-in-at-the-end-of-its-search", "search", False),
         ("relaxation-dropped-creep-alone-at-its-limit", "limit", True))])
