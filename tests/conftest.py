@@ -1,5 +1,8 @@
-"""Shared test fixtures, and the hypothesis profile every test process runs under."""
+"""Shared test fixtures, the hypothesis profile every test process runs under, and the order in which the
+test processes take their work."""
 
+import json
+from collections import defaultdict
 from pathlib import Path
 
 import pytest
@@ -42,11 +45,41 @@ def shared_datasets() -> Path:
     return SHARED_DATASETS
 
 
+# Measured seconds per test (setup, call and teardown), written by `pytest -n 2 --store-durations`.
+DURATIONS = Path(__file__).with_name("durations.json")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--store-durations", action="store_true",
+                     help=f"write each test's measured seconds to {DURATIONS.name} (orders the next runs' work)")
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """A test that uses a module-scoped fixture runs in the worker of the other tests of its module that use
     one (per value of a parametrised one), so each such fixture is computed once (pyproject: --dist
-    loadgroup, which reads this group). A test already given a group keeps it."""
+    loadgroup, which reads this group). A test already given a group keeps it. Then the work units
+    (a group, or a test of none) are ordered longest first by their measured durations, so that no
+    process is left with a long unit while the other has finished (pyproject: --no-loadscope-reorder
+    keeps this order); units never measured keep their collection order, after the measured ones."""
+    _group_by_shared_fixture(items)
+    seconds = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
+    unit_of = {item.nodeid: _unit(item) for item in items}
+    total = defaultdict(float)
+    for item in items:
+        total[unit_of[item.nodeid]] += seconds.get(item.nodeid, 0.0)
+    first = {}
+    for i, item in enumerate(items):
+        first.setdefault(unit_of[item.nodeid], i)
+    items.sort(key=lambda item: (-total[unit_of[item.nodeid]], first[unit_of[item.nodeid]]))
+
+
+def _unit(item) -> str:
+    marker = item.get_closest_marker("xdist_group")
+    return f"@{marker.args[0] if marker.args else marker.kwargs.get('name')}" if marker else item.nodeid
+
+
+def _group_by_shared_fixture(items):
     for item in items:
         if item.get_closest_marker("xdist_group"):
             continue
@@ -59,3 +92,18 @@ def pytest_collection_modifyitems(config, items):
         if shared:
             values = ",".join(f"{n}={params[n]}" for n in sorted(shared) if n in params)
             item.add_marker(pytest.mark.xdist_group(f"{item.module.__name__}[{values}]"))
+
+
+_measured = defaultdict(float)
+
+
+def pytest_runtest_logreport(report):
+    # in the controlling process under xdist; a grouped test's id there ends in "@group"
+    _measured[report.nodeid.rsplit("@", 1)[0] if "@" in report.nodeid else report.nodeid] += report.duration
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if session.config.getoption("--store-durations") and not hasattr(session.config, "workerinput"):
+        seconds = json.loads(DURATIONS.read_text()) if DURATIONS.is_file() else {}
+        seconds.update({k: round(v, 1) for k, v in _measured.items()})  # tests not run keep their figure
+        DURATIONS.write_text(json.dumps({k: v for k, v in sorted(seconds.items()) if v >= 0.5}, indent=0) + "\n")

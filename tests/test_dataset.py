@@ -1,7 +1,5 @@
 """The dataset format: round trips, defaults, and one test per refused case."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -229,16 +227,13 @@ def test_npz_with_pickles_is_refused(tmp_path):
         load_dataset(tmp_path)
 
 
-def test_cli_reports_refusal_in_one_line(tmp_path):
+def test_cli_reports_refusal_in_one_line(tmp_path, capsys):
     folder = make(tmp_path, GOOD.replace("identification", "training"))
-    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "check", str(folder)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and "role must be" in proc.stderr and "Traceback" not in proc.stderr
+    assert main(["check", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "role must be" in err and "Traceback" not in err
     ok = make(tmp_path, GOOD)
-    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "check", str(ok)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0 and "r.csv" in proc.stdout
+    assert main(["check", str(ok)]) == 0 and "r.csv" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("frequency", ["500.0", "1e6"])  # Nyquist of a 1 ms step is 500 Hz

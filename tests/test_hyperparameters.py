@@ -7,12 +7,11 @@ hyperparameter and the value, which the CLI prints as one line with status 2.
 """
 
 import inspect
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from hysbench.benchmarks.cli import main as hysbench
 from hysbench.data.virtual_dea import default_dataset_path
 from hysbench.models import ModelError, get_model, list_models
 from hysbench.models.hyperparameters import MAX_OPERATORS, check_bool, check_int, check_number
@@ -158,16 +157,16 @@ def test_the_helpers_name_owner_key_and_value():
     assert check_number("m", "x", 2, positive=True) == 2.0
 
 
-def test_cli_refuses_a_bad_boolean_in_one_line_with_status_2(tmp_path):
+def test_cli_refuses_a_bad_boolean_in_one_line_with_status_2(tmp_path, capsys):
     dataset = str(default_dataset_path())
     for hyper, named in (("q_term=no", "q_term must be true or false, got 'no'"),
                          ("n_operators=100000000", "n_operators must be an integer in 1..1000, got 100000000")):
         out = tmp_path / "fit.json"
-        run = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "fit", dataset, "--model",
-                              "classical-pi" if hyper.startswith("n_") else "mrpim", "--hyper", hyper,
-                              "--json", str(out)], capture_output=True, text=True, timeout=300)
-        assert run.returncode == 2, run.stderr
-        lines = run.stderr.strip().splitlines()
-        assert len(lines) == 1 and "Traceback" not in run.stderr, run.stderr
+        status = hysbench(["fit", dataset, "--model", "classical-pi" if hyper.startswith("n_") else "mrpim",
+                           "--hyper", hyper, "--json", str(out)])
+        err = capsys.readouterr().err
+        assert status == 2, err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and "Traceback" not in err, err
         assert lines[0].startswith("hysbench fit: error: ") and named in lines[0]
         assert not out.exists()

@@ -14,6 +14,7 @@ import pytest
 
 from dataclasses import replace
 
+from hysbench.benchmarks.cli import main as hysbench
 from hysbench.benchmarks.matrix import cells as cells_module
 from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
 from hysbench.benchmarks.matrix.execute import run_matrix
@@ -43,6 +44,12 @@ def small_dataset(tmp_path_factory) -> Path:
 
 def run(args, **kw):
     return subprocess.run(CLI + ["run", "--quiet"] + args, capture_output=True, text=True, **kw)
+
+
+def refusal(capsys, args) -> tuple[int, str]:
+    """(exit status, stderr) of `hysbench run --quiet ARGS` run in this process."""
+    status = hysbench(["run", "--quiet", *args])
+    return status, capsys.readouterr().err
 
 
 def read_matrix(path: Path, drop_timing=True):
@@ -136,28 +143,28 @@ def test_dask_cluster_gives_the_same_matrix(small_dataset, tmp_path):
     (["--methods", "mpso", "--option", "mpso.warp_speed=3"], "unknown option 'warp_speed'"),
     (["--methods", "mpso", "--option", "mpso.iterations=-3"], "must be an integer"),
 ])
-def test_bad_options(small_dataset, tmp_path, args, message):
+def test_bad_options(small_dataset, tmp_path, capsys, args, message):
     out = tmp_path / "out"
-    proc = run([str(small_dataset), "--out", str(out), *args])
-    assert proc.returncode == 2
-    assert message in proc.stderr and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    status, err = refusal(capsys, [str(small_dataset), "--out", str(out), *args])
+    assert status == 2
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists()  # nothing written
 
 
-def test_refused_dataset(tmp_path):
+def test_refused_dataset(tmp_path, capsys):
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "dataset.toml").write_text('name = "x"\n')
-    proc = run([str(bad), "--out", str(tmp_path / "out")])
-    assert proc.returncode == 2 and "missing key(s)" in proc.stderr and proc.stderr.count("\n") == 1
+    status, err = refusal(capsys, [str(bad), "--out", str(tmp_path / "out")])
+    assert status == 2 and "missing key(s)" in err and err.count("\n") == 1
 
 
-def test_unwritable_output(small_dataset, tmp_path):
+def test_unwritable_output(small_dataset, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    proc = run([str(small_dataset), "--out", str(blocker / "out"), *FAST])
-    assert proc.returncode == 2 and "cannot create output folder" in proc.stderr
-    assert proc.stderr.count("\n") == 1
+    status, err = refusal(capsys, [str(small_dataset), "--out", str(blocker / "out"), *FAST])
+    assert status == 2 and "cannot create output folder" in err
+    assert err.count("\n") == 1
 
 
 # --- real measured data (read in place, never copied): see measured_data.py ---------

@@ -1,12 +1,11 @@
 """Metrics (eq. 9-10), loop geometry, the protocol and `hysbench reproduce`."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from hysbench.benchmarks.cli import main as hysbench
 from hysbench.data import metrics, protocol
 from hysbench.models import get_model
 
@@ -60,10 +59,8 @@ def test_scores_of_a_known_error_on_the_scored_window():
     assert ds.records[0].n_scored == 2500  # the last whole period of 0.4 Hz at 1 kHz
 
 
-def test_reproduce_writes_report(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "reproduce", "--out", str(tmp_path)],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
+def test_reproduce_writes_report(tmp_path, capsys):
+    assert hysbench(["reproduce", "--out", str(tmp_path)]) == 0, capsys.readouterr().err
     r = json.loads((tmp_path / "paper_reproduction.json").read_text())
     assert set(r["frequencies"]) == {"0.02", "0.05", "0.1", "0.2", "0.4", "0.8", "1"}
     # the stable (second) period's peak-to-peak, computed here from a plain simulation
@@ -80,9 +77,9 @@ def test_reproduce_writes_report(tmp_path):
     assert "width_change_pct" in r and (tmp_path / "paper_reproduction.md").is_file()
 
 
-def test_reproduce_unwritable_output_is_one_line(tmp_path):
+def test_reproduce_unwritable_output_is_one_line(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    proc = subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", "reproduce", "--out", str(blocker / "sub")],
-                          capture_output=True, text=True)
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    status = hysbench(["reproduce", "--out", str(blocker / "sub")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "Traceback" not in err
