@@ -15,18 +15,18 @@ import numpy as np
 from ..candidates import DRIVE_LOCKED, Candidate, prominence
 from ..cause import OUTPUT_UNIT, Cause, register
 from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, fold_amplitude, fold_frequencies,
-                     frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted)
+                     frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted, rms, row_times)
 from ..residuals import RecordResidual, coherent_spectrum, spectral_peaks
 from ..heldout import out_of_fold
 from ..policy import Policy
 
 
-def fit_interference(screen, n_peaks: int = 5) -> Candidate:
+def fit_interference(screen) -> Candidate:
     """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
     peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
     line (``JointLine``; one amplitude for every record, the phase per record)."""
     line = JointLine(screen, screen.design(screen.base, screen.base_nl), range(len(screen.parts)))
-    return interference_candidate(screen, best_frequency(screen, line.loo_rss, n_peaks))
+    return interference_candidate(screen, best_frequency(screen, line.loo_rss))
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -40,12 +40,12 @@ def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
 
 def interference_candidate(screen, frequency_hz: float) -> Candidate:
     model = screen.extension(("interference",))
-    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(screen, frequency_hz)])
+    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(row_times(screen), frequency_hz)])
     theta, res = screen.solve(A, screen.y)
     nb = len(screen.base_lin)
     pairs = theta[nb:].reshape(-1, 2)
     amps = np.hypot(pairs[:, 0], pairs[:, 1])
-    amplitude = float(np.sqrt(np.mean(amps**2)))
+    amplitude = rms(amps)
     params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
               "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
               "interference_sin": amplitude, "interference_cos": 0.0}
@@ -72,7 +72,7 @@ def interference_on_validation(before: list[RecordResidual], c: Candidate,
         after.append(RecordResidual(rr.record, rr.prediction + sine))
         if rr.record.role == "validation":
             amps.append(amplitude_at(rr.residual, t, f))
-    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
+    a_val = rms(amps) if amps else float("nan")
     return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
                    "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
 
