@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from .candidates import DRIVE_LOCKED, OPEN_ENDED_NOTE, Candidate
-from .heldout import HeldOut, carried_by_one_record, pairwise_z, passes, share_of_misfit, significant
+from .heldout import HeldOut, carried_by_one_record, evidence, pairwise_z, passes, share_of_misfit
 from .policy import Policy
 from .rule import NONE, UNEXPLAINED, Rule, Verdict, apply, step
 
@@ -36,7 +36,7 @@ def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
         return "no candidate predicts the held-out records better than the base model"
     h = best.heldout
     why = (f"outside its meaning ({best.limit})" if best.limit else
-           "carried by one held-out record" if significant(best, policy) else
+           "carried by one held-out record" if evidence(h, policy) else
            f"not evidence (z = {h['z']:.1f}, better in {h['folds_improved']} of {h['n_folds']} held-out records)")
     return (f"no candidate predicts the held-out records better than the base model with evidence and within its "
             f"meaning; the best, {best.label} (held-out gain {100 * best.heldout_gain:.2f} %), is {why}")
@@ -115,12 +115,12 @@ def nothing_passes(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict |
     if v.cause != UNDECIDED or ev.passing(pol):
         return v, None
     held = ev.held
-    evidence = [c for c in ev.candidates if (significant(c, pol) or c.heldout_gain >= pol.strong_gain)
-                and not carried_by_one_record(held.folds, ev.e_null, held.of(c))]  # partly predicted
-    seen = {"structured": ev.structured, "evidence": [c.cause for c in evidence]}
-    if not (ev.structured or evidence):
+    shown = [c for c in ev.candidates if (evidence(c.heldout, pol) or c.heldout_gain >= pol.strong_gain)
+             and not carried_by_one_record(held.folds, ev.e_null, held.of(c))]  # partly predicted
+    seen = {"structured": ev.structured, "evidence": [c.cause for c in shown]}
+    if not (ev.structured or shown):
         return replace(v, cause=NONE, reason=none_reason(ev.candidates, pol)), step("nothing-passes", NONE, **seen)
-    partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
+    partial = max(shown, key=lambda c: c.heldout_gain) if shown else None
     why = ("the residual is structured (it repeats from period to period)" if ev.structured else
            f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
            "or not within its meaning")
@@ -166,7 +166,7 @@ def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     if not slower_than_drive(chosen, ev.screen.creep_min, pol):
         return v, None
     slowest = chosen.kind.slowest_time_s(chosen.estimates)
-    twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and significant(c, pol)
+    twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and evidence(c.heldout, pol)
              and pairwise_z(ev.held, chosen, c) < pol.z_same]
     if not twins:
         return v, None
@@ -332,7 +332,7 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
                 "text": f"its parameters differ between the folds by more than {100 * pol.partial_se:.0f} %"}
     rivals = [c for c in candidates if c.cause != chosen.cause and passes(c, pol) and identified(c, pol)]  # admissible
     # a sinusoid locked to the drive is no cause, but with evidence it shows a drive-locked misfit of its own
-    rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and significant(c, pol)]
+    rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and evidence(c.heldout, pol)]
     close = [c for c in rivals if pairwise_z(held, chosen, c) < pol.z_same
              and (e_null is None or not same_slice(e_null, held.of(chosen), held.of(c), pol))]
     if close:
