@@ -1,11 +1,7 @@
-"""A fitted candidate cause, its parameters in the report's vocabulary, and small search helpers.
+"""A fitted candidate cause (``Candidate``) and small helpers of the search.
 
-Screen-internal comparisons (the relaxation order, the first-order pre-checks,
-the library screen's number of terms) use BIC from
-``hysbench.identification.criteria`` with the AR(1) effective sample size of
-the base model's residual (``n_effective``): model error is smooth and 10,000
-residual rows carry far fewer independent pieces of information. The cause is
-never chosen by BIC: see ``selection`` (held-out prediction).
+The screen compares its own fits by BIC with the AR(1) effective sample size of the null's residual
+(``n_effective``); the cause is chosen on held-out records (``selection``).
 """
 
 from __future__ import annotations

@@ -1,26 +1,15 @@
 """``diagnose(dataset, model)``: show where a model departs from the data, name the cause, extend, measure.
 
-0. Records that hold the same samples (one recording listed with an
-   identification and a validation window) are cut to their windows, so no
-   whole-record fit sees another record's samples; with ``segments`` each
-   identification record is cut into that many records (whole periods,
-   from input minima: ``hysbench.data.segments``).
-1. The base model is identified with varpro on the identification records
-   (their scored windows, as the benchmark does): the "before" model.
-2. It is simulated over every record, whole; residuals, noise level and
-   whiteness per record (``residuals``).
-3. Candidate causes are fitted on the identification records' whole length
-   (``screen``, one module per cause) and scored by leave-one-record-out
-   prediction against the base model refitted the same way (``search``,
-   ``selection``).
-4. The verdict: ``selection.decide`` applies the rules that name one cause (``selection.SELECTION``) to the
-   held-out scores, then the rules after it (``rules.AFTER_SELECTION``) are applied in order, each on the
-   evidence its gathering step computes (completions and causes on top, ``secondary``; the backward step,
-   ``backward``; the slow part, ``slow_part``; the validation records, untouched so far, ``validation``).
-   Each rule is pure: it returns a new ``rule.Verdict`` and the trace entry it leaves. Their statements are
-   the rule's text (``rules.rule_text``, docs/diagnosis.md).
-5. Suggested experiments for what is ambiguous (``experiment``); each cause kept under "also" checked on
-   the validation records on top of what was kept before it (``validation.check_also``; reported only).
+1. The base model is identified with varpro on the identification records' scored windows (records that
+   share samples are first cut to their windows; ``segments`` cuts each into that many records).
+2. It is simulated over every record, whole (``residuals``).
+3. Candidate causes are fitted on the identification records' whole length (``screen``, ``causes``) and
+   scored by leave-one-record-out prediction against the base refitted the same way (``search``).
+4. The verdict: ``selection.decide`` applies ``selection.SELECTION``, then the rules of
+   ``rules.AFTER_SELECTION`` are applied in order, each on the evidence its gathering step computes; the
+   validation records are used last (``validation``).
+5. Suggested experiments for what is ambiguous (``experiment``); each cause under "also" checked on the
+   validation records (``validation.check_also``; reported only).
 """
 
 from __future__ import annotations

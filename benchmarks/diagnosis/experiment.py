@@ -1,20 +1,10 @@
 """A suggested experiment: the drive on which two fitted extensions' predictions differ most.
 
-When two causes predict the held-out records equally well (a delay and a
-short first-order lag under slow sines; creep and a slow relaxation), the
-two fitted extended models are simulated on probe drives -- eq. 1's sine
-spanning the records' input range at log-spaced frequencies, and a multisine
-over that range -- each from rest for three periods; the root mean square of
-their difference over the last two periods (the first settles) is the
-separation. The probe with the largest separation is the experiment to run,
-except probes on which a fit leaves the recorded output range by more than
-its width: the records did not pin the fits down there, and a separation of
-fits that extrapolate (e.g. two slow time constants with large opposite
-weights) is no guide. Interference is not driven by the input: it is told apart by a record
-with the drive held constant. Neither is creep: against creep, one more probe
-holds the input at its lowest level (the rest) from the start, as long as the
-multisine, scored over its whole length (a drift there is creep; a
-relaxation of a constant input does not move).
+Both fits are simulated on probe drives (eq. 1's sine over the records' input range at log-spaced
+frequencies, a multisine, and for a cause shown at rest the input held there), each from rest; the rms of
+their difference after settling is the separation. Probes on which a fit leaves the recorded output range
+by more than its width are no guide (the records did not pin the fits down there). An interference is told
+apart by a record with the drive held constant.
 """
 
 from __future__ import annotations

@@ -1,20 +1,10 @@
 """Identify the extension a diagnosis names, with the identifiers, and measure what it gains.
 
-The extended models are registered models (``hysbench.models.extended``:
-``mrpim+relaxation``, ``mrpim+delay``, ...); here they are identified with
-``hysbench.identification.identify`` -- varpro where the extension keeps the
-model partly linear (all but saturation), lsq otherwise -- on the
-identification records over their whole length (a copy of the dataset whose
-windows cover every sample; the records' weights k_m are kept), starting at
-the screen's estimate, every parameter free. The base model is refitted the
-same way, so the gain of the extension can be told apart from the gain of
-fitting whole records.
-
-The fit uses the screen's rows: a fixed random subset of at most ``max_rows``
-samples spread over each record's whole length (``SampledRecord``; the model
-still runs over every sample, only the least-squares rows are fewer), so a
-record of 500,000 samples costs one pass of the model, not a 500,000-row
-solve. Records no longer than ``max_rows`` are fitted on every sample.
+The extended models are registered models (``hysbench.models.extended``); they are identified with
+``hysbench.identification.identify`` (varpro where the model is partly linear, lsq otherwise) on the
+identification records' whole length, from the screen's estimate, every parameter free, on the screen's
+rows (``SampledRecord``: the model runs over every sample, the least-squares rows are the subset). The base
+model is refitted the same way, so the extension's gain is told apart from the gain of fitting whole records.
 """
 
 from __future__ import annotations

@@ -1,12 +1,5 @@
-"""Library screen: sparse regression (pysindy FROLS) of the null's residual on candidate terms.
-
-Evidence and start values only (the cause is chosen on held-out records):
-each cause's terms (``Cause.library_terms``: first-order low-pass histories of
-the input on a grid of time constants, the derivatives of the model's own
-output, slow exponential drifts, a sinusoid at the pooled spectrum's peak,
-hinge functions of the model's output at high and low levels), each made orthogonal to the base model's
-regressors and scaled to unit norm. The path is cut where BIC (with the
-null residual's effective sample size) is lowest.
+"""Library screen: sparse regression (pysindy FROLS) of the null's residual on each cause's candidate terms
+(``Cause.library_terms``), made orthogonal to the base's regressors; evidence and start values only.
 """
 
 from __future__ import annotations

@@ -1,21 +1,9 @@
 """Residuals of a fitted model over whole records, and what they look like.
 
-A model is fitted on each record's scored window, but a slow drift or a
-start-up transient shows only outside it; here every record is simulated
-from its first sample and the residual r = y_measured - y_model is kept for
-all of it. From it:
-
-* the noise level, from first differences (white noise of sd s has
-  differences of sd s sqrt(2); a smooth misfit hardly changes from one 1 ms
-  sample to the next): s = 1.4826 MAD(diff r) / sqrt(2);
-* a whiteness test per record: Ljung-Box Q over the first ``LAGS`` lags of
-  the residual's autocorrelation, chi-square with LAGS degrees of freedom;
-* the residual against phase within the drive period, its spectrum
-  (periodogram), and e_m / e_rms against frequency;
-* the pooled coherent spectrum of the identification records,
-  |sum_m R_m(f)|^2 / sum_m n_m, where R_m is the Fourier sum of record m in
-  its own time: a disturbance with the same phase in every record adds up
-  there, the drive's harmonics (different in each record) do not.
+Every record is simulated from its first sample and the residual r = y_measured - y_model kept for all of
+it (a drift or a start-up transient shows only outside the scored window). From it: the noise level from
+first differences (``noise_sd``), a Ljung-Box whiteness test, the spectrum, the repetition from period to
+period (``periodic_structure``) and the pooled spectrum of the identification records (``coherent_spectrum``).
 """
 
 from __future__ import annotations

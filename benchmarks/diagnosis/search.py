@@ -1,13 +1,4 @@
-"""Fit every candidate cause on the screen and score each on held-out records.
-
-Order: the library screen (evidence, relaxation seeds); each cause's
-extension with the base's nonlinear parameters held (stage 1); a quick
-held-out score for each (``selection``); the passing ones refined with the
-base's nonlinear parameters free (stage 2: the best of each cause, at most ``max_joint``) and scored
-again; a relaxation with a time constant at its search bound gives the variant of one fewer, started from
-its other ones (``relaxation.without_pinned``), which replaces that variant if it predicts better, both
-with their own parameters refitted per fold; finally every passing candidate scored with its own nonlinear
-parameters refitted per fold (the honest score, and the uncertainty).
+"""Fit every candidate cause on the screen and score each on held-out records (``run_screen``).
 """
 
 from __future__ import annotations

@@ -273,11 +273,9 @@ SELECTION = (
 
 
 def identified(c: Candidate, policy: Policy) -> bool:
-    """Every parameter refitted per fold that identifies the cause agrees across the folds within
-    ``partial_se`` (relative; a clipping level relative to the output's range); a candidate with none refitted
-    per fold does not show it. A mode is identified by its frequency: its damping ratio, which drives far below
-    the mode barely show, is reported with its fold spread but does not decide whether the mode is there."""
-    if not c.uncertainty:  # nothing refitted per fold: agreement not shown
+    """The fold estimates of every identifying parameter (``Cause.identifying``) agree (``agrees``); a candidate
+    with none refitted per fold does not show it."""
+    if not c.uncertainty:
         return False
     only = c.kind.identifying
     return all(agrees(u, policy) for name, u in c.uncertainty.items() if only is None or name in only)
@@ -292,8 +290,7 @@ def agrees(u: dict, policy: Policy) -> bool:
 
 
 def loose_note(c: Candidate, policy: Policy) -> str:
-    """What the reason says of a named cause's parameters that do not identify it (``Cause.identifying``) and whose
-    fold estimates differ by more than ``partial_se``: e.g. a mode's damping ratio."""
+    """What the reason says of a named cause's non-identifying parameters whose fold estimates do not agree."""
     only = c.kind.identifying
     if only is None:
         return ""
@@ -313,17 +310,11 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
     return norm > 0 and float(d_a @ d_b) / norm >= policy.same_slice
 
 
-def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
-                     best: Candidate | None = None, e_null: np.ndarray | None = None) -> dict:
-    """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
-    pass the block test (z >= ``z_pass``, by the best predictor of that part), its parameters must agree across
-    the folds, and every other passing cause that predicts about as well (z < ``z_same``), with its own parameters
-    agreeing across the folds, must remove the same part (then it is ambiguous with it) -- when several causes
-    each take a different slice of a misfit that is mostly something else, naming one of them would be a guess.
-    A drive-locked sinusoid with held-out evidence counts as such a rival: it shows misfit locked to the drive.
-    Returns {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for such a
-    sinusoid); "text": the reason in words}."""
-    best = best or chosen
+def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate], best: Candidate,
+                     e_null: np.ndarray) -> dict:
+    """Why a cause that removes only part of the misfit is not specific (rule ``partial-specific``):
+    {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for a sinusoid
+    locked to the drive); "text": the reason in words, "" if specific}."""
     pol = held.folds.policy
     if best.heldout["z"] < pol.z_pass:
         return {"why": "z", "rivals": [], "text": f"its block test gives z = {best.heldout['z']:.1f} < {pol.z_pass:g}"}
@@ -334,7 +325,7 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
     # a sinusoid locked to the drive is no cause, but with evidence it shows a drive-locked misfit of its own
     rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and evidence(c.heldout, pol)]
     close = [c for c in rivals if pairwise_z(held, chosen, c) < pol.z_same
-             and (e_null is None or not same_slice(e_null, held.of(chosen), held.of(c), pol))]
+             and not same_slice(e_null, held.of(chosen), held.of(c), pol)]
     if close:
         names = sorted({"a misfit locked to the drive" if c.limit == DRIVE_LOCKED else c.cause for c in close})
         rivals = sorted({"drive-locked" if c.limit == DRIVE_LOCKED else c.cause for c in close})
@@ -345,12 +336,9 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
 
 def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
                   candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
-    """When the best-predicting partial explanation is not specific (``why_not_specific``), another passing cause
-    that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
-    rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
-    e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
-    most among those; None if there is none, or with fewer than ``min_records_check`` records (two fold
-    estimates that agree are too weak a check to name a cause that does not predict best)."""
+    """The passing cause of another kind that predicts most of those that are specific (``why_not_specific``),
+    named when the best-predicting partial cause is not (rule ``specific-part``); None with fewer than
+    ``min_records_check`` records."""
     if held.folds.n_scored < held.folds.policy.min_records_check:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):

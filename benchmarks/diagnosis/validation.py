@@ -1,12 +1,6 @@
-"""What the validation records -- untouched until the verdict is reached -- say about it.
-
-* The named cause (``fit_extension``): its extension identified on the identification records' whole length
-  against the base model refitted the same way (``refit_base_whole``); borne out (``borne_out``) if it lowers
-  the validation records' residual by more than their noise explains; an interference, by the same amplitude.
-* An ``unexplained`` verdict resting on a candidate's held-out evidence alone (rule ``unexplained-check``): that
-  candidate, by the same test; if not, the verdict is ``none``.
-* The causes kept under "also" (``check_also``): each on top of what was kept before it, by the same test;
-  reported, the verdict unchanged.
+"""What the validation records, untouched until the verdict is reached, say about it: the named extension
+(rule ``validation``), an ``unexplained`` verdict's partial candidate (rule ``unexplained-check``) and each
+cause under "also" (``check_also``; reported only).
 """
 
 from __future__ import annotations
