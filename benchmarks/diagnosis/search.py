@@ -1,5 +1,4 @@
-"""Fit every candidate cause on the screen and score each on held-out records (``run_screen``).
-"""
+"""Fit every candidate cause on the screen and score each on held-out records (``run_screen``)."""
 
 from __future__ import annotations
 
@@ -29,7 +28,9 @@ def score_candidate(screen, held: HeldOut, c: Candidate, refit: bool = False) ->
 
 def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
                joint_nfev: int = 10, max_joint: int = 4, progress: Callable[[str], None] | None = None) -> dict:
-    """Every candidate fitted and scored; returns {"library", "candidates" (best per cause),
+    """Every candidate fitted (stage 1) and scored quickly; the best promising one of each cause refined (stage 2);
+    a variant with a parameter at its bound one fewer (``Cause.one_fewer``); every finalist scored with its own
+    nonlinear parameters refitted per fold. Returns {"library", "candidates" (best per cause),
     "relaxation_variants", "folds", "heldout" (``HeldOut``: the out-of-fold residuals of the base and of each)}."""
     say = progress or (lambda s: None)
     say("library screen (pysindy FROLS)")
