@@ -30,11 +30,9 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
 
 
 def _time_unidentified(screen, c: Candidate, twin) -> bool:
-    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end:
-    the fastest its meaning allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over
-    these records). Replacing a relaxation slower than every drive period, whose own time constant these records
-    do not pin down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
-    identified."""
+    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end
+    (the fastest its meaning allows or the slowest searched): standing for a relaxation slower than every drive
+    period, whose time constant these records do not pin down either, that is no flaw."""
     parts = getattr(c.model, "components", (c.cause,))
     return (twin.name in parts and (c.cause == twin.name or not c.limit)
             and set(at_bound(screen, c)) <= {twin.time_scale})
@@ -76,11 +74,8 @@ def slow_part_clause(old: Candidate, standing_in: bool, pinned: str) -> str:
 
 
 def strongest_first(own: dict, causes: list[str]) -> list[str]:
-    """The causes ordered by what each predicts of the held-out records against the base alone (its own
-    held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
-    on top of the named cause is no guide without it, and each is searched with the ones before it held: a
-    delay searched before a larger creep takes up part of the drift, which the composite's refinement does not
-    undo."""
+    """The causes by their own held-out gain against the base alone, the strongest first (each is searched with
+    the ones before it held: a delay searched before a larger creep would take up part of the drift)."""
     gain = {c: own[c].heldout_gain for c in causes}
     return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
 

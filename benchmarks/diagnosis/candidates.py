@@ -22,8 +22,7 @@ from .cause import CAUSES, cause_of_parameter, log_scale, open_ended_parameter
 MAX_ROWS = 10_000  # rows per record in the screen
 MAX_RELAXATION = 4
 NO_CUT = ("the level cuts too few samples of the prediction (policy min_clipped_samples): not a clip (what it gains "
-          "comes from "
-          "leaving the output's extreme samples out of the fit)")  # a saturation's limit (``Screen.limit_of``)
+          "comes from leaving the output's extreme samples out of the fit)")  # a saturation's limit
 DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                 "not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)
 
@@ -44,7 +43,6 @@ class Candidate:
     bic: float = math.nan
     delta_bic: float = math.nan  # against the null (effective sample size)
     explained: float = math.nan  # share of the null's identification RSS explained (in-sample)
-    validation_rss: float = math.nan
     hyperparameters: dict = field(default_factory=dict)
     stage: str = "joint"  # "fixed base": the base's nonlinear parameters held at the null's
     limit: str = ""  # why the candidate cannot be named (a parameter at the vocabulary's limit), if so
@@ -125,9 +123,8 @@ OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a 
 
 
 def open_ended(screen, c: Candidate) -> list[str]:
-    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning: creep's
-    time scale longer than these records show (1 - exp(-t / T) -> t / T, a straight drift since the start).
-    The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
+    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning
+    (``Cause.open_ended``: creep's time scale longer than these records show, a straight drift)."""
     out = []
     for n in own_nonlinear(screen, c):
         if not open_ended_parameter(n):

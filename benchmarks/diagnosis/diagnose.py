@@ -78,11 +78,9 @@ def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", see
              extend: bool = True, experiments: bool = True, segments: int | None = None,
              progress: Callable[[str], None] | None = None, thorough: bool = False,
              policy: Policy = Policy()) -> Diagnosis:
-    """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
-    record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
-    recording. ``thorough``: every cause tried afresh on top of the named one also on long records
-    (``secondary.forward``; slower). ``policy``: the thresholds of the decision rule
-    (``policy.Policy``; the default is the documented rule)."""
+    """Diagnose ``model`` on ``dataset``. ``segments``: cut each identification record into that many records
+    (whole periods), e.g. one long recording. ``thorough``: every cause tried afresh on top of the named one
+    also on long records (slower). ``policy``: the thresholds of the decision rule (``policy.Policy``)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
                          segments, progress, thorough, policy)

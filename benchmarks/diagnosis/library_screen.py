@@ -17,13 +17,9 @@ from .residuals import RecordResidual
 
 
 def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int = 8) -> dict:
-    """Sparse regression (pysindy FROLS) of the null's residual on a library of candidate terms.
-
-    Forward orthogonal least squares adds one term at a time, the one that
-    explains most of what is left; the path is cut where BIC is lowest.
-    Returns {"terms": [{name, group, explained, order}], "groups": {cause: share of the null's
-    residual sum of squares explained}, "relaxation_taus": [time constants of kept low-pass terms]}.
-    """
+    """FROLS's forward path cut where BIC is lowest: {"terms": [{name, group, explained, order}], "groups":
+    {cause: share of the null's residual sum of squares explained}, "relaxation_taus": [kept low-pass terms' time
+    constants], ...}."""
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
     y_hat_rows = np.concatenate([rows @ null_theta for rows in bc.rows])

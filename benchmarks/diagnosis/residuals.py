@@ -129,14 +129,9 @@ MAX_SPECTRUM_POINTS = 1 << 21
 
 def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4,
                       coherent: bool = True):
-    """Pooled coherent amplitude spectrum: (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in
-    [f_min, f_max], each record's DFT R_m in its own time (t = 0 at its first sample). With
-    ``coherent=False`` the records' powers add instead (a disturbance whose phase differs per record):
-    2 sqrt(sum_m |R_m(f)|^2 / sum_m n_m^2).
-
-    Records with one sample time: zero-padded FFTs. Sample times that differ: each record's DFT on one
-    common grid (chirp z-transform, ``scipy.signal.zoom_fft``), spaced 1 / (pad x the longest duration)
-    and cut at the coarsest record's Nyquist frequency."""
+    """Pooled coherent amplitude spectrum: (f, 2 |sum_m R_m(f)| / sum_m n_m) for f in [f_min, f_max], each
+    record's DFT R_m in its own time; with ``coherent=False`` the powers add: 2 sqrt(sum_m |R_m|^2 / sum_m n_m^2).
+    Records of different sample times: each DFT on one grid (``scipy.signal.zoom_fft``), to the coarsest Nyquist."""
     dts = np.array([rr.record.dt for rr in residuals])
     if dts.max() - dts.min() > 1e-9 * dts.max():
         return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad, coherent)
@@ -246,17 +241,11 @@ def whole_periods(record: Record) -> tuple[int, int]:
 
 
 def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> dict:
-    """Whether a residual repeats from one drive period to the next.
-
-    Per periodic record with at least two full periods: the residual cut into
-    periods and averaged into ``n_bins`` phase bins, X (P periods x bins).
-    Records of one period at the same frequency and period length in samples
-    (segments cut from one recording, or repeated drives) are taken
-    together, one period each. F = P mean_p(X)^2 / var_p(X) summed over bins
-    and records (groups): about 1 for noise independent from period to period
-    (white or coloured, if its correlation time is short against the period),
-    large for a misfit that the drive repeats. Returns {"F", "records"} (F nan
-    without such records)."""
+    """Whether a residual repeats from one drive period to the next: per record of at least two whole periods
+    (records of one period at the same frequency and length taken together), the residual in ``n_bins`` phase
+    bins per period, X (P x bins); F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for noise
+    independent from period to period, large for a misfit the drive repeats. {"F" (nan without such records),
+    "records"}."""
     num = den = 0.0
     used = []
     single: dict[tuple, list[tuple[str, np.ndarray]]] = {}
@@ -282,14 +271,10 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
 
 
 def harmonic_phase_turn(residuals: list[RecordResidual], frequency_hz: float) -> tuple[float, float] | None:
-    """How far a sinusoid near a drive harmonic turns in phase from one drive period to the next.
-
-    Per periodic record, the residual's complex amplitude c_j at the drive harmonic nearest
-    ``frequency_hz``, in each whole period j (its mean removed). A misfit locked to the drive repeats every
-    period: c_j stays put. A sinusoid off the harmonic by df turns by 2 pi df T per period T. Returns
-    (turn, its standard error) in rad per period: the turn is the angle of sum c_(j+1) conj(c_j) over
-    consecutive periods within records; its error is the rms of c_(j+1) - c_j e^(i turn) over the rms
-    amplitude and the square root of the number of pairs. None with fewer than two pairs."""
+    """How far a sinusoid near a drive harmonic turns in phase from one drive period to the next: (turn, its
+    standard error) in rad per period, from the residual's complex amplitude c_j at the harmonic in each whole
+    period j (turn: the angle of sum c_(j+1) conj(c_j); error: the rms of c_(j+1) - c_j e^(i turn) over the rms
+    amplitude and sqrt(pairs)). A misfit locked to the drive stays put. None with fewer than two pairs."""
     products = []
     for rr in residuals:
         r = rr.record

@@ -150,12 +150,9 @@ def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy:
 
 
 def check_also(diag, say: Callable[[str], None]) -> None:
-    """Each cause kept under "also", on the validation records: what is kept with it against what was kept before
-    it (the named extension first), every model identified on the identification records' whole length from the
-    screen's fit; borne out as a named cause is (``borne_out``). An interference is a sinusoid on top of all that
-    is kept, its phase fitted per record and its amplitude checked. A clip of what is kept, and what follows it,
-    are not checked (its level was fitted on the screen's rows of the kept part only). Reported; the verdict
-    is unchanged."""
+    """Each cause kept under "also" on the validation records: what is kept with it against what was kept before
+    it, identified on the identification records' whole length, borne out as a named cause is (``borne_out``).
+    A clip of what is kept, and what follows it, are not checked."""
     if not diag.also or not diag.after:
         return
     lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
