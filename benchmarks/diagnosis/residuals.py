@@ -130,51 +130,38 @@ MAX_SPECTRUM_POINTS = 1 << 21
 def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4,
                       coherent: bool = True):
     """Pooled coherent amplitude spectrum: (f, 2 |sum_m R_m(f)| / sum_m n_m) for f in [f_min, f_max], each
-    record's DFT R_m in its own time; with ``coherent=False`` the powers add: 2 sqrt(sum_m |R_m|^2 / sum_m n_m^2).
-    Records of different sample times: each DFT on one grid (``scipy.signal.zoom_fft``), to the coarsest Nyquist."""
+    record's DFT R_m in its own time, zero-padded to ``pad`` times the longest record; with ``coherent=False``
+    the powers add: 2 sqrt(sum_m |R_m|^2 / sum_m n_m^2)."""
     dts = np.array([rr.record.dt for rr in residuals])
-    if dts.max() - dts.min() > 1e-9 * dts.max():
-        return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad, coherent)
-    dt = float(np.median(dts))
-    n_max = max(rr.record.t.size for rr in residuals)
-    n_fft = 1 << int(math.ceil(math.log2(pad * n_max)))
-    total, n_total, n2 = None, 0, 0
+    if dts.max() - dts.min() > 1e-9 * dts.max():  # sample times that differ: each DFT on one grid (chirp z)
+        f_lo, f_hi = max(f_min, 0.0), min(f_max, 0.5 / dts.max())
+        if not f_hi > f_lo:
+            return np.empty(0), np.empty(0)
+        df = 1.0 / (pad * max(rr.record.t.size * rr.record.dt for rr in residuals))
+        m = int(math.floor((f_hi - f_lo) / df)) + 1
+        if m > MAX_SPECTRUM_POINTS:
+            m = MAX_SPECTRUM_POINTS
+            df = (f_hi - f_lo) / (m - 1)
+        f, keep = f_lo + df * np.arange(m), slice(None)
+
+        def dft(x, dt):
+            return zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / dt)
+    else:
+        n_fft = 1 << int(math.ceil(math.log2(pad * max(rr.record.t.size for rr in residuals))))
+        f = np.fft.rfftfreq(n_fft, float(np.median(dts)))
+        keep = (f >= f_min) & (f <= f_max)
+
+        def dft(x, dt):
+            return np.fft.rfft(x, n_fft)
+    total, n_total, n2 = 0.0, 0, 0
     for rr in residuals:
         x = rr.residual - np.mean(rr.residual)
-        spec = np.fft.rfft(x, n_fft)
-        spec = spec if coherent else np.abs(spec) ** 2
-        total = spec if total is None else total + spec
+        spec = dft(x, rr.record.dt)
+        total = total + (spec if coherent else np.abs(spec) ** 2)
         n_total += x.size
         n2 += x.size**2
-    f = np.fft.rfftfreq(n_fft, dt)
-    keep = (f >= f_min) & (f <= f_max)
-    return f[keep], _pooled_amplitude(total[keep], n_total, n2, coherent)
-
-
-def _pooled_amplitude(total: np.ndarray, n_total: int, n2: int, coherent: bool) -> np.ndarray:
-    return 2.0 * np.abs(total) / n_total if coherent else 2.0 * np.sqrt(total / n2)
-
-
-def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi: float, pad: int,
-                             coherent: bool = True):
-    f_lo = max(f_lo, 0.0)
-    duration = max(rr.record.t.size * rr.record.dt for rr in residuals)
-    df = 1.0 / (pad * duration)
-    if not f_hi > f_lo:
-        return np.empty(0), np.empty(0)
-    m = int(math.floor((f_hi - f_lo) / df)) + 1
-    if m > MAX_SPECTRUM_POINTS:
-        m = MAX_SPECTRUM_POINTS
-        df = (f_hi - f_lo) / (m - 1)
-    total = np.zeros(m, dtype=complex if coherent else float)
-    n_total, n2 = 0, 0
-    for rr in residuals:
-        x = rr.residual - np.mean(rr.residual)
-        spec = zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / rr.record.dt)
-        total += spec if coherent else np.abs(spec) ** 2
-        n_total += x.size
-        n2 += x.size**2
-    return f_lo + df * np.arange(m), _pooled_amplitude(total, n_total, n2, coherent)
+    total = total[keep]
+    return f[keep], 2.0 * np.abs(total) / n_total if coherent else 2.0 * np.sqrt(total / n2)
 
 
 def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz: float = 0.5) -> list[tuple[float, float]]:
