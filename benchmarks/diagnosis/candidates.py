@@ -12,6 +12,7 @@ from typing import Mapping
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
+from scipy.optimize import minimize_scalar
 
 from hysbench.identification.criteria import bic
 from hysbench.identification.linear import scaled_lstsq
@@ -91,6 +92,18 @@ def local_minima(vals: np.ndarray, n: int) -> list[int]:
     right = np.r_[v[:-1] <= v[1:], True]
     idx = np.flatnonzero(left & right)
     return [int(i) for i in idx[np.argsort(v[idx])][:n]]
+
+
+def bracketed_minimum(fun, grid, xatol: float) -> tuple[float, float]:
+    """The best point of a monotonic grid, then Brent's bounded search between its neighbours: (x, fun(x))."""
+    vals = [fun(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = sorted((grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]))
+    if b > a:
+        res = minimize_scalar(fun, bounds=(a, b), method="bounded", options={"xatol": xatol})
+        if res.fun < vals[i]:
+            return float(res.x), float(res.fun)
+    return float(grid[i]), float(vals[i])
 
 
 def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:

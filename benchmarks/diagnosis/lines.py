@@ -19,9 +19,8 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.linalg import block_diag
-from scipy.optimize import minimize_scalar
 
-from .candidates import column_basis, prominence
+from .candidates import bracketed_minimum, column_basis, prominence
 from .residuals import coherent_spectrum, harmonic_phase_turn, spectral_peaks
 
 N_PEAKS = 5  # spectral peaks each refined by a line search
@@ -44,21 +43,6 @@ def sinusoid_columns(t: np.ndarray, frequency_hz: float) -> np.ndarray:
 def block_columns(times: Sequence[np.ndarray], frequency_hz: float) -> np.ndarray:
     """Block-diagonal (sin, cos) columns, one pair per record (``times``: each one's rows)."""
     return block_diag(*(sinusoid_columns(t, frequency_hz) for t in times))
-
-
-def _search(rss_of, f0: float, step: float, lo: float, hi: float) -> tuple[float, float]:
-    grid = [g for g in f0 + step * np.linspace(-1.0, 1.0, 11) if lo <= g <= hi]
-    if not grid:
-        return f0, math.inf
-    vals = [rss_of(g) for g in grid]
-    i = int(np.argmin(vals))
-    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-    best = (float(grid[i]), float(vals[i]))
-    if b > a:
-        res = minimize_scalar(rss_of, bounds=(a, b), method="bounded", options={"xatol": 1e-3 * step})
-        if res.fun < best[1]:
-            best = (float(res.x), float(res.fun))
-    return best
 
 
 def candidate_frequencies(screen, parts: Sequence[int] | None = None) -> list[float]:
@@ -88,8 +72,10 @@ def best_frequency(screen, rss_of: Callable[[float], float], parts: Sequence[int
     ``rss_of``; the best."""
     lo, hi = screen.bounds_of(screen.extension(("interference",)), "interference_frequency")
     best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
+    step = resolution_hz(screen)
     for f0 in candidate_frequencies(screen, parts):
-        f1, rss = _search(rss_of, f0, resolution_hz(screen), lo, hi)
+        grid = [g for g in f0 + step * np.linspace(-1.0, 1.0, 11) if lo <= g <= hi]
+        f1, rss = bracketed_minimum(rss_of, grid, 1e-3 * step) if grid else (f0, math.inf)
         if rss < best_rss:
             best_f, best_rss = f1, rss
     return best_f

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 import numpy as np
@@ -56,7 +55,6 @@ def fit_delay(screen) -> Candidate:
     if not (screen.promising(float(vals.min())) or screen.small):  # not even to first order: one exact evaluation
         return screen.candidate("delay", "pure delay", model, {**screen.base_nl, "delay": float(grid[np.argmin(vals)])})
     starts = [float(grid[i]) for i in local_minima(vals, 2)] + [min(dt, hi)]
-    best, best_rss = None, math.inf
     if screen.small:  # cheap: the profile over a geometric grid, the base's nonlinear parameters refitted
         free = [(n, False) for n in screen.base_nl_names]
         profile: dict[float, tuple[float, dict]] = {}
@@ -82,11 +80,8 @@ def fit_delay(screen) -> Candidate:
         scan_minimum(profile_rss, a, b, dt)
         z = min(profile.values(), key=lambda v: v[0])[1]
         return screen.candidate("delay", "pure delay", model, z, stage="joint")
-    for d0 in starts:
-        z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
-        rss = screen.evaluate(model, z)[0]
-        if rss < best_rss:
-            best, best_rss = z, rss
+    best = min((screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
+                for d0 in starts), key=lambda z: screen.evaluate(model, z)[0])
     return screen.candidate("delay", "pure delay", model, best)
 
 

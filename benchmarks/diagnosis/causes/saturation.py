@@ -7,9 +7,9 @@ from typing import Mapping
 
 import numpy as np
 
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import least_squares
 
-from ..candidates import NO_CUT, Candidate, estimates_of
+from ..candidates import NO_CUT, Candidate, bracketed_minimum, estimates_of
 from ..cause import OUTPUT_UNIT, Cause, register
 
 
@@ -64,16 +64,8 @@ def fit_level(screen, A: np.ndarray, y: np.ndarray, side: str) -> float:
     ys = sign * y
     top, bottom = float(np.max(ys)), float(np.min(ys))
     levels = sign * (top - np.linspace(0.0, 0.3, 31) * (top - bottom))
-    vals = [censored_fit(screen, A, y, side, L)[0] for L in levels]
-    i = int(np.argmin(vals))
-    a, b = sorted((levels[max(i - 1, 0)], levels[min(i + 1, len(levels) - 1)]))
-    level = float(levels[i])
-    if b > a:
-        res = minimize_scalar(lambda L: censored_fit(screen, A, y, side, L)[0], bounds=(a, b),
-                              method="bounded", options={"xatol": 1e-3 * max(screen.noise_sd, 1e-9)})
-        if res.fun < vals[i]:
-            level = float(res.x)
-    return level
+    return bracketed_minimum(lambda L: censored_fit(screen, A, y, side, L)[0], levels,
+                             1e-3 * max(screen.noise_sd, 1e-9))[0]
 
 
 def _with_slope(screen, estimates: dict, A: np.ndarray, theta: np.ndarray, side: str, level: float) -> dict:
