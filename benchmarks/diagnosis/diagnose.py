@@ -46,9 +46,8 @@ class DiagnosisError(HysbenchError):
 
 
 def suggest_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """A suggested experiment for each cause ambiguous with the named one, and for each secondary cause kept with
-    others as good on top of the same part (the simpler one kept, ``secondary._choose``): the drive on which the
-    two fits' predictions differ most."""
+    """A suggested experiment (``experiment.suggest``) for each cause ambiguous with the named one, and for each
+    cause under "also" with others as good on top of the same part."""
     if diag.chosen is None:
         return
     for other in diag.verdict.ambiguous_with:

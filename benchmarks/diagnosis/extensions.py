@@ -45,17 +45,12 @@ class SampledRecord(Record):
         return int(self.rows.size) if self.rows is not None else super().n_scored
 
 
-def whole_record(record: Record) -> Record:
-    """The same record with its window covering every sample."""
-    return cut(record, 0, record.t.size)
-
-
 def whole_record_dataset(dataset: Dataset, rows: Mapping[str, np.ndarray] | None = None) -> Dataset:
     """Every record's window covering all its samples; records named in ``rows`` fitted on those rows."""
     rows = dict(rows or {})
     records = []
     for r in dataset.records:
-        w = whole_record(r)
+        w = cut(r, 0, r.t.size)
         if r.file in rows and rows[r.file].size < r.t.size:
             w = SampledRecord(file=w.file, t=w.t, u=w.u, y=w.y, role=w.role, frequency_hz=w.frequency_hz,
                               weight=w.weight, window=w.window, rows=np.asarray(rows[r.file], dtype=np.int64))
@@ -79,11 +74,9 @@ def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: in
     ``start`` (``bounds`` replace defaults)."""
     whole = whole_record_dataset(dataset, rows)
     extra = {"bounds": dict(bounds)} if bounds else {}
-    if model.has_linear_part:
-        return identify(model, whole, method="varpro", seed=seed, fit_on=list(fit_on), start=dict(start),
-                        **extra, **VARPRO_OPTIONS)
-    return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
-                    **LSQ_OPTIONS)
+    method, options = ("varpro", VARPRO_OPTIONS) if model.has_linear_part else ("lsq", LSQ_OPTIONS)
+    return identify(model, whole, method=method, seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
+                    **options)
 
 
 def residuals_of_fit(fit: Fit, dataset: Dataset) -> list[RecordResidual]:

@@ -236,11 +236,9 @@ ALSO = Rule("also", (
 
 @dataclass(frozen=True)
 class Completion:
-    """A cause named by no rule yet (``candidate``), the forward selection on top of it, and what all that is
-    kept removes of the base's held-out misfit beyond noise (``share``; 0 if nothing is kept). For a promising
-    candidate also the score of all that is kept against the base, every parameter refitted per fold
-    (``score``), and whether that score is evidence only through the one record it improves most
-    (``one_record``, ``heldout.carried_by_one_record``)."""
+    """A candidate completed by the forward selection on top of it, and the share of the base's held-out misfit
+    that all that is kept removes (0 if nothing is kept); for a promising one also their score against the base,
+    every parameter refitted per fold, and whether one record carries it (``carried_by_one_record``)."""
 
     candidate: Candidate
     forward: Forward

@@ -13,7 +13,6 @@ from hysbench.identification import Fit
 from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
 from .causes import CAUSES
-from .residuals import RecordResidual
 from .policy import Policy
 from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
@@ -142,13 +141,6 @@ VALIDATION = Rule("validation", (
     decide_validation, gather_validation, timing="extended_fit")
 
 
-def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
-    """Every kept interference on top: each a sinusoid at its frequency and amplitude, phase fitted per record."""
-    for c in lines:
-        residuals = c.kind.on_validation(residuals, c, policy)[0]
-    return residuals
-
-
 def check_also(diag, say: Callable[[str], None]) -> None:
     """Each cause kept under "also" on the validation records: what is kept with it against what was kept before
     it, identified on the identification records' whole length, borne out as a named cause is (``borne_out``).
@@ -169,8 +161,9 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             after, check = c.kind.on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:
-            part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
-            after = _with_lines(part, lines, diag.screen.policy)
+            after = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
+            for line in lines:  # every kept interference on top, its phase fitted per record
+                after = line.kind.on_validation(after, line, diag.screen.policy)[0]
         out.append(validation_record(c, gain(before, after, "validation"), check, diag.screen.policy))
         before = after
     diag.also_check = out
