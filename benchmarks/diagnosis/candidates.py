@@ -138,13 +138,8 @@ OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a 
 def open_ended(screen, c: Candidate) -> list[str]:
     """The candidate's parameters at an upper search bound that is a limit within its cause's meaning
     (``Cause.open_ended``: creep's time scale longer than these records show, a straight drift)."""
-    out = []
-    for n in own_nonlinear(screen, c):
-        if not open_ended_parameter(n):
-            continue
-        if math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
-            out.append(n)
-    return out
+    return [n for n in own_nonlinear(screen, c) if open_ended_parameter(n)
+            and math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound]
 
 
 def bound_flags(screen, c: Candidate) -> dict:

@@ -100,13 +100,12 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
                 "note": "an interference is not driven by the input: record with the drive held constant"}
     lo, hi = screen.input_range
     recorded = recorded_range(screen)
-    probes = []
-    for f in _probe_frequencies(screen):
+    probes, freqs = [], _probe_frequencies(screen)
+    for f in freqs:
         dt = 1.0 / (f * SAMPLES_PER_PERIOD)
         t = np.arange(3 * SAMPLES_PER_PERIOD) * dt
         probes.append({"drive": f"sine {lo:.3g}-{hi:.3g} (eq. 1's form)", "frequency_hz": float(f),
                        **_probe(screen, a, b, probe_sine(t, f, lo, hi), dt, SAMPLES_PER_PERIOD, recorded)})
-    freqs = _probe_frequencies(screen)
     dt = 1.0 / (freqs[-1] * 20)
     duration = 3.0 / freqs[0]
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)
