@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -80,8 +81,12 @@ def fit_delay(screen) -> Candidate:
         scan_minimum(profile_rss, a, b, dt)
         z = min(profile.values(), key=lambda v: v[0])[1]
         return screen.candidate("delay", "pure delay", model, z, stage="joint")
-    best = min((screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
-                for d0 in starts), key=lambda z: screen.evaluate(model, z)[0])
+    best, best_rss = None, math.inf
+    for d0 in starts:
+        z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
+        rss = screen.evaluate(model, z)[0]
+        if rss < best_rss:
+            best, best_rss = z, rss
     return screen.candidate("delay", "pure delay", model, best)
 
 
