@@ -82,9 +82,8 @@ def strongest_first(own: dict, causes: list[str]) -> list[str]:
 
 def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
                  policy: Policy) -> list[list[str]]:
-    """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
-    for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
-    ``creep_periods``), also the same with creep after them, standing for that slow part."""
+    """The orders composed in place of the named cause: the secondary causes strongest first, and for a cause
+    slower than every drive period (``slower_than_drive``) the same with its slow twin after them."""
     options = [strongest_first(own, causes)]
     twin = chosen.kind.slow_twin
     if slower_than_drive(chosen, creep_min, policy) and twin in own and twin not in causes:
@@ -121,9 +120,8 @@ def accepts(o: Option, policy: Policy) -> bool:
 
 
 def gather_backward(ctx, v: Verdict) -> list[Option] | None:
-    """The replacements of a clean verdict (no ambiguity, no remainder) of causes that compose (not interference or
-    saturation) with causes kept on top, scored in order until one is accepted (``accepts``): the rest would not
-    be looked at."""
+    """The replacements of a clean verdict of separable causes with causes kept on top, scored in order until
+    one is accepted (``accepts``)."""
     causes = [c.cause for c in v.also]
     if (not ctx.extend or not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
             or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):

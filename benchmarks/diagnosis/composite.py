@@ -50,9 +50,8 @@ def composite(screen, primary: Candidate, other: Candidate, max_nfev: int = 10,
 
 def composite_starts(screen, model: HysteresisModel, start: Mapping[str, float],
                      names: Sequence[str]) -> list[dict]:
-    """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
-    ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
-    frequency and damping); a relaxation of several time constants keeps its own start."""
+    """``start`` and a grid inside the named parameters' search bounds (``Cause.grid_axis``), about
+    ``COMPOSITE_GRID`` points in all; a relaxation of several time constants keeps its own start."""
     if not names or (len(names) > 1 and any(cause_of_parameter(n).variants for n in names)):
         return [dict(start)]
     k = max(3, COMPOSITE_GRID // len(names))

@@ -101,9 +101,8 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
 def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_rows: int = MAX_ROWS,
                  say: Callable[[str], None] = lambda s: None, timings: dict | None = None,
                  policy: Policy = Policy()):
-    """The base model identified on the windows (varpro), its residuals and their summaries, the noise sd
-    (median over the identification records) and the candidate screen on the whole records' rows, carrying
-    ``policy``: ``(base_fit, before, summaries, noise_sd, screen)``."""
+    """The base model identified on the windows and its candidate screen: ``(base_fit, before, summaries,
+    noise_sd, screen)``."""
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")

@@ -88,9 +88,8 @@ def scores_by_file(residuals: Sequence[RecordResidual]) -> dict:
 
 
 def gain(before: Sequence[RecordResidual], after: Sequence[RecordResidual], role: str = "validation") -> dict:
-    """What the extension gains on the records of ``role``: the share of the residual sum of squares
-    it removes (whole records and scored windows), the z-score of the whole-record gain against the
-    records' own noise (``residuals.gain_z``), and the mean e_rms before and after."""
+    """What the extension gains on the records of ``role``: the share of the residual sum of squares it removes,
+    its z against the records' own noise (``residuals.gain_z``) and the mean e_rms before and after."""
     b = [rr for rr in before if rr.record.role == role]
     a = {rr.file: rr for rr in after}
     if not b:

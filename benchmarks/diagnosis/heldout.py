@@ -112,9 +112,8 @@ class HeldOut:
 
 def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
                 train_residuals: list | None = None) -> np.ndarray:
-    """Every row's residual from a linear solve on the other records; ``design(m)`` gives fold m's
-    stacked design (all rows). ``train_residuals``: a list that receives, per fold, the residual on its
-    training rows (the other records) of that same solve."""
+    """Every row's residual from a linear solve on the other records (``design(m)``: fold m's stacked design);
+    ``train_residuals`` receives, per fold, that solve's residual on its training rows."""
     e = np.zeros(screen.n)
     for m in range(folds.n):
         test = folds.test(m)

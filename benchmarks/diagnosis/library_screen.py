@@ -17,9 +17,8 @@ from .residuals import RecordResidual
 
 
 def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int = 8) -> dict:
-    """FROLS's forward path cut where BIC is lowest: {"terms": [{name, group, explained, order}], "groups":
-    {cause: share of the null's residual sum of squares explained}, "relaxation_taus": [kept low-pass terms' time
-    constants], ...}."""
+    """FROLS's forward path cut where BIC is lowest: {"terms", "groups" (share explained per cause),
+    "relaxation_taus" (the kept low-pass terms' time constants), ...}."""
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
     y_hat_rows = np.concatenate([rows @ null_theta for rows in bc.rows])

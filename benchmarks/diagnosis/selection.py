@@ -72,9 +72,8 @@ class Scores:
 
 def decide(screen, held: HeldOut, candidates: Sequence[Candidate], variants: Sequence[Candidate],
            structured: bool) -> Verdict:
-    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best);
-    ``held``: the held-out residuals of the base model and the candidates. The thresholds: ``held.folds.policy``.
-    The share of the misfit is recorded on every passing candidate and on the one named."""
+    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best), with
+    the policy of ``held.folds``; the share of the misfit is recorded on every passing candidate."""
     pol = held.folds.policy
     ev = Scores(screen, held, tuple({id(c): c for c in [*candidates, *variants]}.values()), tuple(variants),
                 structured)

@@ -18,9 +18,7 @@ from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
-    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
-    records' residual over whole records and on the windows, by more than their noise explains (z >= the
-    policy's ``z_confirm``); an interference, by the same amplitude there (``Cause.on_validation``)."""
+    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out (rule ``validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
     if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
@@ -36,9 +34,8 @@ def validation_record(c: Candidate, g: dict, check: dict, policy: Policy) -> dic
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
-    """``c``'s extension identified on the identification records' whole length, every parameter free (an
-    interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
-    record and the interference check."""
+    """``c``'s extension identified on the identification records' whole length (a disturbance: fitted on top,
+    ``Cause.on_validation``): the fit, the residuals of every record and the interference check."""
     if c.kind.disturbance:
         after, check = c.kind.on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
@@ -69,9 +66,8 @@ def refit_base_whole(diag, say: Callable[[str], None]) -> None:
 
 
 def gather_unexplained(ctx, v: Verdict) -> dict | None:
-    """An ``unexplained`` verdict resting on its best partial candidate alone (the residual not structured):
-    that candidate's extension on the validation records, against the base refitted the same way (recorded on
-    the diagnosis as ``unexplained_check``)."""
+    """The validation check of an ``unexplained`` verdict's partial candidate, where the residual is not
+    structured (recorded as ``Diagnosis.unexplained_check``)."""
     diag, p = ctx.diag, v.partial
     if not ctx.extend or v.cause != UNEXPLAINED or p is None or diag.structure["structured"]:
         return None

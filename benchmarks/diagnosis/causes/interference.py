@@ -22,9 +22,8 @@ from ..policy import Policy
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
-    """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
-    within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
+    """Whether the folds found one line: frequencies that agree (``frequencies_agree``) and amplitudes within
+    ``line_amplitude`` of their mean."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
     return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
@@ -134,9 +133,7 @@ class Interference(Cause):
         return {"same_line": same_line(screen, fold_estimates)}
 
     def on_validation(self, before: list, c: Candidate, policy: Policy) -> tuple[list, dict]:
-        """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
-        whole records), its phase fitted per record: the residuals after it, and the validation records' own
-        amplitude there against ``c``'s (the same within the policy's ``interference_amplitude_tolerance``)."""
+        """Its amplitude on the validation records checked against ``c``'s (``interference_amplitude_tolerance``)."""
         f = c.estimates["frequency_hz"]
         amplitude = c.estimates["amplitude"]
         after, amps = [], []

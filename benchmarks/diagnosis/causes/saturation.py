@@ -36,9 +36,8 @@ def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
 
 
 def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float, min_samples: int) -> float:
-    """Where the unclipped prediction passes the level: the slope of the output against it (least squares
-    with an intercept; 0 for a flat top, 1 for no clip); nan with fewer than ``min_samples`` such samples
-    (policy ``min_clipped_samples``)."""
+    """Where the unclipped prediction passes the level, the slope of the output against it (0 for a flat top, 1
+    for no clip); nan with fewer than ``min_samples`` such samples."""
     cut = pred > level if side == "upper" else pred < level
     if cut.sum() < min_samples:
         return math.nan
@@ -48,9 +47,8 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
-    """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on enough
-    samples and the output there is flat against it (policy ``min_clipped_samples``,
-    ``max_clipped_slope``)."""
+    """Whether these rows show a clip at the level: the censored fit's prediction passes it on enough samples
+    and the output there is flat against it (within ``max_clipped_slope``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
@@ -95,30 +93,6 @@ def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str,
 def columns_of(screen, part: Candidate) -> np.ndarray:
     """A separable candidate's regressors on the screen's rows, at its own nonlinear parameters."""
     return screen.design(part.model, {n: part.params[n] for n in part.model.nonlinear_names})
-
-
-def clip_on_top(screen, kept: Candidate) -> Candidate | None:
-    """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
-    nonlinear parameters, the level fitted on each side as for the base, the better side kept."""
-    A = columns_of(screen, kept)
-    out = None
-    for side in ("upper", "lower"):
-        level = fit_level(screen, A, screen.y, side)
-        rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
-        if theta is None:
-            continue
-        params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
-        estimates = _with_slope(screen, {"level": float(level), "side": side}, A, theta, side, level)
-        c = Candidate("saturation", f"{kept.label} + {_label(side)}", kept.model, params, kept.k + 1, rss, screen.n,
-                      estimates, n_effective=screen.n_effective,
-                      hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
-        c.stage = "joint"
-        c.delta_bic = c.bic - kept.bic
-        c.explained = 1.0 - c.rss / kept.rss
-        c.limit = screen.limit_of(c.cause, estimates)
-        if out is None or c.rss < out.rss:
-            out = c
-    return out
 
 
 @register
@@ -187,7 +161,27 @@ class Saturation(Cause):
         return ""
 
     def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
-        return clip_on_top(screen, kept)
+        """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
+        nonlinear parameters, the level fitted on each side as for the base, the better side kept."""
+        A = columns_of(screen, kept)
+        out = None
+        for side in ("upper", "lower"):
+            level = fit_level(screen, A, screen.y, side)
+            rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
+            if theta is None:
+                continue
+            params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
+            estimates = _with_slope(screen, {"level": float(level), "side": side}, A, theta, side, level)
+            c = Candidate("saturation", f"{kept.label} + {_label(side)}", kept.model, params, kept.k + 1, rss, screen.n,
+                          estimates, n_effective=screen.n_effective,
+                          hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
+            c.stage = "joint"
+            c.delta_bic = c.bic - kept.bic
+            c.explained = 1.0 - c.rss / kept.rss
+            c.limit = screen.limit_of(c.cause, estimates)
+            if out is None or c.rss < out.rss:
+                out = c
+        return out
 
     def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
         """A clip's output from that of the part it clips."""
