@@ -12,6 +12,7 @@ from .figures import FIGURES
 from .residuals import LAGS
 from .secondary import not_identified
 
+
 def _fmt(v, digits: int = 4) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
@@ -55,8 +56,6 @@ def not_held_out_lines(d) -> list[str]:
                 f"range by more than {100 * d.policy.beyond_range:.0f} % of the span is predicted only up to where it first "
                 "does (a fit on the others would extrapolate beyond); it takes part whole in every other fold's fit, "
                 "and the held-out scores cover the rows predicted."]
-
-
 
 
 def _bound_cell(heldout: dict) -> str:
