@@ -606,7 +606,7 @@ def test_a_suggested_experiment_is_never_a_probe_on_which_a_fit_leaves_the_recor
 
 
 def test_a_clip_on_top_is_clipped_in_the_suggested_experiments_probes():
-    """A clip of a kept part (``saturation.clip_on_top``) shares that part's model; its probe prediction must be
+    """A clip of a kept part (``Saturation.on_top``) shares that part's model; its probe prediction must be
     the part's output clipped at the level, not the part's output."""
     base = get_model("mrpim").preset("paper")
     rec = Record("r.npz", np.arange(2000) * DT, np.zeros(2000), np.zeros(2000), frequency_hz=1.0)
@@ -806,7 +806,7 @@ def test_a_fold_chooses_the_line_of_one_amplitude_over_a_stronger_line_in_one_re
     three times stronger 41 Hz in record 1 alone. Fitted with amplitude and phase free per record (the slow
     reference below), 41 Hz leaves less of the two records; but an interference is scored with the other
     records' amplitude, so a fold trained on records 1 and 2 chooses 27 Hz (``loo_rss``), as do the search
-    on top of a kept cause (``fold_frequencies``); the fit on every record (``fit_interference``), where
+    on top of a kept cause (``fold_frequencies``); the fit on every record (``Interference.fit``), where
     record 0 lacks both lines, does not choose 41 Hz either."""
     ds, _ = planted_case(("null-white",), "mrpim", "sines", 0)
     for k, phase in ((1, 0.4), (2, 2.1)):

@@ -30,11 +30,9 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
 
 
 def _time_unidentified(screen, c: Candidate, twin) -> bool:
-    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end:
-    the fastest its meaning allows (``creep_periods`` drive periods) or the slowest searched (a straight drift over
-    these records). Replacing a relaxation slower than every drive period, whose own time constant these records
-    do not pin down either, it is what that relaxation's slow part is: a drift since the start, its time scale not
-    identified."""
+    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end
+    (the fastest its meaning allows or the slowest searched): standing for a relaxation slower than every drive
+    period, whose time constant these records do not pin down either, that is no flaw."""
     parts = getattr(c.model, "components", (c.cause,))
     return (twin.name in parts and (c.cause == twin.name or not c.limit)
             and set(at_bound(screen, c)) <= {twin.time_scale})
@@ -76,20 +74,16 @@ def slow_part_clause(old: Candidate, standing_in: bool, pinned: str) -> str:
 
 
 def strongest_first(own: dict, causes: list[str]) -> list[str]:
-    """The causes ordered by what each predicts of the held-out records against the base alone (its own
-    held-out gain), the strongest first, as a forward selection would add them. The order they were kept in
-    on top of the named cause is no guide without it, and each is searched with the ones before it held: a
-    delay searched before a larger creep takes up part of the drift, which the composite's refinement does not
-    undo."""
+    """The causes by their own held-out gain against the base alone, the strongest first (each is searched with
+    the ones before it held: a delay searched before a larger creep would take up part of the drift)."""
     gain = {c: own[c].heldout_gain for c in causes}
     return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
 
 
 def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
                  policy: Policy) -> list[list[str]]:
-    """The orders the backward step composes in place of the named cause: the secondary causes strongest first;
-    for a named relaxation slower than every drive period (its slowest time constant at least ``creep_min`` /
-    ``creep_periods``), also the same with creep after them, standing for that slow part."""
+    """The orders composed in place of the named cause: the secondary causes strongest first, and for a cause
+    slower than every drive period (``slower_than_drive``) the same with its slow twin after them."""
     options = [strongest_first(own, causes)]
     twin = chosen.kind.slow_twin
     if slower_than_drive(chosen, creep_min, policy) and twin in own and twin not in causes:
@@ -126,9 +120,8 @@ def accepts(o: Option, policy: Policy) -> bool:
 
 
 def gather_backward(ctx, v: Verdict) -> list[Option] | None:
-    """The replacements of a clean verdict (no ambiguity, no remainder) of causes that compose (not interference or
-    saturation) with causes kept on top, scored in order until one is accepted (``accepts``): the rest would not
-    be looked at."""
+    """The replacements of a clean verdict of separable causes with causes kept on top, scored in order until
+    one is accepted (``accepts``)."""
     causes = [c.cause for c in v.also]
     if (not ctx.extend or not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
             or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):

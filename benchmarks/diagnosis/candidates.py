@@ -1,11 +1,7 @@
-"""A fitted candidate cause, its parameters in the report's vocabulary, and small search helpers.
+"""A fitted candidate cause (``Candidate``) and small helpers of the search.
 
-Screen-internal comparisons (the relaxation order, the first-order pre-checks,
-the library screen's number of terms) use BIC from
-``hysbench.identification.criteria`` with the AR(1) effective sample size of
-the base model's residual (``n_effective``): model error is smooth and 10,000
-residual rows carry far fewer independent pieces of information. The cause is
-never chosen by BIC: see ``selection`` (held-out prediction).
+The screen compares its own fits by BIC with the AR(1) effective sample size of the null's residual
+(``n_effective``); the cause is chosen on held-out records (``selection``).
 """
 
 from __future__ import annotations
@@ -16,6 +12,7 @@ from typing import Mapping
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
+from scipy.optimize import minimize_scalar
 
 from hysbench.identification.criteria import bic
 from hysbench.identification.linear import scaled_lstsq
@@ -26,8 +23,7 @@ from .cause import CAUSES, cause_of_parameter, log_scale, open_ended_parameter
 MAX_ROWS = 10_000  # rows per record in the screen
 MAX_RELAXATION = 4
 NO_CUT = ("the level cuts too few samples of the prediction (policy min_clipped_samples): not a clip (what it gains "
-          "comes from "
-          "leaving the output's extreme samples out of the fit)")  # a saturation's limit (``Screen.limit_of``)
+          "comes from leaving the output's extreme samples out of the fit)")  # a saturation's limit
 DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                 "not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)
 
@@ -48,7 +44,6 @@ class Candidate:
     bic: float = math.nan
     delta_bic: float = math.nan  # against the null (effective sample size)
     explained: float = math.nan  # share of the null's identification RSS explained (in-sample)
-    validation_rss: float = math.nan
     hyperparameters: dict = field(default_factory=dict)
     stage: str = "joint"  # "fixed base": the base's nonlinear parameters held at the null's
     limit: str = ""  # why the candidate cannot be named (a parameter at the vocabulary's limit), if so
@@ -99,6 +94,18 @@ def local_minima(vals: np.ndarray, n: int) -> list[int]:
     return [int(i) for i in idx[np.argsort(v[idx])][:n]]
 
 
+def bracketed_minimum(fun, grid, xatol: float) -> tuple[float, float]:
+    """The best point of a monotonic grid, then Brent's bounded search between its neighbours: (x, fun(x))."""
+    vals = [fun(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = sorted((grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]))
+    if b > a:
+        res = minimize_scalar(fun, bounds=(a, b), method="bounded", options={"xatol": xatol})
+        if res.fun < vals[i]:
+            return float(res.x), float(res.fun)
+    return float(grid[i]), float(vals[i])
+
+
 def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
     """A spectrum over its running geometric mean (a peak stands out of its neighbourhood, whatever
     the slope)."""
@@ -129,16 +136,10 @@ OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a 
 
 
 def open_ended(screen, c: Candidate) -> list[str]:
-    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning: creep's
-    time scale longer than these records show (1 - exp(-t / T) -> t / T, a straight drift since the start).
-    The cause is identified (its drift over the records), that parameter is not: only a lower bound."""
-    out = []
-    for n in own_nonlinear(screen, c):
-        if not open_ended_parameter(n):
-            continue
-        if math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound:
-            out.append(n)
-    return out
+    """The candidate's parameters at an upper search bound that is a limit within its cause's meaning
+    (``Cause.open_ended``: creep's time scale longer than these records show, a straight drift)."""
+    return [n for n in own_nonlinear(screen, c) if open_ended_parameter(n)
+            and math.log(screen.bounds_of(c.model, n)[1] / float(c.params[n])) < screen.policy.at_bound]
 
 
 def bound_flags(screen, c: Candidate) -> dict:

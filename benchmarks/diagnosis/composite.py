@@ -22,11 +22,9 @@ COMPOSITE_GRID = 12  # starts per own parameter of a cause searched on top of an
 def composite(screen, primary: Candidate, other: Candidate, max_nfev: int = 10,
               search: bool = False) -> Candidate | None:
     """The primary's extension (itself possibly a composite) plus another cause, refined from both fits
-    (separable causes only). With ``search`` the other cause's own parameters are also started from a
-    coarse grid over their search bounds (the primary held): its fit against the base alone can be far
-    off when the base misses something larger; the best start is refined only if it removes at least
-    the policy's ``min_explained`` of the primary's sum of squares (else None: nothing to add, and a refinement with
-    every nonlinear parameter free is the costly part)."""
+    (separable causes only; else None). With ``search`` the other cause's parameters are also started from a
+    grid (``composite_starts``), and the best start is refined only if it removes at least ``min_explained``
+    of the primary's sum of squares (else None)."""
     parts = tuple(getattr(primary.model, "components", (primary.cause,)))
     if not all(CAUSES[p].separable for p in (*parts, other.cause)) or other.cause in parts:
         return None
@@ -52,9 +50,8 @@ def composite(screen, primary: Candidate, other: Candidate, max_nfev: int = 10,
 
 def composite_starts(screen, model: HysteresisModel, start: Mapping[str, float],
                      names: Sequence[str]) -> list[dict]:
-    """``start`` and a grid over the named parameters' search bounds (geometric for log-scale ones):
-    ``COMPOSITE_GRID`` points for one parameter, ``COMPOSITE_GRID // 2`` per axis for two (a mode's
-    frequency and damping); a relaxation of several time constants keeps its own start."""
+    """``start`` and a grid inside the named parameters' search bounds (``Cause.grid_axis``), about
+    ``COMPOSITE_GRID`` points in all; a relaxation of several time constants keeps its own start."""
     if not names or (len(names) > 1 and any(cause_of_parameter(n).variants for n in names)):
         return [dict(start)]
     k = max(3, COMPOSITE_GRID // len(names))

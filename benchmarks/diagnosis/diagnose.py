@@ -1,26 +1,15 @@
 """``diagnose(dataset, model)``: show where a model departs from the data, name the cause, extend, measure.
 
-0. Records that hold the same samples (one recording listed with an
-   identification and a validation window) are cut to their windows, so no
-   whole-record fit sees another record's samples; with ``segments`` each
-   identification record is cut into that many records (whole periods,
-   from input minima: ``hysbench.data.segments``).
-1. The base model is identified with varpro on the identification records
-   (their scored windows, as the benchmark does): the "before" model.
-2. It is simulated over every record, whole; residuals, noise level and
-   whiteness per record (``residuals``).
-3. Candidate causes are fitted on the identification records' whole length
-   (``screen``, one module per cause) and scored by leave-one-record-out
-   prediction against the base model refitted the same way (``search``,
-   ``selection``).
-4. The verdict: ``selection.decide`` applies the rules that name one cause (``selection.SELECTION``) to the
-   held-out scores, then the rules after it (``rules.AFTER_SELECTION``) are applied in order, each on the
-   evidence its gathering step computes (completions and causes on top, ``secondary``; the backward step,
-   ``backward``; the slow part, ``slow_part``; the validation records, untouched so far, ``validation``).
-   Each rule is pure: it returns a new ``rule.Verdict`` and the trace entry it leaves. Their statements are
-   the rule's text (``rules.rule_text``, docs/diagnosis.md).
-5. Suggested experiments for what is ambiguous (``experiment``); each cause kept under "also" checked on
-   the validation records on top of what was kept before it (``validation.check_also``; reported only).
+1. The base model is identified with varpro on the identification records' scored windows (records that
+   share samples are first cut to their windows; ``segments`` cuts each into that many records).
+2. It is simulated over every record, whole (``residuals``).
+3. Candidate causes are fitted on the identification records' whole length (``screen``, ``causes``) and
+   scored by leave-one-record-out prediction against the base refitted the same way (``search``).
+4. The verdict: ``selection.decide`` applies ``selection.SELECTION``, then the rules of
+   ``rules.AFTER_SELECTION`` are applied in order, each on the evidence its gathering step computes; the
+   validation records are used last (``validation``).
+5. Suggested experiments for what is ambiguous (``experiment``); each cause under "also" checked on the
+   validation records (``validation.check_also``; reported only).
 """
 
 from __future__ import annotations
@@ -57,9 +46,8 @@ class DiagnosisError(HysbenchError):
 
 
 def suggest_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """A suggested experiment for each cause ambiguous with the named one, and for each secondary cause kept with
-    others as good on top of the same part (the simpler one kept, ``secondary._choose``): the drive on which the
-    two fits' predictions differ most."""
+    """A suggested experiment (``experiment.suggest``) for each cause ambiguous with the named one, and for each
+    cause under "also" with others as good on top of the same part."""
     if diag.chosen is None:
         return
     for other in diag.verdict.ambiguous_with:
@@ -89,11 +77,9 @@ def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", see
              extend: bool = True, experiments: bool = True, segments: int | None = None,
              progress: Callable[[str], None] | None = None, thorough: bool = False,
              policy: Policy = Policy()) -> Diagnosis:
-    """Diagnose ``model`` on ``dataset``; see the module docstring. ``segments``: cut each identification
-    record into that many consecutive records (whole periods) for leave-one-record-out, e.g. one long
-    recording. ``thorough``: every cause tried afresh on top of the named one also on long records
-    (``secondary.forward``; slower). ``policy``: the thresholds of the decision rule
-    (``policy.Policy``; the default is the documented rule)."""
+    """Diagnose ``model`` on ``dataset``. ``segments``: cut each identification record into that many records
+    (whole periods), e.g. one long recording. ``thorough``: every cause tried afresh on top of the named one
+    also on long records (slower). ``policy``: the thresholds of the decision rule (``policy.Policy``)."""
     with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
         return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
                          segments, progress, thorough, policy)
@@ -115,9 +101,8 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
 def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_rows: int = MAX_ROWS,
                  say: Callable[[str], None] = lambda s: None, timings: dict | None = None,
                  policy: Policy = Policy()):
-    """The base model identified on the windows (varpro), its residuals and their summaries, the noise sd
-    (median over the identification records) and the candidate screen on the whole records' rows, carrying
-    ``policy``: ``(base_fit, before, summaries, noise_sd, screen)``."""
+    """The base model identified on the windows and its candidate screen: ``(base_fit, before, summaries,
+    noise_sd, screen)``."""
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")

@@ -1,20 +1,10 @@
 """A suggested experiment: the drive on which two fitted extensions' predictions differ most.
 
-When two causes predict the held-out records equally well (a delay and a
-short first-order lag under slow sines; creep and a slow relaxation), the
-two fitted extended models are simulated on probe drives -- eq. 1's sine
-spanning the records' input range at log-spaced frequencies, and a multisine
-over that range -- each from rest for three periods; the root mean square of
-their difference over the last two periods (the first settles) is the
-separation. The probe with the largest separation is the experiment to run,
-except probes on which a fit leaves the recorded output range by more than
-its width: the records did not pin the fits down there, and a separation of
-fits that extrapolate (e.g. two slow time constants with large opposite
-weights) is no guide. Interference is not driven by the input: it is told apart by a record
-with the drive held constant. Neither is creep: against creep, one more probe
-holds the input at its lowest level (the rest) from the start, as long as the
-multisine, scored over its whole length (a drift there is creep; a
-relaxation of a constant input does not move).
+Both fits are simulated on probe drives (eq. 1's sine over the records' input range at log-spaced
+frequencies, a multisine, and for a cause shown at rest the input held there), each from rest; the rms of
+their difference after settling is the separation. Probes on which a fit leaves the recorded output range
+by more than its width are no guide (the records did not pin the fits down there). An interference is told
+apart by a record with the drive held constant.
 """
 
 from __future__ import annotations
@@ -110,13 +100,12 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
                 "note": "an interference is not driven by the input: record with the drive held constant"}
     lo, hi = screen.input_range
     recorded = recorded_range(screen)
-    probes = []
-    for f in _probe_frequencies(screen):
+    probes, freqs = [], _probe_frequencies(screen)
+    for f in freqs:
         dt = 1.0 / (f * SAMPLES_PER_PERIOD)
         t = np.arange(3 * SAMPLES_PER_PERIOD) * dt
         probes.append({"drive": f"sine {lo:.3g}-{hi:.3g} (eq. 1's form)", "frequency_hz": float(f),
                        **_probe(screen, a, b, probe_sine(t, f, lo, hi), dt, SAMPLES_PER_PERIOD, recorded)})
-    freqs = _probe_frequencies(screen)
     dt = 1.0 / (freqs[-1] * 20)
     duration = 3.0 / freqs[0]
     u = multisine(duration, dt, f_min=float(freqs[0]), f_max=float(freqs[-1]), low=lo, high=hi)

@@ -1,20 +1,10 @@
 """Identify the extension a diagnosis names, with the identifiers, and measure what it gains.
 
-The extended models are registered models (``hysbench.models.extended``:
-``mrpim+relaxation``, ``mrpim+delay``, ...); here they are identified with
-``hysbench.identification.identify`` -- varpro where the extension keeps the
-model partly linear (all but saturation), lsq otherwise -- on the
-identification records over their whole length (a copy of the dataset whose
-windows cover every sample; the records' weights k_m are kept), starting at
-the screen's estimate, every parameter free. The base model is refitted the
-same way, so the gain of the extension can be told apart from the gain of
-fitting whole records.
-
-The fit uses the screen's rows: a fixed random subset of at most ``max_rows``
-samples spread over each record's whole length (``SampledRecord``; the model
-still runs over every sample, only the least-squares rows are fewer), so a
-record of 500,000 samples costs one pass of the model, not a 500,000-row
-solve. Records no longer than ``max_rows`` are fitted on every sample.
+The extended models are registered models (``hysbench.models.extended``); they are identified with
+``hysbench.identification.identify`` (varpro where the model is partly linear, lsq otherwise) on the
+identification records' whole length, from the screen's estimate, every parameter free, on the screen's
+rows (``SampledRecord``: the model runs over every sample, the least-squares rows are the subset). The base
+model is refitted the same way, so the extension's gain is told apart from the gain of fitting whole records.
 """
 
 from __future__ import annotations
@@ -55,17 +45,12 @@ class SampledRecord(Record):
         return int(self.rows.size) if self.rows is not None else super().n_scored
 
 
-def whole_record(record: Record) -> Record:
-    """The same record with its window covering every sample."""
-    return cut(record, 0, record.t.size)
-
-
 def whole_record_dataset(dataset: Dataset, rows: Mapping[str, np.ndarray] | None = None) -> Dataset:
     """Every record's window covering all its samples; records named in ``rows`` fitted on those rows."""
     rows = dict(rows or {})
     records = []
     for r in dataset.records:
-        w = whole_record(r)
+        w = cut(r, 0, r.t.size)
         if r.file in rows and rows[r.file].size < r.t.size:
             w = SampledRecord(file=w.file, t=w.t, u=w.u, y=w.y, role=w.role, frequency_hz=w.frequency_hz,
                               weight=w.weight, window=w.window, rows=np.asarray(rows[r.file], dtype=np.int64))
@@ -89,11 +74,9 @@ def identify_whole(model, dataset: Dataset, start: Mapping[str, float], seed: in
     ``start`` (``bounds`` replace defaults)."""
     whole = whole_record_dataset(dataset, rows)
     extra = {"bounds": dict(bounds)} if bounds else {}
-    if model.has_linear_part:
-        return identify(model, whole, method="varpro", seed=seed, fit_on=list(fit_on), start=dict(start),
-                        **extra, **VARPRO_OPTIONS)
-    return identify(model, whole, method="lsq", seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
-                    **LSQ_OPTIONS)
+    method, options = ("varpro", VARPRO_OPTIONS) if model.has_linear_part else ("lsq", LSQ_OPTIONS)
+    return identify(model, whole, method=method, seed=seed, fit_on=list(fit_on), start=dict(start), **extra,
+                    **options)
 
 
 def residuals_of_fit(fit: Fit, dataset: Dataset) -> list[RecordResidual]:
@@ -105,9 +88,8 @@ def scores_by_file(residuals: Sequence[RecordResidual]) -> dict:
 
 
 def gain(before: Sequence[RecordResidual], after: Sequence[RecordResidual], role: str = "validation") -> dict:
-    """What the extension gains on the records of ``role``: the share of the residual sum of squares
-    it removes (whole records and scored windows), the z-score of the whole-record gain against the
-    records' own noise (``residuals.gain_z``), and the mean e_rms before and after."""
+    """What the extension gains on the records of ``role``: the share of the residual sum of squares it removes,
+    its z against the records' own noise (``residuals.gain_z``) and the mean e_rms before and after."""
     b = [rr for rr in before if rr.record.role == role]
     a = {rr.file: rr for rr in after}
     if not b:

@@ -67,42 +67,37 @@ def figure_residual_time(diag, path: Path) -> None:
     save_figure(fig, path)
 
 
-def _panels(plt, n: int):
-    """A figure with one small panel per record, four to a row."""
-    cols = min(4, n)
-    rows = int(math.ceil(n / cols))
-    return plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
+def _per_record(recs: list, path: Path, draw, xlabel: str) -> None:
+    """One small panel per record, four to a row, each drawn by ``draw(ax, record_residual)``."""
+    plt = pyplot()
+    cols = min(4, len(recs))
+    rows = int(math.ceil(len(recs) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
+    for ax, rr in zip(axes.flat, recs):
+        draw(ax, rr)
+        ax.set_title(_label(rr.record), fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(recs):]:
+        ax.axis("off")
+    axes[0, 0].legend(fontsize=6)
+    fig.supxlabel(xlabel, fontsize=8)
+    fig.supylabel("residual (base model)", fontsize=8)
+    save_figure(fig, path)
 
 
 def figure_residual_input(diag, path: Path) -> None:
-    plt = pyplot()
-    recs = diag.before
-    n = len(recs)
-    fig, axes = _panels(plt, n)
-    for ax, rr in zip(axes.flat, recs):
+    def draw(ax, rr):
         r = rr.record
         k = _stride(r.t.size)
         ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
         w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
-        ax.set_title(_label(r), fontsize=8)
-        ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[n:]:
-        ax.axis("off")
-    axes[0, 0].legend(fontsize=6)
-    fig.supxlabel(f"input ({diag.dataset.input_unit or 'input units'})", fontsize=8)
-    fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
+
+    _per_record(diag.before, path, draw, f"input ({diag.dataset.input_unit or 'input units'})")
 
 
 def figure_residual_phase(diag, path: Path) -> None:
-    plt = pyplot()
-    recs = [rr for rr in diag.before if rr.record.frequency_hz]
-    if not recs:
-        return
-    n = len(recs)
-    fig, axes = _panels(plt, n)
-    for ax, rr in zip(axes.flat, recs):
+    def draw(ax, rr):
         r = rr.record
         ph = phase_of(r)
         k = _stride(r.t.size)
@@ -110,14 +105,10 @@ def figure_residual_phase(diag, path: Path) -> None:
         w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         order = np.argsort(ph[w])
         ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
-        ax.set_title(_label(r), fontsize=8)
-        ax.tick_params(labelsize=7)
-    for ax in list(axes.flat)[n:]:
-        ax.axis("off")
-    axes[0, 0].legend(fontsize=6)
-    fig.supxlabel("phase within the drive period (0: input minimum)", fontsize=8)
-    fig.supylabel("residual (base model)", fontsize=8)
-    save_figure(fig, path)
+
+    recs = [rr for rr in diag.before if rr.record.frequency_hz]
+    if recs:
+        _per_record(recs, path, draw, "phase within the drive period (0: input minimum)")
 
 
 def figure_spectrum(diag, path: Path) -> None:
@@ -226,6 +217,3 @@ FIGURES = {
     "whiteness": (figure_whiteness, "Whiteness of the residual"),
     "candidates": (figure_candidates, "Candidate causes"),
 }
-
-
-# --- markdown ---------------------------------------------------------------------

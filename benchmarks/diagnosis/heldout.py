@@ -1,32 +1,13 @@
 """Held-out scores: every candidate scored on records that took no part in fitting it.
 
-Leave-one-identification-record-out on the screen's rows: for every fold
-the linear parameters of a candidate (the many: the base model's weights and
-the extension's gains) are solved on the other identification records and
-the left-out record is predicted; the base model alone is refitted the
-SAME way on the SAME rows. The finalists (every candidate that passes the
-test of ``selection`` on this quick score) are scored again with their own nonlinear
-parameters (time constants, delay, mode, creep time; an interference's
-frequency searched afresh) also refitted on each fold's training records;
-the spread of those fold estimates is the parameter's uncertainty
-(jackknife). The validation records are not touched.
-
-Held-out score per candidate, from the out-of-fold residuals e (every row
-predicted by a fit that did not see its record):
-
-* gain G = 1 - sum e_c^2 / sum e_null^2;
-* z: each left-out record is cut into ``n_blocks`` contiguous blocks and
-  ln(SSE_null / SSE_c) taken per block; z is the normal quantile of the
-  one-sided Wilcoxon signed-rank test of those log ratios -- blocks, not
-  samples, so correlated residuals are not counted as independent, and
-  ranks, so a record with a large misfit does not swamp the others;
-* the folds (records) it improves.
-
-A record whose input goes beyond the other identification records' range
-(``held_out_windows``) is scored only up to where it first does:
-it is fitted whole in every other fold, but the base model fitted without
-it would extrapolate beyond, so its out-of-fold residuals there are not a
-test of the cause.
+Leave-one-identification-record-out on the screen's rows: for every fold the linear parameters of a candidate
+are solved on the other records and the left-out record is predicted; the base model alone is refitted the
+same way on the same rows. Finalists are scored again with their own nonlinear parameters refitted per fold,
+whose spread is their uncertainty (jackknife). From the out-of-fold residuals e (``score``): the gain
+G = 1 - sum e_c^2 / sum e_null^2, z (the one-sided Wilcoxon signed-rank test of ln(SSE_null / SSE_c) over
+``n_blocks`` contiguous blocks of each left-out record, as a normal quantile: blocks, so correlated residuals
+are not counted as independent) and the records improved. A record whose input goes beyond the others'
+range is scored only up to where it first does (``held_out_windows``).
 """
 
 from __future__ import annotations
@@ -47,12 +28,10 @@ FOLD_NFEV = 8  # iterations of a fold's refit of a candidate's own nonlinear par
 
 @dataclass
 class Folds:
-    """Leave-one-record-out on the screen's stacked rows. Every record is left out once (fold m: record m);
-    only its first ``scored[m]`` rows are held-out targets (``Screen.scored_rows``): past where a record's
-    input first goes beyond the other records' range it is predicted by extrapolation, and its out-of-fold
-    residual there (the ``tail``) is set to zero, so that every sum, block and fold count below covers the
-    scored rows alone. A record with no scored row is no target. ``policy``: the decision policy (the screen's),
-    for every test that compares held-out scores."""
+    """Leave-one-record-out on the screen's stacked rows (fold m leaves record m out). Only a record's first
+    ``scored[m]`` rows are held-out targets (``Screen.scored_rows``; None: every row): its out-of-fold residual
+    after them (``tail``) is set to zero, so every sum, block and count covers the scored rows alone.
+    ``policy``: the screen's."""
 
     starts: np.ndarray  # row offsets of the records, len M + 1
     scored: tuple | None = None  # per record: its scored rows, from its start (None: every row)
@@ -104,9 +83,8 @@ class Folds:
 
 @dataclass
 class HeldOut:
-    """The held-out scores' residuals: the out-of-fold residuals (``out_of_fold``) of the base model alone
-    (``null``) and of every candidate scored (``add``; ``of``), on the screen's stacked rows, each row predicted
-    by a fit on the other records (``folds``); ``fold(c, m)``: those of fold m's left-out record."""
+    """The out-of-fold residuals (``out_of_fold``) of the base alone (``null``) and of every candidate scored
+    (``add``; ``of``); ``fold(c, m)``: those of fold m's left-out record."""
 
     folds: Folds
     null: np.ndarray
@@ -134,9 +112,8 @@ class HeldOut:
 
 def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
                 train_residuals: list | None = None) -> np.ndarray:
-    """Every row's residual from a linear solve on the other records; ``design(m)`` gives fold m's
-    stacked design (all rows). ``train_residuals``: a list that receives, per fold, the residual on its
-    training rows (the other records) of that same solve."""
+    """Every row's residual from a linear solve on the other records (``design(m)``: fold m's stacked design);
+    ``train_residuals`` receives, per fold, that solve's residual on its training rows."""
     e = np.zeros(screen.n)
     for m in range(folds.n):
         test = folds.test(m)
@@ -242,13 +219,8 @@ def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
 
 
 def passes(c: Candidate, policy: Policy) -> bool:
-    h = c.heldout
-    return significant(c, policy) and not c.limit and not h.get("at_bound")
-
-
-def significant(c: Candidate, policy: Policy) -> bool:
-    """Held-out evidence for a candidate, whatever its meaning (``evidence``)."""
-    return evidence(c.heldout, policy)
+    """Held-out evidence, within the cause's meaning and off the search bounds."""
+    return evidence(c.heldout, policy) and not c.limit and not c.heldout.get("at_bound")
 
 
 def evidence(h: dict, policy: Policy) -> bool:
@@ -260,10 +232,8 @@ def evidence(h: dict, policy: Policy) -> bool:
 
 
 def line_evidence(h: dict, policy: Policy) -> bool:
-    """An interference found on each fold's other records at one frequency and amplitude (``same_line``)
-    that improves every held-out record with z >= ``z_pass`` is evidence however small its share: the gain
-    floor guards against a flexible extension shaving a little off a large misfit, but a line whose
-    frequency records chose independently is specific by itself."""
+    """An interference found at one frequency and amplitude on each fold's other records (``same_line``) that
+    improves every held-out record with z >= ``z_pass``: specific by itself, however small its gain."""
     return bool(h.get("same_line")) and _improves_every_fold(h, policy)
 
 
@@ -296,10 +266,8 @@ def share_of_misfit(screen, reference_sse: float, sse: float) -> float:
 
 
 def carried_by_one_record(folds: Folds, e_null: np.ndarray, e_c: np.ndarray) -> bool:
-    """Whether a held-out gain is evidence only through the one record it improves most: without that record's
-    rows it is no evidence (``evidence``). Coloured noise on the other records occasionally throws the base's
-    extrapolation to one record far off, and any extension with more columns then repairs it.
-    With fewer than ``min_records_check`` records nothing is left to check, and the gain counts as it is."""
+    """Whether a held-out gain is evidence only through the one record it improves most (without that record's
+    rows it is none); with fewer than ``min_records_check`` records it counts as it is."""
     if folds.n_scored < folds.policy.min_records_check:
         return False
     gain = [float(e_null[folds.test(m)] @ e_null[folds.test(m)] - e_c[folds.test(m)] @ e_c[folds.test(m)])
@@ -326,20 +294,11 @@ def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
     return out
 
 
-def first_excursion(u: np.ndarray, lo: float, hi: float, margin: float) -> int | None:
-    """The first sample of ``u`` beyond [lo - margin, hi + margin] (None if none is)."""
-    beyond = np.flatnonzero((u > hi + margin) | (u < lo - margin))
-    return int(beyond[0]) if beyond.size else None
-
-
 def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[int]:
-    """How many samples of each record, from its start, the held-out test predicts (``Folds``):
-    all of a record whose input stays within the other records' range (to ``beyond_range`` of the span,
-    policy ``beyond_range``), and
-    of one that leaves it, the samples before it first does. Fitted on the others, the base model would
-    extrapolate beyond (weights of its hysteresis operators that only that record moves), and the comparison
-    would measure that, not the cause. The record still takes part whole in every other fold's fit. All
-    records are predicted whole if fewer than two stay within."""
+    """How many samples of each record, from its start, the held-out test predicts (``Folds``): all of a record
+    whose input stays within the other records' range (to ``beyond_range`` of the span), else those before it
+    first leaves it (fitted on the others, the base would extrapolate there). All if fewer than two stay
+    within."""
     sizes = [int(u.size) for u in inputs]
     beyond = beyond_others(inputs)
     if sum(b <= beyond_range for b in beyond) < 2:
@@ -348,9 +307,8 @@ def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[
     margin = beyond_range * (max(hi) - min(lo))
     out = []
     for m, u in enumerate(inputs):
-        k = None
-        if beyond[m] > beyond_range:
-            others = [j for j in range(len(inputs)) if j != m]
-            k = first_excursion(u, min(lo[j] for j in others), max(hi[j] for j in others), margin)
-        out.append(sizes[m] if k is None else k)
+        others = [j for j in range(len(inputs)) if j != m]
+        low, high = min(lo[j] for j in others) - margin, max(hi[j] for j in others) + margin
+        outside = np.flatnonzero((u > high) | (u < low)) if beyond[m] > beyond_range else []
+        out.append(int(outside[0]) if len(outside) else sizes[m])
     return out

@@ -1,12 +1,5 @@
-"""Library screen: sparse regression (pysindy FROLS) of the null's residual on candidate terms.
-
-Evidence and start values only (the cause is chosen on held-out records):
-each cause's terms (``Cause.library_terms``: first-order low-pass histories of
-the input on a grid of time constants, the derivatives of the model's own
-output, slow exponential drifts, a sinusoid at the pooled spectrum's peak,
-hinge functions of the model's output at high and low levels), each made orthogonal to the base model's
-regressors and scaled to unit norm. The path is cut where BIC (with the
-null residual's effective sample size) is lowest.
+"""Library screen: sparse regression (pysindy FROLS) of the null's residual on each cause's candidate terms
+(``Cause.library_terms``), made orthogonal to the base's regressors; evidence and start values only.
 """
 
 from __future__ import annotations
@@ -24,13 +17,8 @@ from .residuals import RecordResidual
 
 
 def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int = 8) -> dict:
-    """Sparse regression (pysindy FROLS) of the null's residual on a library of candidate terms.
-
-    Forward orthogonal least squares adds one term at a time, the one that
-    explains most of what is left; the path is cut where BIC is lowest.
-    Returns {"terms": [{name, group, explained, order}], "groups": {cause: share of the null's
-    residual sum of squares explained}, "relaxation_taus": [time constants of kept low-pass terms]}.
-    """
+    """FROLS's forward path cut where BIC is lowest: {"terms", "groups" (share explained per cause),
+    "relaxation_taus" (the kept low-pass terms' time constants), ...}."""
     null_theta = np.array([screen.null.params[n] for n in screen.base_lin])
     bc = screen.base_columns(screen.base_nl, full=True)
     y_hat_rows = np.concatenate([rows @ null_theta for rows in bc.rows])

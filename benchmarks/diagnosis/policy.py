@@ -1,15 +1,10 @@
 """The diagnosis's decision policy: every threshold that decides a verdict, in one frozen, versioned object.
 
-``Policy()`` is the rule as documented in docs/diagnosis.md; ``Policy(z_pass=2.5)`` is a variant.
-``diagnose(..., policy=...)`` passes it down to every step (the screen carries it as ``Screen.policy``);
-it is printed in every report (``Policy.changed`` in the markdown, every field in the JSON) and selected
-from the command line with ``hysbench diagnose --policy KEY=VALUE`` (``Policy.with_overrides``).
-
-Each field's meaning is its ``doc`` metadata (``Policy.described``). ``version`` names the rule the fields
-belong to: it changes when a field is added, removed or changes meaning, not when a value is overridden.
-
-Constants that only set numerics (grid sizes, iteration caps, caches, the screen's row subset) stay
-beside the code they tune: they change how precisely a fit is found, not what is decided from it.
+``Policy()`` is the rule as documented in docs/diagnosis.md; ``Policy(z_pass=2.5)`` is a variant, passed as
+``diagnose(..., policy=...)``, printed in every report and JSON and selected on the command line with
+``hysbench diagnose --policy KEY=VALUE`` (``Policy.with_overrides``). Each field's meaning is its ``doc``
+metadata (``Policy.described``); ``version`` changes when a field is added, removed or changes meaning.
+Constants that only set numerics (grid sizes, iteration caps) stay beside the code they tune.
 """
 
 from __future__ import annotations

@@ -8,9 +8,11 @@ from pathlib import Path
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 from .causes import OUTPUT_UNIT
+from .extensions import scores_by_file
 from .figures import FIGURES
 from .residuals import LAGS
 from .secondary import not_identified
+
 
 def _fmt(v, digits: int = 4) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
@@ -55,8 +57,6 @@ def not_held_out_lines(d) -> list[str]:
                 f"range by more than {100 * d.policy.beyond_range:.0f} % of the span is predicted only up to where it first "
                 "does (a fit on the others would extrapolate beyond); it takes part whole in every other fold's fit, "
                 "and the held-out scores cover the rows predicted."]
-
-
 
 
 def _bound_cell(heldout: dict) -> str:
@@ -236,25 +236,14 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
                      f"{_fmt(s.rms_window, 3)} | {s.lag1_autocorrelation:.3f} | {_fmt(s.ljung_box_p, 3)} |")
     lines += ["", "## e_m / e_rms per record (% of the measured peak-to-peak)", "",
               "Window: the record's scored window (the benchmark's metric); whole: every sample.", ""]
-    header = "| record | role | before e_m | before e_rms | before e_rms whole |"
-    sep = "|---|---|---|---|---|"
-    if d.base_whole:
-        header += " base refit e_rms | base refit e_rms whole |"
-        sep += "---|---|"
-    if d.after:
-        header += " after e_m | after e_rms | after e_rms whole |"
-        sep += "---|---|---|"
-    lines += [header, sep]
-    bw = {rr.file: rr.scores() for rr in d.base_whole}
-    af = {rr.file: rr.scores() for rr in d.after}
+    three, two = ("e_m", "e_rms", "e_rms_whole"), ("e_rms", "e_rms_whole")
+    cols = [(f"{name} {k.replace('_whole', ' whole')}", scores_by_file(recs), k)  # (header, scores by file, key)
+            for name, recs, keys in (("before", d.before, three), ("base refit", d.base_whole, two),
+                                     ("after", d.after, three)) if recs for k in keys]
+    lines += ["| record | role | " + " | ".join(c for c, _, _ in cols) + " |", "|---|---|" + "---|" * len(cols)]
     for rr in d.before:
-        s = rr.scores()
-        row = f"| {rr.file} | {rr.record.role} | {s['e_m']:.3f} | {s['e_rms']:.3f} | {s['e_rms_whole']:.3f} |"
-        if d.base_whole:
-            row += f" {bw[rr.file]['e_rms']:.3f} | {bw[rr.file]['e_rms_whole']:.3f} |"
-        if d.after:
-            row += f" {af[rr.file]['e_m']:.3f} | {af[rr.file]['e_rms']:.3f} | {af[rr.file]['e_rms_whole']:.3f} |"
-        lines.append(row)
+        lines.append(f"| {rr.file} | {rr.record.role} | " + " | ".join(f"{by[rr.file][k]:.3f}" for _, by, k in cols)
+                     + " |")
     lines += ["", "## Figures", ""]
     for key, file in figures.items():
         lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]

@@ -1,21 +1,9 @@
 """Residuals of a fitted model over whole records, and what they look like.
 
-A model is fitted on each record's scored window, but a slow drift or a
-start-up transient shows only outside it; here every record is simulated
-from its first sample and the residual r = y_measured - y_model is kept for
-all of it. From it:
-
-* the noise level, from first differences (white noise of sd s has
-  differences of sd s sqrt(2); a smooth misfit hardly changes from one 1 ms
-  sample to the next): s = 1.4826 MAD(diff r) / sqrt(2);
-* a whiteness test per record: Ljung-Box Q over the first ``LAGS`` lags of
-  the residual's autocorrelation, chi-square with LAGS degrees of freedom;
-* the residual against phase within the drive period, its spectrum
-  (periodogram), and e_m / e_rms against frequency;
-* the pooled coherent spectrum of the identification records,
-  |sum_m R_m(f)|^2 / sum_m n_m, where R_m is the Fourier sum of record m in
-  its own time: a disturbance with the same phase in every record adds up
-  there, the drive's harmonics (different in each record) do not.
+Every record is simulated from its first sample and the residual r = y_measured - y_model kept for all of
+it (a drift or a start-up transient shows only outside the scored window). From it: the noise level from
+first differences (``noise_sd``), a Ljung-Box whiteness test, the spectrum, the repetition from period to
+period (``periodic_structure``) and the pooled spectrum of the identification records (``coherent_spectrum``).
 """
 
 from __future__ import annotations
@@ -141,57 +129,39 @@ MAX_SPECTRUM_POINTS = 1 << 21
 
 def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4,
                       coherent: bool = True):
-    """Pooled coherent amplitude spectrum: (f, amplitude estimate 2 |sum_m R_m(f)| / sum_m n_m) for f in
-    [f_min, f_max], each record's DFT R_m in its own time (t = 0 at its first sample). With
-    ``coherent=False`` the records' powers add instead (a disturbance whose phase differs per record):
-    2 sqrt(sum_m |R_m(f)|^2 / sum_m n_m^2).
-
-    Records with one sample time: zero-padded FFTs. Sample times that differ: each record's DFT on one
-    common grid (chirp z-transform, ``scipy.signal.zoom_fft``), spaced 1 / (pad x the longest duration)
-    and cut at the coarsest record's Nyquist frequency."""
+    """Pooled coherent amplitude spectrum: (f, 2 |sum_m R_m(f)| / sum_m n_m) for f in [f_min, f_max], each
+    record's DFT R_m in its own time, zero-padded to ``pad`` times the longest record; with ``coherent=False``
+    the powers add: 2 sqrt(sum_m |R_m|^2 / sum_m n_m^2)."""
     dts = np.array([rr.record.dt for rr in residuals])
-    if dts.max() - dts.min() > 1e-9 * dts.max():
-        return _coherent_spectrum_mixed(residuals, f_min, min(f_max, 0.5 / dts.max()), pad, coherent)
-    dt = float(np.median(dts))
-    n_max = max(rr.record.t.size for rr in residuals)
-    n_fft = 1 << int(math.ceil(math.log2(pad * n_max)))
-    total, n_total, n2 = None, 0, 0
+    if dts.max() - dts.min() > 1e-9 * dts.max():  # sample times that differ: each DFT on one grid (chirp z)
+        f_lo, f_hi = max(f_min, 0.0), min(f_max, 0.5 / dts.max())
+        if not f_hi > f_lo:
+            return np.empty(0), np.empty(0)
+        df = 1.0 / (pad * max(rr.record.t.size * rr.record.dt for rr in residuals))
+        m = int(math.floor((f_hi - f_lo) / df)) + 1
+        if m > MAX_SPECTRUM_POINTS:
+            m = MAX_SPECTRUM_POINTS
+            df = (f_hi - f_lo) / (m - 1)
+        f, keep = f_lo + df * np.arange(m), slice(None)
+
+        def dft(x, dt):
+            return zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / dt)
+    else:
+        n_fft = 1 << int(math.ceil(math.log2(pad * max(rr.record.t.size for rr in residuals))))
+        f = np.fft.rfftfreq(n_fft, float(np.median(dts)))
+        keep = (f >= f_min) & (f <= f_max)
+
+        def dft(x, dt):
+            return np.fft.rfft(x, n_fft)
+    total, n_total, n2 = 0.0, 0, 0
     for rr in residuals:
         x = rr.residual - np.mean(rr.residual)
-        spec = np.fft.rfft(x, n_fft)
-        spec = spec if coherent else np.abs(spec) ** 2
-        total = spec if total is None else total + spec
+        spec = dft(x, rr.record.dt)
+        total = total + (spec if coherent else np.abs(spec) ** 2)
         n_total += x.size
         n2 += x.size**2
-    f = np.fft.rfftfreq(n_fft, dt)
-    keep = (f >= f_min) & (f <= f_max)
-    return f[keep], _pooled_amplitude(total[keep], n_total, n2, coherent)
-
-
-def _pooled_amplitude(total: np.ndarray, n_total: int, n2: int, coherent: bool) -> np.ndarray:
-    return 2.0 * np.abs(total) / n_total if coherent else 2.0 * np.sqrt(total / n2)
-
-
-def _coherent_spectrum_mixed(residuals: list[RecordResidual], f_lo: float, f_hi: float, pad: int,
-                             coherent: bool = True):
-    f_lo = max(f_lo, 0.0)
-    duration = max(rr.record.t.size * rr.record.dt for rr in residuals)
-    df = 1.0 / (pad * duration)
-    if not f_hi > f_lo:
-        return np.empty(0), np.empty(0)
-    m = int(math.floor((f_hi - f_lo) / df)) + 1
-    if m > MAX_SPECTRUM_POINTS:
-        m = MAX_SPECTRUM_POINTS
-        df = (f_hi - f_lo) / (m - 1)
-    total = np.zeros(m, dtype=complex if coherent else float)
-    n_total, n2 = 0, 0
-    for rr in residuals:
-        x = rr.residual - np.mean(rr.residual)
-        spec = zoom_fft(x, [f_lo, f_lo + m * df], m=m, fs=1.0 / rr.record.dt)
-        total += spec if coherent else np.abs(spec) ** 2
-        n_total += x.size
-        n2 += x.size**2
-    return f_lo + df * np.arange(m), _pooled_amplitude(total, n_total, n2, coherent)
+    total = total[keep]
+    return f[keep], 2.0 * np.abs(total) / n_total if coherent else 2.0 * np.sqrt(total / n2)
 
 
 def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz: float = 0.5) -> list[tuple[float, float]]:
@@ -258,17 +228,11 @@ def whole_periods(record: Record) -> tuple[int, int]:
 
 
 def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> dict:
-    """Whether a residual repeats from one drive period to the next.
-
-    Per periodic record with at least two full periods: the residual cut into
-    periods and averaged into ``n_bins`` phase bins, X (P periods x bins).
-    Records of one period at the same frequency and period length in samples
-    (segments cut from one recording, or repeated drives) are taken
-    together, one period each. F = P mean_p(X)^2 / var_p(X) summed over bins
-    and records (groups): about 1 for noise independent from period to period
-    (white or coloured, if its correlation time is short against the period),
-    large for a misfit that the drive repeats. Returns {"F", "records"} (F nan
-    without such records)."""
+    """Whether a residual repeats from one drive period to the next: per record of at least two whole periods
+    (records of one period at the same frequency and length taken together), the residual in ``n_bins`` phase
+    bins per period, X (P x bins); F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for noise
+    independent from period to period, large for a misfit the drive repeats. {"F" (nan without such records),
+    "records"}."""
     num = den = 0.0
     used = []
     single: dict[tuple, list[tuple[str, np.ndarray]]] = {}
@@ -294,14 +258,10 @@ def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> di
 
 
 def harmonic_phase_turn(residuals: list[RecordResidual], frequency_hz: float) -> tuple[float, float] | None:
-    """How far a sinusoid near a drive harmonic turns in phase from one drive period to the next.
-
-    Per periodic record, the residual's complex amplitude c_j at the drive harmonic nearest
-    ``frequency_hz``, in each whole period j (its mean removed). A misfit locked to the drive repeats every
-    period: c_j stays put. A sinusoid off the harmonic by df turns by 2 pi df T per period T. Returns
-    (turn, its standard error) in rad per period: the turn is the angle of sum c_(j+1) conj(c_j) over
-    consecutive periods within records; its error is the rms of c_(j+1) - c_j e^(i turn) over the rms
-    amplitude and the square root of the number of pairs. None with fewer than two pairs."""
+    """How far a sinusoid near a drive harmonic turns in phase from one drive period to the next: (turn, its
+    standard error) in rad per period, from the residual's complex amplitude c_j at the harmonic in each whole
+    period j (turn: the angle of sum c_(j+1) conj(c_j); error: the rms of c_(j+1) - c_j e^(i turn) over the rms
+    amplitude and sqrt(pairs)). A misfit locked to the drive stays put. None with fewer than two pairs."""
     products = []
     for rr in residuals:
         r = rr.record

@@ -1,26 +1,12 @@
 """The candidate screen: the base model alone (the null) and each cause's extension on a fixed row subset.
 
-Everything here works on the identification records over their WHOLE
-length (not only the scored windows), on a fixed random subset of at most
-``max_rows`` samples per record (the models still run over every sample;
-the subset only makes the least-squares solves small). Linear parameters
-are solved exactly at every step (separable least squares).
-
-* The null: the base model alone, its nonlinear parameters refined on these
-  rows (from the base fit on the windows), its linear ones solved.
-* Stage 1 (each cause's ``fit``, ``causes``): each cause's extension
-  (``hysbench.models.extended``) with the base's nonlinear parameters held
-  at the null's. Components that only add columns are regressed on the
-  null's residual after projecting off the base's columns.
-* Stage 2 (``Screen.joint``): a candidate refined with the base's nonlinear
-  parameters free as well (every column recomputed).
-* A candidate whose parameters leave the cause's meaning is scored but not
-  named (``Screen.limit_of``): a resonance must be underdamped (a mode),
-  creep slower than twice the longest drive period.
-
-The screen's internal comparisons use BIC with the AR(1) effective sample
-size of the null's residual (``candidates``); the cause is chosen on
-held-out records (``selection``).
+The identification records over their whole length, on a fixed random subset of at most ``max_rows``
+samples per record (the models run over every sample; the subset keeps the least-squares solves small);
+linear parameters are solved exactly at every step. The null: the base alone, its nonlinear parameters
+refined on these rows. Stage 1 (``Cause.fit``): each cause's extension with the base's nonlinear parameters
+held at the null's (added columns are regressed on the null's residual, projected off the base's columns).
+Stage 2 (``Screen.joint``): the base's nonlinear parameters free as well. The cause is chosen on held-out
+records (``selection``).
 """
 
 from __future__ import annotations

@@ -1,14 +1,4 @@
-"""Fit every candidate cause on the screen and score each on held-out records.
-
-Order: the library screen (evidence, relaxation seeds); each cause's
-extension with the base's nonlinear parameters held (stage 1); a quick
-held-out score for each (``selection``); the passing ones refined with the
-base's nonlinear parameters free (stage 2: the best of each cause, at most ``max_joint``) and scored
-again; a relaxation with a time constant at its search bound gives the variant of one fewer, started from
-its other ones (``relaxation.without_pinned``), which replaces that variant if it predicts better, both
-with their own parameters refitted per fold; finally every passing candidate scored with its own nonlinear
-parameters refitted per fold (the honest score, and the uncertainty).
-"""
+"""Fit every candidate cause on the screen and score each on held-out records (``run_screen``)."""
 
 from __future__ import annotations
 
@@ -38,7 +28,9 @@ def score_candidate(screen, held: HeldOut, c: Candidate, refit: bool = False) ->
 
 def run_screen(screen, residuals: Sequence[RecordResidual], max_relaxation: int = MAX_RELAXATION,
                joint_nfev: int = 10, max_joint: int = 4, progress: Callable[[str], None] | None = None) -> dict:
-    """Every candidate fitted and scored; returns {"library", "candidates" (best per cause),
+    """Every candidate fitted (stage 1) and scored quickly; the best promising one of each cause refined (stage 2);
+    a variant with a parameter at its bound one fewer (``Cause.one_fewer``); every finalist scored with its own
+    nonlinear parameters refitted per fold. Returns {"library", "candidates" (best per cause),
     "relaxation_variants", "folds", "heldout" (``HeldOut``: the out-of-fold residuals of the base and of each)}."""
     say = progress or (lambda s: None)
     say("library screen (pysindy FROLS)")

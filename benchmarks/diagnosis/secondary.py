@@ -1,18 +1,9 @@
 """Secondary causes ("also"): forward selection on top of the named cause (the backward step: ``backward``).
 
-Every cause tried on top of what is kept is scored on held-out records
-against what is kept, the kept part's parameters held as fitted on every
-record on both sides. One that shows evidence there is scored again with
-the parameters it adds (a time constant, a delay, a mode, a clip's level, a
-line's frequency) refitted on each fold's training records, and judged on
-that score: a secondary cause too is named only on records that took no
-part in choosing its parameters, and the spread of its fold estimates is
-their uncertainty. An interference on top takes its frequency per fold from
-the other records, fitted there jointly with what is kept
-(``lines.joint_line``; on top of a clip, on its residual:
-``lines.fold_frequencies``), and is one line only if the folds agree
-within their resolution; the causes tried on top of a named interference take
-its frequency per fold too.
+Every cause tried on top of what is kept is scored on held-out records against what is kept, the kept
+part's parameters held as fitted on every record; one with evidence there is scored again with the
+parameters it adds refitted per fold, and judged on that score. A line on top takes its frequency per
+fold from the other records (``lines``).
 """
 
 from __future__ import annotations
@@ -35,10 +26,6 @@ def refit_errors(screen, folds, result: dict, c: Candidate):
     if c.heldout.get("refit_per_fold") and c in result["heldout"]:
         return result["heldout"].of(c)
     return heldout_errors(screen, folds, c, refit=True)[0]
-
-
-def _admissible(comp: Candidate, policy: Policy) -> bool:
-    return evidence(comp.heldout, policy) and not comp.limit and not comp.heldout["at_bound"]
 
 
 def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
@@ -135,7 +122,7 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Trie
     e = judged = kept.with_line(screen, folds, part_e, part_train, part_designs)
     flags = bound_flags(screen, comp) if kept.part is not None else {"at_bound": [], "open_ended": []}
     comp.heldout = {**score(folds, kept.reference, e), **flags, "refit_per_fold": False}
-    if _admissible(comp, folds.policy):  # the honest score: the added cause's parameters refitted per fold
+    if passes(comp, folds.policy):  # the honest score: the added cause's parameters refitted per fold
         refit_train, refit_designs = [], []
         refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
                                            only=added_names(screen, kept.part, comp), designs=refit_designs)
@@ -151,7 +138,7 @@ def _choose(screen, folds, tried: list[Tried], reference) -> tuple[Tried | None,
     ``selection.decide``), and the others as good (not told apart on these records; their names are listed
     with it)."""
     pol = folds.policy
-    ok = [t for t in tried if _admissible(t.composite, pol)]
+    ok = [t for t in tried if passes(t.composite, pol)]
     if not ok:
         return None, []
     best = max(ok, key=lambda t: t.composite.heldout["gain"])
@@ -182,20 +169,11 @@ class Forward:
 
 
 def forward(ctx, on: Candidate, taken: set) -> Forward:
-    """Forward selection on top of ``on``: in each round every other cause (not in ``taken``) is added to what is
-    kept so far (a composite whose added cause is searched afresh on top of it, ``Screen.composite``; an
-    interference as a per-record sinusoid on top, ``_line_on_top``; a clip as a clip of what is kept,
-    ``causes.saturation.clip_on_top``, after which only an interference composes) and scored on held-out records
-    against what is kept, the parameters of what is kept held on both sides as fitted on every record.
-    Those with held-out evidence are scored again with the added cause's own nonlinear parameters (a
-    clip's level, a line's frequency) refitted per fold, and judged on that score: the added cause's
-    parameters are then chosen without the record they predict. Of those that still show evidence, within
-    the cause's meaning and off their search bounds, one is kept (``_choose``). On short records
-    (``Screen.small``), or with the ``thorough`` setting, every cause is tried and searched afresh, not only
-    those that predict better than the base alone: a second cause can show only once the first is accounted
-    for (a delay or a mode under a plant's own relaxation). Otherwise, on long records (cost: about three times
-    the diagnosis on the default dataset), only those are tried, from their own fits. At most the policy's
-    ``max_secondary`` are kept. The composites tried and the alternatives are recorded on the diagnosis."""
+    """Forward selection on top of ``on`` (rule ``also``): in each round every other cause not in ``taken`` is
+    tried on top of what is kept (``Cause.on_top``; a line: ``_line_on_top``) and one is kept (``_choose``).
+    On short records (``Screen.small``) or with ``thorough`` every cause is tried and searched afresh (a second
+    cause can show only once the first is accounted for); otherwise only those that nearly passed against the
+    base alone, from their own fits. The composites tried and the alternatives are recorded on the diagnosis."""
     diag, screen, folds = ctx.diag, ctx.diag.screen, ctx.folds
     pol = folds.policy
     fresh = screen.small or bool(diag.settings.get("thorough"))
@@ -258,11 +236,9 @@ ALSO = Rule("also", (
 
 @dataclass(frozen=True)
 class Completion:
-    """A cause named by no rule yet (``candidate``), the forward selection on top of it, and what all that is
-    kept removes of the base's held-out misfit beyond noise (``share``; 0 if nothing is kept). For a promising
-    candidate also the score of all that is kept against the base, every parameter refitted per fold
-    (``score``), and whether that score is evidence only through the one record it improves most
-    (``one_record``, ``heldout.carried_by_one_record``)."""
+    """A candidate completed by the forward selection on top of it, and the share of the base's held-out misfit
+    that all that is kept removes (0 if nothing is kept); for a promising one also their score against the base,
+    every parameter refitted per fold, and whether one record carries it (``carried_by_one_record``)."""
 
     candidate: Candidate
     forward: Forward

@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from .candidates import DRIVE_LOCKED, OPEN_ENDED_NOTE, Candidate
-from .heldout import HeldOut, carried_by_one_record, pairwise_z, passes, share_of_misfit, significant
+from .heldout import HeldOut, carried_by_one_record, evidence, pairwise_z, passes, share_of_misfit
 from .policy import Policy
 from .rule import NONE, UNEXPLAINED, Rule, Verdict, apply, step
 
@@ -36,7 +36,7 @@ def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
         return "no candidate predicts the held-out records better than the base model"
     h = best.heldout
     why = (f"outside its meaning ({best.limit})" if best.limit else
-           "carried by one held-out record" if significant(best, policy) else
+           "carried by one held-out record" if evidence(h, policy) else
            f"not evidence (z = {h['z']:.1f}, better in {h['folds_improved']} of {h['n_folds']} held-out records)")
     return (f"no candidate predicts the held-out records better than the base model with evidence and within its "
             f"meaning; the best, {best.label} (held-out gain {100 * best.heldout_gain:.2f} %), is {why}")
@@ -72,9 +72,8 @@ class Scores:
 
 def decide(screen, held: HeldOut, candidates: Sequence[Candidate], variants: Sequence[Candidate],
            structured: bool) -> Verdict:
-    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best);
-    ``held``: the held-out residuals of the base model and the candidates. The thresholds: ``held.folds.policy``.
-    The share of the misfit is recorded on every passing candidate and on the one named."""
+    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best), with
+    the policy of ``held.folds``; the share of the misfit is recorded on every passing candidate."""
     pol = held.folds.policy
     ev = Scores(screen, held, tuple({id(c): c for c in [*candidates, *variants]}.values()), tuple(variants),
                 structured)
@@ -115,12 +114,12 @@ def nothing_passes(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict |
     if v.cause != UNDECIDED or ev.passing(pol):
         return v, None
     held = ev.held
-    evidence = [c for c in ev.candidates if (significant(c, pol) or c.heldout_gain >= pol.strong_gain)
-                and not carried_by_one_record(held.folds, ev.e_null, held.of(c))]  # partly predicted
-    seen = {"structured": ev.structured, "evidence": [c.cause for c in evidence]}
-    if not (ev.structured or evidence):
+    shown = [c for c in ev.candidates if (evidence(c.heldout, pol) or c.heldout_gain >= pol.strong_gain)
+             and not carried_by_one_record(held.folds, ev.e_null, held.of(c))]  # partly predicted
+    seen = {"structured": ev.structured, "evidence": [c.cause for c in shown]}
+    if not (ev.structured or shown):
         return replace(v, cause=NONE, reason=none_reason(ev.candidates, pol)), step("nothing-passes", NONE, **seen)
-    partial = max(evidence, key=lambda c: c.heldout_gain) if evidence else None
+    partial = max(shown, key=lambda c: c.heldout_gain) if shown else None
     why = ("the residual is structured (it repeats from period to period)" if ev.structured else
            f"{partial.label} predicts part of it on held-out records, but not consistently over the records "
            "or not within its meaning")
@@ -166,7 +165,7 @@ def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     if not slower_than_drive(chosen, ev.screen.creep_min, pol):
         return v, None
     slowest = chosen.kind.slowest_time_s(chosen.estimates)
-    twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and significant(c, pol)
+    twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and evidence(c.heldout, pol)
              and pairwise_z(ev.held, chosen, c) < pol.z_same]
     if not twins:
         return v, None
@@ -273,11 +272,9 @@ SELECTION = (
 
 
 def identified(c: Candidate, policy: Policy) -> bool:
-    """Every parameter refitted per fold that identifies the cause agrees across the folds within
-    ``partial_se`` (relative; a clipping level relative to the output's range); a candidate with none refitted
-    per fold does not show it. A mode is identified by its frequency: its damping ratio, which drives far below
-    the mode barely show, is reported with its fold spread but does not decide whether the mode is there."""
-    if not c.uncertainty:  # nothing refitted per fold: agreement not shown
+    """The fold estimates of every identifying parameter (``Cause.identifying``) agree (``agrees``); a candidate
+    with none refitted per fold does not show it."""
+    if not c.uncertainty:
         return False
     only = c.kind.identifying
     return all(agrees(u, policy) for name, u in c.uncertainty.items() if only is None or name in only)
@@ -292,8 +289,7 @@ def agrees(u: dict, policy: Policy) -> bool:
 
 
 def loose_note(c: Candidate, policy: Policy) -> str:
-    """What the reason says of a named cause's parameters that do not identify it (``Cause.identifying``) and whose
-    fold estimates differ by more than ``partial_se``: e.g. a mode's damping ratio."""
+    """What the reason says of a named cause's non-identifying parameters whose fold estimates do not agree."""
     only = c.kind.identifying
     if only is None:
         return ""
@@ -313,17 +309,11 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
     return norm > 0 and float(d_a @ d_b) / norm >= policy.same_slice
 
 
-def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate],
-                     best: Candidate | None = None, e_null: np.ndarray | None = None) -> dict:
-    """Why a cause that removes only part of the misfit is not named ("" if it is): the part it removes must
-    pass the block test (z >= ``z_pass``, by the best predictor of that part), its parameters must agree across
-    the folds, and every other passing cause that predicts about as well (z < ``z_same``), with its own parameters
-    agreeing across the folds, must remove the same part (then it is ambiguous with it) -- when several causes
-    each take a different slice of a misfit that is mostly something else, naming one of them would be a guess.
-    A drive-locked sinusoid with held-out evidence counts as such a rival: it shows misfit locked to the drive.
-    Returns {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for such a
-    sinusoid); "text": the reason in words}."""
-    best = best or chosen
+def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate], best: Candidate,
+                     e_null: np.ndarray) -> dict:
+    """Why a cause that removes only part of the misfit is not specific (rule ``partial-specific``):
+    {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for a sinusoid
+    locked to the drive); "text": the reason in words, "" if specific}."""
     pol = held.folds.policy
     if best.heldout["z"] < pol.z_pass:
         return {"why": "z", "rivals": [], "text": f"its block test gives z = {best.heldout['z']:.1f} < {pol.z_pass:g}"}
@@ -332,9 +322,9 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
                 "text": f"its parameters differ between the folds by more than {100 * pol.partial_se:.0f} %"}
     rivals = [c for c in candidates if c.cause != chosen.cause and passes(c, pol) and identified(c, pol)]  # admissible
     # a sinusoid locked to the drive is no cause, but with evidence it shows a drive-locked misfit of its own
-    rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and significant(c, pol)]
+    rivals += [c for c in candidates if c.limit == DRIVE_LOCKED and evidence(c.heldout, pol)]
     close = [c for c in rivals if pairwise_z(held, chosen, c) < pol.z_same
-             and (e_null is None or not same_slice(e_null, held.of(chosen), held.of(c), pol))]
+             and not same_slice(e_null, held.of(chosen), held.of(c), pol)]
     if close:
         names = sorted({"a misfit locked to the drive" if c.limit == DRIVE_LOCKED else c.cause for c in close})
         rivals = sorted({"drive-locked" if c.limit == DRIVE_LOCKED else c.cause for c in close})
@@ -345,12 +335,9 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
 
 def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
                   candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
-    """When the best-predicting partial explanation is not specific (``why_not_specific``), another passing cause
-    that is -- its own part passes the block test, its parameters agree across the folds, and no admissible
-    rival predicting about as well removes another part -- is named with the rest as unexplained remainder:
-    e.g. an interference on top of a misfit that an unstable relaxation predicts partly. The one predicting
-    most among those; None if there is none, or with fewer than ``min_records_check`` records (two fold
-    estimates that agree are too weak a check to name a cause that does not predict best)."""
+    """The passing cause of another kind that predicts most of those that are specific (``why_not_specific``),
+    named when the best-predicting partial cause is not (rule ``specific-part``); None with fewer than
+    ``min_records_check`` records."""
     if held.folds.n_scored < held.folds.policy.min_records_check:
         return None
     for c in sorted(ok, key=lambda c: -c.heldout_gain):

@@ -1,13 +1,8 @@
-"""Creep in place of a named relaxation's slowest part.
+"""Creep in place of a named relaxation's slowest part (rule ``slow-part-twin``).
 
-Under drives of one mean level a first-order relaxation slower than every drive period and a drift
-since the start are nearly the same function: the records do not show that the slow part depends on
-the input. ``selection`` already names creep when creep alone predicts as well as the relaxation. When
-the relaxation has faster time constants too, creep alone cannot; then the relaxation without its
-slowest time constant plus creep (a composite, refined from both fits and scored like every finalist,
-its nonlinear parameters refitted per fold) is compared with it. If that passes and the relaxation does
-not predict better by z >= ``z_same`` (policy), the slow part is ambiguous between the two causes, and the
-verdict says so.
+A relaxation slower than every drive period and a drift since the start are nearly the same function under
+these drives. The relaxation without its slowest time constant plus creep is scored like every finalist; if
+it passes and the relaxation does not predict better by ``z_same``, the slow part is ambiguous.
 """
 
 from __future__ import annotations

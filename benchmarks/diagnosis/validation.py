@@ -1,12 +1,6 @@
-"""What the validation records -- untouched until the verdict is reached -- say about it.
-
-* The named cause (``fit_extension``): its extension identified on the identification records' whole length
-  against the base model refitted the same way (``refit_base_whole``); borne out (``borne_out``) if it lowers
-  the validation records' residual by more than their noise explains; an interference, by the same amplitude.
-* An ``unexplained`` verdict resting on a candidate's held-out evidence alone (rule ``unexplained-check``): that
-  candidate, by the same test; if not, the verdict is ``none``.
-* The causes kept under "also" (``check_also``): each on top of what was kept before it, by the same test;
-  reported, the verdict unchanged.
+"""What the validation records, untouched until the verdict is reached, say about it: the named extension
+(rule ``validation``), an ``unexplained`` verdict's partial candidate (rule ``unexplained-check``) and each
+cause under "also" (``check_also``; reported only).
 """
 
 from __future__ import annotations
@@ -19,15 +13,12 @@ from hysbench.identification import Fit
 from .candidates import Candidate
 from .extensions import gain, identify_whole, registered_extension, residuals_of_fit
 from .causes import CAUSES
-from .residuals import RecordResidual
 from .policy import Policy
 from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
-    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out: it lowers the validation
-    records' residual over whole records and on the windows, by more than their noise explains (z >= the
-    policy's ``z_confirm``); an interference, by the same amplitude there (``Cause.on_validation``)."""
+    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out (rule ``validation``)."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
     if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
@@ -43,9 +34,8 @@ def validation_record(c: Candidate, g: dict, check: dict, policy: Policy) -> dic
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
-    """``c``'s extension identified on the identification records' whole length, every parameter free (an
-    interference: its phase fitted per record on the base refitted there): the fit, the residuals of every
-    record and the interference check."""
+    """``c``'s extension identified on the identification records' whole length (a disturbance: fitted on top,
+    ``Cause.on_validation``): the fit, the residuals of every record and the interference check."""
     if c.kind.disturbance:
         after, check = c.kind.on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
@@ -76,9 +66,8 @@ def refit_base_whole(diag, say: Callable[[str], None]) -> None:
 
 
 def gather_unexplained(ctx, v: Verdict) -> dict | None:
-    """An ``unexplained`` verdict resting on its best partial candidate alone (the residual not structured):
-    that candidate's extension on the validation records, against the base refitted the same way (recorded on
-    the diagnosis as ``unexplained_check``)."""
+    """The validation check of an ``unexplained`` verdict's partial candidate, where the residual is not
+    structured (recorded as ``Diagnosis.unexplained_check``)."""
     diag, p = ctx.diag, v.partial
     if not ctx.extend or v.cause != UNEXPLAINED or p is None or diag.structure["structured"]:
         return None
@@ -148,20 +137,10 @@ VALIDATION = Rule("validation", (
     decide_validation, gather_validation, timing="extended_fit")
 
 
-def _with_lines(residuals: list[RecordResidual], lines: list[Candidate], policy: Policy) -> list[RecordResidual]:
-    """Every kept interference on top: each a sinusoid at its frequency and amplitude, phase fitted per record."""
-    for c in lines:
-        residuals = c.kind.on_validation(residuals, c, policy)[0]
-    return residuals
-
-
 def check_also(diag, say: Callable[[str], None]) -> None:
-    """Each cause kept under "also", on the validation records: what is kept with it against what was kept before
-    it (the named extension first), every model identified on the identification records' whole length from the
-    screen's fit; borne out as a named cause is (``borne_out``). An interference is a sinusoid on top of all that
-    is kept, its phase fitted per record and its amplitude checked. A clip of what is kept, and what follows it,
-    are not checked (its level was fitted on the screen's rows of the kept part only). Reported; the verdict
-    is unchanged."""
+    """Each cause kept under "also" on the validation records: what is kept with it against what was kept before
+    it, identified on the identification records' whole length, borne out as a named cause is (``borne_out``).
+    A clip of what is kept, and what follows it, are not checked."""
     if not diag.also or not diag.after:
         return
     lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
@@ -178,8 +157,9 @@ def check_also(diag, say: Callable[[str], None]) -> None:
             after, check = c.kind.on_validation(before, c, diag.screen.policy)
             lines.append(c)
         else:
-            part = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
-            after = _with_lines(part, lines, diag.screen.policy)
+            after = residuals_of_fit(identified_whole(diag, c.model, c.params), diag.dataset)
+            for line in lines:  # every kept interference on top, its phase fitted per record
+                after = line.kind.on_validation(after, line, diag.screen.policy)[0]
         out.append(validation_record(c, gain(before, after, "validation"), check, diag.screen.policy))
         before = after
     diag.also_check = out

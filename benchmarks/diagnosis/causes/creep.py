@@ -12,13 +12,6 @@ from ..candidates import Candidate
 from ..cause import OUTPUT_UNIT, Cause, register
 
 
-def fit_creep(screen) -> Candidate:
-    model = screen.extension(("creep",))
-    lo, hi = screen.bounds_of(model, "creep_time")
-    z = screen.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
-    return screen.candidate("creep", "slow drift since the start", model, z)
-
-
 @register
 class Creep(Cause):
     """A drift since the record's start, slower than the drive."""
@@ -40,7 +33,10 @@ class Creep(Cause):
                 [None] * len(creeps))
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        return [fit_creep(screen)]
+        model = screen.extension(("creep",))
+        lo, hi = screen.bounds_of(model, "creep_time")
+        z = screen.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
+        return [screen.candidate("creep", "slow drift since the start", model, z)]
 
     def estimates(self, params, model) -> dict:
         return {"size": float(params["creep_size"]), "time_scale_s": float(params["creep_time"])}

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping
+from typing import Callable
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -42,26 +42,12 @@ def scan_minimum(rss: Callable[[float], float], a: float, b: float, dt: float) -
     return centre
 
 
-def refit_delay(screen, model, start: Mapping[str, float], training_rss: Callable[[dict], float]) -> dict:
-    """A delay refitted (the rest held) on a fold's training rows: the profile scanned between the
-    estimate divided and multiplied by the geometric grid's ratio (its neighbours in ``fit_delay``)."""
-    dt = min(p.record.dt for p in screen.parts)
-    hi = screen.bounds_of(model, "delay")[1]
-    ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
-    d0 = float(start["delay"])
-    d = scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio, min(d0 * ratio, hi), dt)
-    return {**start, "delay": d}
-
-
 def fit_delay(screen) -> Candidate:
-    """Searched to first order (the null's prediction delayed) on a grid of about two samples;
-    if that passes the BIC threshold, the best grid points and a one-sample delay are searched
-    exactly (Brent within two samples), since a first-order search can be led astray by a misfit
-    of another kind; otherwise the first-order optimum is evaluated exactly, once. On short records
-    (``Screen.small``) instead: the exact profile over a geometric grid of delays, the first-order grid's best
-    points and the best points of the exact profile every sample (the base held), the base's nonlinear
-    parameters refitted at each (a base with rate-dependent terms takes up part of a delay), then that
-    profile's minimum between the best point's neighbours (``scan_minimum``)."""
+    """Searched to first order (the null's prediction delayed) on a grid of about two samples; if that is
+    promising, its best points and a one-sample delay searched exactly, else its optimum evaluated once. On
+    short records (``Screen.small``): the exact profile, the base's nonlinear parameters refitted at each delay
+    (a base with rate-dependent terms takes up part of a delay), over a geometric grid and the best points of
+    both scans, then its minimum between the best point's neighbours (``scan_minimum``)."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
     hi = screen.bounds_of(model, "delay")[1]
@@ -70,7 +56,6 @@ def fit_delay(screen) -> Candidate:
     if not (screen.promising(float(vals.min())) or screen.small):  # not even to first order: one exact evaluation
         return screen.candidate("delay", "pure delay", model, {**screen.base_nl, "delay": float(grid[np.argmin(vals)])})
     starts = [float(grid[i]) for i in local_minima(vals, 2)] + [min(dt, hi)]
-    best, best_rss = None, math.inf
     if screen.small:  # cheap: the profile over a geometric grid, the base's nonlinear parameters refitted
         free = [(n, False) for n in screen.base_nl_names]
         profile: dict[float, tuple[float, dict]] = {}
@@ -96,6 +81,7 @@ def fit_delay(screen) -> Candidate:
         scan_minimum(profile_rss, a, b, dt)
         z = min(profile.values(), key=lambda v: v[0])[1]
         return screen.candidate("delay", "pure delay", model, z, stage="joint")
+    best, best_rss = None, math.inf
     for d0 in starts:
         z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
         rss = screen.evaluate(model, z)[0]
@@ -132,9 +118,15 @@ class Delay(Cause):
                     "plus a first difference of it (a rate term), not a resolved delay")
         return ""
 
-    def refit_alone(self, screen, model, start: dict, training_rss) -> dict:
-        """A rough profile: scanned, not a gradient step (``refit_delay``)."""
-        return refit_delay(screen, model, start, training_rss)
+    def refit_alone(self, screen, model, start: dict, training_rss: Callable[[dict], float]) -> dict:
+        """The profile (rough: scanned, not a gradient step) between the estimate divided and multiplied by
+        the geometric grid's ratio (its neighbours in ``fit_delay``), the rest held."""
+        dt = min(p.record.dt for p in screen.parts)
+        hi = screen.bounds_of(model, "delay")[1]
+        ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
+        d0 = float(start["delay"])
+        d = scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio, min(d0 * ratio, hi), dt)
+        return {**start, "delay": d}
 
     def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
         """From one sample (a start at zero is no delay) to its bound, geometric."""

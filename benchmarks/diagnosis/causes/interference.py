@@ -15,91 +15,18 @@ import numpy as np
 from ..candidates import DRIVE_LOCKED, Candidate, prominence
 from ..cause import OUTPUT_UNIT, Cause, register
 from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, fold_amplitude, fold_frequencies,
-                     frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted)
+                     frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted, rms, row_times)
 from ..residuals import RecordResidual, coherent_spectrum, spectral_peaks
 from ..heldout import out_of_fold
 from ..policy import Policy
 
 
-def fit_interference(screen, n_peaks: int = 5) -> Candidate:
-    """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
-    peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
-    line (``JointLine``; one amplitude for every record, the phase per record)."""
-    line = JointLine(screen, screen.design(screen.base, screen.base_nl), range(len(screen.parts)))
-    return interference_candidate(screen, best_frequency(screen, line.loo_rss, n_peaks))
-
-
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
-    """Whether the leave-one-record-out folds found one line: frequencies fitted on different records agree
-    within the coarsest fold's spectral resolution (one cycle over its longest training record), and the
-    amplitudes within the policy's ``line_amplitude`` (relative to their mean)."""
+    """Whether the folds found one line: frequencies that agree (``frequencies_agree``) and amplitudes within
+    ``line_amplitude`` of their mean."""
     f = np.array([e["interference_frequency"] for e in fold_estimates])
     a = np.array([e["amplitude"] for e in fold_estimates])
     return bool(frequencies_agree(screen, f) and a.mean() > 0 and np.ptp(a) <= screen.policy.line_amplitude * a.mean())
-
-
-def interference_candidate(screen, frequency_hz: float) -> Candidate:
-    model = screen.extension(("interference",))
-    A = np.column_stack([screen.design(screen.base, screen.base_nl), block_columns(screen, frequency_hz)])
-    theta, res = screen.solve(A, screen.y)
-    nb = len(screen.base_lin)
-    pairs = theta[nb:].reshape(-1, 2)
-    amps = np.hypot(pairs[:, 0], pairs[:, 1])
-    amplitude = float(np.sqrt(np.mean(amps**2)))
-    params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
-              "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
-              "interference_sin": amplitude, "interference_cos": 0.0}
-    k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
-    c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k, float(res @ res),
-                  screen.n, n_effective=screen.n_effective)
-    c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
-                   "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
-    c.stage = "fixed base"
-    return screen._finish(c)
-
-
-def interference_on_validation(before: list[RecordResidual], c: Candidate,
-                               policy: Policy) -> tuple[list[RecordResidual], dict]:
-    """A sinusoid at ``c``'s frequency and amplitude on top of ``before`` (the base, or what is kept, refitted on
-    whole records), its phase fitted per record: the residuals after it, and the validation records' own
-    amplitude there against ``c``'s (the same within the policy's ``interference_amplitude_tolerance``)."""
-    f = c.estimates["frequency_hz"]
-    amplitude = c.estimates["amplitude"]
-    after, amps = [], []
-    for rr in before:
-        t = rr.record.t - rr.record.t[0]
-        sine = phase_fitted(rr.residual, t, f, amplitude)
-        after.append(RecordResidual(rr.record, rr.prediction + sine))
-        if rr.record.role == "validation":
-            amps.append(amplitude_at(rr.residual, t, f))
-    a_val = float(np.sqrt(np.mean(np.square(amps)))) if amps else float("nan")
-    return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
-                   "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
-
-
-def heldout_line(screen, folds, c: Candidate, refit: bool = False,
-                 train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
-    """Out-of-fold residuals of a disturbance: a line fitted jointly with the base, its phase per record
-    (``lines.joint_line``); a sinusoid locked to the drive (no disturbance but the base's misfit at a harmonic)
-    on the base's own residual (``lines.on_top``). With ``refit`` the frequency is chosen per fold."""
-    nl = {n: c.params[n] for n in c.model.nonlinear_names}
-    base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
-    if c.limit == DRIVE_LOCKED:
-        base_train = []
-        e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
-        f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
-        fold_est = [{"interference_frequency": f[m]} if refit else {} for m in range(folds.n)]
-        for m, est in enumerate(fold_est):
-            est["amplitude"] = fold_amplitude(screen, m, base_train[m], f[m])
-        if train_residuals is not None:
-            train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
-        return on_top(screen, folds, e_base, base_train, f), fold_est
-    lines = joint_line(screen, folds, lambda m: base_rows, None if refit else [nl["interference_frequency"]] * folds.n)
-    fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
-                for f, a in zip(lines.frequencies_hz, lines.amplitudes)]
-    if train_residuals is not None:
-        train_residuals.extend(lines.train_residuals)
-    return lines.errors, fold_est
 
 
 @register
@@ -115,7 +42,27 @@ class Interference(Cause):
     disturbance = True
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        return [fit_interference(screen)]
+        """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
+        peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
+        line (``JointLine``; one amplitude for every record, the phase per record)."""
+        base_rows = screen.design(screen.base, screen.base_nl)
+        frequency_hz = best_frequency(screen, JointLine(screen, base_rows, range(len(screen.parts))).loo_rss)
+        model = screen.extension(("interference",))
+        theta, res = screen.solve(np.column_stack([base_rows, block_columns(row_times(screen), frequency_hz)]),
+                                  screen.y)
+        nb = len(screen.base_lin)
+        pairs = theta[nb:].reshape(-1, 2)
+        amplitude = rms(np.hypot(pairs[:, 0], pairs[:, 1]))
+        params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
+                  "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
+                  "interference_sin": amplitude, "interference_cos": 0.0}
+        k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
+        c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k,
+                      float(res @ res), screen.n, n_effective=screen.n_effective)
+        c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
+                       "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
+        c.stage = "fixed base"
+        return [screen._finish(c)]
 
     def row_columns(self, nonlinear, dt: float, rows: np.ndarray) -> dict:
         """Its (sin, cos) pair at the rows' times from the record's start."""
@@ -159,13 +106,46 @@ class Interference(Cause):
         return DRIVE_LOCKED if drive_locked(screen, estimates) else ""
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
-        return heldout_line(screen, folds, c, refit, train_residuals)
+        """Out-of-fold residuals of a disturbance: a line fitted jointly with the base, its phase per record
+        (``lines.joint_line``); a sinusoid locked to the drive (no disturbance but the base's misfit at a harmonic)
+        on the base's own residual (``lines.on_top``). With ``refit`` the frequency is chosen per fold."""
+        nl = {n: c.params[n] for n in c.model.nonlinear_names}
+        base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
+        if c.limit == DRIVE_LOCKED:
+            base_train = []
+            e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
+            f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
+            fold_est = [{"interference_frequency": f[m]} if refit else {} for m in range(folds.n)]
+            for m, est in enumerate(fold_est):
+                est["amplitude"] = fold_amplitude(screen, m, base_train[m], f[m])
+            if train_residuals is not None:
+                train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
+            return on_top(screen, folds, e_base, base_train, f), fold_est
+        lines = joint_line(screen, folds, lambda m: base_rows,
+                           None if refit else [nl["interference_frequency"]] * folds.n)
+        fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
+                    for f, a in zip(lines.frequencies_hz, lines.amplitudes)]
+        if train_residuals is not None:
+            train_residuals.extend(lines.train_residuals)
+        return lines.errors, fold_est
 
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
         return {"same_line": same_line(screen, fold_estimates)}
 
     def on_validation(self, before: list, c: Candidate, policy: Policy) -> tuple[list, dict]:
-        return interference_on_validation(before, c, policy)
+        """Its amplitude on the validation records checked against ``c``'s (``interference_amplitude_tolerance``)."""
+        f = c.estimates["frequency_hz"]
+        amplitude = c.estimates["amplitude"]
+        after, amps = [], []
+        for rr in before:
+            t = rr.record.t - rr.record.t[0]
+            sine = phase_fitted(rr.residual, t, f, amplitude)
+            after.append(RecordResidual(rr.record, rr.prediction + sine))
+            if rr.record.role == "validation":
+                amps.append(amplitude_at(rr.residual, t, f))
+        a_val = rms(amps) if amps else float("nan")
+        return after, {"frequency_hz": f, "identification_amplitude": amplitude, "validation_amplitude": a_val,
+                       "same_amplitude": bool(abs(a_val / amplitude - 1.0) <= policy.interference_amplitude_tolerance)}
 
     def spectrum_marker(self, parameters) -> float | None:
         return parameters["frequency_hz"]

@@ -10,37 +10,11 @@ import numpy as np
 from hysbench.models.extended import TAU_BOUNDS
 from hysbench.models.filter_kernels import first_order_foh, lowpass1_bank
 
-from ..candidates import MAX_RELAXATION, Candidate, is_log
+from ..candidates import Candidate, is_log
 from ..cause import Cause, register
 from ..heldout import pairwise_z, passes
 
 LIBRARY_TAUS = 10  # time constants of the library screen's low-pass terms
-
-
-def fit_relaxation(screen, max_relaxation: int = MAX_RELAXATION, seeds: Sequence[float] = (),
-               powers: Sequence[int] = (1,), stop_threshold: float | None = None) -> list[Candidate]:
-    """Relaxation variants of 1, 2, ... time constants, one more fitted while it lowers BIC by ``stop_threshold``
-    (default: the policy's ``bic_threshold``)."""
-    stop_threshold = screen.policy.bic_threshold if stop_threshold is None else stop_threshold
-    T = screen.drive_time
-    lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
-    grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25))) + [float(s) for s in seeds if lo <= s <= hi]
-    out, taus = [], []
-    for k in range(1, max_relaxation + 1):
-        model = screen.extension(("relaxation",), n_relaxation=k, relaxation_powers=list(powers))
-        names = [f"tau{i}" for i in range(1, k + 1)]
-        z, _ = screen.grid(model, [dict(zip(names, taus + [g])) for g in grid])
-        if k > 1:
-            z = screen.refine(model, z, [(n, True) for n in names])
-        else:
-            z = screen.line_search(model, "tau1", grid, log=True)
-        taus = [z[n] for n in names]
-        label = f"relaxation, {k} time constant{'s' if k > 1 else ''}"
-        out.append(screen.candidate("relaxation", label, model, z,
-                                  {"n_relaxation": k, "relaxation_powers": list(powers)}))
-        if k > 1 and out[-1].bic > out[-2].bic - stop_threshold:  # one more did not help: stop
-            break
-    return out
 
 
 def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 10) -> Candidate | None:
@@ -61,27 +35,6 @@ def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 
     z = screen.refine(model, start, [(n, is_log(n)) for n in model.nonlinear_names], max_nfev=max_nfev)
     return screen.candidate("relaxation", f"relaxation, {k} time constant{'s' if k > 1 else ''}", model, z, hyper,
                             stage="joint")
-
-
-def merge_duplicates(chosen: Candidate, variants: Sequence[Candidate], held) -> Candidate:
-    """A relaxation variant with two time constants closer than their uncertainty (or a factor
-    ``duplicate_tau_ratio``) gives way to the variant with one fewer, if that passes and does not predict worse
-    (z < ``z_same``)."""
-    pol = held.folds.policy
-    while chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
-        taus = chosen.estimates["tau_s"]
-        se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
-        ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
-        width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
-        floor = math.log(pol.duplicate_tau_ratio)
-        close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
-                    for i in range(len(taus) - 1))
-        fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
-                 and pairwise_z(held, chosen, v) < pol.z_same]
-        if not (close and fewer):
-            break
-        chosen = fewer[0]
-    return chosen
 
 
 @register
@@ -111,7 +64,27 @@ class Relaxation(Cause):
         return [f"L_{t:.3g}s[u]" for t in taus], columns, [float(t) for t in taus]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        return fit_relaxation(screen, max_order, seeds=library["relaxation_taus"])
+        """Variants of 1, 2, ... time constants (the library's as extra starts), one more fitted while it lowers
+        BIC by ``bic_threshold``."""
+        T = screen.drive_time
+        lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
+        grid = list(np.exp(np.linspace(math.log(lo), math.log(hi), 25)))
+        grid += [float(s) for s in library["relaxation_taus"] if lo <= s <= hi]
+        out, taus = [], []
+        for k in range(1, max_order + 1):
+            model = screen.extension(("relaxation",), n_relaxation=k, relaxation_powers=[1])
+            names = [f"tau{i}" for i in range(1, k + 1)]
+            z, _ = screen.grid(model, [dict(zip(names, taus + [g])) for g in grid])
+            if k > 1:
+                z = screen.refine(model, z, [(n, True) for n in names])
+            else:
+                z = screen.line_search(model, "tau1", grid, log=True)
+            taus = [z[n] for n in names]
+            label = f"relaxation, {k} time constant{'s' if k > 1 else ''}"
+            out.append(screen.candidate("relaxation", label, model, z, {"n_relaxation": k, "relaxation_powers": [1]}))
+            if k > 1 and out[-1].bic > out[-2].bic - screen.policy.bic_threshold:  # one more did not help: stop
+                break
+        return out
 
     def estimates(self, params, model) -> dict:
         k = getattr(model, "n_relaxation", 0)
@@ -135,4 +108,20 @@ class Relaxation(Cause):
         return without_pinned(screen, c, pinned)
 
     def merged(self, chosen: Candidate, variants, held) -> Candidate:
-        return merge_duplicates(chosen, variants, held)
+        """A variant with two time constants closer than their fold spread (or a factor ``duplicate_tau_ratio``)
+        gives way to the variant with one fewer, if that passes and does not predict worse by ``z_same``."""
+        pol = held.folds.policy
+        while chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
+            taus = chosen.estimates["tau_s"]
+            se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
+            ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
+            width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
+            floor = math.log(pol.duplicate_tau_ratio)
+            close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
+                        for i in range(len(taus) - 1))
+            fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)
+                     and pairwise_z(held, chosen, v) < pol.z_same]
+            if not (close and fewer):
+                break
+            chosen = fewer[0]
+        return chosen

@@ -22,41 +22,6 @@ def _resonant_null(screen, z):
     return screen.first_order(column)
 
 
-def fit_resonance(screen) -> Candidate:
-    """Searched to first order (the null's prediction through the mode) on a grid and refined; if
-    that explains some of the null's residual, it and a fast, well-damped mode (and on short records
-    the two best points of the grid evaluated exactly) are evaluated exactly and the best refined
-    exactly; otherwise the first-order optimum is evaluated exactly, once."""
-    model = screen.extension(("resonance",))
-    T = screen.drive_time
-    dt = min(p.record.dt for p in screen.parts)
-    f_lo = screen.bounds_of(model, "natural_frequency")[0]
-    f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
-    # 13 points above the drive's frequencies; as dense below them, down to a broadband drive's band
-    f_drive = RESONANCE_HZ_BOUNDS[0] / T
-    above = math.log(f_hi / (1.2 * f_drive))
-    n_grid = 13 + (math.ceil(12 * math.log(f_drive / f_lo) / above) if f_lo < f_drive and above > 0 else 0)
-    fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), n_grid))
-    pts = [{**screen.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
-           for zeta in (0.07, 0.25, 0.8)]
-    vals = np.array([_resonant_null(screen, z)[0] for z in pts])
-    starts = []
-    z = screen.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
-                    max_nfev=12, residual=lambda q: _resonant_null(screen, q)[2])
-    z = {**z, "damping_ratio": min(z["damping_ratio"], screen.policy.max_damping)}
-    if not (screen.promising(_resonant_null(screen, z)[0]) or screen.small):  # one exact evaluation
-        return screen.candidate("resonance", "second-order mode", model, z)
-    starts.append(z)
-    starts.append({**screen.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7})
-    if screen.small:  # cheap: the best points of an exact coarse grid too
-        exact = [screen.evaluate(model, q)[0] for q in pts]
-        starts += [pts[i] for i in np.argsort(exact)[:2]]
-    starts = [{**q, "damping_ratio": min(q["damping_ratio"], screen.policy.max_damping)} for q in starts]
-    z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
-    z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
-    return screen.candidate("resonance", "second-order mode", model, z)
-
-
 def lag_shared(z: dict) -> dict:
     """A mode's start on top of a kept delay, the delay shortened by the mode's low-frequency lag
     (2 zeta / omega_n = zeta / (pi f_n)): a delay fitted first has taken up that lag, so with it held a mode
@@ -82,7 +47,35 @@ class Resonance(Cause):
         return ["d2/dt2 y_model"], lambda r, y_hat, t: [np.gradient(np.gradient(y_hat, r.dt), r.dt)], [None]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        return [fit_resonance(screen)]
+        """Searched to first order (the null's prediction through the mode) on a grid and refined; if that is
+        promising, it, a fast well-damped mode (and on short records the grid's two best points evaluated
+        exactly) are evaluated exactly and the best refined; otherwise the first-order optimum is evaluated."""
+        model = screen.extension(("resonance",))
+        T = screen.drive_time
+        dt = min(p.record.dt for p in screen.parts)
+        f_lo = screen.bounds_of(model, "natural_frequency")[0]
+        f_hi = min(RESONANCE_HZ_BOUNDS[1] / T, 0.1 / dt)
+        # 13 points above the drive's frequencies; as dense below them, down to a broadband drive's band
+        f_drive = RESONANCE_HZ_BOUNDS[0] / T
+        above = math.log(f_hi / (1.2 * f_drive))
+        n_grid = 13 + (math.ceil(12 * math.log(f_drive / f_lo) / above) if f_lo < f_drive and above > 0 else 0)
+        fs = np.exp(np.linspace(math.log(f_lo * 1.2), math.log(f_hi), n_grid))
+        pts = [{**screen.base_nl, "natural_frequency": float(f), "damping_ratio": zeta} for f in fs
+               for zeta in (0.07, 0.25, 0.8)]
+        vals = np.array([_resonant_null(screen, z)[0] for z in pts])
+        z = screen.refine(model, pts[int(np.argmin(vals))], [("natural_frequency", True), ("damping_ratio", True)],
+                          max_nfev=12, residual=lambda q: _resonant_null(screen, q)[2])
+        z = {**z, "damping_ratio": min(z["damping_ratio"], screen.policy.max_damping)}
+        if not (screen.promising(_resonant_null(screen, z)[0]) or screen.small):  # one exact evaluation
+            return [screen.candidate("resonance", "second-order mode", model, z)]
+        starts = [z, {**screen.base_nl, "natural_frequency": float(fs[-1]), "damping_ratio": 0.7}]
+        if screen.small:  # cheap: the best points of an exact coarse grid too
+            exact = [screen.evaluate(model, q)[0] for q in pts]
+            starts += [pts[i] for i in np.argsort(exact)[:2]]
+        starts = [{**q, "damping_ratio": min(q["damping_ratio"], screen.policy.max_damping)} for q in starts]
+        z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
+        z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
+        return [screen.candidate("resonance", "second-order mode", model, z)]
 
     def estimates(self, params, model) -> dict:
         return {"natural_frequency_hz": float(params["natural_frequency"]),

@@ -7,11 +7,14 @@ from typing import Mapping
 
 import numpy as np
 
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import least_squares
 
-from ..candidates import NO_CUT, Candidate, estimates_of
+from ..candidates import NO_CUT, Candidate, bracketed_minimum, estimates_of
 from ..cause import OUTPUT_UNIT, Cause, register
-from ..heldout import Folds
+
+
+def clipped(y: np.ndarray, side: str, level: float) -> np.ndarray:
+    return np.minimum(y, level) if side == "upper" else np.maximum(y, level)
 
 
 def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -28,16 +31,13 @@ def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
     if free.sum() < A.shape[1] + 1:
         return math.inf, None, None
     theta, _ = screen.solve(A[free], y[free])
-    pred = A @ theta
-    pred = np.minimum(pred, level) if side == "upper" else np.maximum(pred, level)
-    r = y - pred
+    r = y - clipped(A @ theta, side, level)
     return float(r @ r), theta, r
 
 
 def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float, min_samples: int) -> float:
-    """Where the unclipped prediction passes the level: the slope of the output against it (least squares
-    with an intercept; 0 for a flat top, 1 for no clip); nan with fewer than ``min_samples`` such samples
-    (policy ``min_clipped_samples``)."""
+    """Where the unclipped prediction passes the level, the slope of the output against it (0 for a flat top, 1
+    for no clip); nan with fewer than ``min_samples`` such samples."""
     cut = pred > level if side == "upper" else pred < level
     if cut.sum() < min_samples:
         return math.nan
@@ -47,22 +47,13 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
-    """Whether these rows show a clip at the level: the censored fit's unclipped prediction passes it on enough
-    samples and the output there is flat against it (policy ``min_clipped_samples``,
-    ``max_clipped_slope``)."""
+    """Whether these rows show a clip at the level: the censored fit's prediction passes it on enough samples
+    and the output there is flat against it (within ``max_clipped_slope``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
     slope = slope_where_clipped(A @ theta, y, side, level, screen.policy.min_clipped_samples)
     return math.isfinite(slope) and abs(slope) < screen.policy.max_clipped_slope
-
-
-def saturation_rss(screen, side: str, level: float, base_nl: Mapping[str, float],
-                   want: bool = False):
-    """Censored fit at a clipping level on the screen's rows."""
-    A = np.concatenate(screen.base_columns(base_nl).rows)
-    out = censored_fit(screen, A, screen.y, side, level)
-    return out if want else out[0]
 
 
 def fit_level(screen, A: np.ndarray, y: np.ndarray, side: str) -> float:
@@ -71,27 +62,18 @@ def fit_level(screen, A: np.ndarray, y: np.ndarray, side: str) -> float:
     ys = sign * y
     top, bottom = float(np.max(ys)), float(np.min(ys))
     levels = sign * (top - np.linspace(0.0, 0.3, 31) * (top - bottom))
-    vals = [censored_fit(screen, A, y, side, L)[0] for L in levels]
-    i = int(np.argmin(vals))
-    a, b = sorted((levels[max(i - 1, 0)], levels[min(i + 1, len(levels) - 1)]))
-    level = float(levels[i])
-    if b > a:
-        res = minimize_scalar(lambda L: censored_fit(screen, A, y, side, L)[0], bounds=(a, b),
-                              method="bounded", options={"xatol": 1e-3 * max(screen.noise_sd, 1e-9)})
-        if res.fun < vals[i]:
-            level = float(res.x)
-    return level
+    return bracketed_minimum(lambda L: censored_fit(screen, A, y, side, L)[0], levels,
+                             1e-3 * max(screen.noise_sd, 1e-9))[0]
 
 
-def fit_saturation(screen) -> Candidate:
-    """Censored fit of a clipping level, both sides; the better side stands for the cause."""
-    out = None
-    A = np.concatenate(screen.base_columns(screen.base_nl).rows)
-    for side in ("upper", "lower"):
-        c = _saturation_candidate(screen, side, fit_level(screen, A, screen.y, side), screen.base_nl, "fixed base")
-        if c is not None and (out is None or c.bic < out.bic):
-            out = c
-    return out
+def _with_slope(screen, estimates: dict, A: np.ndarray, theta: np.ndarray, side: str, level: float) -> dict:
+    """``estimates`` with the slope where the level cuts (``slope_where_clipped``; none if it cuts no sample)."""
+    slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
+    return {**estimates, "slope_where_clipped": slope} if math.isfinite(slope) else estimates
+
+
+def _label(side: str) -> str:
+    return f"clipped from {'above' if side == 'upper' else 'below'}"
 
 
 def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str, float], stage: str):
@@ -101,102 +83,16 @@ def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str,
         return None
     model = screen.extension(("saturation",), saturation_side=side)
     params = {**dict(base_nl), **dict(zip(screen.base_lin, map(float, theta))), "saturation_level": float(level)}
-    estimates = estimates_of("saturation", params, model)
-    slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
-    if math.isfinite(slope):  # else the level cuts no sample
-        estimates["slope_where_clipped"] = slope
-    c = Candidate("saturation", f"clipped from {'above' if side == 'upper' else 'below'}", model, params,
-                  model.n_params, rss, screen.n, estimates, n_effective=screen.n_effective,
-                  hyperparameters={"saturation_side": side})
+    estimates = _with_slope(screen, estimates_of("saturation", params, model), A, theta, side, level)
+    c = Candidate("saturation", _label(side), model, params, model.n_params, rss, screen.n, estimates,
+                  n_effective=screen.n_effective, hyperparameters={"saturation_side": side})
     c.stage = stage
     return screen._finish(c)
-
-
-def joint_saturation(screen, c: Candidate, max_nfev: int = 15) -> Candidate:
-    """Stage 2 for saturation: the base's nonlinear parameters free too, the level held."""
-    if not screen.base_nl_names:
-        return c
-    side = c.hyperparameters["saturation_side"]
-    names = list(screen.base_nl_names)
-    lo = np.array([screen.bounds_of(screen.base, n)[0] for n in names])
-    hi = np.array([screen.bounds_of(screen.base, n)[1] for n in names])
-    level = c.params["saturation_level"]
-
-    def fun(x):
-        return saturation_rss(screen, side, level, dict(zip(names, x)), want=True)[2]
-
-    x0 = np.clip([c.params[n] for n in names], lo, hi)
-    res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=hi - lo, max_nfev=max_nfev)
-    out = _saturation_candidate(screen, side, level, dict(zip(names, res.x)), "joint")
-    return out if out is not None and out.rss < c.rss else c
 
 
 def columns_of(screen, part: Candidate) -> np.ndarray:
     """A separable candidate's regressors on the screen's rows, at its own nonlinear parameters."""
     return screen.design(part.model, {n: part.params[n] for n in part.model.nonlinear_names})
-
-
-def clip_on_top(screen, kept: Candidate) -> Candidate | None:
-    """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
-    nonlinear parameters, the level fitted on each side as for the base, the better side kept. It must cut
-    the prediction (enough samples, ``candidates.NO_CUT``) and leave the output flat there (``limit_of``)."""
-    A = columns_of(screen, kept)
-    out = None
-    for side in ("upper", "lower"):
-        level = fit_level(screen, A, screen.y, side)
-        rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
-        if theta is None:
-            continue
-        params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
-        estimates = {"level": float(level), "side": side}
-        slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
-        if math.isfinite(slope):
-            estimates["slope_where_clipped"] = slope
-        c = Candidate("saturation", f"{kept.label} + clipped from {'above' if side == 'upper' else 'below'}",
-                      kept.model, params, kept.k + 1, rss, screen.n, estimates, n_effective=screen.n_effective,
-                      hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
-        c.stage = "joint"
-        c.delta_bic = c.bic - kept.bic
-        c.explained = 1.0 - c.rss / kept.rss
-        c.limit = screen.limit_of(c.cause, estimates)
-        if out is None or c.rss < out.rss:
-            out = c
-    return out
-
-
-def clipped_columns(screen, c: Candidate) -> np.ndarray:
-    """The regressors a clipping candidate clips: the base's, or those of the kept part it sits on."""
-    if c.clips is not None:
-        return columns_of(screen, c.clips)
-    return np.concatenate(screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
-
-
-def _heldout_saturation(screen, folds: Folds, c: Candidate, refit: bool = False,
-                        train_residuals: list | None = None) -> tuple[np.ndarray, list[dict]]:
-    """Out-of-fold residuals of a clipping: the linear parameters solved on the other records' free samples;
-    with ``refit`` the level too (returns the fold levels). A fold whose records do not show a clip at their
-    level (no flat top there, ``shows_clip``) predicts the left-out record unclipped: records that never reach
-    a clip leave its level open above their peaks, and a level placed just under them would cut a record
-    that goes higher."""
-    side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
-    A = clipped_columns(screen, c)
-    e = np.zeros(screen.n)
-    fold_est = []
-    for m in range(folds.n):
-        test = folds.test(m)
-        if refit:
-            level = fit_level(screen, A[~test], screen.y[~test], side)
-            fold_est.append({"saturation_level": level})
-            if not shows_clip(screen, A[~test], screen.y[~test], side, level):
-                level = math.inf if side == "upper" else -math.inf
-        train = ~test & unclipped(screen, screen.y, side, level)
-        theta, _ = screen.solve(A[train], screen.y[train])
-        clip = np.minimum if side == "upper" else np.maximum
-        e[test] = screen.y[test] - clip(A[test] @ theta, level)
-        e[folds.tail(m)] = 0.0
-        if train_residuals is not None:
-            train_residuals.append(screen.y[~test] - clip(A[~test] @ theta, level))
-    return e, fold_est
 
 
 @register
@@ -220,11 +116,34 @@ class Saturation(Cause):
                 [None] * 4)
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        c = fit_saturation(screen)
-        return [] if c is None else [c]
+        """A censored fit of a clipping level on each side; the better side stands for the cause."""
+        out = None
+        A = np.concatenate(screen.base_columns(screen.base_nl).rows)
+        for side in ("upper", "lower"):
+            c = _saturation_candidate(screen, side, fit_level(screen, A, screen.y, side), screen.base_nl, "fixed base")
+            if c is not None and (out is None or c.bic < out.bic):
+                out = c
+        return [] if out is None else [out]
 
     def joint(self, screen, c: Candidate, max_nfev: int) -> Candidate:
-        return joint_saturation(screen, c, max_nfev)
+        """The base's nonlinear parameters free too, the level held."""
+        if not screen.base_nl_names:
+            return c
+        side = c.hyperparameters["saturation_side"]
+        names = list(screen.base_nl_names)
+        lo = np.array([screen.bounds_of(screen.base, n)[0] for n in names])
+        hi = np.array([screen.bounds_of(screen.base, n)[1] for n in names])
+        level = c.params["saturation_level"]
+
+        def fun(x):
+            A = np.concatenate(screen.base_columns(dict(zip(names, x))).rows)
+            return censored_fit(screen, A, screen.y, side, level)[2]
+
+        x0 = np.clip([c.params[n] for n in names], lo, hi)
+        res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=hi - lo,
+                            max_nfev=max_nfev)
+        out = _saturation_candidate(screen, side, level, dict(zip(names, res.x)), "joint")
+        return out if out is not None and out.rss < c.rss else c
 
     def estimates(self, params, model) -> dict:
         return {"level": float(params["saturation_level"]), "side": getattr(model, "saturation_side", "upper")}
@@ -242,12 +161,52 @@ class Saturation(Cause):
         return ""
 
     def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
-        return clip_on_top(screen, kept)
+        """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
+        nonlinear parameters, the level fitted on each side as for the base, the better side kept."""
+        A = columns_of(screen, kept)
+        out = None
+        for side in ("upper", "lower"):
+            level = fit_level(screen, A, screen.y, side)
+            rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
+            if theta is None:
+                continue
+            params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
+            estimates = _with_slope(screen, {"level": float(level), "side": side}, A, theta, side, level)
+            c = Candidate("saturation", f"{kept.label} + {_label(side)}", kept.model, params, kept.k + 1, rss, screen.n,
+                          estimates, n_effective=screen.n_effective,
+                          hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
+            c.stage = "joint"
+            c.delta_bic = c.bic - kept.bic
+            c.explained = 1.0 - c.rss / kept.rss
+            c.limit = screen.limit_of(c.cause, estimates)
+            if out is None or c.rss < out.rss:
+                out = c
+        return out
 
     def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
         """A clip's output from that of the part it clips."""
-        level = c.params["saturation_level"]
-        return np.minimum(y, level) if c.hyperparameters["saturation_side"] == "upper" else np.maximum(y, level)
+        return clipped(y, c.hyperparameters["saturation_side"], c.params["saturation_level"])
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
-        return _heldout_saturation(screen, folds, c, refit, train_residuals)
+        """The linear parameters solved on the other records' free samples; with ``refit`` the level too. A fold
+        whose records show no clip at their level (``shows_clip``) predicts the left-out record unclipped: a
+        level placed just under their peaks would cut a record that goes higher."""
+        side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
+        A = columns_of(screen, c.clips) if c.clips is not None else np.concatenate(
+            screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
+        e = np.zeros(screen.n)
+        fold_est = []
+        for m in range(folds.n):
+            test = folds.test(m)
+            if refit:
+                level = fit_level(screen, A[~test], screen.y[~test], side)
+                fold_est.append({"saturation_level": level})
+                if not shows_clip(screen, A[~test], screen.y[~test], side, level):
+                    level = math.inf if side == "upper" else -math.inf
+            train = ~test & unclipped(screen, screen.y, side, level)
+            theta, _ = screen.solve(A[train], screen.y[train])
+            e[test] = screen.y[test] - clipped(A[test] @ theta, side, level)
+            e[folds.tail(m)] = 0.0
+            if train_residuals is not None:
+                train_residuals.append(screen.y[~test] - clipped(A[~test] @ theta, side, level))
+        return e, fold_est
