@@ -69,6 +69,7 @@ from .filter_kernels import (
     second_order_foh,
 )
 from .registry import get_model, is_registered, register
+from .window import Window
 
 CAUSES = ("relaxation", "delay", "resonance", "creep", "interference", "saturation")
 ORDER = {c: i for i, c in enumerate(CAUSES)}
@@ -84,6 +85,7 @@ CREEP_SIZE_BOUND = 2.0  # x y
 INTERFERENCE_HZ_BOUNDS = (0.5, 500.0)  # x 1 / time
 INTERFERENCE_BOUND = 1.0  # x y
 SATURATION_BOUND = 2.0  # |level| <= bound * y
+KEPT = 8  # entries kept in a cache of ``windowed_regressors`` (each at most a delayed input: 3.4 MB at 420,000 samples)
 
 
 def extended_name(base: str, components: Sequence[str]) -> str:
@@ -393,41 +395,57 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         self._check_range(nonlinear)
         return nonlinear
 
+    def _actuator_input(self, u: np.ndarray, dt: float, delay: float, w: Window) -> dict:
+        """The input as the actuator receives it (``u_a``, its own time ``t0`` at its first sample), the
+        window's rows before it starts (``n_rest``), its rows in the actuator's samples (``at``, among its first
+        ``a1``; ``pick`` for the base) and a dict for its filtered inputs (``relaxation``)."""
+        u_a, k0, t0 = self.delayed_input(u, dt, delay) if self.has("delay") else (u, 0, 0.0)
+        n_rest = min(max(k0 - w.start, 0), len(w)) if w.rows is None else int(np.searchsorted(w.rows, k0))
+        a = {"u_a": u_a, "t0": t0, "n_rest": n_rest, "a1": w.stop - k0, "relaxation": {}}
+        if a["a1"] > 0 and n_rest < len(w):
+            if w.rows is None:
+                a["pick"] = slice(max(w.start, k0) - k0, a["a1"])
+                a["at"] = np.arange(a["a1"])[a["pick"]]
+            else:  # the rows shifted: still increasing, no need to check them again
+                a["at"] = w.rows[n_rest:] - k0
+                a["pick"] = Window(int(a["at"][0]), a["a1"], a["at"])
+        return a
+
     def _window_columns(self, u: np.ndarray, dt: float, nonlinear: Mapping[str, float], window, in_range,
-                        out: np.ndarray) -> None:
+                        out: np.ndarray, cache: MutableMapping | None = None) -> None:
         """Fill out (n_linear, n_rows) with the regressor rows of ``window`` (a slice or increasing
-        sample indices), the model run from sample 0."""
+        sample indices), the model run from sample 0. ``cache``: a dict the caller keeps for these u, dt,
+        window and input range, where what depends on the delay alone (``_actuator_input``), on the base's
+        parameters alone (its rest row) or on both (its columns at the rows) is kept: a fit that moves a
+        component's own parameter recomputes only that component's columns."""
         base_nl = {k: nonlinear[k] for k in self.base_model.nonlinear_names}
-        start, stop = self._window_bounds(u, window)
-        rows = self._window_rows(u, window)
-        u_a, k0, t0 = self.delayed_input(u, dt, nonlinear["delay"]) if self.has("delay") else (u, 0, 0.0)
+        base_key = tuple(float(v) for v in base_nl.values())
+        w = self._window(u, window)
+        delay = float(nonlinear["delay"]) if self.has("delay") else 0.0
+        a = _kept(cache, ("input", delay), lambda: self._actuator_input(u, dt, delay, w))
         names = self.linear_names
-        # leading rows before the actuator starts
-        if rows is None:
-            n_rest = min(max(k0 - start, 0), stop - start)
-        else:
-            n_rest = int(np.searchsorted(rows, k0))
-        if n_rest:
-            rest = self.base_rest(dt, base_nl, in_range, u[:1])
+        n_rest, a1 = a["n_rest"], a["a1"]
+        if n_rest:  # leading rows before the actuator starts
+            rest = _kept(cache, ("rest", *base_key), lambda: self.base_rest(dt, base_nl, in_range, u[:1]))
             for j, name in enumerate(names):
                 out[j, :n_rest] = rest.get(name, 0.0)
-        a1 = stop - k0  # the actuator's samples needed: [0, a1)
-        if a1 > 0 and n_rest < out.shape[1]:
-            # the window in the actuator's samples
-            pick = slice(max(start, k0) - k0, a1) if rows is None else rows[n_rest:] - k0
-            at = np.arange(a1)[pick]
-            if self.has("resonance"):  # the filter needs every sample up to the window's end
-                cols = self.assemble_columns(u_a[:a1], dt, self.base_columns(u_a[:a1], dt, base_nl, in_range),
-                                             nonlinear, t0, rows=at)
+        if "at" in a:
+            u_a = a["u_a"][:a1]
+            if self.has("resonance"):  # the filter needs every sample up to the window's end (too large to keep)
+                cols = self.assemble_columns(u_a, dt, self.base_columns(u_a, dt, base_nl, in_range), nonlinear,
+                                             a["t0"], rows=a["at"])
             else:
-                B = self.base_model.windowed_regressors(u_a, dt, base_nl, pick, input_range=in_range)
-                cols = {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
-                cols.update(self.assemble_columns(u_a[:a1], dt, {}, nonlinear, t0, rows=at))
+                def base():
+                    B = self.base_model.windowed_regressors(a["u_a"], dt, base_nl, a["pick"], input_range=in_range)
+                    return {name: B[:, j] for j, name in enumerate(self.base_model.linear_names)}
+                cols = dict(_kept(cache, ("columns", delay, *base_key), base))
+                cols.update(self.assemble_columns(u_a, dt, {}, nonlinear, a["t0"], rows=a["at"],
+                                                  relaxation_cache=None if cache is None else a["relaxation"]))
             for j, name in enumerate(names):
                 if name in cols:
                     out[j, n_rest:] = cols[name]
         if self.has("interference"):
-            samples = np.arange(start, stop) if rows is None else rows
+            samples = np.arange(w.start, w.stop) if w.rows is None else w.rows
             phase = 2.0 * np.pi * nonlinear["interference_frequency"] * dt * samples
             out[names.index("interference_sin")] = np.sin(phase)
             out[names.index("interference_cos")] = np.cos(phase)
@@ -437,13 +455,15 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         return self.windowed_regressors(u, dt, nonlinear, slice(0, u.size), input_range=input_range)
 
     def windowed_regressors(self, u, dt: float, nonlinear: Mapping[str, float] | None, window,
-                            input_range=None) -> np.ndarray:
+                            input_range=None, cache: MutableMapping | None = None) -> np.ndarray:
         nonlinear = self._nonlinear(nonlinear)
         sets = np.array([[float(nonlinear[n]) for n in self.nonlinear_names]])
-        return self.windowed_regressors_batch(u, dt, sets, window, input_range)[0]
+        return self.windowed_regressors_batch(u, dt, sets, window, input_range, cache)[0]
 
-    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None) -> np.ndarray:
-        """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view)."""
+    def windowed_regressors_batch(self, u, dt: float, nonlinear_sets, window, input_range=None,
+                                  cache: MutableMapping | None = None) -> np.ndarray:
+        """(n_sets, n_rows, n_linear); each set's matrix is column-major (a transposed view). ``cache``: see
+        ``_window_columns``."""
         u = self._check_input(u, dt)
         sets = np.asarray(nonlinear_sets, dtype=float)
         sets = sets.reshape(1, -1) if sets.ndim < 2 else sets
@@ -457,7 +477,7 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         out = np.empty((sets.shape[0], len(self.linear_names), stop - start if rows is None else rows.size))
         for i, row in enumerate(sets):
             nonlinear = self._nonlinear(dict(zip(names, (float(v) for v in row))))
-            self._window_columns(u, dt, nonlinear, window, in_range, out[i])
+            self._window_columns(u, dt, nonlinear, window, in_range, out[i], cache)
         return out.transpose(0, 2, 1)
 
     def base_columns(self, u: np.ndarray, dt: float, base_nonlinear: Mapping[str, float], input_range) -> dict:
@@ -509,6 +529,17 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         if rows is not None and not at_rows:
             cols = {k: v[rows] for k, v in cols.items()}
         return cols
+
+
+def _kept(cache: MutableMapping | None, key, make):
+    """``make()``, kept in the caller's ``cache`` under ``key``: the ``KEPT`` most recently used (memory)."""
+    if cache is None:
+        return make()
+    value = cache.pop(key) if key in cache else make()
+    cache[key] = value
+    while len(cache) > KEPT:
+        cache.pop(next(iter(cache)))
+    return value
 
 
 def _increasing(rows: np.ndarray) -> bool:

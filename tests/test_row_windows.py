@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hysbench.models import DataScale, ExtendedModel, ModelError, Window, get_model, list_models
+from hysbench.models.extended import KEPT
 
 DT = 1e-3
 N = 1500
@@ -126,3 +127,25 @@ def test_assembled_columns_at_rows_are_rows_of_the_whole_columns(components, see
     assert set(at_rows) == set(whole)
     for name, column in whole.items():
         np.testing.assert_array_equal(at_rows[name], column[rows])
+
+
+@pytest.mark.parametrize("components", [("relaxation", "delay", "creep"), ("delay", "resonance", "interference")])
+@settings(max_examples=4, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=rows_strategy)
+def test_regressors_from_a_cache_are_those_computed_afresh(components, seed, rows):
+    """A caller's cache (``windowed_regressors(..., cache=)``: what a delay and base parameters seen before give)
+    changes no bit of the regressors, over points that move one parameter at a time (as a numerical Jacobian
+    does), and keeps at most ``KEPT`` entries."""
+    model = ExtendedModel("mrpim", components)
+    rng = np.random.default_rng(seed)
+    u, rows = _input(seed), np.array(rows, dtype=np.int64)
+    in_range = (float(u.min()), float(u.max()))
+    P = _params(model, rng)[0]
+    start = {n: float(P[model.param_names.index(n)]) for n in model.nonlinear_names}
+    points = [start] + [{**start, n: v * (1 + 1e-4) + 1e-6} for n, v in start.items()]
+    for window in (rows, slice(int(rows[0]), N)):
+        cache = {}
+        for nl in points + points[::-1]:
+            kept = model.windowed_regressors(u, DT, nl, window, input_range=in_range, cache=cache)
+            np.testing.assert_array_equal(kept, model.windowed_regressors(u, DT, nl, window, input_range=in_range))
+        assert 0 < len(cache) <= KEPT

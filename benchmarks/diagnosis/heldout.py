@@ -147,11 +147,11 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
     for m in range(folds.n):
         z = dict(nl)
         if names:
-            train = ~folds.test(m)
+            train, others = ~folds.test(m), [k for k in range(folds.n) if k != m]
 
-            def residual(q, train=train):
-                A = screen.design(c.model, q)
-                return screen.solve(A[train], screen.y[train])[1]
+            def residual(q, train=train, others=others):  # C order, as rows picked from the whole design: same rounding
+                A = np.ascontiguousarray(screen.design(c.model, q, parts=others))
+                return screen.solve(A, screen.y[train])[1]
 
             alone = cause_of_parameter(names[0]) if len(names) == 1 else None  # e.g. a delay: scanned
             scanned = alone and alone.refit_alone(screen, c.model, z, lambda q: float(np.sum(residual(q) ** 2)))

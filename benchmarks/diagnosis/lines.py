@@ -147,11 +147,14 @@ def loo_rss(residuals: Sequence[np.ndarray], times: Sequence[np.ndarray], freque
     """What a sinusoid of this frequency leaves of the residuals when each record takes the amplitude of the
     others (rms) and fits only its phase, as a held-out record does; with one record, amplitude and phase its
     own."""
-    amp = [amplitude_at(r, t, frequency_hz) for r, t in zip(residuals, times)]
+    S = [sinusoid_columns(t, frequency_hz) for t in times]
+    ab = [np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(S, residuals)]  # each record's fit, used twice
+    amp = [float(math.hypot(*c)) for c in ab]
     total = 0.0
-    for k, (r, t) in enumerate(zip(residuals, times)):
+    for k, r in enumerate(residuals):
         rest = [a for j, a in enumerate(amp) if j != k] or [amp[k]]
-        left = r - phase_fitted(r, t, frequency_hz, rms(rest))
+        direction = ab[k] / amp[k] if amp[k] > 0 else np.array([1.0, 0.0])  # as ``phase_fitted``
+        left = r - S[k] @ (rms(rest) * direction)
         total += float(left @ left)
     return total
 

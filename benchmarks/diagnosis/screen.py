@@ -24,6 +24,7 @@ from hysbench.identification.criteria import effective_sample_size
 from hysbench.models import ExtendedModel
 from hysbench.models.base import DataScale, HysteresisModel
 from hysbench.models.extended import CREEP_TIME_BOUNDS, RESONANCE_HZ_BOUNDS
+from hysbench.models.window import Window
 
 from .candidates import MAX_ROWS, Candidate, column_basis, estimates_of, is_log, solve_scaled
 from .causes import CAUSES, cause_of_parameter, refined
@@ -43,6 +44,7 @@ class _Part:
     record: Record
     rows: np.ndarray
     y_rows: np.ndarray
+    window: Window  # the rows, checked once
 
 
 @dataclass
@@ -79,8 +81,9 @@ class Screen:
         for r in identification:
             n = r.t.size
             rows = np.arange(n) if n <= max_rows else np.sort(rng.choice(n, max_rows, replace=False))
-            self.parts.append(_Part(r, rows, r.y[rows].copy()))
+            self.parts.append(_Part(r, rows, r.y[rows].copy(), Window.of(rows, n)))
         self._relaxation_cache = [{} for _ in self.parts]  # {(tau, power): filtered input at the rows} per record
+        self._late_cache = [{} for _ in self.parts]  # a late model's parts per record (``ExtendedModel``)
         self.y = np.concatenate([p.y_rows for p in self.parts])
         self.n = self.y.size
         inputs = [p.record.u for p in self.parts]
@@ -163,7 +166,7 @@ class Screen:
                 rows.append(np.ascontiguousarray(B[p.rows]))
                 fulls.append({name: np.ascontiguousarray(B[:, j]) for j, name in enumerate(self.base_lin)})
             else:  # the model runs over every sample; only the rows are stored
-                rows.append(self.base.windowed_regressors(r.u, r.dt, dict(base_nl), p.rows, self.input_range))
+                rows.append(self.base.windowed_regressors(r.u, r.dt, dict(base_nl), p.window, self.input_range))
         cols = _BaseColumns(rows, fulls if full else None)
         for k in list(self._columns):  # keep full columns for one set only (memory)
             if self._columns[k].full is not None and full:
@@ -179,39 +182,41 @@ class Screen:
         """Whether the model's components change the base's columns (resonance, delay)."""
         return isinstance(model, ExtendedModel) and any(CAUSES[c].transforms for c in model.components)
 
-    def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False) -> np.ndarray:
+    def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False,
+               parts: Sequence[int] | None = None) -> np.ndarray:
         """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'):
         every linear column in ``model.linear_names`` order, or with ``only_extra`` only the
-        columns the components add (for components that leave the base's columns unchanged)."""
+        columns the components add (for components that leave the base's columns unchanged);
+        ``parts``: the rows of these records only (default: every record's)."""
+        parts = range(len(self.parts)) if parts is None else parts
         base_nl = {k: nonlinear[k] for k in self.base_nl_names}
-        names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
-        if isinstance(model, ExtendedModel) and any(CAUSES[c].late_input for c in model.components):
-            cols = [model.linear_names.index(c) for c in names]
-            return np.concatenate([model.windowed_regressors(p.record.u, p.record.dt, dict(nonlinear), p.rows,
-                                                             self.input_range)[:, cols] for p in self.parts])
-        transforms = self.transforms(model)
-        bc = self.base_columns(base_nl, full=transforms)
         if not isinstance(model, ExtendedModel):
-            return np.concatenate(bc.rows)
-        blocks = []
-        for m, p in enumerate(self.parts):
-            r = p.record
-            cache = self._relaxation_cache[m]
-            if len(cache) > RELAXATION_CACHE:
-                cache.clear()
-            cols = model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear, rows=p.rows,
-                                          relaxation_cache=cache)
-            on_rows = {}  # columns a cause computes on the rows alone (``Cause.row_columns``)
-            for c in model.components:
-                on_rows.update(CAUSES[c].row_columns(nonlinear, r.dt, p.rows))
-            out = np.empty((p.rows.size, len(names)), order="F")  # filled by column; QR takes Fortran order
+            return np.concatenate([self.base_columns(base_nl).rows[m] for m in parts])
+        names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
+        late = any(CAUSES[c].late_input for c in model.components)
+        transforms = self.transforms(model)
+        bc = None if late else self.base_columns(base_nl, full=transforms)
+        out = np.empty((sum(self.parts[m].rows.size for m in parts), len(names)), order="F")  # QR takes F order
+        a = 0
+        for m in parts:
+            p, r = self.parts[m], self.parts[m].record
+            if late:  # the model keeps what a delay and base parameters seen before give (``_late_cache``)
+                B = model.windowed_regressors(r.u, r.dt, dict(nonlinear), p.window, self.input_range,
+                                              cache=self._late_cache[m])
+                cols = {c: B[:, j] for j, c in enumerate(model.linear_names)}
+            else:
+                cache = self._relaxation_cache[m]
+                if len(cache) > RELAXATION_CACHE:
+                    cache.clear()
+                cols = {c: bc.rows[m][:, j] for j, c in enumerate(self.base_lin)}
+                cols.update(model.assemble_columns(r.u, r.dt, bc.full[m] if transforms else {}, nonlinear,
+                                                   rows=p.rows, relaxation_cache=cache))
+                for c in model.components:  # columns a cause computes on the rows alone (``Cause.row_columns``)
+                    cols.update(CAUSES[c].row_columns(nonlinear, r.dt, p.rows))
             for j, c in enumerate(names):
-                if c in on_rows:
-                    out[:, j] = on_rows[c]
-                else:
-                    out[:, j] = bc.rows[m][:, self.base_lin.index(c)] if c not in cols else cols[c]
-            blocks.append(out)
-        return np.concatenate(blocks)
+                out[a:a + p.rows.size, j] = cols[c]
+            a += p.rows.size
+        return out
 
     @staticmethod
     def solve(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
