@@ -102,7 +102,6 @@ class Screen:
         self.mode_floor = min([RESONANCE_HZ_BOUNDS[0] / self.drive_time, *(b[0] for b in bands if b is not None)])
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
-        self.n_evaluations = 0
         start = {k: float(base_params[k]) for k in self.base_nl_names}
         self.null = self._fit_null(start)
 
@@ -227,7 +226,6 @@ class Screen:
         """(rss, theta, residual) with the linear parameters solved. Without ``full``, components that
         only add columns are evaluated against the null (their columns projected off the base's at
         the null's nonlinear parameters, regressed on its residual; theta is None)."""
-        self.n_evaluations += 1
         null = getattr(self, "null", None)
         fixed = null is not None and all(float(nonlinear[k]) == null.params[k] for k in self.base_nl_names)
         if full or self.transforms(model) or not fixed or not isinstance(model, ExtendedModel):
@@ -363,7 +361,6 @@ class Screen:
         E = E - self._q0 @ (self._q0.T @ E)
         c, _ = self.solve(E, self.null_residual)
         res = self.null_residual - E @ c
-        self.n_evaluations += 1
         return float(res @ res), None, res
 
     def null_residuals(self) -> list[RecordResidual]:

@@ -27,7 +27,6 @@ def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
     """(rss, theta, residual) of the censored fit at a clipping level: the linear parameters solved on the
     samples not at the level, the prediction clipped there; (inf, None, None) if too few samples are free."""
     free = unclipped(screen, y, side, level)
-    screen.n_evaluations += 1
     if free.sum() < A.shape[1] + 1:
         return math.inf, None, None
     theta, _ = screen.solve(A[free], y[free])
