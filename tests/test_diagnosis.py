@@ -20,8 +20,6 @@ import dataclasses
 import json
 import math
 import re
-import subprocess
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -32,6 +30,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal, stats
 
+from hysbench.benchmarks.cli import main as hysbench_main
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.diagnose import build_screen
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import judge, parameter_errors
@@ -1521,16 +1520,20 @@ def test_a_different_policy_gives_the_verdict_its_thresholds_decide():
 
 
 # --- the command line ----------------------------------------------------------------------
-def _hysbench(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "hysbench.benchmarks.cli", *args], capture_output=True, text=True,
-                          cwd=cwd)
+def _hysbench(capsys, *args):
+    """`hysbench ARGS` run in this process (the console script has its own tests in test_bad_inputs):
+    its exit status, stdout and stderr."""
+    capsys.readouterr()
+    code = hysbench_main(list(args))
+    out = capsys.readouterr()
+    return SimpleNamespace(returncode=code, stdout=out.out, stderr=out.err)
 
 
-def test_cli_writes_report_and_json(tmp_path):
+def test_cli_writes_report_and_json(tmp_path, capsys):
     ds, truth = _draw_above(("interference",), LIMITS["interference"], start=5)
     save_dataset(ds, tmp_path / "ds")
     out = tmp_path / "out"
-    res = _hysbench("diagnose", str(tmp_path / "ds"), "--out", str(out), "--json", str(tmp_path / "d.json"), "--quiet",
+    res = _hysbench(capsys, "diagnose", str(tmp_path / "ds"), "--out", str(out), "--json", str(tmp_path / "d.json"), "--quiet",
                     "--policy", "max_secondary=3")
     assert res.returncode == 0, res.stderr
     assert "cause: interference" in res.stdout
@@ -1567,18 +1570,18 @@ def test_cli_writes_report_and_json(tmp_path):
     (["diagnose", ".", "--policy", "explain_share=1.5"], "explain_share = 1.5: needs a number in (0, 1]"),
     (["diagnose", ".", "--policy", "n_blocks=2.5"], "n_blocks takes an integer"),
 ])
-def test_cli_refuses_bad_input_in_one_line(args, needle):
+def test_cli_refuses_bad_input_in_one_line(args, needle, capsys):
     """Bad input, a bad policy field or value included, is one line and exit status 2, before any work."""
-    res = _hysbench(*args)
+    res = _hysbench(capsys, *args)
     assert res.returncode == 2
     assert needle in res.stderr and len(res.stderr.strip().splitlines()) == 1 and "Traceback" not in res.stderr
 
 
-def test_measured_pzt_data_with_different_sample_times(shared_datasets, tmp_path):
+def test_measured_pzt_data_with_different_sample_times(shared_datasets, tmp_path, capsys):
     """Real measured data (read in place): three records at 0.0025, 0.025 and 0.25 s, two of them identification.
     The verdict is one of the vocabulary, none or unexplained; a named extension never saw the validation record."""
     folder = pzt_dataset(shared_datasets, tmp_path / "pzt")
-    res = _hysbench("diagnose", str(folder), "--out", str(tmp_path / "out"), "--json", str(tmp_path / "d.json"),
+    res = _hysbench(capsys, "diagnose", str(folder), "--out", str(tmp_path / "out"), "--json", str(tmp_path / "d.json"),
                     "--quiet")
     assert res.returncode == 0, res.stderr
     data = json.loads((tmp_path / "d.json").read_text())
@@ -1588,19 +1591,19 @@ def test_measured_pzt_data_with_different_sample_times(shared_datasets, tmp_path
     assert (data["confirmed_on_validation"] is False) == ("warning:" in res.stdout)
 
 
-def test_one_recording_is_diagnosed_in_segments_without_its_validation_window(shared_datasets, tmp_path):
+def test_one_recording_is_diagnosed_in_segments_without_its_validation_window(shared_datasets, tmp_path, capsys):
     """The real piezo recording: one file, an identification window (three periods) and a validation window.
     Without --segments: refused in one line that names the option. With it, the identification window is cut
     at input minima into records of whole periods (two remain after its first minimum), no record the
     diagnosis fits on holds a validation sample, and the cuts cost the base model next to nothing (a cut at
     the window's own start, mid-sweep, had tripled its error: 0.41-0.51 % against 0.14 %)."""
     folder = shared_datasets / "piezo_sindy_1hz"
-    res = _hysbench("diagnose", str(folder), "--out", str(tmp_path / "none"), "--quiet")
+    res = _hysbench(capsys, "diagnose", str(folder), "--out", str(tmp_path / "none"), "--quiet")
     assert res.returncode == 2 and "--segments" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "none").exists()
-    res = _hysbench("diagnose", str(folder), "--segments", "3", "--out", str(tmp_path / "none"), "--quiet")
+    res = _hysbench(capsys, "diagnose", str(folder), "--segments", "3", "--out", str(tmp_path / "none"), "--quiet")
     assert res.returncode == 2 and "2 whole period(s)" in res.stderr and not (tmp_path / "none").exists()
-    res = _hysbench("diagnose", str(folder), "--segments", "2", "--out", str(tmp_path / "out"),
+    res = _hysbench(capsys, "diagnose", str(folder), "--segments", "2", "--out", str(tmp_path / "out"),
                     "--json", str(tmp_path / "d.json"), "--quiet")
     assert res.returncode == 0, res.stderr
     data = json.loads((tmp_path / "d.json").read_text())
