@@ -1,10 +1,13 @@
 """The grey-/black-box label and the benchmarks' NRMSE and fit (%) in the reports."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from hysbench.benchmarks.matrix.report import kind_of, ranking_table
-from hysbench.benchmarks.reports.bouc_wen import fit_percent, kind, nrmse, rmse
+from hysbench.benchmarks.reports.bouc_wen import _label, fit_percent, kind, nrmse, render, rmse
 from hysbench.models import get_model, list_models
 
 
@@ -31,3 +34,14 @@ def test_the_ranking_table_names_the_kind():
     summary = {"val_mean": 5.0, "val_worst": 8.0, "val_em_worst": 15.0, "ranked_on": "validation"}
     lines = ranking_table([(res, summary)])
     assert "| kind |" in lines[0] and "| narx-sparse | black-box | native |" in lines[2]
+
+
+def test_the_bouc_wen_report_lists_a_black_box_by_its_count_of_values_not_its_weights():
+    stored = json.loads((Path(__file__).parents[1] / "results" / "bouc_wen_benchmark.json").read_text())
+    text = render(stored)
+    for row in stored["rows"]:
+        line = next(ln for ln in text.splitlines() if ln.startswith(f"- {_label(row)} ({row['how']}):"))
+        if row["kind"] == "black-box":
+            assert f"{len(row['params'])} values" in line and " = " not in line
+        else:
+            assert all(f"{k} = " in line for k in row["params"])

@@ -212,7 +212,10 @@ def render(r: dict) -> str:
               f"2-core machine (load average {r['load_average']:.1f} at the end of the run): indicative only.", ""]
     lines += ["Identified parameters:", ""]
     for row in r["rows"]:
-        ps = ", ".join(f"{k} = {v:.6g}" for k, v in row["params"].items())
+        if row.get("kind") == "black-box":  # hundreds of weights say nothing read one by one
+            ps = f"{len(row['params'])} values (weights and scaling constants), in bouc_wen_benchmark.json"
+        else:
+            ps = ", ".join(f"{k} = {v:.6g}" for k, v in row["params"].items())
         lines.append(f"- {_label(row)} ({row['how']}): {ps}")
         for note in row["notes"]:
             lines.append(f"  - note: {note}")
