@@ -172,14 +172,18 @@ def test_a_creep_on_multisines_is_named_when_the_widest_record_is_predicted_only
     assert any("predicted up to t = 12.15 s, 81 % of it" in line for line in not_held_out_lines(d))
 
 
+@pytest.mark.xdist_group("mode-on-top-of-the-delay-kept-for-the-physics-lag")  # a pinned case of test_diagnosis
 def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_others_range():
-    """A 6.09 Hz mode (damping 0.15) on virtual-DEA multisines. The first identification record's input goes
-    5.6 % of the span beyond the others', first at 13.25 s of its 15; predicted up to there, the physics'
+    """A 2.1 Hz mode (damping 0.39) on virtual-DEA multisines. The second identification record's input goes
+    14 % of the span beyond the others', first at 9.31 s of its 15; predicted up to there, the physics'
     relaxation is named by itself (not as a partial cause completed on top), the mode under "also" within 25 %
     in frequency."""
-    d, truth = diagnosed(("resonance",), "virtual-dea", "multisines", 3900096)
+    d, truth = diagnosed(("resonance",), "virtual-dea", "multisines", 3100096)
     assert d.screen.held_out == [True, True, True]
-    assert d.screen.scored_rows[0] < d.screen.parts[0].rows.size
+    partial = [i for i, (n, part) in enumerate(zip(d.screen.scored_rows, d.screen.parts)) if n < part.rows.size]
+    assert partial == [1]
+    (skipped,) = d.settings["not_held_out"]
+    assert skipped["held_out_until_s"] == pytest.approx(9.308) and skipped["beyond_others_range"] > BEYOND_RANGE
     assert d.cause == "relaxation", d.verdict.reason
     assert "complete-partial" not in [t["rule"] for t in d.trace]
     also = {c.cause: c for c in d.also}
