@@ -180,14 +180,16 @@ def test_diagnosing_again_replaces_every_row_in_order_and_lists_each_change_by_h
     rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": first},
                             "within-limits-3": {"meta": {**meta(3, "within-limits"), "note": "x"}, "rows": within},
                             "balanced-4": {"meta": meta(4), "rows": [row(4 * STRIDE)]}})
-    new = {2 * STRIDE + 1: ("delay", [], True), 2 * STRIDE + 2: ("none", ["creep"], True),
-           3 * STRIDE + 1: ("relaxation", ["delay"], False)}
+    new = {2 * STRIDE + 1: ("delay", [], True, [], True), 2 * STRIDE + 2: ("none", ["creep"], True, [], None),
+           3 * STRIDE + 1000: ("none", [], True, ["relaxation"], None),  # only "ambiguous with" differs
+           3 * STRIDE + 1: ("relaxation", ["delay"], False, [], False)}
     asked = []
 
     def again(case):
         asked.append(case)
-        verdict, also, right = new.get(case["seed"], ("none", [], True))
-        return {**row(case["seed"], case["kinds"], right), "verdict": verdict, "also": also}
+        verdict, also, right, ambiguous, confirmed = new.get(case["seed"], ("none", [], True, [], None))
+        return {**row(case["seed"], case["kinds"], right), "verdict": verdict, "also": also,
+                "ambiguous_with": ambiguous, "confirmed": confirmed}
 
     monkeypatch.setattr(accuracy, "run_case", again)
     done = accuracy.again(["balanced-2", "within-limits-3"], path)
@@ -195,11 +197,17 @@ def test_diagnosing_again_replaces_every_row_in_order_and_lists_each_change_by_h
                                           3 * STRIDE + 1]
     assert asked[3]["min_strength_pct"] == {"delay": 0.2}  # drawn as the plan drew it
     assert [(d["right_before"], d["right_after"]) for d in done] == [(2, 3), (2, 1)]
+    stored = "none (also -; ambiguous with -; nothing to confirm)"
     assert done[0]["changes"] == [
-        f"delay on mrpim (case seed {2 * STRIDE + 1}): none (also -) -> delay (also -), right now",
-        f"delay on mrpim (case seed {2 * STRIDE + 2}): none (also -) -> none (also creep)"]
+        f"delay on mrpim (case seed {2 * STRIDE + 1}): {stored} -> delay (also -; ambiguous with -; confirmed), "
+        "right now",
+        f"delay on mrpim (case seed {2 * STRIDE + 2}): {stored} -> none (also creep; ambiguous with -; "
+        "nothing to confirm)"]
     assert done[1]["changes"] == [
-        f"delay on mrpim (case seed {3 * STRIDE + 1}): none (also -) -> relaxation (also delay), wrong now"]
+        f"delay on mrpim (case seed {3 * STRIDE + 1000}): {stored} -> none (also -; ambiguous with relaxation; "
+        "nothing to confirm)",
+        f"delay on mrpim (case seed {3 * STRIDE + 1}): {stored} -> relaxation (also delay; ambiguous with -; "
+        "not confirmed), wrong now"]
     plans = rows.read_plans(path)
     assert [r["verdict"] for r in plans["balanced-2"]["rows"]] == ["none", "delay", "none"]
     assert plans["within-limits-3"]["rows"][0]["attempts"] == 2 and "note" not in plans["within-limits-3"]["meta"]

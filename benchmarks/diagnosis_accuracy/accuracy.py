@@ -671,13 +671,19 @@ def _case_of(row: dict, meta: dict) -> dict:
 
 
 def verdict_changes(old: list[dict], new: list[dict]) -> list[str]:
-    """Per case whose verdict or "also" differs between two scorings of a plan: one line saying how."""
+    """Per case whose named cause, "also", "ambiguous with" or confirmation differs between two scorings of a
+    plan: one line saying how."""
+    def key(r: dict) -> tuple:
+        return r["verdict"], r["also"], r.get("ambiguous_with", []), r.get("confirmed")
+
     def text(r: dict) -> str:
-        return f"{r['verdict']} (also {', '.join(r['also']) or '-'})"
+        verdict, also, ambiguous, confirmed = key(r)
+        return (f"{verdict} (also {', '.join(also) or '-'}; ambiguous with {', '.join(ambiguous) or '-'}; "
+                f"{ {True: 'confirmed', False: 'not confirmed'}.get(confirmed, 'nothing to confirm')})")
 
     return [f"{effect_label(a)} on {a['base']} (case seed {a['seed']}): {text(a)} -> {text(b)}"
             + ("" if a["right"] == b["right"] else (", right now" if b["right"] else ", wrong now"))
-            for a, b in zip(old, new) if (a["verdict"], a["also"]) != (b["verdict"], b["also"])]
+            for a, b in zip(old, new) if key(a) != key(b)]
 
 
 def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
@@ -708,7 +714,7 @@ def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
             done.append({"plan": p["id"], "right_before": sum(r["right"] for r in p["rows"]),
                          "right_after": sum(r["right"] for r in rows), "changes": changes})
             say(f"{p['id']}: {done[-1]['right_before']} -> {done[-1]['right_after']} right, "
-                f"{len(changes)} verdict(s) or also list(s) changed")
+                f"{len(changes)} case(s) changed (cause, also, ambiguous with or confirmation)")
             for line in changes:
                 say(f"  {line}")
     return done
