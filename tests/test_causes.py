@@ -47,7 +47,7 @@ def test_held_out_residuals_belong_to_the_candidate_scored_not_to_a_copy():
     folds = Folds(np.array([0, 2, 4]))
     c = _candidate()
     held = HeldOut(folds, np.zeros(4), [(c, np.arange(4.0))])
-    assert c in held and np.array_equal(held.fold(c, 1), [2.0, 3.0])
+    assert c in held and np.array_equal(held.of(c)[folds.test(1)], [2.0, 3.0])
     twin = copy.copy(c)
     assert twin not in held
     with pytest.raises(KeyError, match="no held-out score"):

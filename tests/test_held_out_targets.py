@@ -158,7 +158,7 @@ def test_a_creep_on_multisines_is_named_when_the_widest_record_is_predicted_only
     three records."""
     d, truth = diagnosed(("creep",), "mrpim", "multisines", 3600189)
     s = d.screen
-    assert s.held_out == [True, True, True]
+    assert min(s.scored_rows) > 0  # every record a held-out target
     assert s.scored_rows[0] == s.parts[0].rows.size and s.scored_rows[2] == s.parts[2].rows.size
     assert 0.7 * s.parts[1].rows.size < s.scored_rows[1] < 0.9 * s.parts[1].rows.size
     assert s.n_held_out_rows == sum(s.scored_rows)
@@ -179,7 +179,7 @@ def test_a_mode_under_the_virtual_dea_s_relaxation_with_one_record_beyond_the_ot
     relaxation is named by itself (not as a partial cause completed on top), the mode under "also" within 25 %
     in frequency."""
     d, truth = diagnosed(("resonance",), "virtual-dea", "multisines", 3100096)
-    assert d.screen.held_out == [True, True, True]
+    assert min(d.screen.scored_rows) > 0  # every record a held-out target
     partial = [i for i, (n, part) in enumerate(zip(d.screen.scored_rows, d.screen.parts)) if n < part.rows.size]
     assert partial == [1]
     (skipped,) = d.settings["not_held_out"]

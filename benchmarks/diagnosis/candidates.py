@@ -1,7 +1,5 @@
-"""A fitted candidate cause (``Candidate``) and small helpers of the search.
-
-The screen compares its own fits by BIC with the AR(1) effective sample size of the null's residual
-(``n_effective``); the cause is chosen on held-out records (``selection``).
+"""A fitted candidate cause (``Candidate``) and small helpers of the search. The screen compares its own fits by
+BIC with the AR(1) effective sample size of the null's residual; the cause is chosen on held-out records.
 """
 
 from __future__ import annotations
@@ -26,12 +24,13 @@ NO_CUT = ("the level cuts too few samples of the prediction (policy min_clipped_
           "comes from leaving the output's extreme samples out of the fit)")  # a saturation's limit
 DRIVE_LOCKED = ("at a drive harmonic with the same phase in every record: a misfit locked to the drive, "
                 "not a disturbance of its own")  # an interference's limit (``Screen.limit_of``)
+OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
+is_log = log_scale  # whether a cause's parameter is searched on a log scale (``Cause.log_scale``)
 
 
 @dataclass
 class Candidate:
     """One fitted candidate: a cause's extension (or the null) on the screen's rows."""
-
     cause: str
     label: str
     model: HysteresisModel
@@ -76,11 +75,6 @@ class Candidate:
 def estimates_of(cause: str, params: Mapping[str, float], model: HysteresisModel) -> dict:
     """A cause's parameters in the report's vocabulary (``Cause.estimates``; none for the base alone)."""
     return CAUSES[cause].estimates(params, model) if cause in CAUSES else {}
-
-
-def is_log(name: str) -> bool:
-    """Whether a cause's parameter is searched on a log scale (``Cause.log_scale``)."""
-    return log_scale(name)
 
 
 def local_minima(vals: np.ndarray, n: int) -> list[int]:
@@ -132,9 +126,6 @@ def own_nonlinear(screen, c: Candidate) -> list[str]:
     return [n for n in c.model.nonlinear_names if n not in screen.base_nl_names]
 
 
-OPEN_ENDED_NOTE = "longer than these records show, at its upper search bound: a straight drift"
-
-
 def open_ended(screen, c: Candidate) -> list[str]:
     """The candidate's parameters at an upper search bound that is a limit within its cause's meaning
     (``Cause.open_ended``: creep's time scale longer than these records show, a straight drift)."""
@@ -149,10 +140,9 @@ def bound_flags(screen, c: Candidate) -> dict:
 
 def at_bound(screen, c: Candidate) -> list[str]:
     """The candidate's own nonlinear parameters at a search bound (not an ``open_ended`` one)."""
-    out = []
     if not c.kind.bounded:
-        return out
-    near = screen.policy.at_bound
+        return []
+    out, near = [], screen.policy.at_bound
     for n in own_nonlinear(screen, c):
         lo, hi = screen.bounds_of(c.model, n)
         v = float(c.params[n])

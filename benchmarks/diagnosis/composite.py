@@ -1,8 +1,5 @@
-"""A cause composed on top of another (secondary causes, ``secondary``; a slow part, ``slow_part``).
-
-The primary's extension (itself possibly a composite) plus another cause, one extended model, refined on the
-screen's rows from both fits; its added cause's own parameters can be searched afresh on a coarse grid
-(``composite_starts``). Only separable causes compose (``Cause.separable``).
+"""A cause composed on top of another, one extended model (secondary causes, ``secondary``; a slow part,
+``slow_part``).
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
-"""Identify the extension a diagnosis names, with the identifiers, and measure what it gains.
-
-The extended models are registered models (``hysbench.models.extended``); they are identified with
-``hysbench.identification.identify`` (varpro where the model is partly linear, lsq otherwise) on the
-identification records' whole length, from the screen's estimate, every parameter free, on the screen's
-rows (``SampledRecord``: the model runs over every sample, the least-squares rows are the subset). The base
-model is refitted the same way, so the extension's gain is told apart from the gain of fitting whole records.
+"""Identify the extension a diagnosis names (a registered model, ``hysbench.models.extended``) with
+``hysbench.identification.identify`` on the identification records' whole length, from the screen's estimate, on
+the screen's rows, and measure what it gains. The base is refitted the same way, so the extension's gain is told
+apart from the gain of fitting whole records.
 """
 
 from __future__ import annotations
@@ -24,7 +21,7 @@ from hysbench.models.registry import list_models
 
 from .residuals import RecordResidual, gain_z
 
-# Options of the final identification (the start is already close; see module docstring).
+# the final identification's options (the start is already close)
 VARPRO_OPTIONS = {"n_candidates": 0, "n_starts": 1, "max_nfev": 8}
 LSQ_OPTIONS = {"max_nfev": 30}
 
@@ -33,7 +30,6 @@ LSQ_OPTIONS = {"max_nfev": 30}
 class SampledRecord(Record):
     """A record fitted on a fixed subset of its samples (``rows``, increasing); every model
     runs over all of them. What is scored is the same subset."""
-
     rows: np.ndarray | None = None
 
     @property

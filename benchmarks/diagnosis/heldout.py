@@ -1,13 +1,9 @@
-"""Held-out scores: every candidate scored on records that took no part in fitting it.
-
-Leave-one-identification-record-out on the screen's rows: for every fold the linear parameters of a candidate
-are solved on the other records and the left-out record is predicted; the base model alone is refitted the
-same way on the same rows. Finalists are scored again with their own nonlinear parameters refitted per fold,
-whose spread is their uncertainty (jackknife). From the out-of-fold residuals e (``score``): the gain
-G = 1 - sum e_c^2 / sum e_null^2, z (the one-sided Wilcoxon signed-rank test of ln(SSE_null / SSE_c) over
-``n_blocks`` contiguous blocks of each left-out record, as a normal quantile: blocks, so correlated residuals
-are not counted as independent) and the records improved. A record whose input goes beyond the others'
-range is scored only up to where it first does (``held_out_windows``).
+"""Held-out scores: leave one identification record out on the screen's rows, a candidate's linear parameters
+solved on the other records (finalists' own nonlinear parameters refitted per fold too: their spread is the
+jackknife uncertainty), the base alone refitted the same way. From the out-of-fold residuals e (``score``): the
+gain G = 1 - sum e_c^2 / sum e_null^2, z (one-sided Wilcoxon signed-rank test of ln(SSE_null / SSE_c) over
+``n_blocks`` contiguous blocks per left-out record, so correlated residuals are not counted as independent) and
+the records improved. A record whose input leaves the others' range is scored up to there (``held_out_windows``).
 """
 
 from __future__ import annotations
@@ -32,7 +28,6 @@ class Folds:
     ``scored[m]`` rows are held-out targets (``Screen.scored_rows``; None: every row): its out-of-fold residual
     after them (``tail``) is set to zero, so every sum, block and count covers the scored rows alone.
     ``policy``: the screen's."""
-
     starts: np.ndarray  # row offsets of the records, len M + 1
     scored: tuple | None = None  # per record: its scored rows, from its start (None: every row)
     policy: Policy = Policy()
@@ -84,8 +79,7 @@ class Folds:
 @dataclass
 class HeldOut:
     """The out-of-fold residuals (``out_of_fold``) of the base alone (``null``) and of every candidate scored
-    (``add``; ``of``); ``fold(c, m)``: those of fold m's left-out record."""
-
+    (``add``; ``of``)."""
     folds: Folds
     null: np.ndarray
     scored: InitVar[Sequence[tuple]] = ()  # (candidate, its out-of-fold residuals)
@@ -105,9 +99,6 @@ class HeldOut:
         if c not in self:
             raise KeyError(f"{c.label} has no held-out score")
         return self._by[id(c)][1]
-
-    def fold(self, c: Candidate, m: int) -> np.ndarray:
-        return self.of(c)[self.folds.test(m)]
 
 
 def out_of_fold(screen, folds: Folds, design: Callable[[int], np.ndarray],
@@ -159,11 +150,7 @@ def heldout_errors(screen, folds: Folds, c: Candidate, refit: bool = False,
                                          residual=residual)
             fold_est.append({n: float(z[n]) for n in names})
         fold_nl.append(z)
-    if not names:
-        A = screen.design(c.model, nl)
-        mats = [A] * folds.n
-    else:
-        mats = [screen.design(c.model, z) for z in fold_nl]
+    mats = [screen.design(c.model, z) for z in fold_nl] if names else [screen.design(c.model, nl)] * folds.n
     if designs is not None:
         designs.extend(mats)
     return out_of_fold(screen, folds, lambda m: mats[m], train_residuals), fold_est
@@ -191,8 +178,9 @@ def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
             "n_folds": folds.n_scored, "sse": float(e_c @ e_c)}
 
 
-def jackknife(fold_estimates: list[dict]) -> dict:
-    """Jackknife standard error of each fold-refitted parameter (log-scale ones as relative errors)."""
+def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
+    """Jackknife standard error of each fold-refitted parameter (log-scale ones as relative errors); a clipping
+    level, which has no natural zero, also as its spread over the output's range."""
     out = {}
     if len(fold_estimates) < 2:
         return out
@@ -204,17 +192,9 @@ def jackknife(fold_estimates: list[dict]) -> dict:
         se = float(math.sqrt((m - 1) / m * np.sum((x - x.mean()) ** 2)))
         out[name] = {"relative_se": se} if log else {"se": se}
         out[name]["folds"] = [float(a) for a in v]
-    return out
-
-
-def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
-    """The jackknife uncertainty of fold-refitted parameters; a clipping level, which has no natural zero,
-    also as its spread over the output's range."""
-    out = jackknife(fold_estimates)
-    for name, u in out.items():
         owner = cause_of_parameter(name)
         if owner is not None and name in owner.relative_to_range:
-            u["se_over_range"] = u["se"] / max(float(np.ptp(screen.y)), 1e-300)
+            out[name]["se_over_range"] = out[name]["se"] / max(float(np.ptp(screen.y)), 1e-300)
     return out
 
 
@@ -225,20 +205,16 @@ def passes(c: Candidate, policy: Policy) -> bool:
 
 def evidence(h: dict, policy: Policy) -> bool:
     """A held-out score (``score``) is evidence: gain >= ``min_explained`` in a majority of folds, and z >=
-    ``z_pass`` or a gain >= ``strong_gain`` in every fold; or, for one line (``line_evidence``), any gain."""
-    return bool(h) and (line_evidence(h, policy) or (
+    ``z_pass`` or a gain >= ``strong_gain`` in every fold; or any gain for an interference found at one frequency
+    and amplitude on each fold's other records (``same_line``) that improves every held-out record with z >=
+    ``z_pass`` (specific by itself, however small its gain)."""
+    return bool(h) and ((bool(h.get("same_line")) and _improves_every_fold(h, policy)) or (
         h["gain"] >= policy.min_explained and h["folds_improved"] * 2 > h["n_folds"] and (
             h["z"] >= policy.z_pass or (h["gain"] >= policy.strong_gain and h["folds_improved"] == h["n_folds"]))))
 
 
-def line_evidence(h: dict, policy: Policy) -> bool:
-    """An interference found at one frequency and amplitude on each fold's other records (``same_line``) that
-    improves every held-out record with z >= ``z_pass``: specific by itself, however small its gain."""
-    return bool(h.get("same_line")) and _improves_every_fold(h, policy)
-
-
 def line_worth_refit(c: Candidate, policy: Policy) -> bool:
-    """An interference whose quick score (frequency from every record) could become ``line_evidence``."""
+    """An interference whose quick score (frequency from every record) could become evidence as one line."""
     return (c.kind.disturbance and not c.limit and bool(c.heldout)
             and _improves_every_fold(c.heldout, policy))
 

@@ -1,9 +1,6 @@
-"""Residuals of a fitted model over whole records, and what they look like.
-
-Every record is simulated from its first sample and the residual r = y_measured - y_model kept for all of
-it (a drift or a start-up transient shows only outside the scored window). From it: the noise level from
-first differences (``noise_sd``), a Ljung-Box whiteness test, the spectrum, the repetition from period to
-period (``periodic_structure``) and the pooled spectrum of the identification records (``coherent_spectrum``).
+"""Residuals r = y_measured - y_model of a fitted model over whole records, simulated from the first sample (a
+drift or a start-up transient shows only outside the scored window), and what they look like: the noise level,
+whiteness (Ljung-Box), the spectrum, the repetition from period to period, the pooled spectrum of several records.
 """
 
 from __future__ import annotations
@@ -21,12 +18,13 @@ from hysbench.data.dataset import Record
 from hysbench.data.protocol import period_samples
 
 LAGS = 20
+FLOOR_HALF_WIDTH = 15  # bins each side of the running median (fewer at low frequency: k // 2, at least 2)
+MAX_SPECTRUM_POINTS = 1 << 21
 
 
 @dataclass
 class RecordResidual:
     """A record, the model's output over all of it, and the residual."""
-
     record: Record
     prediction: np.ndarray
 
@@ -81,9 +79,6 @@ def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(x.size, dt), amp
 
 
-FLOOR_HALF_WIDTH = 15  # bins each side of the running median (fewer at low frequency: k // 2, at least 2)
-
-
 def noise_floor(r: np.ndarray) -> np.ndarray:
     """The residual's continuous spectrum on the rfft bins, in periodogram units (|R_k|^2 / n, mean
     removed): a running median over +-min(15, k // 2) bins (at least 2), divided by ln 2 (the median of
@@ -122,9 +117,6 @@ def gain_z(pairs: list[tuple[np.ndarray, np.ndarray]]) -> float:
     if var <= 0:
         return math.copysign(math.inf, gained) if gained else 0.0
     return gained / (2.0 * math.sqrt(var))
-
-
-MAX_SPECTRUM_POINTS = 1 << 21
 
 
 def coherent_spectrum(residuals: list[RecordResidual], f_min: float, f_max: float, pad: int = 4,
@@ -183,7 +175,6 @@ def spectral_peaks(f: np.ndarray, amp: np.ndarray, n: int = 3, min_separation_hz
 @dataclass
 class ResidualSummary:
     """Per-record statistics of a residual."""
-
     file: str
     role: str
     frequency_hz: float | None

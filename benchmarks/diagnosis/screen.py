@@ -1,12 +1,7 @@
-"""The candidate screen: the base model alone (the null) and each cause's extension on a fixed row subset.
-
-The identification records over their whole length, on a fixed random subset of at most ``max_rows``
-samples per record (the models run over every sample; the subset keeps the least-squares solves small);
-linear parameters are solved exactly at every step. The null: the base alone, its nonlinear parameters
-refined on these rows. Stage 1 (``Cause.fit``): each cause's extension with the base's nonlinear parameters
-held at the null's (added columns are regressed on the null's residual, projected off the base's columns).
-Stage 2 (``Screen.joint``): the base's nonlinear parameters free as well. The cause is chosen on held-out
-records (``selection``).
+"""The candidate screen: the base model alone (the null) and each cause's extension, fitted on a fixed random
+subset of at most ``max_rows`` rows per identification record (the models run over every sample; the subset keeps
+the least-squares solves small); linear parameters are solved exactly at every step. The cause is chosen on
+held-out records (``selection``).
 """
 
 from __future__ import annotations
@@ -39,31 +34,23 @@ RELAXATION_CACHE = 512  # filtered input rows kept per record (at 10,000 rows: 4
 
 @dataclass
 class _Part:
-    """One identification record in the screen: its row subset and the base's columns."""
-
+    """One identification record in the screen and its row subset."""
     record: Record
     rows: np.ndarray
-    y_rows: np.ndarray
     window: Window  # the rows, checked once
 
 
 @dataclass
 class _BaseColumns:
     """The base's regressor columns for one nonlinear parameter set, per record."""
-
     rows: list  # (n_rows_m, n_base_linear) per record
     full: list | None  # {name: full-length column} per record, or None if not kept
 
 
 class Screen:
-    """The candidate fits on a fixed row subset of the identification records.
-
-    Stage 1: each cause's extension with the base's nonlinear
-    parameters held at the null's; only the components' columns are new, so
-    they are projected off the base's columns and regressed on the null's
-    residual (cheap). Stage 2 (``joint``): a candidate refined with the
-    base's nonlinear parameters free as well (every column recomputed). ``policy``: the decision policy
-    (``policy.Policy``), carried for every step that works on the screen.
+    """The candidate fits. Stage 1 (``Cause.fit``): a cause's extension with the base's nonlinear parameters held
+    at the null's; only the components' columns are new, so they are projected off the base's columns and regressed
+    on the null's residual (cheap). Stage 2 (``joint``): the base's nonlinear parameters free as well.
     """
 
     def __init__(self, base: HysteresisModel, base_params: Mapping[str, float], input_range,
@@ -81,44 +68,32 @@ class Screen:
         for r in identification:
             n = r.t.size
             rows = np.arange(n) if n <= max_rows else np.sort(rng.choice(n, max_rows, replace=False))
-            self.parts.append(_Part(r, rows, r.y[rows].copy(), Window.of(rows, n)))
+            self.parts.append(_Part(r, rows, Window.of(rows, n)))
         self._relaxation_cache = [{} for _ in self.parts]  # {(tau, power): filtered input at the rows} per record
         self._late_cache = [{} for _ in self.parts]  # a late model's parts per record (``ExtendedModel``)
-        self.y = np.concatenate([p.y_rows for p in self.parts])
+        self.y = np.concatenate([p.record.y[p.rows] for p in self.parts])
         self.n = self.y.size
         inputs = [p.record.u for p in self.parts]
-        windows = held_out_windows(inputs, policy.beyond_range)
-        self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, windows)]  # predicted rows
-        self.held_out_windows = windows  # per record: samples predicted from its start
+        self.held_out_windows = held_out_windows(inputs, policy.beyond_range)  # per record: samples predicted
+        self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, self.held_out_windows)]
         self.beyond_range = beyond_others(inputs)
         self.n_held_out_rows = sum(self.scored_rows)
-        # the causes' time scale
         self.drive_time = min(shortest_period(p.record.u, p.record.dt, p.record.frequency_hz) for p in self.parts)
-        self.component_scale = replace(scale, time=self.drive_time)
-        # the lowest natural frequency a mode is searched at: 1 / the shortest drive period, or lower, down to
-        # the low end of the band of a record without a nominal frequency (a broadband drive excites a mode
-        # inside its band, where it shows best)
+        self.component_scale = replace(scale, time=self.drive_time)  # the causes' time scale
+        # the lowest mode frequency searched: 1 / the shortest drive period, or down to the low end of the band of
+        # a record without a nominal frequency (a broadband drive excites a mode inside its band, where it shows best)
         bands = [drive_band(p.record.u, p.record.dt) for p in self.parts if not p.record.frequency_hz]
         self.mode_floor = min([RESONANCE_HZ_BOUNDS[0] / self.drive_time, *(b[0] for b in bands if b is not None)])
         self._extension_cache: dict = {}
         self._columns: dict = {}  # base nonlinear tuple -> _BaseColumns (a few, most recent last)
-        start = {k: float(base_params[k]) for k in self.base_nl_names}
-        self.null = self._fit_null(start)
+        self.null = self._fit_null({k: float(base_params[k]) for k in self.base_nl_names})
 
-    # --- models ------------------------------------------------------------
     def extension(self, components: Sequence[str], **hyper) -> ExtendedModel:
         key = (tuple(components), tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in hyper.items())))
-        m = self._extension_cache.get(key)
-        if m is None:
-            m = ExtendedModel(base=self.base.name, components=tuple(components),
-                              base_hyperparameters=self.base.get_hyperparameters(), **hyper)
-            self._extension_cache[key] = m
-        return m
-
-    @property
-    def held_out(self) -> list[bool]:
-        """Per record: a held-out target (some of its rows predicted)."""
-        return [k > 0 for k in self.scored_rows]
+        if key not in self._extension_cache:
+            self._extension_cache[key] = ExtendedModel(base=self.base.name, components=tuple(components),
+                                                       base_hyperparameters=self.base.get_hyperparameters(), **hyper)
+        return self._extension_cache[key]
 
     @property
     def creep_min(self) -> float:
@@ -149,7 +124,6 @@ class Screen:
         """The Nyquist frequency (Hz) of the most coarsely sampled record."""
         return 0.5 / max(p.record.dt for p in self.parts)
 
-    # --- the base's columns ---------------------------------------------------
     def base_columns(self, base_nl: Mapping[str, float], full: bool = False) -> _BaseColumns:
         """The base's regressors for these nonlinear parameters (cached for the last few sets)."""
         key = tuple(float(base_nl[k]) for k in self.base_nl_names)
@@ -175,25 +149,18 @@ class Screen:
             self._columns.pop(next(iter(self._columns)))
         return cols
 
-    # --- linear solves -----------------------------------------------------
-    @staticmethod
-    def transforms(model: HysteresisModel) -> bool:
-        """Whether the model's components change the base's columns (resonance, delay)."""
-        return isinstance(model, ExtendedModel) and any(CAUSES[c].transforms for c in model.components)
-
     def design(self, model: HysteresisModel, nonlinear: Mapping[str, float], only_extra: bool = False,
                parts: Sequence[int] | None = None) -> np.ndarray:
-        """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'):
-        every linear column in ``model.linear_names`` order, or with ``only_extra`` only the
-        columns the components add (for components that leave the base's columns unchanged);
-        ``parts``: the rows of these records only (default: every record's)."""
+        """Stacked regressor rows (N, n) for the given nonlinear parameters (base's and components'): every linear
+        column in ``model.linear_names`` order, or with ``only_extra`` only the columns the components add (for
+        components that leave the base's columns unchanged); ``parts``: these records' rows only (default: all)."""
         parts = range(len(self.parts)) if parts is None else parts
         base_nl = {k: nonlinear[k] for k in self.base_nl_names}
         if not isinstance(model, ExtendedModel):
             return np.concatenate([self.base_columns(base_nl).rows[m] for m in parts])
         names = [c for c in model.linear_names if not (only_extra and c in self.base_lin)]
         late = any(CAUSES[c].late_input for c in model.components)
-        transforms = self.transforms(model)
+        transforms = any(CAUSES[c].transforms for c in model.components)  # changes the base's columns
         bc = None if late else self.base_columns(base_nl, full=transforms)
         out = np.empty((sum(self.parts[m].rows.size for m in parts), len(names)), order="F")  # QR takes F order
         a = 0
@@ -217,21 +184,22 @@ class Screen:
             a += p.rows.size
         return out
 
-    @staticmethod
-    def solve(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return solve_scaled(A, y)
+    solve = staticmethod(solve_scaled)
 
     def evaluate(self, model: HysteresisModel, nonlinear: Mapping[str, float],
                  full: bool = False) -> tuple[float, np.ndarray | None, np.ndarray]:
-        """(rss, theta, residual) with the linear parameters solved. Without ``full``, components that
-        only add columns are evaluated against the null (their columns projected off the base's at
-        the null's nonlinear parameters, regressed on its residual; theta is None)."""
+        """(rss, theta, residual) with the linear parameters solved. Without ``full``, components that only add
+        columns are evaluated against the null (``_against_null``; theta is None)."""
         null = getattr(self, "null", None)
         fixed = null is not None and all(float(nonlinear[k]) == null.params[k] for k in self.base_nl_names)
-        if full or self.transforms(model) or not fixed or not isinstance(model, ExtendedModel):
+        if (full or not fixed or not isinstance(model, ExtendedModel)
+                or any(CAUSES[c].transforms for c in model.components)):
             theta, res = self.solve(self.design(model, nonlinear), self.y)
             return float(res @ res), theta, res
-        E = self.design(model, nonlinear, only_extra=True)
+        return self._against_null(self.design(model, nonlinear, only_extra=True))
+
+    def _against_null(self, E: np.ndarray) -> tuple[float, None, np.ndarray]:
+        """Columns E projected off the base's (at the null's parameters) and regressed on the null's residual."""
         E = E - self._q0 @ (self._q0.T @ E)
         c, _ = self.solve(E, self.null_residual)
         res = self.null_residual - E @ c
@@ -264,8 +232,7 @@ class Screen:
         params = {**nonlinear, **dict(zip(model.linear_names, map(float, theta)))}
         c = Candidate(cause, label, model, params, model.n_params, rss, self.n,
                       estimates_of(cause, params, model), n_effective=self.n_effective,
-                      hyperparameters=dict(hyper or {}))
-        c.stage = stage
+                      hyperparameters=dict(hyper or {}), stage=stage)
         return self._finish(c)
 
     def _finish(self, c: Candidate) -> Candidate:
@@ -278,7 +245,6 @@ class Screen:
         """Why estimates fall outside the cause's meaning (``Cause.limit``): a fit pinned there is not named."""
         return CAUSES[cause].limit(self, estimates) if cause in CAUSES else ""
 
-    # --- nonlinear search --------------------------------------------------
     def refine(self, model: HysteresisModel, start: Mapping[str, float], free: Sequence[tuple[str, bool]],
                max_nfev: int = 40, residual: Callable | None = None) -> dict:
         """Bounded local least squares over the named nonlinear parameters (log scale where flagged);
@@ -310,15 +276,13 @@ class Screen:
                             max_nfev=max_nfev, ftol=1e-8, xtol=1e-8)
         return unpack(res.x)
 
-    def line_search(self, model: ExtendedModel, name: str, grid: Sequence[float], log: bool = False,
-                    fixed: Mapping[str, float] | None = None, evaluate: Callable | None = None) -> dict:
+    def line_search(self, model: ExtendedModel, name: str, grid: Sequence[float], log: bool = False) -> dict:
         """One nonlinear parameter: the best grid point, then Brent's bounded search between its neighbours."""
-        fixed = {**self.base_nl, **dict(fixed or {})}
+        fixed = dict(self.base_nl)
         grid = np.asarray(sorted(grid), dtype=float)
-        evaluate = evaluate or (lambda z: self.evaluate(model, z))
 
         def rss(v):
-            return evaluate({**fixed, name: float(v)})[0]
+            return self.evaluate(model, {**fixed, name: float(v)})[0]
 
         vals = [rss(g) for g in grid]
         i = int(np.argmin(vals))
@@ -357,17 +321,12 @@ class Screen:
     def first_order(self, column_of) -> tuple[float, None, np.ndarray]:
         """A transforming component to first order: y ~ B theta + alpha * (T[y0] - y0), y0 the null's
         prediction; ``column_of(m)`` gives T[y0] - y0 on record m's screen rows. Evaluated against the null."""
-        E = np.concatenate([column_of(m) for m in range(len(self.parts))])[:, None]
-        E = E - self._q0 @ (self._q0.T @ E)
-        c, _ = self.solve(E, self.null_residual)
-        res = self.null_residual - E @ c
-        return float(res @ res), None, res
+        return self._against_null(np.concatenate([column_of(m) for m in range(len(self.parts))])[:, None])
 
     def null_residuals(self) -> list[RecordResidual]:
         """The null's residual over every identification record, whole length."""
         return [RecordResidual(p.record, self._null_prediction[m]) for m, p in enumerate(self.parts)]
 
-    # --- stage 2: the base's nonlinear parameters free as well --------------------
     def joint(self, c: Candidate, max_nfev: int = 15) -> Candidate:
         """Refine a stage-1 candidate with the base's nonlinear parameters free too (a separable cause's: a clip
         and a line have their own, ``Cause.joint``)."""
@@ -381,7 +340,5 @@ class Screen:
         out = self.candidate(c.cause, c.label, model, z, c.hyperparameters, stage="joint")
         return out if out.rss <= c.rss else c
 
-    def composite(self, primary: Candidate, other: Candidate, max_nfev: int = 10,
-                  search: bool = False) -> Candidate | None:
-        """``composite.composite`` on this screen."""
-        return composite(self, primary, other, max_nfev, search)
+    def composite(self, primary: Candidate, other: Candidate, search: bool = False) -> Candidate | None:
+        return composite(self, primary, other, search=search)

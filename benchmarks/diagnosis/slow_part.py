@@ -1,8 +1,5 @@
-"""Creep in place of a named relaxation's slowest part (rule ``slow-part-twin``).
-
-A relaxation slower than every drive period and a drift since the start are nearly the same function under
-these drives. The relaxation without its slowest time constant plus creep is scored like every finalist; if
-it passes and the relaxation does not predict better by ``z_same``, the slow part is ambiguous.
+"""Creep in place of a named relaxation's slowest part (rule ``slow-part-twin``): a relaxation slower than every
+drive period and a drift since the start are nearly the same function under these drives.
 """
 
 from __future__ import annotations
@@ -50,7 +47,6 @@ def slow_part_composite(screen, held: HeldOut | None, chosen: Candidate | None, 
 class SlowPart:
     """The slow-part composite (``slow_part_composite``) and how much better the named relaxation predicts
     the held-out records than it (``pairwise_z``; positive: the relaxation better)."""
-
     composite: Candidate
     z_named_better: float
 
