@@ -101,8 +101,7 @@ def bracketed_minimum(fun, grid, xatol: float) -> tuple[float, float]:
 
 
 def prominence(amp: np.ndarray, half_width: int = 50) -> np.ndarray:
-    """A spectrum over its running geometric mean (a peak stands out of its neighbourhood, whatever
-    the slope)."""
+    """A spectrum over its running geometric mean (a peak stands out of its neighbourhood, whatever the slope)."""
     log_amp = np.log(np.maximum(amp, 1e-300))
     return np.exp(log_amp - uniform_filter1d(log_amp, size=2 * half_width + 1, mode="nearest"))
 

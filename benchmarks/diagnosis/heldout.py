@@ -171,11 +171,10 @@ def score(folds: Folds, e_ref: np.ndarray, e_c: np.ndarray) -> dict:
     tiny = 1e-300
     d = np.array([math.log(max(float(e_ref[b] @ e_ref[b]), tiny) / max(float(e_c[b] @ e_c[b]), tiny)) for b in blocks])
     ss_ref = float(e_ref @ e_ref)
-    z = signed_rank_z(d)
     improved = sum(float(e_ref[folds.test(m)] @ e_ref[folds.test(m)]) > float(e_c[folds.test(m)] @ e_c[folds.test(m)])
                    for m in range(folds.n) if folds.is_scored(m))
-    return {"gain": 1.0 - float(e_c @ e_c) / ss_ref if ss_ref > 0 else 0.0, "z": z, "folds_improved": int(improved),
-            "n_folds": folds.n_scored, "sse": float(e_c @ e_c)}
+    return {"gain": 1.0 - float(e_c @ e_c) / ss_ref if ss_ref > 0 else 0.0, "z": signed_rank_z(d),
+            "folds_improved": int(improved), "n_folds": folds.n_scored, "sse": float(e_c @ e_c)}
 
 
 def fold_uncertainty(screen, fold_estimates: list[dict]) -> dict:
@@ -271,10 +270,9 @@ def beyond_others(inputs: Sequence[np.ndarray]) -> list[float]:
 
 
 def held_out_windows(inputs: Sequence[np.ndarray], beyond_range: float) -> list[int]:
-    """How many samples of each record, from its start, the held-out test predicts (``Folds``): all of a record
-    whose input stays within the other records' range (to ``beyond_range`` of the span), else those before it
-    first leaves it (fitted on the others, the base would extrapolate there). All if fewer than two stay
-    within."""
+    """How many samples of each record, from its start, the held-out test predicts (``Folds``): all of a record whose
+    input stays within the other records' range (to ``beyond_range`` of the span), else those before it first leaves it
+    (fitted on the others, the base would extrapolate there). All if fewer than two stay within."""
     sizes = [int(u.size) for u in inputs]
     beyond = beyond_others(inputs)
     if sum(b <= beyond_range for b in beyond) < 2:

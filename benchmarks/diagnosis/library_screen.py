@@ -40,9 +40,7 @@ def library_screen(screen, residuals: Sequence[RecordResidual], max_terms: int =
     norms = np.sqrt(np.einsum("ij,ij->j", Theta, Theta))
     keep = norms > 1e-9 * max(float(norms.max()), 1e-300)
     Theta = Theta[:, keep] / norms[keep]
-    names = [n for n, k in zip(names, keep) if k]
-    groups = [g for g, k in zip(groups, keep) if k]
-    tau_of = [t for t, k in zip(tau_of, keep) if k]
+    names, groups, tau_of = ([v for v, k in zip(column, keep) if k] for column in (names, groups, tau_of))
     target = screen.null_residual
     opt = ps.FROLS(max_iter=min(max_terms, Theta.shape[1]), alpha=1e-10, normalize_columns=False, unbias=True)
     opt.fit(Theta, target)

@@ -80,10 +80,9 @@ def periodogram(r: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def noise_floor(r: np.ndarray) -> np.ndarray:
-    """The residual's continuous spectrum on the rfft bins, in periodogram units (|R_k|^2 / n, mean
-    removed): a running median over +-min(15, k // 2) bins (at least 2), divided by ln 2 (the median of
-    an exponential), so a few lines -- misfit locked to the drive -- do not raise it; the window is
-    truncated at the top, and bin 0 takes bin 1's value."""
+    """The residual's continuous spectrum on the rfft bins, in periodogram units (|R_k|^2 / n, mean removed): a running
+    median over +-min(15, k // 2) bins (at least 2), divided by ln 2 (the median of an exponential), so a few lines --
+    misfit locked to the drive -- do not raise it; the window is truncated at the top, and bin 0 takes bin 1's value."""
     x = np.asarray(r, dtype=float) - np.mean(r)
     p = np.abs(np.fft.rfft(x)) ** 2 / max(x.size, 1)
     if p.size < 3:
@@ -100,10 +99,9 @@ def noise_floor(r: np.ndarray) -> np.ndarray:
 
 
 def gain_z(pairs: list[tuple[np.ndarray, np.ndarray]]) -> float:
-    """One-sided z that going from residual r_b to r_a (pairs over records) lowers the sum of squares
-    by more than noise would: D = sum(r_b^2 - r_a^2) = sum(2 d r_b - d^2), d = r_b - r_a. If d is
-    unrelated to a record's noise e, sum(d e) has variance sum_k |D_k|^2 S_k / n (S: ``noise_floor``
-    of r_a, correlated noise included); z = D / (2 sd)."""
+    """One-sided z that going from residual r_b to r_a (pairs over records) lowers the sum of squares by more than noise
+    would: D = sum(r_b^2 - r_a^2) = sum(2 d r_b - d^2), d = r_b - r_a. If d is unrelated to a record's noise e, sum(d e)
+    has variance sum_k |D_k|^2 S_k / n (S: ``noise_floor`` of r_a, correlated noise included); z = D / (2 sd)."""
     gained = var = 0.0
     for r_b, r_a in pairs:
         d = r_b - r_a
@@ -219,11 +217,10 @@ def whole_periods(record: Record) -> tuple[int, int]:
 
 
 def periodic_structure(residuals: list[RecordResidual], n_bins: int = 100) -> dict:
-    """Whether a residual repeats from one drive period to the next: per record of at least two whole periods
-    (records of one period at the same frequency and length taken together), the residual in ``n_bins`` phase
-    bins per period, X (P x bins); F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for noise
-    independent from period to period, large for a misfit the drive repeats. {"F" (nan without such records),
-    "records"}."""
+    """Whether a residual repeats from one drive period to the next: per record of at least two whole periods (records
+    of one period at the same frequency and length taken together), the residual in ``n_bins`` phase bins per period, X
+    (P x bins); F = P mean_p(X)^2 / var_p(X) summed over bins and records: about 1 for noise independent from period to
+    period, large for a misfit the drive repeats. {"F" (nan without such records), "records"}."""
     num = den = 0.0
     used = []
     single: dict[tuple, list[tuple[str, np.ndarray]]] = {}

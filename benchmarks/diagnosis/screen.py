@@ -250,16 +250,12 @@ class Screen:
         """Bounded local least squares over the named nonlinear parameters (log scale where flagged);
         the others stay at ``start`` (the base's, when not named, at the null's)."""
         start = {**getattr(self, "base_nl", {}), **dict(start)}
-        lo, hi, x0 = [], [], []
+        box = []  # (lower bound, upper bound, start) per free parameter, on its search scale
         for name, log in free:
             a, b = self.bounds_of(model, name)
             v = min(max(float(start[name]), a), b)
-            if log:
-                a, b, v = math.log(max(a, 1e-12)), math.log(b), math.log(max(v, 1e-12))
-            lo.append(a)
-            hi.append(b)
-            x0.append(v)
-        lo, hi, x0 = np.array(lo), np.array(hi), np.array(x0)
+            box.append((math.log(max(a, 1e-12)), math.log(b), math.log(max(v, 1e-12))) if log else (a, b, v))
+        lo, hi, x0 = (np.array(column) for column in zip(*box))
         width = np.where(hi > lo, hi - lo, 1.0)
         x0 = np.clip(x0, lo + 1e-9 * width, hi - 1e-9 * width)
 
