@@ -74,7 +74,7 @@ class Screen:
         self.y = np.concatenate([p.record.y[p.rows] for p in self.parts])
         self.n = self.y.size
         inputs = [p.record.u for p in self.parts]
-        self.held_out_windows = held_out_windows(inputs, policy.beyond_range)  # per record: samples predicted
+        self.held_out_windows = held_out_windows(inputs, policy.beyond_range)  # per record: samples predicted from start
         self.scored_rows = [int(np.searchsorted(p.rows, w)) for p, w in zip(self.parts, self.held_out_windows)]
         self.beyond_range = beyond_others(inputs)
         self.n_held_out_rows = sum(self.scored_rows)
