@@ -44,38 +44,32 @@ class Policy:
 
     # held-out evidence (selection.evidence)
     n_blocks: int = _field(8, "count", "blocks each left-out record is cut into for the signed-rank test")
-    min_explained: float = _field(0.01, "share", "least held-out gain (share of the base's held-out sum of "
-                                  "squares removed) for evidence; also the in-sample share for the costlier searches")
+    min_explained: float = _field(0.01, "share", "least held-out gain (share of the base's held-out SSE removed) "
+                                  "for evidence; also the in-sample share for the costlier searches")
     z_pass: float = _field(3.0, "positive", "least block-test z for held-out evidence")
-    strong_gain: float = _field(0.10, "share", "a held-out gain this large in every record is evidence whatever "
-                                "its z; as large in all records though not in most, the residual is structured")
+    strong_gain: float = _field(0.10, "share", "a held-out gain this large in every record is evidence whatever z")
     z_same: float = _field(2.0, "positive", "two candidates predict the held-out records as well unless one is "
                            "better by at least this z")
     at_bound: float = _field(0.01, "share", "relative distance (log scale for log parameters) to a search bound "
-                             "that counts as at the bound (not identified)")
-    min_records_check: int = _field(3, "count", "records needed before evidence is checked without the record it "
-                                    "improves most, and before a specific part other than the best may be named")
+                             "that counts as at the bound")
+    min_records_check: int = _field(3, "count", "records needed before evidence is checked without its best record")
 
     # a cause that removes only part of the misfit (selection.decide, secondary)
     explain_share: float = _field(0.5, "share", "share of the base's held-out misfit beyond white noise a named "
                                   "cause must remove to be a verdict by itself")
-    partial_se: float = _field(0.25, "share", "fold estimates of an identifying parameter agree if their "
-                               "jackknife spread is within this")
-    same_slice: float = _field(0.9, "share", "two held-out improvements remove the same part of the misfit if "
-                               "their cosine is at least this")
+    partial_se: float = _field(0.25, "share", "fold estimates of an identifying parameter agree within this")
+    same_slice: float = _field(0.9, "share", "two held-out improvements remove the same part from this cosine")
     structure_f: float = _field(4.0, "positive", "period-to-period F ratio of the base's residual above which it "
                                 "is structured")
 
     # what a cause's parameters must be to keep its meaning (Screen.limit_of)
-    creep_periods: float = _field(2.0, "positive", "creep's time scale is at least this many of the longest "
-                                  "drive period")
+    creep_periods: float = _field(2.0, "positive", "creep's time scale is at least this many drive periods")
     creep_limit_margin: float = _field(1.02, "positive", "creep with its time scale at or below this times its "
                                        "least time scale is not slow")
     max_damping: float = _field(1.0, "positive", "a resonance is a mode: its damping ratio is searched up to this")
     damping_limit_share: float = _field(0.98, "share", "a resonance with its damping ratio at or above this share "
                                         "of max_damping is no mode")
-    duplicate_tau_ratio: float = _field(1.25, "positive", "relaxation time constants closer than this factor are "
-                                        "one")
+    duplicate_tau_ratio: float = _field(1.25, "positive", "relaxation time constants closer than this are one")
     interference_min_cycles: float = _field(2.0, "positive", "an interference completes at least this many "
                                             "cycles in the shortest record")
     locked_phase: float = _field(math.pi / 4, "angle", "an interference at a drive harmonic whose phases in the "
@@ -85,8 +79,7 @@ class Policy:
     locked_turn_z: float = _field(4.0, "positive", "... and by more than this many standard errors")
     max_clipped_slope: float = _field(0.5, "positive", "where a clip cuts, the output follows the unclipped model "
                                       "with a slope within plus or minus this")
-    min_clipped_samples: int = _field(3, "count", "a clip's level must cut at least this many samples of the "
-                                      "prediction")
+    min_clipped_samples: int = _field(3, "count", "a clip's level must cut at least this many samples")
     line_amplitude: float = _field(0.25, "positive", "an interference's amplitudes fitted on the folds agree "
                                    "within this (relative to their mean)")
 

@@ -242,8 +242,7 @@ def gather_partial(ctx, v: Verdict) -> Completion | None:
         return None
     ctx.say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
     fwd = forward(ctx, p, {p.cause})
-    e_null = ctx.held.null
-    null_sse = float(e_null @ e_null)
+    null_sse = float(ctx.held.null @ ctx.held.null)
     share = share_of_misfit(ctx.diag.screen, null_sse, fwd.kept[-1].heldout["sse"]) if fwd.kept else 0.0
     alone = p.heldout.get("share_of_misfit", share_of_misfit(ctx.diag.screen, null_sse, p.heldout["sse"]))
     return Completion(p, fwd, share, alone)
