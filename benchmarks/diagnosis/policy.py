@@ -99,7 +99,10 @@ class Policy:
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
-            check(f, getattr(self, f.name))
+            ok, need = KINDS[f.metadata["kind"]]
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not ok(value):
+                raise PolicyError(f"policy field {f.name} = {value!r}: needs {need}")
 
     @property
     def z_confirm(self) -> float:
@@ -147,9 +150,3 @@ class Policy:
                 raise PolicyError(f"--policy {a!r}: {key} takes {'an integer' if count else 'a number'}, "
                                   f"not {text.strip()!r}") from None
         return dataclasses.replace(self, **changes)
-
-
-def check(f: dataclasses.Field, value) -> None:
-    ok, need = KINDS[f.metadata["kind"]]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not ok(value):
-        raise PolicyError(f"policy field {f.name} = {value!r}: needs {need}")

@@ -194,10 +194,6 @@ def partial_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict
         step("partial-specific", v.chosen.cause, share_of_misfit=share))
 
 
-def _not_named(verdict_on: dict) -> dict:
-    return {k: verdict_on[k] for k in ("why", "rivals")}
-
-
 def specific_part_named(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
     if not _partial(ev, v, pol) or ev.held.folds.n_scored < pol.min_records_check:
         return v, None
@@ -212,7 +208,7 @@ def specific_part_named(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, d
               f"of it, but {verdict_on['text']})")
     return (replace(v, cause=other.cause, chosen=other, ambiguous_with=(), reason=reason, remainder=1.0 - share),
             step("specific-part", other.cause, partial=_score_of(v.chosen), named=_score_of(other),
-                 not_specific=_not_named(verdict_on)))
+                 not_specific={k: verdict_on[k] for k in ("why", "rivals")}))
 
 
 def partial_not_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
@@ -222,7 +218,8 @@ def partial_not_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     return (replace(v, cause=UNEXPLAINED, chosen=None, ambiguous_with=(), partial=p, reason=(
         f"the best-predicting cause ({p.cause}) removes only {100 * ev.share(p):.0f} % of the base model's "
         f"held-out misfit beyond white noise, and {verdict_on['text']}")),
-        step("partial-not-specific", UNEXPLAINED, partial=_score_of(p), not_specific=_not_named(verdict_on)))
+        step("partial-not-specific", UNEXPLAINED, partial=_score_of(p),
+             not_specific={k: verdict_on[k] for k in ("why", "rivals")}))
 
 
 SELECTION = (
