@@ -1,6 +1,5 @@
 """The backward step after the forward one (``secondary``): is the named cause still needed beside the causes
-kept on top of it? It names a new cause, so it scores as the named cause's finalists are (``search.run_screen``):
-every own nonlinear parameter refitted per fold.
+kept on top of it? Scored as the named cause was: every own nonlinear parameter refitted per fold.
 """
 
 from __future__ import annotations
@@ -30,40 +29,31 @@ def _chain(screen, own: dict, causes: list[str]) -> list[Candidate] | None:
 
 
 def _time_unidentified(screen, c: Candidate, twin) -> bool:
-    """A slow twin (alone or in a composite; creep for a relaxation) whose only flaw is its time scale at an end
-    (the fastest its meaning allows or the slowest searched): standing for a relaxation slower than every drive
-    period, whose time constant these records do not pin down either, that is no flaw."""
+    """A slow twin (alone or in a composite) whose only flaw is its time scale at an end: standing for a
+    relaxation slower than every drive period, whose time constant these records do not pin down either, no flaw."""
     parts = getattr(c.model, "components", (c.cause,))
     return (twin.name in parts and (c.cause == twin.name or not c.limit)
             and set(at_bound(screen, c)) <= {twin.time_scale})
 
 
 def _time_scale_end(screen, chain: list[Candidate]) -> tuple[str, dict | None]:
-    """The first open-ended time scale in ``chain`` (``Cause.open_ended``: creep's) that sits at an end, and its
-    cause ("", None if none does): ``end`` ``limit`` (the fastest its meaning allows) or ``search`` (open-ended, the
-    slowest searched), ``alone`` (first, before the others were composed on top), ``<parameter>_s``."""
+    """The first open-ended time scale in ``chain`` at an end, in words and as traced ("", None if none): ``end``:
+    ``limit`` (the fastest its meaning allows) or ``search`` (the slowest searched), ``alone`` (before the others
+    were composed on top), ``<parameter>_s``."""
     for c in chain:
         flags = bound_flags(screen, c)
         for n in (n for kind in CAUSES.values() for n in kind.open_ended):
             if n in flags["at_bound"] + flags["open_ended"]:  # lower end: its limit; upper: open-ended
-                return cause_of_parameter(n).name, {
-                    "end": "limit" if n in flags["at_bound"] else "search", "alone": c is chain[0] and len(chain) > 1,
-                    f"{n}_s": float(c.params[n])}
+                end = {"end": "limit" if n in flags["at_bound"] else "search",
+                       "alone": c is chain[0] and len(chain) > 1, f"{n}_s": float(c.params[n])}
+                where = "its limit" if end["end"] == "limit" else "the end of its search"
+                return (f"{cause_of_parameter(n).name}'s time scale{' alone' if end['alone'] else ''} sits at "
+                        f"{where}, {end[f'{n}_s']:.3g} s: not identified"), end
     return "", None
 
 
-def _pinned_time(cause: str, end: dict | None) -> str:
-    """What the backward step says of a time scale that sits at an end (``_time_scale_end``; "" if none)."""
-    if end is None:
-        return ""
-    where = "its limit" if end["end"] == "limit" else "the end of its search"
-    value = next(v for k, v in end.items() if k.endswith("_s"))
-    return f"{cause}'s time scale{' alone' if end['alone'] else ''} sits at {where}, {value:.3g} s: not identified"
-
-
 def slow_part_clause(old: Candidate, standing_in: bool, pinned: str) -> str:
-    """What the backward step's reason says of the dropped cause's slow part: creep standing for it, or the time
-    scale that sits at an end (``pinned``), with the dropped cause's slowest time where it has one."""
+    """What the reason says of the dropped cause's slow part: creep standing for it, or the time scale at an end."""
     slowest = old.kind.slowest_time_s(old.estimates)
     if standing_in:
         return (f", with creep standing for its time constant of {slowest:.3g} s (slower than "
@@ -74,8 +64,8 @@ def slow_part_clause(old: Candidate, standing_in: bool, pinned: str) -> str:
 
 
 def strongest_first(own: dict, causes: list[str]) -> list[str]:
-    """The causes by their own held-out gain against the base alone, the strongest first (each is searched with
-    the ones before it held: a delay searched before a larger creep would take up part of the drift)."""
+    """The causes strongest first by their own held-out gain (a delay searched before a larger creep, with the
+    ones before it held, would take up part of the drift)."""
     gain = {c: own[c].heldout_gain for c in causes}
     return sorted(causes, key=lambda c: -gain[c] if math.isfinite(gain[c]) else math.inf)
 
@@ -83,7 +73,7 @@ def strongest_first(own: dict, causes: list[str]) -> list[str]:
 def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: float,
                  policy: Policy) -> list[list[str]]:
     """The orders composed in place of the named cause: the secondary causes strongest first, and for a cause
-    slower than every drive period (``slower_than_drive``) the same with its slow twin after them."""
+    slower than every drive period the same with its slow twin after them."""
     options = [strongest_first(own, causes)]
     twin = chosen.kind.slow_twin
     if slower_than_drive(chosen, creep_min, policy) and twin in own and twin not in causes:
@@ -93,12 +83,10 @@ def replacements(chosen: Candidate, own: dict, causes: list[str], creep_min: flo
 
 @dataclass
 class Option:
-    """One set of causes tried in place of the named one (``replacements``): the composite chain, whether a link
-    is outside its meaning or at a bound (``flawed``; not scored then), and its scores with every nonlinear
-    parameter refitted per fold: ``without`` (all together against it; positive: together better), ``against_base``,
-    ``share`` (of the base's held-out misfit beyond noise). For the one the rule accepts, the cause it names
-    (``first``), those kept with it (``also``, each scored against the ones before it) and where an open-ended time
-    scale sits at an end (``end_cause``, ``end``: ``_time_scale_end``)."""
+    """Causes tried in place of the named one, composed (``chain``; None: they do not compose); if no link is
+    ``flawed``, scored with every parameter refitted per fold: ``without`` (all together against it; positive:
+    together better), ``against_base``, ``share``. If accepted: the cause named (``first``), those kept with it
+    (``also``) and the time scale at an end (``pinned``, ``end``: ``_time_scale_end``)."""
 
     causes: list
     chain: list | None
@@ -109,19 +97,17 @@ class Option:
     standing_in: bool = False
     first: Candidate | None = None
     also: tuple = ()
-    end_cause: str = ""
+    pinned: str = ""
     end: dict | None = None
 
 
 def accepts(o: Option, policy: Policy) -> bool:
-    """The named cause is redundant beside ``o``: scored, as good without it, evidence, explaining enough."""
     return (not o.flawed and o.without["z"] < policy.z_same and evidence(o.against_base, policy)
             and o.share >= policy.explain_share)
 
 
 def gather_backward(ctx, v: Verdict) -> list[Option] | None:
-    """The replacements of a clean verdict of separable causes with causes kept on top, scored in order until
-    one is accepted (``accepts``)."""
+    """The replacements of a clean verdict of separable causes, scored in order until one is accepted."""
     causes = [c.cause for c in v.also]
     if (not ctx.extend or not causes or v.chosen is None or v.ambiguous_with or v.remainder is not None
             or not all(CAUSES[c].separable for c in (v.chosen.cause, *causes))):
@@ -157,7 +143,7 @@ def gather_backward(ctx, v: Verdict) -> list[Option] | None:
             for i, c in enumerate(chain[1:], start=1):  # each scored against the ones before it
                 c.heldout = {**score(folds, errors[i - 1], errors[i]), **bound_flags(screen, c), "refit_per_fold": True}
             o.also = tuple(chain[1:])
-            o.end_cause, o.end = _time_scale_end(screen, chain)
+            o.pinned, o.end = _time_scale_end(screen, chain)
             break
     return out
 
@@ -170,7 +156,7 @@ def decide_backward(options: list[Option], v: Verdict, policy: Policy) -> tuple[
     old, first, z = v.chosen, o.first, o.without["z"]
     entry = step("drop-redundant-primary", first.cause, dropped=old.cause, also=list(o.causes[1:]),
                  creep_standing_in=o.standing_in, creep_time_end=o.end, z_together_over_without=z)
-    slow = slow_part_clause(old, o.standing_in, _pinned_time(o.end_cause, o.end))
+    slow = slow_part_clause(old, o.standing_in, o.pinned)
     how = (f"better without it (with it worse, z = {z:.1f})" if z < 0 else
            f"as well without it (with it better by z = {z:.1f} < {policy.z_same:g})")
     reason = (f"{' + '.join(causes)}, kept on top of {old.cause}{slow} predict the held-out records {how}: "

@@ -1,15 +1,8 @@
 """``diagnose(dataset, model)``: show where a model departs from the data, name the cause, extend, measure.
 
-1. The base model is identified with varpro on the identification records' scored windows (records that
-   share samples are first cut to their windows; ``segments`` cuts each into that many records).
-2. It is simulated over every record, whole (``residuals``).
-3. Candidate causes are fitted on the identification records' whole length (``screen``, ``causes``) and
-   scored by leave-one-record-out prediction against the base refitted the same way (``search``).
-4. The verdict: ``selection.decide`` applies ``selection.SELECTION``, then the rules of
-   ``rules.AFTER_SELECTION`` are applied in order, each on the evidence its gathering step computes; the
-   validation records are used last (``validation``).
-5. Suggested experiments for what is ambiguous (``experiment``); each cause under "also" checked on the
-   validation records (``validation.check_also``; reported only).
+The base is identified with varpro on the identification records' windows and simulated over every record;
+candidate causes are fitted on their whole length and scored by leave-one-record-out prediction (``search``);
+``selection.decide`` then ``rules.AFTER_SELECTION`` give the verdict, the validation records used last.
 """
 
 from __future__ import annotations
@@ -46,8 +39,7 @@ class DiagnosisError(HysbenchError):
 
 
 def suggest_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
-    """A suggested experiment (``experiment.suggest``) for each cause ambiguous with the named one, and for each
-    cause under "also" with others as good on top of the same part."""
+    """An experiment for each cause ambiguous with the named one, and each under "also" with others as good."""
     if diag.chosen is None:
         return
     for other in diag.verdict.ambiguous_with:
@@ -61,8 +53,8 @@ def suggest_experiments(diag: Diagnosis, say: Callable[[str], None]) -> None:
 
 
 def _held_out_in_part(screen) -> list[dict]:
-    """The records the held-out test predicts only up to their first excursion beyond the others' input range:
-    that time on the record's own clock (None: not predicted at all) and the share of its samples before it."""
+    """The records predicted only up to their first excursion beyond the others' input range, with that time on
+    their own clock (None: not predicted at all) and the share of their samples before it."""
     out = []
     for p, w, b in zip(screen.parts, screen.held_out_windows, screen.beyond_range):
         r = p.record
@@ -70,19 +62,6 @@ def _held_out_in_part(screen) -> list[dict]:
             out.append({"record": r.file, "beyond_others_range": b, "predicted_share": w / r.u.size,
                         "held_out_until_s": float(r.t[w]) if w > 0 else None})
     return out
-
-
-def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
-             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
-             extend: bool = True, experiments: bool = True, segments: int | None = None,
-             progress: Callable[[str], None] | None = None, thorough: bool = False,
-             policy: Policy = Policy()) -> Diagnosis:
-    """Diagnose ``model`` on ``dataset``. ``segments``: cut each identification record into that many records
-    (whole periods), e.g. one long recording. ``thorough``: every cause tried afresh on top of the named one
-    also on long records (slower). ``policy``: the thresholds of the decision rule (``policy.Policy``)."""
-    with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
-        return _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-                         segments, progress, thorough, policy)
 
 
 def _check(dataset: Dataset, base: HysteresisModel) -> None:
@@ -101,8 +80,7 @@ def _check(dataset: Dataset, base: HysteresisModel) -> None:
 def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_rows: int = MAX_ROWS,
                  say: Callable[[str], None] = lambda s: None, timings: dict | None = None,
                  policy: Policy = Policy()):
-    """The base model identified on the windows and its candidate screen: ``(base_fit, before, summaries,
-    noise_sd, screen)``."""
+    """The base identified on the windows and its screen: ``(base_fit, before, summaries, noise_sd, screen)``."""
     timings = {} if timings is None else timings
     t0 = time.perf_counter()
     say(f"identifying {base.name} (varpro) on the identification records' windows")
@@ -120,55 +98,61 @@ def build_screen(dataset: Dataset, base: HysteresisModel, seed: int = 0, max_row
     return base_fit, before, summaries, noise, screen
 
 
-def _diagnose(dataset, model, seed, max_rows, max_relaxation, extend, experiments,
-              segments, progress, thorough, policy) -> Diagnosis:
-    say = progress or (lambda s: None)
-    if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
-        dataset = load_dataset(dataset)
-    dataset = own_samples(dataset)
-    if segments is not None:
-        try:
-            dataset = split_records(dataset, segments)
-        except DatasetError as e:
-            raise DiagnosisError(str(e)) from None
-    base = get_model(model) if isinstance(model, str) else model
-    _check(dataset, base)
-    timings = {}
-    t0 = time.perf_counter()
-    base_fit, before, summaries, noise, screen = build_screen(dataset, base, seed, max_rows, say, timings, policy)
-    t1 = time.perf_counter()
-    say("fitting candidate causes on the identification records' whole length")
-    result = run_screen(screen, before, max_relaxation=max_relaxation, progress=say)
-    structure = periodic_structure(screen.null_residuals())
-    structured = bool(structure["F"] > policy.structure_f) if structure["records"] else False
-    verdict = decide(screen, result["heldout"], result["candidates"], result["relaxation_variants"], structured)
-    timings["screen"] = time.perf_counter() - t1
-
-    diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,
-                     summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
-                     candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
-                     verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
-                     settings={"max_rows": max_rows, "max_relaxation": max_relaxation,
-                               "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min, "segments": segments,
-                               "not_held_out": _held_out_in_part(screen),
-                               "thorough": thorough})
-    ctx = Context(diag, result, say, extend)
-    for rule in AFTER_SELECTION:
+def diagnose(dataset: Dataset | str, model: str | HysteresisModel = "mrpim", seed: int = 0,
+             max_rows: int = MAX_ROWS, max_relaxation: int = MAX_RELAXATION,
+             extend: bool = True, experiments: bool = True, segments: int | None = None,
+             progress: Callable[[str], None] | None = None, thorough: bool = False,
+             policy: Policy = Policy()) -> Diagnosis:
+    """Diagnose ``model`` on ``dataset``. ``segments``: cut each identification record into that many records
+    (whole periods), e.g. one long recording. ``thorough``: every cause tried afresh on top of the named one
+    also on long records (slower). ``policy``: the thresholds of the decision rule (``policy.Policy``)."""
+    with threadpool_limits(1, user_api="blas"):  # small dense algebra: threads only contend
+        say = progress or (lambda s: None)
+        if isinstance(dataset, str) or hasattr(dataset, "__fspath__"):
+            dataset = load_dataset(dataset)
+        dataset = own_samples(dataset)
+        if segments is not None:
+            try:
+                dataset = split_records(dataset, segments)
+            except DatasetError as e:
+                raise DiagnosisError(str(e)) from None
+        base = get_model(model) if isinstance(model, str) else model
+        _check(dataset, base)
+        timings = {}
+        t0 = time.perf_counter()
+        base_fit, before, summaries, noise, screen = build_screen(dataset, base, seed, max_rows, say, timings, policy)
         t1 = time.perf_counter()
-        evidence = rule.gather(ctx, diag.verdict)
-        spent = time.perf_counter() - t1
-        if evidence is not None or spent > 0.01:
-            timings[rule.timing] = timings.get(rule.timing, 0.0) + spent
-        if evidence is not None:
-            diag.verdict = apply(rule, evidence, diag.verdict, policy)
-    t1 = time.perf_counter()
-    if experiments:
-        suggest_experiments(diag, say)
-        if diag.experiments:
-            timings["experiments"] = time.perf_counter() - t1
-    if extend and diag.also and diag.after:
+        say("fitting candidate causes on the identification records' whole length")
+        result = run_screen(screen, before, max_relaxation=max_relaxation, progress=say)
+        structure = periodic_structure(screen.null_residuals())
+        structured = bool(structure["F"] > policy.structure_f) if structure["records"] else False
+        verdict = decide(screen, result["heldout"], result["candidates"], result["relaxation_variants"], structured)
+        timings["screen"] = time.perf_counter() - t1
+        diag = Diagnosis(dataset=dataset, model=base.name, seed=seed, base_fit=base_fit, before=before,
+                         summaries=summaries, noise_sd=noise, screen=screen, library=result["library"],
+                         candidates=result["candidates"], relaxation_variants=result["relaxation_variants"],
+                         verdict=verdict, structure={**structure, "structured": structured}, timings=timings,
+                         settings={"max_rows": max_rows, "max_relaxation": max_relaxation,
+                                   "drive_time_s": screen.drive_time, "creep_min_s": screen.creep_min,
+                                   "segments": segments, "not_held_out": _held_out_in_part(screen),
+                                   "thorough": thorough})
+        ctx = Context(diag, result, say, extend)
+        for rule in AFTER_SELECTION:
+            t1 = time.perf_counter()
+            evidence = rule.gather(ctx, diag.verdict)
+            spent = time.perf_counter() - t1
+            if evidence is not None or spent > 0.01:
+                timings[rule.timing] = timings.get(rule.timing, 0.0) + spent
+            if evidence is not None:
+                diag.verdict = apply(rule, evidence, diag.verdict, policy)
         t1 = time.perf_counter()
-        check_also(diag, say)
-        timings["also_check"] = time.perf_counter() - t1
-    timings["total"] = time.perf_counter() - t0
-    return diag
+        if experiments:
+            suggest_experiments(diag, say)
+            if diag.experiments:
+                timings["experiments"] = time.perf_counter() - t1
+        if extend and diag.also and diag.after:
+            t1 = time.perf_counter()
+            check_also(diag, say)
+            timings["also_check"] = time.perf_counter() - t1
+        timings["total"] = time.perf_counter() - t0
+        return diag

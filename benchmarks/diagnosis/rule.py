@@ -1,9 +1,8 @@
 """A rule of the diagnosis's decision: an id, its statement and a pure decision on gathered evidence.
 
-``Rule.gather`` computes what the rule decides on (fits, held-out and validation scores) and decides
-nothing; ``Rule.decide(evidence, verdict, policy)`` is pure: it returns the new ``Verdict`` (frozen: never
-changed in place) and the trace entry it leaves (``step``), so a rule can be tested on hand-made evidence.
-The ordered list of rules and the text rendered from their statements: ``rules``.
+``Rule.gather`` computes what the rule decides on and decides nothing; ``Rule.decide`` is pure: it returns a
+new ``Verdict`` and the trace entry it leaves, so a rule can be tested on hand-made evidence. The ordered
+rules and their text: ``rules``.
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ NONE, UNEXPLAINED = "none", "unexplained"  # the verdicts that name no cause
 
 @dataclass(frozen=True)
 class Verdict:
-    """The verdict so far; a rule returns a new one (``dataclasses.replace``). Sequences are tuples."""
+    """The verdict so far; a rule returns a new one. Sequences are tuples."""
 
     cause: str  # none, unexplained or a vocabulary cause
     chosen: Candidate | None
@@ -39,17 +38,17 @@ class Verdict:
 
 
 def step(rule: str, outcome: str, **inputs) -> dict:
-    """One trace entry: the rule's id, what it decided (a cause, ``none``, ``unexplained``, or what it changed)
-    and the inputs it decided on."""
+    """One trace entry: the rule's id, what it decided (a cause, ``none``, ``unexplained``, what it changed) and
+    the inputs it decided on."""
     return {"rule": rule, "outcome": outcome, "inputs": inputs}
 
 
 @dataclass(frozen=True)
 class Rule:
-    """``statement``: one paragraph, a policy field written ``{field}`` (rendered with its value, ``render``).
-    ``decide``: (evidence, verdict, policy) -> (verdict, trace entry, a list of them, or None). ``gather``:
-    (context, verdict) -> the evidence, or None where the rule does not apply (then it is not decided);
-    None: the rule decides on the context itself. ``timing``: the key its gathering is timed under."""
+    """``statement``: one paragraph, a policy field written ``{field}`` (``render``). ``decide``: (evidence,
+    verdict, policy) -> (verdict, trace entry, a list of them, or None). ``gather``: (context, verdict) -> the
+    evidence, None where the rule does not apply (no ``gather``: ``selection.decide`` gives it the scores).
+    ``timing``: the key its gathering is timed under."""
 
     id: str
     statement: str
@@ -61,7 +60,7 @@ class Rule:
 @dataclass
 class Context:
     """What the gathering steps work on: the diagnosis being made (they record their evidence on it), the
-    screen's result (``search.run_screen``), the progress callback, and whether the named cause is extended."""
+    screen's result (``search.run_screen``), the progress callback and whether the named cause is extended."""
 
     diag: object
     result: dict
@@ -82,7 +81,7 @@ class Context:
 
 
 def apply(rule: Rule, evidence, verdict: Verdict, policy: Policy) -> Verdict:
-    """``rule`` decided on ``evidence``: the new verdict with the rule's trace entries appended."""
+    """The verdict ``rule`` decides on ``evidence``, with the rule's trace entries appended."""
     verdict, entries = rule.decide(evidence, verdict, policy)
     if isinstance(entries, dict):
         entries = [entries]

@@ -1,8 +1,6 @@
-"""The decision rule: the definitions the rules use and the ordered rules, and its text (``rule_text``).
+"""The decision rule: the ordered rules (``selection.SELECTION``, then ``AFTER_SELECTION``) and its text.
 
-``selection.decide`` applies ``SELECTION`` to the held-out scores; ``diagnose`` then applies
-``AFTER_SELECTION`` in order. docs/diagnosis.md's section "The decision rule" is ``rule_text(Policy())``
-(tests/test_causes.py keeps the two equal).
+docs/diagnosis.md's section "The decision rule" is ``rule_text(Policy())`` (tests/test_causes.py keeps them equal).
 """
 
 from __future__ import annotations

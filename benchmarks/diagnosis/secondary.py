@@ -1,9 +1,8 @@
 """Secondary causes ("also"): forward selection on top of the named cause (the backward step: ``backward``).
 
-Every cause tried on top of what is kept is scored on held-out records against what is kept, the kept
-part's parameters held as fitted on every record; one with evidence there is scored again with the
-parameters it adds refitted per fold, and judged on that score. A line on top takes its frequency per
-fold from the other records (``lines``).
+A cause on top is scored on held-out records against what is kept, the kept part's parameters held; one with
+evidence there is judged on its score with the parameters it adds refitted per fold. A line on top takes its
+frequency per fold from the other records (``lines``).
 """
 
 from __future__ import annotations
@@ -21,26 +20,17 @@ from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def refit_errors(screen, folds, result: dict, c: Candidate):
-    """A candidate's out-of-fold residuals with its own nonlinear parameters refitted per fold (those of
-    ``search.run_screen`` when it was scored so there)."""
+    """A candidate's out-of-fold residuals with its own nonlinear parameters refitted per fold."""
     if c.heldout.get("refit_per_fold") and c in result["heldout"]:
         return result["heldout"].of(c)
     return heldout_errors(screen, folds, c, refit=True)[0]
 
 
-def added_names(screen, kept: Candidate | None, comp: Candidate) -> list[str]:
-    """The nonlinear parameters a cause tried on top brings: the composite's own but not the kept part's."""
-    held = set(kept.model.nonlinear_names) if kept is not None else set()
-    return [n for n in own_nonlinear(screen, comp) if n not in held]
-
-
 @dataclass
 class _Kept:
-    """What is kept so far: the separable part (None: the base alone), its held-out errors with its
-    parameters held (per fold also its residual on the training rows, fitted on them alone), an
-    interference's frequency per fold (None: no line kept), the reference the next cause is scored
-    against (what is kept predicts, the line included), and per fold the stacked design of the separable part
-    (None: a clip, not linear)."""
+    """What is kept so far: the separable part (None: the base alone), its held-out errors with its parameters
+    held and per fold its training residual, the reference the next cause is scored against (the line included),
+    an interference's frequency per fold (None: no line kept) and the part's designs (None: a clip)."""
 
     part: Candidate | None
     errors: object
@@ -50,8 +40,7 @@ class _Kept:
     designs: list | None = None
 
     def with_line(self, screen, folds, part_e, part_train, part_designs=None):
-        """A part's held-out errors with the kept line (if one is kept): fitted jointly with the part on each
-        fold's training records (``joint_line``), or on top of a clip's residual."""
+        """A part's held-out errors with the kept line fitted jointly with it per fold, or on top of a clip."""
         if self.frequency is None:
             return part_e
         if part_designs:
@@ -60,9 +49,8 @@ class _Kept:
 
 
 class Tried(NamedTuple):
-    """A cause tried on top of what is kept: the composite (its score in ``heldout``), the separable part that would
-    then be kept (None: the base) with its held-out errors and per-fold training residuals, the errors with what
-    is kept held, the errors it is judged on (its added parameters refitted per fold) and the part's designs."""
+    """A cause tried on top of what is kept (its score in ``composite.heldout``), the part then kept (as ``_Kept``),
+    the errors with what is kept held and those it is judged on (its added parameters refitted per fold)."""
 
     composite: Candidate
     part: Candidate | None
@@ -74,8 +62,7 @@ class Tried(NamedTuple):
 
 
 def _start(screen, folds, chosen: Candidate) -> _Kept:
-    """The named cause as what is kept; a named interference as the base with its line on top, its frequency
-    per fold chosen on the other records as it was scored."""
+    """The named cause as what is kept (an interference: the base with its line jointly fitted per fold)."""
     train, designs = [], []
     if chosen.kind.disturbance:  # the base's errors and training residuals: those of its joint fit
         base = screen.design(screen.base, screen.base_nl)
@@ -87,7 +74,7 @@ def _start(screen, folds, chosen: Candidate) -> _Kept:
 
 
 def _folds_disagree(screen, fold_f: list) -> str:
-    """Why lines whose frequencies the folds chose apart are not one interference ("" if they agree)."""
+    """Why lines the folds found apart are not one interference ("" if they agree)."""
     if frequencies_agree(screen, fold_f):
         return ""
     return (f"the folds found it at {', '.join(f'{f:.4g}' for f in fold_f)} Hz, further apart than the "
@@ -95,8 +82,7 @@ def _folds_disagree(screen, fold_f: list) -> str:
 
 
 def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> Tried:
-    """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other
-    records, from what is kept fitted on them alone, and checked at the frequencies scored."""
+    """An interference on top of what is kept, its frequency and amplitude chosen per fold on the other records."""
     comp = copy.copy(c)
     if kept.designs:  # each fold's frequency chosen without its held-out record
         lines = joint_line(screen, folds, lambda m: kept.designs[m])
@@ -112,8 +98,8 @@ def _line_on_top(screen, folds, c: Candidate, kept: _Kept) -> Tried:
 
 
 def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Tried | None:
-    """Another cause composed with what is kept (a clip: a clip of it), scored with what is kept held; if
-    admissible, scored again with only the parameters it adds refitted per fold, and judged on that."""
+    """Another cause composed with what is kept, scored with what is kept held; if it passes, judged with only the
+    parameters it adds refitted per fold."""
     comp = copy.copy(c) if kept.part is None else c.kind.on_top(screen, kept.part, c, fresh)
     if comp is None:
         return None
@@ -124,8 +110,10 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Trie
     comp.heldout = {**score(folds, kept.reference, e), **flags, "refit_per_fold": False}
     if passes(comp, folds.policy):  # the honest score: the added cause's parameters refitted per fold
         refit_train, refit_designs = [], []
+        held = set(kept.part.model.nonlinear_names) if kept.part is not None else set()
         refit_e, fold_est = heldout_errors(screen, folds, comp, refit=True, train_residuals=refit_train,
-                                           only=added_names(screen, kept.part, comp), designs=refit_designs)
+                                           only=[n for n in own_nonlinear(screen, comp) if n not in held],
+                                           designs=refit_designs)
         judged = kept.with_line(screen, folds, refit_e, refit_train, refit_designs)
         comp.heldout = {**score(folds, kept.reference, judged), **flags, "refit_per_fold": True}
         comp.uncertainty = fold_uncertainty(screen, fold_est)
@@ -133,10 +121,8 @@ def _cause_on_top(screen, folds, c: Candidate, kept: _Kept, fresh: bool) -> Trie
 
 
 def _choose(screen, folds, tried: list[Tried], reference) -> tuple[Tried | None, list[Candidate]]:
-    """Of the admissible causes tried, the one with fewest parameters that the best does not beat by z >=
-    ``z_same`` and that removes at least ``explain_share`` of what is kept leaves beyond noise (policy; as in
-    ``selection.decide``), and the others as good (not told apart on these records; their names are listed
-    with it)."""
+    """Of the passing causes tried, the one with fewest parameters that the best does not beat by ``z_same`` and
+    that removes ``explain_share`` of what is kept leaves (as ``selection.decide``), and the others as good."""
     pol = folds.policy
     ok = [t for t in tried if passes(t.composite, pol)]
     if not ok:
@@ -155,8 +141,7 @@ def _choose(screen, folds, tried: list[Tried], reference) -> tuple[Tried | None,
 
 @dataclass(frozen=True)
 class Forward:
-    """What the forward selection kept on top of ``on`` (in order), every composite it tried, and for each kept
-    one those tried on top of the same part that predict as well (``_choose``)."""
+    """What the forward selection kept on top of ``on`` (in order), what it tried, and the alternatives."""
 
     on: Candidate
     kept: tuple
@@ -169,11 +154,9 @@ class Forward:
 
 
 def forward(ctx, on: Candidate, taken: set) -> Forward:
-    """Forward selection on top of ``on`` (rule ``also``): in each round every other cause not in ``taken`` is
-    tried on top of what is kept (``Cause.on_top``; a line: ``_line_on_top``) and one is kept (``_choose``).
-    On short records (``Screen.small``) or with ``thorough`` every cause is tried and searched afresh (a second
-    cause can show only once the first is accounted for); otherwise only those that nearly passed against the
-    base alone, from their own fits. The composites tried and the alternatives are recorded on the diagnosis."""
+    """Forward selection on top of ``on`` (rule ``also``), the causes in ``taken`` not tried; on short records or
+    with ``thorough`` every cause is searched afresh (a second cause can show only once the first is accounted
+    for). What it tried and the alternatives are recorded on the diagnosis."""
     diag, screen, folds = ctx.diag, ctx.diag.screen, ctx.folds
     pol = folds.policy
     fresh = screen.small or bool(diag.settings.get("thorough"))
@@ -213,8 +196,7 @@ def forward(ctx, on: Candidate, taken: set) -> Forward:
 
 
 def gather_also(ctx, v: Verdict) -> Forward | None:
-    """The forward selection on top of the named cause, the causes ambiguous with it not tried; not run where a
-    completion has kept causes on top already."""
+    """The forward selection on the named cause, its ambiguous causes not tried (not after a completion)."""
     if not ctx.extend or v.chosen is None or v.also:
         return None
     return forward(ctx, v.chosen, {v.chosen.cause, *(c.cause for c in v.ambiguous_with)})
@@ -236,9 +218,9 @@ ALSO = Rule("also", (
 
 @dataclass(frozen=True)
 class Completion:
-    """A candidate completed by the forward selection on top of it, and the share of the base's held-out misfit
-    that all that is kept removes (0 if nothing is kept); for a promising one also their score against the base,
-    every parameter refitted per fold, and whether one record carries it (``carried_by_one_record``)."""
+    """A candidate with the forward selection on it and the share of the base's held-out misfit all that is kept
+    removes (0: nothing kept); for a promising one their score, every parameter refitted, and whether one record
+    carries it."""
 
     candidate: Candidate
     forward: Forward
@@ -249,20 +231,18 @@ class Completion:
 
 
 def _completed(v: Verdict, ev: Completion, reason: str) -> Verdict:
-    """The completed candidate named, with what was kept on top of it under "also"."""
     return replace(v, cause=ev.candidate.cause, chosen=ev.candidate, ambiguous_with=(), reason=reason, partial=None,
                    remainder=None, also=ev.forward.kept)
 
 
 def gather_partial(ctx, v: Verdict) -> Completion | None:
-    """An ``unexplained`` verdict whose best partial candidate passes by itself: the forward selection on it."""
+    """The forward selection on an ``unexplained`` verdict's partial candidate that passes by itself."""
     p, pol = v.partial, ctx.policy
     if not ctx.extend or v.cause != UNEXPLAINED or p is None or not passes(p, pol):
         return None
     ctx.say(f"completing {p.cause}, which explains part of the misfit, with other causes on top")
     fwd = forward(ctx, p, {p.cause})
-    e_null = ctx.held.null
-    null_sse = float(e_null @ e_null)
+    null_sse = float(ctx.held.null @ ctx.held.null)
     share = share_of_misfit(ctx.diag.screen, null_sse, fwd.kept[-1].heldout["sse"]) if fwd.kept else 0.0
     alone = p.heldout.get("share_of_misfit", share_of_misfit(ctx.diag.screen, null_sse, p.heldout["sse"]))
     return Completion(p, fwd, share, alone)
@@ -293,8 +273,8 @@ COMPLETE_PARTIAL = Rule("complete-partial", (
 
 
 def gather_promising(ctx, v: Verdict) -> Completion | None:
-    """A ``none`` verdict with a promising candidate off its bounds: the forward selection on the best such, and
-    all that is kept scored against the base with every parameter refitted per fold."""
+    """The forward selection on a ``none`` verdict's best promising candidate off its bounds, all that is kept
+    scored against the base with every parameter refitted per fold."""
     pol = ctx.policy
     pool = [c for c in ctx.diag.candidates if promising(c, pol) and not c.heldout.get("at_bound")]
     if not ctx.extend or v.cause != NONE or not pool:
@@ -345,10 +325,7 @@ COMPLETE_PROMISING = Rule("complete-promising", (
 
 def not_identified(c: Candidate) -> str:
     """Why a kept cause's parameters are not identified ("" if they are): out of its meaning, or at a bound."""
-    if c.limit:
-        return c.limit
-    pinned = c.heldout.get("at_bound") or []
-    if pinned:
-        return f"{', '.join(pinned)} at its search bound"
-    open_ = c.heldout.get("open_ended") or []
+    pinned, open_ = c.heldout.get("at_bound"), c.heldout.get("open_ended")
+    if c.limit or pinned:
+        return c.limit or f"{', '.join(pinned)} at its search bound"
     return f"{', '.join(open_)} {OPEN_ENDED_NOTE}" if open_ else ""

@@ -1,10 +1,6 @@
-"""Choosing the cause on records that took no part in fitting it, from their held-out scores (``heldout``).
+"""Choosing the cause from the held-out scores of records that took no part in fitting it (``heldout``).
 
-``decide`` applies the rules of ``SELECTION`` in order to the held-out scores (``Scores``); their statements
-are the rule's text (``rules.rule_text``, docs/diagnosis.md). Every threshold is a field of the policy
-(``policy.Policy``), carried by the folds and the screen. The tests they use: ``identified`` (fold estimates
-agree), ``same_slice`` (two causes remove the same part of the misfit), ``why_not_specific`` (a partial cause
-that may be named) and ``specific_part``.
+``decide`` applies the rules of ``SELECTION`` in order; their statements are the rule's text (``rules.rule_text``).
 """
 
 from __future__ import annotations
@@ -29,8 +25,7 @@ def _score_of(c: Candidate) -> dict:
 
 
 def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
-    """Why nothing is named: no candidate predicts the held-out records better, or the best that does falls
-    short of evidence (or only one record shows it), or outside its cause's meaning (said with its score)."""
+    """Why nothing is named, said of the best candidate with its score."""
     best = max(candidates, key=lambda c: c.heldout_gain, default=None)
     if best is None or not best.heldout_gain > 0:
         return "no candidate predicts the held-out records better than the base model"
@@ -44,10 +39,8 @@ def none_reason(candidates: Sequence[Candidate], policy: Policy) -> str:
 
 @dataclass(frozen=True)
 class Scores:
-    """What the cause is chosen on: the held-out residuals (``held``; its folds carry the policy), every
-    candidate and relaxation variant once (``candidates``), the variants alone, whether the base's residual
-    repeats from period to period (``structured``) and the screen (its held-out rows, noise sd and creep's least
-    time scale)."""
+    """What the cause is chosen on: the held-out residuals (its folds carry the policy), every candidate and
+    relaxation variant once, the variants alone and whether the base's residual repeats from period to period."""
 
     screen: object
     held: HeldOut
@@ -72,8 +65,8 @@ class Scores:
 
 def decide(screen, held: HeldOut, candidates: Sequence[Candidate], variants: Sequence[Candidate],
            structured: bool) -> Verdict:
-    """``SELECTION`` applied in order to the held-out scores (every variant competes, not only the best), with
-    the policy of ``held.folds``; the share of the misfit is recorded on every passing candidate."""
+    """``SELECTION`` applied in order (every variant competes, not only the best), with ``held.folds.policy``;
+    the share of the misfit is recorded on every passing candidate."""
     pol = held.folds.policy
     ev = Scores(screen, held, tuple({id(c): c for c in [*candidates, *variants]}.values()), tuple(variants),
                 structured)
@@ -105,9 +98,8 @@ def _predicts(c: Candidate) -> str:
 
 
 def _named_reason(c: Candidate, best: Candidate, policy: Policy) -> str:
-    simpler = (f"; simpler than {best.label}, which does not predict better by z >= {policy.z_same:g}"
-               if c is not best else "")
-    return _predicts(c) + simpler
+    return _predicts(c) + (f"; simpler than {best.label}, which does not predict better by z >= {policy.z_same:g}"
+                           if c is not best else "")
 
 
 def nothing_passes(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
@@ -160,9 +152,7 @@ def merge_duplicates(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict
 
 def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
     chosen = v.chosen
-    if chosen is None or v.remainder is not None or chosen.kind.slow_twin is None:
-        return v, None
-    if not slower_than_drive(chosen, ev.screen.creep_min, pol):
+    if chosen is None or v.remainder is not None or not slower_than_drive(chosen, ev.screen.creep_min, pol):
         return v, None
     slowest = chosen.kind.slowest_time_s(chosen.estimates)
     twins = [c for c in ev.candidates if c.cause == chosen.kind.slow_twin and evidence(c.heldout, pol)
@@ -181,14 +171,12 @@ def slow_relaxation_twin(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
 
 
 def slower_than_drive(c: Candidate, creep_min: float, policy: Policy) -> bool:
-    """A cause with a slow twin whose slowest time is at least ``creep_min`` / ``creep_periods`` (slower than every
-    drive period): its twin may stand for that slow part."""
+    """A cause with a slow twin, slower than every drive period: its twin may stand for that slow part."""
     kind = c.kind
     return kind.slow_twin is not None and kind.slowest_time_s(c.estimates) >= creep_min / policy.creep_periods
 
 
-def _partial(ev: Scores, v: Verdict, pol: Policy) -> bool:
-    """The named cause removes less than ``explain_share`` and no partial rule has decided yet."""
+def _partial(ev: Scores, v: Verdict, pol: Policy) -> bool:  # and no partial rule has decided yet
     return v.chosen is not None and v.remainder is None and ev.share(v.chosen) < pol.explain_share
 
 
@@ -206,14 +194,12 @@ def partial_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict
         step("partial-specific", v.chosen.cause, share_of_misfit=share))
 
 
-def _not_named(verdict_on: dict) -> dict:
-    return {k: verdict_on[k] for k in ("why", "rivals")}
-
-
 def specific_part_named(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
-    if not _partial(ev, v, pol):
+    if not _partial(ev, v, pol) or ev.held.folds.n_scored < pol.min_records_check:
         return v, None
-    other = specific_part(ev.held, ev.passing(pol), v.chosen, ev.candidates, ev.e_null)
+    rivals = [c for c in sorted(ev.passing(pol), key=lambda c: -c.heldout_gain)
+              if c is not v.chosen and c.cause != v.chosen.cause]
+    other = next((c for c in rivals if not why_not_specific(ev.held, c, ev.candidates, c, ev.e_null)["text"]), None)
     if other is None:
         return v, None
     verdict_on, share = _why_not(ev, v, pol), ev.share(other)
@@ -222,7 +208,7 @@ def specific_part_named(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, d
               f"of it, but {verdict_on['text']})")
     return (replace(v, cause=other.cause, chosen=other, ambiguous_with=(), reason=reason, remainder=1.0 - share),
             step("specific-part", other.cause, partial=_score_of(v.chosen), named=_score_of(other),
-                 not_specific=_not_named(verdict_on)))
+                 not_specific={k: verdict_on[k] for k in ("why", "rivals")}))
 
 
 def partial_not_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
@@ -232,7 +218,8 @@ def partial_not_specific(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, 
     return (replace(v, cause=UNEXPLAINED, chosen=None, ambiguous_with=(), partial=p, reason=(
         f"the best-predicting cause ({p.cause}) removes only {100 * ev.share(p):.0f} % of the base model's "
         f"held-out misfit beyond white noise, and {verdict_on['text']}")),
-        step("partial-not-specific", UNEXPLAINED, partial=_score_of(p), not_specific=_not_named(verdict_on)))
+        step("partial-not-specific", UNEXPLAINED, partial=_score_of(p),
+             not_specific={k: verdict_on[k] for k in ("why", "rivals")}))
 
 
 SELECTION = (
@@ -272,8 +259,7 @@ SELECTION = (
 
 
 def identified(c: Candidate, policy: Policy) -> bool:
-    """The fold estimates of every identifying parameter (``Cause.identifying``) agree (``agrees``); a candidate
-    with none refitted per fold does not show it."""
+    """The fold estimates of every identifying parameter (``Cause.identifying``) agree; not refitted per fold: no."""
     if not c.uncertainty:
         return False
     only = c.kind.identifying
@@ -302,8 +288,7 @@ def loose_note(c: Candidate, policy: Policy) -> str:
 
 
 def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Policy) -> bool:
-    """Two candidates remove the same part of the base's held-out misfit: their improvements (e_null - e)
-    point the same way (cosine >= ``same_slice``)."""
+    """Two candidates remove the same part of the base's held-out misfit (their improvements' cosine)."""
     d_a, d_b = e_null - e_a, e_null - e_b
     norm = float(np.linalg.norm(d_a) * np.linalg.norm(d_b))
     return norm > 0 and float(d_a @ d_b) / norm >= policy.same_slice
@@ -311,9 +296,8 @@ def same_slice(e_null: np.ndarray, e_a: np.ndarray, e_b: np.ndarray, policy: Pol
 
 def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Candidate], best: Candidate,
                      e_null: np.ndarray) -> dict:
-    """Why a cause that removes only part of the misfit is not specific (rule ``partial-specific``):
-    {"why": "" (specific), "z", "folds" or "rivals"; "rivals": their causes ("drive-locked" for a sinusoid
-    locked to the drive); "text": the reason in words, "" if specific}."""
+    """Why a partial cause is not specific (rule ``partial-specific``): {"why": "" (specific), "z", "folds" or
+    "rivals"; "rivals": their causes ("drive-locked": a sinusoid locked to the drive); "text": "" if specific}."""
     pol = held.folds.policy
     if best.heldout["z"] < pol.z_pass:
         return {"why": "z", "rivals": [], "text": f"its block test gives z = {best.heldout['z']:.1f} < {pol.z_pass:g}"}
@@ -332,15 +316,3 @@ def why_not_specific(held: HeldOut, chosen: Candidate, candidates: Sequence[Cand
                 "text": f"{', '.join(names)} predicts the held-out records about as well, removing another part"}
     return {"why": "", "rivals": [], "text": ""}
 
-
-def specific_part(held: HeldOut, ok: Sequence[Candidate], partial: Candidate,
-                  candidates: Sequence[Candidate], e_null: np.ndarray) -> Candidate | None:
-    """The passing cause of another kind that predicts most of those that are specific (``why_not_specific``),
-    named when the best-predicting partial cause is not (rule ``specific-part``); None with fewer than
-    ``min_records_check`` records."""
-    if held.folds.n_scored < held.folds.policy.min_records_check:
-        return None
-    for c in sorted(ok, key=lambda c: -c.heldout_gain):
-        if c is not partial and c.cause != partial.cause and not why_not_specific(held, c, candidates, c, e_null)["text"]:
-            return c
-    return None

@@ -1,6 +1,5 @@
-"""What the validation records, untouched until the verdict is reached, say about it: the named extension
-(rule ``validation``), an ``unexplained`` verdict's partial candidate (rule ``unexplained-check``) and each
-cause under "also" (``check_also``; reported only).
+"""What the validation records, untouched until the verdict, say of the named extension (rule ``validation``),
+an ``unexplained`` verdict's partial candidate (``unexplained-check``) and each cause under "also" (``check_also``).
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ from .rule import NONE, UNEXPLAINED, Rule, Verdict, step
 
 
 def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> bool:
-    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out (rule ``validation``)."""
+    """Whether an extension's validation gain ``v`` (``extensions.gain``) bears it out."""
     ok = bool(v["explained_whole"] > 0 and v["explained_window"] > 0)
     if cause in CAUSES and CAUSES[cause].disturbance:
         return ok and bool(interference_check.get("same_amplitude"))
@@ -26,16 +25,15 @@ def borne_out(v: dict, cause: str, interference_check: dict, policy: Policy) -> 
 
 
 def validation_record(c: Candidate, g: dict, check: dict, policy: Policy) -> dict:
-    """What a candidate's extension did on the validation records (``gain``; an interference's ``check``), as
-    reported: its scores and whether they bear it out."""
+    """What a candidate's extension did on the validation records, as reported."""
     return {"cause": c.cause, "label": c.label, "checked": True, "borne_out": borne_out(g, c.cause, check, policy),
             **{k: g[k] for k in ("explained_whole", "explained_window", "z_whole")},
             **({"interference_check": check} if check else {})}
 
 
 def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit | None, list, dict]:
-    """``c``'s extension identified on the identification records' whole length (a disturbance: fitted on top,
-    ``Cause.on_validation``): the fit, the residuals of every record and the interference check."""
+    """``c``'s extension identified on the identification records' whole length (a disturbance: fitted on top):
+    the fit, the residuals of every record and the interference check."""
     if c.kind.disturbance:
         after, check = c.kind.on_validation(diag.base_whole, c, diag.screen.policy)
         return None, after, check
@@ -47,8 +45,8 @@ def fit_extension(diag, c: Candidate, say: Callable[[str], None]) -> tuple[Fit |
 
 
 def identified_whole(diag, model, start) -> Fit:
-    """``model`` identified on the identification records' whole length (on the screen's rows) from ``start``,
-    the parameters it adds to the base within the screen's search bounds."""
+    """``model`` identified on the identification records' whole length (the screen's rows) from ``start``, the
+    parameters it adds to the base within the screen's search bounds."""
     screen = diag.screen
     bounds = {n: list(screen.bounds_of(model, n)) for n in model.nonlinear_names if n not in screen.base.param_names}
     return identify_whole(model, diag.dataset, start, diag.seed, [r.file for r in diag.dataset.identification],
@@ -56,8 +54,7 @@ def identified_whole(diag, model, start) -> Fit:
 
 
 def refit_base_whole(diag, say: Callable[[str], None]) -> None:
-    """The baseline an extension is measured against: the base model refitted on the identification records'
-    whole length (on the screen's rows), from its fit on their windows; once."""
+    """The baseline of an extension: the base refitted on the identification records' whole length; once."""
     if diag.base_whole_fit is not None:
         return
     say(f"refitting {diag.screen.base.name} on the identification records' whole length (the baseline)")
@@ -66,8 +63,7 @@ def refit_base_whole(diag, say: Callable[[str], None]) -> None:
 
 
 def gather_unexplained(ctx, v: Verdict) -> dict | None:
-    """The validation check of an ``unexplained`` verdict's partial candidate, where the residual is not
-    structured (recorded as ``Diagnosis.unexplained_check``)."""
+    """The validation check of an ``unexplained`` verdict's partial candidate, the residual not structured."""
     diag, p = ctx.diag, v.partial
     if not ctx.extend or v.cause != UNEXPLAINED or p is None or diag.structure["structured"]:
         return None
@@ -101,16 +97,13 @@ UNEXPLAINED_CHECK = Rule("unexplained-check", (
 
 @dataclass(frozen=True)
 class Validation:
-    """The named extension's gain on the validation records (``extensions.gain``; empty without one) and, for
-    an interference, its check there (``Cause.on_validation``)."""
+    """The named extension's gain on the validation records (empty without one) and an interference's check."""
 
     gain: dict
     interference_check: dict
 
 
 def gather_validation(ctx, v: Verdict) -> Validation | None:
-    """The named extension identified on the identification records' whole length, its residuals and the base
-    refitted the same way recorded on the diagnosis."""
     diag = ctx.diag
     if not ctx.extend or v.chosen is None:
         return None
@@ -138,18 +131,17 @@ VALIDATION = Rule("validation", (
 
 
 def check_also(diag, say: Callable[[str], None]) -> None:
-    """Each cause kept under "also" on the validation records: what is kept with it against what was kept before
-    it, identified on the identification records' whole length, borne out as a named cause is (``borne_out``).
-    A clip of what is kept, and what follows it, are not checked."""
+    """Each cause under "also" on the validation records: what is kept with it against what was kept before it,
+    borne out as a named cause is. A clip of what is kept, and what follows it, are not checked."""
     if not diag.also or not diag.after:
         return
     lines = [diag.chosen] if diag.chosen.kind.disturbance else []  # a named line is on top of the base
     before, out, clipped = diag.after, [], False
     for c in diag.also:
-        entry = {"cause": c.cause, "label": c.label}
         clipped = clipped or c.clips is not None
         if clipped:
-            out.append({**entry, "checked": False, "note": "a clip of what is kept, or on top of one: not checked"})
+            out.append({"cause": c.cause, "label": c.label, "checked": False,
+                        "note": "a clip of what is kept, or on top of one: not checked"})
             continue
         say(f"checking {c.label} on the validation records")
         check = {}
