@@ -1,6 +1,6 @@
 """The interface of a cause the diagnosis can name (``Cause``) and the registry of the causes (``CAUSES``).
 
-The causes themselves are the plug-ins of ``causes`` (one module each); see there.
+The causes themselves are the plug-ins of ``causes`` (one module each); this is where their methods are described.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ def register(cls: type) -> type:
 
 
 def get_cause(name: str) -> "Cause":
-    """The registered cause of this name (KeyError naming the known ones otherwise)."""
     try:
         return CAUSES[name]
     except KeyError:
@@ -33,19 +32,15 @@ def cause_of_parameter(name: str) -> "Cause | None":
 
 
 def open_ended_parameter(name: str) -> bool:
-    """Whether this parameter's upper search bound is a limit within its cause's meaning (``Cause.open_ended``)."""
-    owner = cause_of_parameter(name)
-    return owner is not None and name in owner.open_ended
+    return name in getattr(cause_of_parameter(name), "open_ended", ())
 
 
 def refined(name: str) -> bool:
-    """Whether a gradient refinement moves this nonlinear parameter (``Cause.not_refined``)."""
-    owner = cause_of_parameter(name)
-    return owner is None or name not in owner.not_refined
+    """Whether a gradient refinement moves this nonlinear parameter (a base's always)."""
+    return name not in getattr(cause_of_parameter(name), "not_refined", ())
 
 
 def log_scale(name: str) -> bool:
-    """Whether a cause's parameter is searched and summarised on a log scale."""
     return any(name.startswith(p) for c in CAUSES.values() for p in c.log_scale)
 
 
@@ -53,7 +48,8 @@ class Cause:
     """One cause of the vocabulary. Class attributes describe it; methods do what differs for it.
 
     The defaults are those of a separable extension (its columns added to, or transforming, the base's), fitted
-    and scored by the generic paths of ``screen`` and ``selection``."""
+    and scored by the generic paths of ``screen`` and ``selection``; ``screen`` below is a ``Screen``, ``c`` a
+    ``Candidate`` of this cause."""
 
     name: str = ""
     parameters: tuple = ()  # its nonlinear parameters in the extended model
@@ -75,7 +71,7 @@ class Cause:
     slow_twin: str | None = None  # the cause its slowest part may be, slower than every drive period
     time_scale: str | None = None  # its parameter that is a time scale (a slow twin's, standing in)
     units: dict = {}  # its reported parameters (``estimates``) and their units (``OUTPUT_UNIT``: the output's)
-    reported_as: dict = {}  # a parameter's name among the reported ones, where it differs
+    reported_as: dict = {}  # its parameters and their names among the reported ones (the default ``estimates``)
 
     def owns(self, parameter: str) -> bool:
         return parameter in self.parameters
@@ -101,11 +97,11 @@ class Cause:
 
     def estimates(self, params: Mapping[str, float], model) -> dict:
         """Its parameters in the report's vocabulary (units in the key)."""
-        return {}
+        return {key: float(params[name]) for name, key in self.reported_as.items()}
 
     def from_fit(self, estimates: dict, params: Mapping[str, float]) -> dict:
         """A candidate's estimates updated from its extension identified on whole records (``params``)."""
-        return {**estimates, **self.estimates(params, None)}
+        return {**estimates, **Cause.estimates(self, params, None)}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         """A parameter's search bounds on these records, from the model's bounds at the drive's time scale."""
@@ -133,8 +129,9 @@ class Cause:
 
     # --- held-out scores ---------------------------------------------------------------------
     def heldout_errors(self, screen, folds, c, refit: bool, train_residuals: list | None):
-        """Its own out-of-fold residuals and fold estimates, or None for the generic linear path
-        (``selection.heldout_errors``)."""
+        """(out-of-fold residuals, fold estimates) where it is not scored by the generic linear path
+        (``selection.heldout_errors``), else None. With ``refit`` its parameters are refitted per fold;
+        ``train_residuals`` (if a list) gets each fold's residual on its training rows."""
         return None
 
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
@@ -167,4 +164,3 @@ class Cause:
     def spectrum_marker(self, parameters: Mapping) -> float | None:
         """A frequency the report's spectrum marks for it (None: nothing)."""
         return None
-

@@ -14,11 +14,9 @@ from ..cause import OUTPUT_UNIT, Cause, register
 
 @register
 class Creep(Cause):
-    """A drift since the record's start, slower than the drive."""
-
     name = "creep"
     units = {"size": OUTPUT_UNIT, "time_scale_s": "s"}
-    reported_as = {"creep_time": "time_scale_s"}
+    reported_as = {"creep_size": "size", "creep_time": "time_scale_s"}
     parameters = ("creep_time",)
     log_scale = ("creep_time",)
     open_ended = ("creep_time",)  # longer than the records show: a straight drift since the start
@@ -38,14 +36,11 @@ class Creep(Cause):
         z = screen.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
         return [screen.candidate("creep", "slow drift since the start", model, z)]
 
-    def estimates(self, params, model) -> dict:
-        return {"size": float(params["creep_size"]), "time_scale_s": float(params["creep_time"])}
-
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         return max(lo, screen.creep_min), hi
 
     def limit(self, screen, estimates) -> str:
-        pol = screen.policy
-        if estimates["time_scale_s"] <= pol.creep_limit_margin * screen.creep_min:
-            return f"time scale at the limit {screen.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
+        if estimates["time_scale_s"] <= screen.policy.creep_limit_margin * screen.creep_min:
+            return (f"time scale at the limit {screen.creep_min:.3g} s ({screen.policy.creep_periods:g} drive "
+                    "periods): not slow")
         return ""

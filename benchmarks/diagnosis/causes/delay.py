@@ -56,46 +56,42 @@ def fit_delay(screen) -> Candidate:
     if not (screen.promising(float(vals.min())) or screen.small):  # not even to first order: one exact evaluation
         return screen.candidate("delay", "pure delay", model, {**screen.base_nl, "delay": float(grid[np.argmin(vals)])})
     starts = [float(grid[i]) for i in local_minima(vals, 2)] + [min(dt, hi)]
-    if screen.small:  # cheap: the profile over a geometric grid, the base's nonlinear parameters refitted
-        free = [(n, False) for n in screen.base_nl_names]
-        profile: dict[float, tuple[float, dict]] = {}
+    if not screen.small:
+        best, best_rss = None, math.inf
+        for d0 in starts:
+            z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
+            rss = screen.evaluate(model, z)[0]
+            if rss < best_rss:
+                best, best_rss = z, rss
+        return screen.candidate("delay", "pure delay", model, best)
+    free = [(n, False) for n in screen.base_nl_names]
+    profile: dict[float, tuple[float, dict]] = {}
 
-        def profile_rss(d: float) -> float:
-            d = float(d)
-            if d not in profile:
-                z = {**screen.base_nl, "delay": d}
-                z = screen.refine(model, z, free, max_nfev=PROFILE_NFEV) if free else z
-                profile[d] = (screen.evaluate(model, z)[0], z)
-            return profile[d][0]
+    def profile_rss(d: float) -> float:
+        d = float(d)
+        if d not in profile:
+            z = {**screen.base_nl, "delay": d}
+            z = screen.refine(model, z, free, max_nfev=PROFILE_NFEV) if free else z
+            profile[d] = (screen.evaluate(model, z)[0], z)
+        return profile[d][0]
 
-        # the geometric grid, the first-order search's minima and those of the exact profile (the base held)
-        # every sample: a misfit with sharp features, e.g. the corners of a triangle drive, gives a valley
-        # about a sample wide, between the grid's steps, where the first-order profile is flat
-        step = max(dt, hi / EXACT_SCAN_POINTS)
-        scan = np.arange(0.0, hi + step / 2, step)
-        exact = np.array([screen.evaluate(model, {**screen.base_nl, "delay": float(d)})[0] for d in scan])
-        starts += [float(scan[i]) for i in local_minima(exact, 2)]
-        grid_d = np.unique(np.r_[np.geomspace(min(dt, hi), hi, PROFILE_POINTS), starts])
-        j = int(np.argmin([profile_rss(d) for d in grid_d]))
-        a, b = (float(grid_d[j - 1]) if j else 0.0), float(grid_d[min(j + 1, grid_d.size - 1)])
-        scan_minimum(profile_rss, a, b, dt)
-        z = min(profile.values(), key=lambda v: v[0])[1]
-        return screen.candidate("delay", "pure delay", model, z, stage="joint")
-    best, best_rss = None, math.inf
-    for d0 in starts:
-        z = screen.line_search(model, "delay", [max(d0 - 2 * dt, 0.0), d0, min(d0 + 2 * dt, hi)])
-        rss = screen.evaluate(model, z)[0]
-        if rss < best_rss:
-            best, best_rss = z, rss
-    return screen.candidate("delay", "pure delay", model, best)
+    # the exact profile (the base held) every sample too: a misfit with sharp features, e.g. the corners of a
+    # triangle drive, gives a valley about a sample wide, between the grid's steps, where the first-order one is flat
+    step = max(dt, hi / EXACT_SCAN_POINTS)
+    scan = np.arange(0.0, hi + step / 2, step)
+    exact = np.array([screen.evaluate(model, {**screen.base_nl, "delay": float(d)})[0] for d in scan])
+    starts += [float(scan[i]) for i in local_minima(exact, 2)]
+    grid_d = np.unique(np.r_[np.geomspace(min(dt, hi), hi, PROFILE_POINTS), starts])
+    j = int(np.argmin([profile_rss(d) for d in grid_d]))
+    scan_minimum(profile_rss, (float(grid_d[j - 1]) if j else 0.0), float(grid_d[min(j + 1, grid_d.size - 1)]), dt)
+    return screen.candidate("delay", "pure delay", model, min(profile.values(), key=lambda v: v[0])[1], stage="joint")
 
 
 @register
 class Delay(Cause):
-    """The actuator receives the input late."""
-
     name = "delay"
     units = {"delay_s": "s"}
+    reported_as = {"delay": "delay_s"}
     parameters = ("delay",)
     only_upper_bound = ("delay",)  # a delay at zero is no delay
     transforms = True
@@ -109,9 +105,6 @@ class Delay(Cause):
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         return [fit_delay(screen)]
 
-    def estimates(self, params, model) -> dict:
-        return {"delay_s": float(params["delay"])}
-
     def limit(self, screen, estimates) -> str:
         if estimates["delay_s"] < (dt := max(p.record.dt for p in screen.parts)):
             return (f"shorter than one sample ({1e3 * dt:.3g} ms): an input late by less than a sample is the input "
@@ -119,14 +112,14 @@ class Delay(Cause):
         return ""
 
     def refit_alone(self, screen, model, start: dict, training_rss: Callable[[dict], float]) -> dict:
-        """The profile (rough: scanned, not a gradient step) between the estimate divided and multiplied by
-        the geometric grid's ratio (its neighbours in ``fit_delay``), the rest held."""
+        """The profile scanned (``scan_minimum``) between the estimate divided and multiplied by the geometric
+        grid's ratio (its neighbours in ``fit_delay``), the rest held."""
         dt = min(p.record.dt for p in screen.parts)
         hi = screen.bounds_of(model, "delay")[1]
         ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
         d0 = float(start["delay"])
-        d = scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio, min(d0 * ratio, hi), dt)
-        return {**start, "delay": d}
+        return {**start, "delay": scan_minimum(lambda v: training_rss({**start, "delay": v}), d0 / ratio,
+                                               min(d0 * ratio, hi), dt)}
 
     def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
         """From one sample (a start at zero is no delay) to its bound, geometric."""

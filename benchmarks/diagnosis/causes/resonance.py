@@ -32,13 +32,12 @@ def lag_shared(z: dict) -> dict:
 
 @register
 class Resonance(Cause):
-    """A second-order mode; identified by its frequency (its damping is its shape)."""
-
     name = "resonance"
     units = {"natural_frequency_hz": "Hz", "damping_ratio": ""}
+    reported_as = {"natural_frequency": "natural_frequency_hz", "damping_ratio": "damping_ratio"}
     parameters = ("natural_frequency", "damping_ratio")
     log_scale = ("natural_frequency", "damping_ratio")
-    identifying = ("natural_frequency",)
+    identifying = ("natural_frequency",)  # its damping is its shape
     transforms = True
     reshapes = True
 
@@ -76,10 +75,6 @@ class Resonance(Cause):
         z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
         z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
         return [screen.candidate("resonance", "second-order mode", model, z)]
-
-    def estimates(self, params, model) -> dict:
-        return {"natural_frequency_hz": float(params["natural_frequency"]),
-                "damping_ratio": float(params["damping_ratio"])}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         if parameter == "damping_ratio":  # a mode: underdamped
