@@ -1,7 +1,5 @@
-"""The interface of a cause the diagnosis can name (``Cause``) and the registry of the causes (``CAUSES``).
-
-The causes themselves are the plug-ins of ``causes`` (one module each); this is where their methods are described.
-"""
+"""The interface of a cause the diagnosis can name (``Cause``, described here once for every cause) and the
+registry of the causes (``CAUSES``); the causes themselves are the plug-ins of ``causes``, one module each."""
 
 from __future__ import annotations
 
@@ -48,8 +46,8 @@ class Cause:
     """One cause of the vocabulary. Class attributes describe it; methods do what differs for it.
 
     The defaults are those of a separable extension (its columns added to, or transforming, the base's), fitted
-    and scored by the generic paths of ``screen`` and ``selection``; ``screen`` below is a ``Screen``, ``c`` a
-    ``Candidate`` of this cause."""
+    and scored by the generic paths of ``screen`` and ``selection``. Below, ``screen`` is a ``Screen``, ``c`` a
+    ``Candidate`` of this cause, ``folds`` the leave-one-record-out ``Folds``."""
 
     name: str = ""
     parameters: tuple = ()  # its nonlinear parameters in the extended model
@@ -76,7 +74,6 @@ class Cause:
     def owns(self, parameter: str) -> bool:
         return parameter in self.parameters
 
-    # --- the screen ------------------------------------------------------------------------
     def fit(self, screen, library: dict, max_order: int) -> list:
         """Its candidates fitted on the screen (stage 1: the base's nonlinear parameters held)."""
         raise NotImplementedError
@@ -86,9 +83,8 @@ class Cause:
         return {}
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Its terms in the library screen (``library_screen``): (names, ``columns(record, y_hat, t)`` -> one array
-        over the record per name, the time constant of each term or None); None: it has none. ``y_hat_rows``: the
-        null's prediction on the screen's rows."""
+        """Its terms in the library screen: (names, ``columns(record, y_hat, t)`` -> one array over the record per
+        name, each term's time constant or None), or None; ``y_hat_rows``: the null's prediction on the rows."""
         return None
 
     def joint(self, screen, c, max_nfev: int):
@@ -112,8 +108,7 @@ class Cause:
         return ""
 
     def on_top(self, screen, kept, own, search: bool):
-        """It composed with a kept separable part (``own``: its fit against the base alone); None if it does not
-        compose."""
+        """It composed with a kept separable part (``own``: its fit on the base alone); None if it cannot."""
         return screen.composite(kept, own, search=search)
 
     def starts_on_top(self, primary, starts: list[dict]) -> list[dict]:
@@ -127,11 +122,9 @@ class Cause:
             return None
         return (np.geomspace if log_scale(parameter) else np.linspace)(lo, hi, k + 2)[1:-1]
 
-    # --- held-out scores ---------------------------------------------------------------------
     def heldout_errors(self, screen, folds, c, refit: bool, train_residuals: list | None):
-        """(out-of-fold residuals, fold estimates) where it is not scored by the generic linear path
-        (``selection.heldout_errors``), else None. With ``refit`` its parameters are refitted per fold;
-        ``train_residuals`` (if a list) gets each fold's residual on its training rows."""
+        """(out-of-fold residuals, fold estimates), its parameters refitted per fold with ``refit``, each fold's
+        residual on its training rows appended to ``train_residuals``; None: the generic linear path."""
         return None
 
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
@@ -154,11 +147,9 @@ class Cause:
         """A variant that gives way to one of lower order (``variants`` only): ``chosen`` otherwise."""
         return chosen
 
-    # --- validation and report ---------------------------------------------------------------
     def on_validation(self, before: list, c, policy) -> tuple[list, dict]:
-        """A disturbance on top of ``before`` (residuals of what is kept, refitted on whole records) with its
-        phase fitted per record: the residuals after it and its check on the validation records
-        (``disturbance`` only; the others' extensions are identified, ``validation.fit_extension``)."""
+        """A disturbance's phase fitted per record on top of ``before`` (what is kept, refitted on whole records):
+        the residuals after it and its check on the validation records (the others are identified there)."""
         raise NotImplementedError(f"{self.name} is identified on the validation records, not fitted on top")
 
     def spectrum_marker(self, parameters: Mapping) -> float | None:

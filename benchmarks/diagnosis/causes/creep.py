@@ -24,7 +24,6 @@ class Creep(Cause):
     shown_at_rest = True
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Slow exponential drifts since the start."""
         longest = CREEP_TIME_BOUNDS[1] * screen.drive_time / 10
         creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(longest), 5))
         return ([f"1-exp(-t/{c:.3g}s)" for c in creeps], lambda r, y_hat, t: [-np.expm1(-t / c) for c in creeps],

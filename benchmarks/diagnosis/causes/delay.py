@@ -27,9 +27,8 @@ def _delayed_null(screen, z):
 
 
 def scan_minimum(rss: Callable[[float], float], a: float, b: float, dt: float) -> float:
-    """The minimum of a delay's profile in [a, b]: scanned every half sample (at most ``SCAN_POINTS``),
-    then Brent around the scan's best. A profile is rough at the scale of a sample (the misfit's sharp
-    features line up only at the right fraction of a sample), so a local gradient step is no use."""
+    """The minimum of a delay's profile in [a, b]: scanned every half sample (at most ``SCAN_POINTS``), then Brent
+    around the scan's best. The profile is rough at the scale of a sample: a gradient step is no use."""
     step = max(dt / 2, (b - a) / SCAN_POINTS)
     pts = np.r_[a, np.arange(a + step, b, step), b]
     vals = [rss(float(d)) for d in pts]
@@ -43,11 +42,10 @@ def scan_minimum(rss: Callable[[float], float], a: float, b: float, dt: float) -
 
 
 def fit_delay(screen) -> Candidate:
-    """Searched to first order (the null's prediction delayed) on a grid of about two samples; if that is
-    promising, its best points and a one-sample delay searched exactly, else its optimum evaluated once. On
-    short records (``Screen.small``): the exact profile, the base's nonlinear parameters refitted at each delay
-    (a base with rate-dependent terms takes up part of a delay), over a geometric grid and the best points of
-    both scans, then its minimum between the best point's neighbours (``scan_minimum``)."""
+    """Searched to first order (the null's prediction delayed) every two samples or so; if promising, from its
+    best points and one sample exactly. On short records (``Screen.small``) the exact profile, the base's
+    nonlinear parameters refitted at each delay (rate-dependent terms take up part of one), over a geometric
+    grid and the best points of both scans, then ``scan_minimum`` between the best point's neighbours."""
     model = screen.extension(("delay",))
     dt = min(p.record.dt for p in screen.parts)
     hi = screen.bounds_of(model, "delay")[1]
@@ -98,8 +96,7 @@ class Delay(Cause):
     late_input = True
     reshapes = True
 
-    def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """The model's output's rate (a short delay to first order)."""
+    def library_terms(self, screen, y_hat_rows: np.ndarray):  # a short delay to first order
         return ["d/dt y_model"], lambda r, y_hat, t: [np.gradient(y_hat, r.dt)], [None]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
@@ -112,8 +109,7 @@ class Delay(Cause):
         return ""
 
     def refit_alone(self, screen, model, start: dict, training_rss: Callable[[dict], float]) -> dict:
-        """The profile scanned (``scan_minimum``) between the estimate divided and multiplied by the geometric
-        grid's ratio (its neighbours in ``fit_delay``), the rest held."""
+        """``scan_minimum`` between the estimate's neighbours on ``fit_delay``'s geometric grid, the rest held."""
         dt = min(p.record.dt for p in screen.parts)
         hi = screen.bounds_of(model, "delay")[1]
         ratio = (hi / min(dt, hi)) ** (1.0 / (PROFILE_POINTS - 1))
@@ -122,7 +118,7 @@ class Delay(Cause):
                                                min(d0 * ratio, hi), dt)}
 
     def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
-        """From one sample (a start at zero is no delay) to its bound, geometric."""
+        """Geometric from one sample (a start at zero is no delay) to its bound."""
         hi = screen.bounds_of(model, parameter)[1]
         lo = min(p.record.dt for p in screen.parts)
         return np.geomspace(lo, hi, k + 2)[1:-1] if hi > lo else None

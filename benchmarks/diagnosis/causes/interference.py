@@ -1,8 +1,5 @@
-"""Interference: a sinusoid unrelated to the drive, with its own phase in every record (a disturbance).
-
-Its frequency is chosen as the folds choose theirs, jointly with the part it sits on; on a held-out record, and on
-the validation records that confirm it by the same amplitude, only its phase is fitted (``lines``).
-"""
+"""Interference: a sinusoid unrelated to the drive, with its own phase in every record (a disturbance); on a
+held-out record, and on the validation records that confirm it by its amplitude, only its phase is fitted."""
 
 from __future__ import annotations
 
@@ -17,7 +14,6 @@ from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, 
                      frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted, rms, row_times)
 from ..residuals import RecordResidual, coherent_spectrum, spectral_peaks
 from ..heldout import out_of_fold
-from ..policy import Policy
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -118,7 +114,7 @@ class Interference(Cause):
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
         return {"same_line": same_line(screen, fold_estimates)}
 
-    def on_validation(self, before: list, c: Candidate, policy: Policy) -> tuple[list, dict]:
+    def on_validation(self, before: list, c: Candidate, policy) -> tuple[list, dict]:
         """Its amplitude on the validation records checked against ``c``'s (``interference_amplitude_tolerance``)."""
         f, amplitude = c.estimates["frequency_hz"], c.estimates["amplitude"]
         after, amps = [], []

@@ -18,10 +18,8 @@ LIBRARY_TAUS = 10  # time constants of the library screen's low-pass terms
 
 
 def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 10) -> Candidate | None:
-    """The relaxation of one time constant fewer: ``c``'s time constants at a search bound (``pinned``)
-    dropped, the rest and the base's nonlinear parameters as ``c`` has them, then refined together. A time
-    constant at its bound is not identified, and the nested variant started from ``c``'s other ones can
-    find the fit its own greedy search missed. None if nothing is pinned or nothing would be left."""
+    """``c`` without its time constants at a search bound (``pinned``: not identified), refined from the rest (the
+    nested variant so started can find what its own greedy search missed); None if none or nothing is left."""
     taus = [n for n in c.model.nonlinear_names if n.startswith("tau")]
     drop = [n for n in pinned if n in taus]
     kept = sorted(float(c.params[n]) for n in taus if n not in drop)
@@ -50,7 +48,6 @@ class Relaxation(Cause):
         return parameter.startswith("tau")
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """First-order low-pass histories of the input on a grid of time constants."""
         T = screen.drive_time
         taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), LIBRARY_TAUS))
 

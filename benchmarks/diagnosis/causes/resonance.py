@@ -41,14 +41,12 @@ class Resonance(Cause):
     transforms = True
     reshapes = True
 
-    def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """The model's output's second derivative (a mode's inertia to first order)."""
+    def library_terms(self, screen, y_hat_rows: np.ndarray):  # a mode's inertia to first order
         return ["d2/dt2 y_model"], lambda r, y_hat, t: [np.gradient(np.gradient(y_hat, r.dt), r.dt)], [None]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        """Searched to first order (the null's prediction through the mode) on a grid and refined; if that is
-        promising, it, a fast well-damped mode (and on short records the grid's two best points evaluated
-        exactly) are evaluated exactly and the best refined; otherwise the first-order optimum is evaluated."""
+        """Searched to first order (the null's prediction through the mode) on a grid and refined; if promising, the
+        best of it, a fast well-damped mode (and on short records the grid's two best points) refined exactly."""
         model = screen.extension(("resonance",))
         T = screen.drive_time
         dt = min(p.record.dt for p in screen.parts)

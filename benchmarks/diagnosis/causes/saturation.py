@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from scipy.optimize import least_squares
 
 from ..candidates import NO_CUT, Candidate, bracketed_minimum
@@ -25,8 +24,8 @@ def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
 
 
 def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
-    """(rss, theta, residual) of the censored fit at a clipping level: the linear parameters solved on the
-    samples not at the level, the prediction clipped there; (inf, None, None) if too few samples are free."""
+    """(rss, theta, residual): the linear parameters solved on the samples not at the level, the prediction
+    clipped there; (inf, None, None) if too few samples are free."""
     free = unclipped(screen, y, side, level)
     if free.sum() < A.shape[1] + 1:
         return math.inf, None, None
@@ -47,8 +46,8 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
-    """Whether these rows show a clip at the level: the censored fit's prediction passes it on enough samples
-    and the output there is flat against it (within ``max_clipped_slope``)."""
+    """Whether the censored fit's prediction passes the level on enough samples and the output there is flat
+    against it (within ``max_clipped_slope``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
@@ -72,7 +71,6 @@ def _estimates(screen, A: np.ndarray, theta: np.ndarray, side: str, level: float
 
 
 def _of_base(screen, side: str, level: float, base_nl, stage: str) -> Candidate | None:
-    """A clip of the base's prediction at its nonlinear parameters ``base_nl``."""
     A = np.concatenate(screen.base_columns(base_nl).rows)
     rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
     if theta is None:
@@ -100,8 +98,7 @@ class Saturation(Cause):
     separable = False
     carries_others = False  # nothing composes on top of a clip; a disturbance still adds
 
-    def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Hinge functions of the model's output at high and low levels."""
+    def library_terms(self, screen, y_hat_rows: np.ndarray):  # hinges of the model's output at its extremes
         q_hi, q_lo = np.quantile(y_hat_rows, [0.90, 0.97]), np.quantile(y_hat_rows, [0.03, 0.10])
         return ([f"max(y_model-{L:.3g},0)" for L in q_hi] + [f"max({L:.3g}-y_model,0)" for L in q_lo],
                 lambda r, y_hat, t: ([np.maximum(y_hat - L, 0.0) for L in q_hi]
@@ -147,8 +144,7 @@ class Saturation(Cause):
         return ""
 
     def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
-        """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
-        nonlinear parameters, the level fitted on each side as for the base, the better side kept."""
+        """A clip of a kept part's prediction, its columns at the part's nonlinear parameters, the better side."""
         A = columns_of(screen, kept)
         fits = []
         for side, label in SIDES.items():
@@ -168,13 +164,12 @@ class Saturation(Cause):
         return min(fits, key=lambda c: c.rss) if fits else None
 
     def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
-        """A clip's output from that of the part it clips."""
         return clipped(y, c.hyperparameters["saturation_side"], c.params["saturation_level"])
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
-        """The linear parameters solved on the other records' free samples; with ``refit`` the level too. A fold
-        whose records show no clip at their level (``shows_clip``) predicts the left-out record unclipped: a
-        level placed just under their peaks would cut a record that goes higher."""
+        """The linear parameters solved on the other records' free samples, with ``refit`` the level too; a fold
+        whose records show no clip (``shows_clip``) predicts unclipped: a level just under their peaks would cut
+        a record that goes higher."""
         side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
         A = columns_of(screen, c.clips) if c.clips is not None else np.concatenate(
             screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
