@@ -39,6 +39,7 @@ def refined(name: str) -> bool:
 
 
 def log_scale(name: str) -> bool:
+    """Whether a cause's parameter is searched and summarised on a log scale."""
     return any(name.startswith(p) for c in CAUSES.values() for p in c.log_scale)
 
 

@@ -39,7 +39,7 @@ class Creep(Cause):
         return max(lo, screen.creep_min), hi
 
     def limit(self, screen, estimates) -> str:
-        if estimates["time_scale_s"] <= screen.policy.creep_limit_margin * screen.creep_min:
-            return (f"time scale at the limit {screen.creep_min:.3g} s ({screen.policy.creep_periods:g} drive "
-                    "periods): not slow")
+        pol = screen.policy
+        if estimates["time_scale_s"] <= pol.creep_limit_margin * screen.creep_min:
+            return f"time scale at the limit {screen.creep_min:.3g} s ({pol.creep_periods:g} drive periods): not slow"
         return ""
