@@ -119,9 +119,7 @@ class Cause:
     def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
         """``k`` starts of a parameter inside its search bounds (None: nothing to search)."""
         lo, hi = screen.bounds_of(model, parameter)
-        if not hi > lo:
-            return None
-        return (np.geomspace if log_scale(parameter) else np.linspace)(lo, hi, k + 2)[1:-1]
+        return (np.geomspace if log_scale(parameter) else np.linspace)(lo, hi, k + 2)[1:-1] if hi > lo else None
 
     def heldout_errors(self, screen, folds, c, refit: bool, train_residuals: list | None):
         """(out-of-fold residuals, fold estimates), its parameters refitted per fold with ``refit``, each fold's
