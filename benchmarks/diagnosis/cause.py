@@ -1,7 +1,5 @@
-"""The interface of a cause the diagnosis can name (``Cause``) and the registry of the causes (``CAUSES``).
-
-The causes themselves are the plug-ins of ``causes`` (one module each); see there.
-"""
+"""The interface of a cause the diagnosis can name (``Cause``, described here once for every cause) and the
+registry of the causes (``CAUSES``); the causes themselves are the plug-ins of ``causes``, one module each."""
 
 from __future__ import annotations
 
@@ -20,7 +18,6 @@ def register(cls: type) -> type:
 
 
 def get_cause(name: str) -> "Cause":
-    """The registered cause of this name (KeyError naming the known ones otherwise)."""
     try:
         return CAUSES[name]
     except KeyError:
@@ -33,15 +30,12 @@ def cause_of_parameter(name: str) -> "Cause | None":
 
 
 def open_ended_parameter(name: str) -> bool:
-    """Whether this parameter's upper search bound is a limit within its cause's meaning (``Cause.open_ended``)."""
-    owner = cause_of_parameter(name)
-    return owner is not None and name in owner.open_ended
+    return name in getattr(cause_of_parameter(name), "open_ended", ())
 
 
 def refined(name: str) -> bool:
-    """Whether a gradient refinement moves this nonlinear parameter (``Cause.not_refined``)."""
-    owner = cause_of_parameter(name)
-    return owner is None or name not in owner.not_refined
+    """Whether a gradient refinement moves this nonlinear parameter (a base's always)."""
+    return name not in getattr(cause_of_parameter(name), "not_refined", ())
 
 
 def log_scale(name: str) -> bool:
@@ -53,7 +47,8 @@ class Cause:
     """One cause of the vocabulary. Class attributes describe it; methods do what differs for it.
 
     The defaults are those of a separable extension (its columns added to, or transforming, the base's), fitted
-    and scored by the generic paths of ``screen`` and ``selection``."""
+    and scored by the generic paths of ``screen`` and ``selection``. Below, ``screen`` is a ``Screen``, ``c`` a
+    ``Candidate`` of this cause, ``folds`` the leave-one-record-out ``Folds``."""
 
     name: str = ""
     parameters: tuple = ()  # its nonlinear parameters in the extended model
@@ -75,12 +70,11 @@ class Cause:
     slow_twin: str | None = None  # the cause its slowest part may be, slower than every drive period
     time_scale: str | None = None  # its parameter that is a time scale (a slow twin's, standing in)
     units: dict = {}  # its reported parameters (``estimates``) and their units (``OUTPUT_UNIT``: the output's)
-    reported_as: dict = {}  # a parameter's name among the reported ones, where it differs
+    reported_as: dict = {}  # its parameters and their names among the reported ones (the default ``estimates``)
 
     def owns(self, parameter: str) -> bool:
         return parameter in self.parameters
 
-    # --- the screen ------------------------------------------------------------------------
     def fit(self, screen, library: dict, max_order: int) -> list:
         """Its candidates fitted on the screen (stage 1: the base's nonlinear parameters held)."""
         raise NotImplementedError
@@ -90,9 +84,8 @@ class Cause:
         return {}
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Its terms in the library screen (``library_screen``): (names, ``columns(record, y_hat, t)`` -> one array
-        over the record per name, the time constant of each term or None); None: it has none. ``y_hat_rows``: the
-        null's prediction on the screen's rows."""
+        """Its terms in the library screen: (names, ``columns(record, y_hat, t)`` -> one array over the record per
+        name, each term's time constant or None), or None; ``y_hat_rows``: the null's prediction on the rows."""
         return None
 
     def joint(self, screen, c, max_nfev: int):
@@ -101,11 +94,11 @@ class Cause:
 
     def estimates(self, params: Mapping[str, float], model) -> dict:
         """Its parameters in the report's vocabulary (units in the key)."""
-        return {}
+        return {key: float(params[name]) for name, key in self.reported_as.items()}
 
     def from_fit(self, estimates: dict, params: Mapping[str, float]) -> dict:
         """A candidate's estimates updated from its extension identified on whole records (``params``)."""
-        return {**estimates, **self.estimates(params, None)}
+        return {**estimates, **Cause.estimates(self, params, None)}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         """A parameter's search bounds on these records, from the model's bounds at the drive's time scale."""
@@ -116,8 +109,7 @@ class Cause:
         return ""
 
     def on_top(self, screen, kept, own, search: bool):
-        """It composed with a kept separable part (``own``: its fit against the base alone); None if it does not
-        compose."""
+        """It composed with a kept separable part (``own``: its fit on the base alone); None if it cannot."""
         return screen.composite(kept, own, search=search)
 
     def starts_on_top(self, primary, starts: list[dict]) -> list[dict]:
@@ -127,14 +119,11 @@ class Cause:
     def grid_axis(self, screen, model, parameter: str, k: int) -> np.ndarray | None:
         """``k`` starts of a parameter inside its search bounds (None: nothing to search)."""
         lo, hi = screen.bounds_of(model, parameter)
-        if not hi > lo:
-            return None
-        return (np.geomspace if log_scale(parameter) else np.linspace)(lo, hi, k + 2)[1:-1]
+        return (np.geomspace if log_scale(parameter) else np.linspace)(lo, hi, k + 2)[1:-1] if hi > lo else None
 
-    # --- held-out scores ---------------------------------------------------------------------
     def heldout_errors(self, screen, folds, c, refit: bool, train_residuals: list | None):
-        """Its own out-of-fold residuals and fold estimates, or None for the generic linear path
-        (``selection.heldout_errors``)."""
+        """(out-of-fold residuals, fold estimates), its parameters refitted per fold with ``refit``, each fold's
+        residual on its training rows appended to ``train_residuals``; None: the generic linear path."""
         return None
 
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
@@ -157,14 +146,11 @@ class Cause:
         """A variant that gives way to one of lower order (``variants`` only): ``chosen`` otherwise."""
         return chosen
 
-    # --- validation and report ---------------------------------------------------------------
     def on_validation(self, before: list, c, policy) -> tuple[list, dict]:
-        """A disturbance on top of ``before`` (residuals of what is kept, refitted on whole records) with its
-        phase fitted per record: the residuals after it and its check on the validation records
-        (``disturbance`` only; the others' extensions are identified, ``validation.fit_extension``)."""
+        """A disturbance's phase fitted per record on top of ``before`` (what is kept, refitted on whole records):
+        the residuals after it and its check on the validation records (the others are identified there)."""
         raise NotImplementedError(f"{self.name} is identified on the validation records, not fitted on top")
 
     def spectrum_marker(self, parameters: Mapping) -> float | None:
         """A frequency the report's spectrum marks for it (None: nothing)."""
         return None
-

@@ -1,15 +1,7 @@
-"""Lines: a sinusoid unrelated to the drive, with its own phase in every record, fitted and scored
-(the interference cause, ``causes.interference``, and every line on top of another cause).
-
-A disturbance is not driven by the input, so the fit has one frequency and one (sin, cos) pair per record.
-Candidate frequencies are the most prominent peaks of the pooled incoherent spectrum of the null's residual,
-drive harmonics left out, each refined by a line search. The line is fitted jointly with the part it sits on
-(``JointLine``): fitted on the part's residual alone, a line near a drive harmonic would be partly taken up
-by the part first. On a held-out record the frequency and amplitude come from the other records and only
-the phase is fitted there (``joint_line``); a fold chooses its frequency the way it is scored (``loo_rss``).
-On top of a clip (not linear), and for a line locked to the drive, the line is fitted on the part's
-residual (``fold_frequencies``, ``on_top``).
-"""
+"""Lines: a sinusoid unrelated to the drive, its phase free in every record (``causes.interference``, or on top
+of another cause). Its frequency: a peak of the pooled spectrum of the null's residual, refined by what it leaves
+when scored as a held-out record is (``loo_rss``). It is fitted jointly with the part it sits on (``joint_line``);
+on top of a clip, and when locked to the drive, on the part's residual (``on_top``)."""
 
 from __future__ import annotations
 
@@ -45,35 +37,20 @@ def block_columns(times: Sequence[np.ndarray], frequency_hz: float) -> np.ndarra
     return block_diag(*(sinusoid_columns(t, frequency_hz) for t in times))
 
 
-def candidate_frequencies(screen, parts: Sequence[int] | None = None) -> list[float]:
-    """The most prominent peaks of the pooled spectrum of the null's residual on ``parts`` (default: every
-    identification record), drive harmonics left out."""
-    model = screen.extension(("interference",))
-    lo, hi = screen.bounds_of(model, "interference_frequency")
-    hi = min(hi, 0.45 / max(p.record.dt for p in screen.parts))  # below every record's Nyquist frequency
+def best_frequency(screen, rss_of: Callable[[float], float], parts: Sequence[int] | None = None) -> float:
+    """The most prominent peaks of the pooled spectrum of the null's residual on ``parts`` (default: every record),
+    drive harmonics left out, each refined by a line search of ``rss_of``; the best."""
+    lo, hi = screen.bounds_of(screen.extension(("interference",)), "interference_frequency")
     residuals = screen.null_residuals()
     if parts is not None:
         residuals = [residuals[m] for m in parts]
-    f, amp = coherent_spectrum(residuals, lo, hi, coherent=False)
+    nyquist = 0.45 / max(p.record.dt for p in screen.parts)  # below every record's Nyquist frequency
+    f, amp = coherent_spectrum(residuals, lo, min(hi, nyquist), coherent=False)
     prom = prominence(amp)
     prom[drive_harmonic(screen, f, 2.0 * (f[1] - f[0]) if f.size > 1 else 0.0)] = 0.0
-    return [f0 for f0, _ in spectral_peaks(f, prom, n=N_PEAKS, min_separation_hz=max(lo, 0.05))]
-
-
-def resolution_hz(screen, parts: Sequence[int] | None = None) -> float:
-    """The spectral resolution of the longest of ``parts`` (default: every identification record): one cycle
-    over its duration."""
-    parts = range(len(screen.parts)) if parts is None else parts
-    return 1.0 / max(screen.parts[m].record.t.size * screen.parts[m].record.dt for m in parts)
-
-
-def best_frequency(screen, rss_of: Callable[[float], float], parts: Sequence[int] | None = None) -> float:
-    """The spectral peaks of ``parts`` (``candidate_frequencies``), each refined by a line search of
-    ``rss_of``; the best."""
-    lo, hi = screen.bounds_of(screen.extension(("interference",)), "interference_frequency")
     best_f, best_rss = float(min(max(10.0, lo), hi)), math.inf
-    step = resolution_hz(screen)
-    for f0 in candidate_frequencies(screen, parts):
+    step = 1.0 / max(p.record.t.size * p.record.dt for p in screen.parts)  # one cycle over the longest record
+    for f0, _ in spectral_peaks(f, prom, n=N_PEAKS, min_separation_hz=max(lo, 0.05)):
         grid = [g for g in f0 + step * np.linspace(-1.0, 1.0, 11) if lo <= g <= hi]
         f1, rss = bracketed_minimum(rss_of, grid, 1e-3 * step) if grid else (f0, math.inf)
         if rss < best_rss:
@@ -82,10 +59,10 @@ def best_frequency(screen, rss_of: Callable[[float], float], parts: Sequence[int
 
 
 def fold_tolerance_hz(screen) -> float:
-    """How far the frequencies of one line fitted on different folds may differ: the coarsest fold's spectral
-    resolution (one cycle over its longest training record)."""
-    n = len(screen.parts)
-    return max(resolution_hz(screen, [k for k in range(n) if k != m]) for m in range(n))
+    """How far one line's frequencies fitted on different folds may differ: the coarsest fold's resolution (one
+    cycle over its longest training record)."""
+    spans = [p.record.t.size * p.record.dt for p in screen.parts]
+    return max(1.0 / max(s for k, s in enumerate(spans) if k != m) for m in range(len(spans)))
 
 
 def frequencies_agree(screen, fold_frequencies_hz: Sequence[float]) -> bool:
@@ -94,59 +71,61 @@ def frequencies_agree(screen, fold_frequencies_hz: Sequence[float]) -> bool:
     return bool(f.size > 1 and np.ptp(f) <= fold_tolerance_hz(screen))
 
 
-def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:
-    """The sinusoid of the given frequency and amplitude with the phase that fits ``residual`` best."""
-    S = sinusoid_columns(t, frequency_hz)
-    ab = np.linalg.lstsq(S, residual, rcond=None)[0]
-    norm = math.hypot(*ab)
-    direction = ab / norm if norm > 0 else np.array([1.0, 0.0])
-    return S @ (amplitude * direction)
-
-
 def sinusoid_fit(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> np.ndarray:
     """Least-squares (sin, cos) coefficients of a sinusoid of this frequency in ``residual``."""
     return np.linalg.lstsq(sinusoid_columns(t, frequency_hz), residual, rcond=None)[0]
 
 
-def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:
-    """Least-squares amplitude of a sinusoid of this frequency in ``residual`` (phase free)."""
+def amplitude_at(residual: np.ndarray, t: np.ndarray, frequency_hz: float) -> float:  # its phase free
     return float(math.hypot(*sinusoid_fit(residual, t, frequency_hz)))
+
+
+def phase_at(residual: np.ndarray, times: np.ndarray, frequency_hz: float) -> float:
+    """The phase (from the record's start) of the sinusoid fitted to a record's first ``residual.size`` rows."""
+    a, b = sinusoid_fit(residual, times[:residual.size], frequency_hz)
+    return float(math.atan2(b, a))
+
+
+def phase_fitted(residual: np.ndarray, t: np.ndarray, frequency_hz: float, amplitude: float) -> np.ndarray:
+    """The sinusoid of the given frequency and amplitude with the phase that fits ``residual`` best."""
+    ab = sinusoid_fit(residual, t, frequency_hz)
+    norm = math.hypot(*ab)
+    return sinusoid_columns(t, frequency_hz) @ (amplitude * (ab / norm if norm > 0 else np.array([1.0, 0.0])))
+
+
+def training_records(screen, m: int, train_residual: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Fold ``m``'s residual on its training rows cut into its records (all but ``m``), each with its times."""
+    sizes = [p.rows.size for k, p in enumerate(screen.parts) if k != m]
+    times = [t for k, t in enumerate(row_times(screen)) if k != m]
+    return list(zip(np.split(train_residual, np.cumsum(sizes)[:-1]), times))
 
 
 def lines_removed(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> np.ndarray:
     """Fold ``m``'s training residual with a sinusoid of this frequency fitted in each of its records."""
-    times = [t for k, t in enumerate(row_times(screen)) if k != m]
-    parts = training_parts(screen, m, train_residual)
-    out = [r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz) for r, t in zip(parts, times)]
-    return np.concatenate(out)
+    return np.concatenate([r - sinusoid_columns(t, frequency_hz) @ sinusoid_fit(r, t, frequency_hz)
+                           for r, t in training_records(screen, m, train_residual)])
 
 
-def training_parts(screen, m: int, train_residual: np.ndarray) -> list[np.ndarray]:
-    """Fold ``m``'s residual on its training rows cut into its records (every record but ``m``, in order)."""
-    sizes = [p.rows.size for k, p in enumerate(screen.parts) if k != m]
-    return np.split(train_residual, np.cumsum(sizes)[:-1])
+def fold_amplitude(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> float:
+    """The amplitude fold ``m`` predicts its left-out record with: the rms of its training records' own."""
+    return rms([amplitude_at(r, t, frequency_hz) for r, t in training_records(screen, m, train_residual)])
 
 
 def fold_frequencies(screen, train_residuals: Sequence[np.ndarray]) -> list[float]:
-    """A sinusoid's frequency on top of a primary cause, one per leave-one-record-out fold, each chosen on the
-    other records alone, the way it is then scored (``on_top``): their null residuals' spectral peaks, each
-    refined by a line search of ``loo_rss`` on the primary's residual on those records when fitted on them
-    alone (``train_residuals``: one per fold, on its training rows, from ``selection.heldout_errors``)."""
+    """A line's frequency on top of a primary cause per fold, chosen as it is then scored (``on_top``): by
+    ``loo_rss`` on the primary's residual on the fold's training rows (``train_residuals``)."""
     n = len(screen.parts)
-    times = row_times(screen)
     out = []
     for m in range(n):
-        others = [k for k in range(n) if k != m]
-        residuals = training_parts(screen, m, train_residuals[m])
-        rss = lambda g, o=others, r=residuals: loo_rss(r, [times[k] for k in o], g)  # noqa: E731
-        out.append(best_frequency(screen, rss, others))
+        records = training_records(screen, m, train_residuals[m])
+        rss = lambda g, rec=records: loo_rss([r for r, _ in rec], [t for _, t in rec], g)  # noqa: E731
+        out.append(best_frequency(screen, rss, [k for k in range(n) if k != m]))
     return out
 
 
 def loo_rss(residuals: Sequence[np.ndarray], times: Sequence[np.ndarray], frequency_hz: float) -> float:
-    """What a sinusoid of this frequency leaves of the residuals when each record takes the amplitude of the
-    others (rms) and fits only its phase, as a held-out record does; with one record, amplitude and phase its
-    own."""
+    """What a sinusoid leaves of the residuals when each record takes the others' amplitude (rms) and fits only
+    its phase, as a held-out record does (with one record, amplitude and phase its own)."""
     S = [sinusoid_columns(t, frequency_hz) for t in times]
     ab = [np.linalg.lstsq(s, r, rcond=None)[0] for s, r in zip(S, residuals)]  # each record's fit, used twice
     amp = [float(math.hypot(*c)) for c in ab]
@@ -161,29 +140,18 @@ def loo_rss(residuals: Sequence[np.ndarray], times: Sequence[np.ndarray], freque
 
 def on_top(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.ndarray],
            frequency_hz: float | Sequence[float]) -> np.ndarray:
-    """Out-of-fold residuals ``e_primary`` of a primary cause with a per-record sinusoid added: on each
-    left-out record, the amplitude (rms over the other records) from the primary's residual on the other
-    records when fitted on them alone (``train_residuals``, one per fold), the phase fitted there. The
-    frequency: one for every fold, or one per fold (``fold_frequencies``: chosen without that fold's record)."""
-    n = len(screen.parts)
-    f = np.broadcast_to(np.asarray(frequency_hz, dtype=float), (n,))
+    """Out-of-fold residuals ``e_primary`` of a primary cause less a sinusoid on each scored record, its amplitude
+    from the other records (``fold_amplitude``), its phase fitted; one frequency, or one per fold."""
+    f = np.broadcast_to(np.asarray(frequency_hz, dtype=float), (len(screen.parts),))
     times = row_times(screen)
     e = e_primary.copy()
-    for m in range(n):
+    for m in range(len(screen.parts)):
         e[folds.tail(m)] = 0.0  # not held-out targets (``selection.Folds``)
-        if not folds.is_scored(m):
-            continue
-        rows = folds.head(m)
-        a = fold_amplitude(screen, m, train_residuals[m], f[m])
-        e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m][:rows.stop - rows.start], f[m], a)
+        if folds.is_scored(m):
+            rows = folds.head(m)
+            a = fold_amplitude(screen, m, train_residuals[m], f[m])
+            e[rows] = e_primary[rows] - phase_fitted(e_primary[rows], times[m][:rows.stop - rows.start], f[m], a)
     return e
-
-
-def fold_amplitude(screen, m: int, train_residual: np.ndarray, frequency_hz: float) -> float:
-    """The amplitude fold ``m`` predicts its left-out record with: rms over its training records of the
-    amplitude at the frequency in their residual (``train_residual``, on its training rows)."""
-    times = [t for k, t in enumerate(row_times(screen)) if k != m]
-    return rms([amplitude_at(r, t, frequency_hz) for r, t in zip(training_parts(screen, m, train_residual), times)])
 
 
 def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequence[np.ndarray],
@@ -196,25 +164,15 @@ def on_top_estimates(screen, folds, e_primary: np.ndarray, train_residuals: Sequ
     return line_estimates(frequencies_hz, amps, phases)
 
 
-def phase_at(residual: np.ndarray, times: np.ndarray, frequency_hz: float) -> float:
-    """The phase (from the record's start) of the sinusoid fitted to a record's first ``residual.size`` rows."""
-    a, b = sinusoid_fit(residual, times[:residual.size], frequency_hz)
-    return float(math.atan2(b, a))
-
-
 def line_estimates(frequencies_hz: Sequence[float], amplitudes: Sequence[float], phases: list) -> dict:
-    """What a line scored per fold stands for, for the meaning checks (``Cause.limit``: cycles, drive lock):
-    the folds' mean frequency, the rms of their amplitudes and each held-out record's phase."""
+    """What a line scored per fold stands for (for ``Cause.limit``)."""
     return {"frequency_hz": float(np.mean(frequencies_hz)), "amplitude": rms(amplitudes),
             "phase_rad_per_record": list(phases), "fold_frequencies_hz": [float(f) for f in frequencies_hz]}
 
 
 class JointLine:
-    """A part (its stacked design ``A``) fitted jointly with a line, one (sin, cos) pair per record, on the rows
-    of ``records``. Fitted on the part's residual alone, a line close to a harmonic of the drive is partly
-    taken up by the part first (a hysteresis model makes harmonics of its drive), so the line's amplitude comes
-    out low and its frequency is pushed away from the harmonic; fitted jointly, the part's columns take only
-    what the line does not."""
+    """A part (its stacked design ``A``) fitted jointly with a line, one (sin, cos) pair per record of ``records``:
+    fitted on the part's residual alone, a line near a drive harmonic would be partly taken up by the part."""
 
     def __init__(self, screen, A: np.ndarray, records: Sequence[int]):
         starts = np.cumsum([0] + [p.rows.size for p in screen.parts])
@@ -247,11 +205,8 @@ class JointLine:
 
 @dataclass
 class FoldLines:
-    """A line estimated jointly with a part on each fold's training records (``JointLine``) and scored on the
-    left-out record, its phase fitted there: ``errors`` are the out-of-fold residuals (the line removed from
-    each held-out record's scored rows), ``part_errors`` the part's own (fitted without the line),
-    ``train_residuals`` per fold the joint fit's residual on its training rows, ``phases`` each scored record's
-    phase from its own start."""
+    """``joint_line``'s result: ``errors`` with the line removed, ``part_errors`` without, ``train_residuals`` per fold
+    the joint fit's residual on its training rows, ``phases`` each scored record's from its start."""
 
     errors: np.ndarray
     part_errors: np.ndarray
@@ -266,9 +221,9 @@ class FoldLines:
 
 def joint_line(screen, folds, design: Callable[[int], np.ndarray],
                frequencies_hz: Sequence[float] | None = None) -> FoldLines:
-    """Out-of-fold residuals of a part (``design(m)``: fold m's stacked design, all rows) with a line fitted
-    jointly on each fold's training records, its frequency (unless given) chosen there; the left-out record is
-    predicted by the part fitted alone and the line with the training records' amplitude, its phase fitted."""
+    """A part (``design(m)``: fold m's stacked design, all rows) and a line fitted jointly on each fold's training
+    records, its frequency chosen there unless given; the left-out record is predicted by the part fitted alone
+    and the line with the training records' amplitude, its phase fitted."""
     n = len(screen.parts)
     times = row_times(screen)
     e, part_e = np.zeros(screen.n), np.zeros(screen.n)
@@ -277,8 +232,7 @@ def joint_line(screen, folds, design: Callable[[int], np.ndarray],
         others = [k for k in range(n) if k != m]
         A = design(m)
         line = JointLine(screen, A, others)
-        f = float(frequencies_hz[m]) if frequencies_hz is not None else best_frequency(
-            screen, line.loo_rss, others)
+        f = float(frequencies_hz[m]) if frequencies_hz is not None else best_frequency(screen, line.loo_rss, others)
         fitted, with_line = line.fit(f)
         theta, _ = screen.solve(line.A, line.y)  # the part alone: a disturbance does not change what is driven
         test = folds.test(m)
@@ -297,10 +251,8 @@ def joint_line(screen, folds, design: Callable[[int], np.ndarray],
 
 
 def drive_locked(screen, estimates: Mapping) -> bool:
-    """A sinusoid within half a cycle over the longest record of a harmonic of every record's drive, its
-    phases in the records within ``locked_phase``, that does not turn from drive period to period (by more
-    than ``locked_turn`` and ``locked_turn_z`` standard errors, ``residuals.harmonic_phase_turn``): a misfit
-    the drive repeats, not a line off the harmonic."""
+    """A sinusoid at a harmonic of every record's drive (within half a cycle over the longest record), its phases
+    within ``locked_phase``, not turning from period to period (``locked_turn``, ``locked_turn_z``): a misfit."""
     phases = estimates.get("phase_rad_per_record") or []
     longest = max(p.record.t.size * p.record.dt for p in screen.parts)
     if len(phases) < 2 or not drive_harmonic(screen, np.array([estimates["frequency_hz"]]), 0.5 / longest)[0]:
@@ -314,8 +266,7 @@ def drive_locked(screen, estimates: Mapping) -> bool:
 
 
 def drive_harmonic(screen, f: np.ndarray, tolerance_hz: float) -> np.ndarray:
-    """Whether each frequency is a harmonic of every identification record's drive (within tolerance):
-    there a disturbance cannot be told from the model's misfit."""
+    """Whether each frequency is a harmonic of every identification record's drive (within tolerance)."""
     out = np.ones(f.shape, dtype=bool)
     for p in screen.parts:
         fd = p.record.frequency_hz

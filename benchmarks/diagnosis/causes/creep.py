@@ -14,11 +14,9 @@ from ..cause import OUTPUT_UNIT, Cause, register
 
 @register
 class Creep(Cause):
-    """A drift since the record's start, slower than the drive."""
-
     name = "creep"
     units = {"size": OUTPUT_UNIT, "time_scale_s": "s"}
-    reported_as = {"creep_time": "time_scale_s"}
+    reported_as = {"creep_size": "size", "creep_time": "time_scale_s"}
     parameters = ("creep_time",)
     log_scale = ("creep_time",)
     open_ended = ("creep_time",)  # longer than the records show: a straight drift since the start
@@ -26,7 +24,6 @@ class Creep(Cause):
     shown_at_rest = True
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Slow exponential drifts since the start."""
         longest = CREEP_TIME_BOUNDS[1] * screen.drive_time / 10
         creeps = np.exp(np.linspace(math.log(screen.creep_min), math.log(longest), 5))
         return ([f"1-exp(-t/{c:.3g}s)" for c in creeps], lambda r, y_hat, t: [-np.expm1(-t / c) for c in creeps],
@@ -37,9 +34,6 @@ class Creep(Cause):
         lo, hi = screen.bounds_of(model, "creep_time")
         z = screen.line_search(model, "creep_time", np.exp(np.linspace(math.log(lo), math.log(hi), 17)), log=True)
         return [screen.candidate("creep", "slow drift since the start", model, z)]
-
-    def estimates(self, params, model) -> dict:
-        return {"size": float(params["creep_size"]), "time_scale_s": float(params["creep_time"])}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         return max(lo, screen.creep_min), hi

@@ -1,9 +1,5 @@
-"""Interference: a sinusoid unrelated to the drive, with its own phase in every record (a disturbance).
-
-Its frequency is chosen as the folds choose theirs, jointly with the part it sits on, and on a held-out
-record only its phase is fitted (``lines``, which holds the line machinery every line on top uses). The
-validation records confirm it by the same amplitude there, its phase fitted per record.
-"""
+"""Interference: a sinusoid unrelated to the drive, with its own phase in every record (a disturbance); on a
+held-out record, and on the validation records that confirm it by its amplitude, only its phase is fitted."""
 
 from __future__ import annotations
 
@@ -18,7 +14,6 @@ from ..lines import (amplitude_at, best_frequency, block_columns, drive_locked, 
                      frequencies_agree, joint_line, JointLine, lines_removed, on_top, phase_fitted, rms, row_times)
 from ..residuals import RecordResidual, coherent_spectrum, spectral_peaks
 from ..heldout import out_of_fold
-from ..policy import Policy
 
 
 def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
@@ -31,8 +26,6 @@ def same_line(screen, fold_estimates: Sequence[dict]) -> bool:
 
 @register
 class Interference(Cause):
-    """A sinusoidal disturbance: not driven by the input, its phase free per record."""
-
     name = "interference"
     units = {"frequency_hz": "Hz", "amplitude": OUTPUT_UNIT}
     parameters = ("interference_frequency",)
@@ -42,9 +35,8 @@ class Interference(Cause):
     disturbance = True
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        """The line on every identification record, its frequency chosen as the folds choose theirs: the spectral
-        peaks, each refined by a line search of ``loo_rss`` on the base's residual when fitted jointly with the
-        line (``JointLine``; one amplitude for every record, the phase per record)."""
+        """The line on every identification record, its frequency chosen as the folds choose theirs (``JointLine``;
+        one amplitude for every record, the phase per record)."""
         base_rows = screen.design(screen.base, screen.base_nl)
         frequency_hz = best_frequency(screen, JointLine(screen, base_rows, range(len(screen.parts))).loo_rss)
         model = screen.extension(("interference",))
@@ -56,13 +48,12 @@ class Interference(Cause):
         params = {**screen.base_nl, **dict(zip(screen.base_lin, map(float, theta[:nb]))),
                   "interference_frequency": float(frequency_hz), "interference_amplitude": amplitude,
                   "interference_sin": amplitude, "interference_cos": 0.0}
+        estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
+                     "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
         k = len(screen.base.param_names) + 1 + 2 * len(screen.parts)
-        c = Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k,
-                      float(res @ res), screen.n, n_effective=screen.n_effective)
-        c.estimates = {"frequency_hz": float(frequency_hz), "amplitude": amplitude,
-                       "phase_rad_per_record": [float(math.atan2(b, a)) for a, b in pairs]}
-        c.stage = "fixed base"
-        return [screen._finish(c)]
+        return [screen._finish(Candidate("interference", "sinusoidal disturbance (phase per record)", model, params, k,
+                                         float(res @ res), screen.n, estimates, n_effective=screen.n_effective,
+                                         stage="fixed base"))]
 
     def row_columns(self, nonlinear, dt: float, rows: np.ndarray) -> dict:
         """Its (sin, cos) pair at the rows' times from the record's start."""
@@ -84,15 +75,9 @@ class Interference(Cause):
         return c  # its phase is per record: the base is fitted jointly with it already
 
     def estimates(self, params, model) -> dict:
-        out = {"frequency_hz": float(params["interference_frequency"])}
-        if "interference_amplitude" in params:  # one phase per record
-            out["amplitude"] = float(params["interference_amplitude"])
-        else:
-            out["amplitude"] = math.hypot(float(params["interference_sin"]), float(params["interference_cos"]))
-        return out
-
-    def from_fit(self, estimates: dict, params) -> dict:
-        return dict(estimates)
+        amplitude = (params["interference_amplitude"] if "interference_amplitude" in params  # one phase per record
+                     else math.hypot(float(params["interference_sin"]), float(params["interference_cos"])))
+        return {"frequency_hz": float(params["interference_frequency"]), "amplitude": float(amplitude)}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         return lo, min(hi, screen.nyquist)  # the samples show nothing faster
@@ -106,41 +91,36 @@ class Interference(Cause):
         return DRIVE_LOCKED if drive_locked(screen, estimates) else ""
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
-        """Out-of-fold residuals of a disturbance: a line fitted jointly with the base, its phase per record
-        (``lines.joint_line``); a sinusoid locked to the drive (no disturbance but the base's misfit at a harmonic)
-        on the base's own residual (``lines.on_top``). With ``refit`` the frequency is chosen per fold."""
-        nl = {n: c.params[n] for n in c.model.nonlinear_names}
+        """A line fitted jointly with the base (``lines.joint_line``); one locked to the drive (no disturbance but
+        the base's misfit at a harmonic) on the base's own residual (``lines.on_top``)."""
+        fixed = [c.params["interference_frequency"]] * folds.n
         base_rows = screen.design(screen.base, {k: c.params[k] for k in screen.base_nl_names})
         if c.limit == DRIVE_LOCKED:
             base_train = []
             e_base = out_of_fold(screen, folds, lambda m: base_rows, base_train)
-            f = fold_frequencies(screen, base_train) if refit else [nl["interference_frequency"]] * folds.n
-            fold_est = [{"interference_frequency": f[m]} if refit else {} for m in range(folds.n)]
-            for m, est in enumerate(fold_est):
-                est["amplitude"] = fold_amplitude(screen, m, base_train[m], f[m])
+            freqs = fold_frequencies(screen, base_train) if refit else fixed
+            amps = [fold_amplitude(screen, m, base_train[m], freqs[m]) for m in range(folds.n)]
             if train_residuals is not None:
-                train_residuals.extend(lines_removed(screen, m, base_train[m], f[m]) for m in range(folds.n))
-            return on_top(screen, folds, e_base, base_train, f), fold_est
-        lines = joint_line(screen, folds, lambda m: base_rows,
-                           None if refit else [nl["interference_frequency"]] * folds.n)
-        fold_est = [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
-                    for f, a in zip(lines.frequencies_hz, lines.amplitudes)]
-        if train_residuals is not None:
-            train_residuals.extend(lines.train_residuals)
-        return lines.errors, fold_est
+                train_residuals.extend(lines_removed(screen, m, base_train[m], freqs[m]) for m in range(folds.n))
+            e = on_top(screen, folds, e_base, base_train, freqs)
+        else:
+            lines = joint_line(screen, folds, lambda m: base_rows, None if refit else fixed)
+            freqs, amps, e = lines.frequencies_hz, lines.amplitudes, lines.errors
+            if train_residuals is not None:
+                train_residuals.extend(lines.train_residuals)
+        return e, [{"interference_frequency": f, "amplitude": a} if refit else {"amplitude": a}
+                   for f, a in zip(freqs, amps)]
 
     def fold_checks(self, screen, fold_estimates: list[dict]) -> dict:
         return {"same_line": same_line(screen, fold_estimates)}
 
-    def on_validation(self, before: list, c: Candidate, policy: Policy) -> tuple[list, dict]:
+    def on_validation(self, before: list, c: Candidate, policy) -> tuple[list, dict]:
         """Its amplitude on the validation records checked against ``c``'s (``interference_amplitude_tolerance``)."""
-        f = c.estimates["frequency_hz"]
-        amplitude = c.estimates["amplitude"]
+        f, amplitude = c.estimates["frequency_hz"], c.estimates["amplitude"]
         after, amps = [], []
         for rr in before:
             t = rr.record.t - rr.record.t[0]
-            sine = phase_fitted(rr.residual, t, f, amplitude)
-            after.append(RecordResidual(rr.record, rr.prediction + sine))
+            after.append(RecordResidual(rr.record, rr.prediction + phase_fitted(rr.residual, t, f, amplitude)))
             if rr.record.role == "validation":
                 amps.append(amplitude_at(rr.residual, t, f))
         a_val = rms(amps) if amps else float("nan")

@@ -18,10 +18,8 @@ LIBRARY_TAUS = 10  # time constants of the library screen's low-pass terms
 
 
 def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 10) -> Candidate | None:
-    """The relaxation of one time constant fewer: ``c``'s time constants at a search bound (``pinned``)
-    dropped, the rest and the base's nonlinear parameters as ``c`` has them, then refined together. A time
-    constant at its bound is not identified, and the nested variant started from ``c``'s other ones can
-    find the fit its own greedy search missed. None if nothing is pinned or nothing would be left."""
+    """``c`` without its time constants at a search bound (``pinned``: not identified), refined from the rest (the
+    nested variant so started can find what its own greedy search missed); None if none or nothing is left."""
     taus = [n for n in c.model.nonlinear_names if n.startswith("tau")]
     drop = [n for n in pinned if n in taus]
     kept = sorted(float(c.params[n]) for n in taus if n not in drop)
@@ -39,8 +37,6 @@ def without_pinned(screen, c: Candidate, pinned: Sequence[str], max_nfev: int = 
 
 @register
 class Relaxation(Cause):
-    """First-order low-pass histories of the input, in variants of 1, 2, ... time constants."""
-
     name = "relaxation"
     units = {"tau_s": "s"}
     log_scale = ("tau",)
@@ -52,7 +48,6 @@ class Relaxation(Cause):
         return parameter.startswith("tau")
 
     def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """First-order low-pass histories of the input on a grid of time constants."""
         T = screen.drive_time
         taus = np.exp(np.linspace(math.log(TAU_BOUNDS[0] * T * 5), math.log(TAU_BOUNDS[1] * T / 5), LIBRARY_TAUS))
 
@@ -74,11 +69,11 @@ class Relaxation(Cause):
         for k in range(1, max_order + 1):
             model = screen.extension(("relaxation",), n_relaxation=k, relaxation_powers=[1])
             names = [f"tau{i}" for i in range(1, k + 1)]
-            z, _ = screen.grid(model, [dict(zip(names, taus + [g])) for g in grid])
-            if k > 1:
-                z = screen.refine(model, z, [(n, True) for n in names])
-            else:
+            if k == 1:
                 z = screen.line_search(model, "tau1", grid, log=True)
+            else:
+                z, _ = screen.grid(model, [dict(zip(names, taus + [g])) for g in grid])
+                z = screen.refine(model, z, [(n, True) for n in names])
             taus = [z[n] for n in names]
             label = f"relaxation, {k} time constant{'s' if k > 1 else ''}"
             out.append(screen.candidate("relaxation", label, model, z, {"n_relaxation": k, "relaxation_powers": [1]}))
@@ -111,12 +106,11 @@ class Relaxation(Cause):
         """A variant with two time constants closer than their fold spread (or a factor ``duplicate_tau_ratio``)
         gives way to the variant with one fewer, if that passes and does not predict worse by ``z_same``."""
         pol = held.folds.policy
-        while chosen.estimates["tau_s"] and len(chosen.estimates["tau_s"]) > 1:
-            taus = chosen.estimates["tau_s"]
-            se = {n: v.get("relative_se", 0.0) for n, v in chosen.uncertainty.items()}
-            ses = sorted(((chosen.params[n], s) for n, s in se.items()), key=lambda p: p[0])
+        floor = math.log(pol.duplicate_tau_ratio)
+        while len(taus := chosen.estimates["tau_s"]) > 1:
+            ses = sorted(((chosen.params[n], v.get("relative_se", 0.0)) for n, v in chosen.uncertainty.items()),
+                         key=lambda p: p[0])
             width = [s for _, s in ses] if len(ses) == len(taus) else [0.0] * len(taus)
-            floor = math.log(pol.duplicate_tau_ratio)
             close = any(math.log(taus[i + 1] / taus[i]) < max(floor, 2 * max(width[i], width[i + 1]))
                         for i in range(len(taus) - 1))
             fewer = [v for v in variants if len(v.estimates["tau_s"]) == len(taus) - 1 and passes(v, pol)

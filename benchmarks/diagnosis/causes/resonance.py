@@ -32,24 +32,21 @@ def lag_shared(z: dict) -> dict:
 
 @register
 class Resonance(Cause):
-    """A second-order mode; identified by its frequency (its damping is its shape)."""
-
     name = "resonance"
     units = {"natural_frequency_hz": "Hz", "damping_ratio": ""}
+    reported_as = {"natural_frequency": "natural_frequency_hz", "damping_ratio": "damping_ratio"}
     parameters = ("natural_frequency", "damping_ratio")
     log_scale = ("natural_frequency", "damping_ratio")
-    identifying = ("natural_frequency",)
+    identifying = ("natural_frequency",)  # its damping is its shape
     transforms = True
     reshapes = True
 
-    def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """The model's output's second derivative (a mode's inertia to first order)."""
+    def library_terms(self, screen, y_hat_rows: np.ndarray):  # a mode's inertia to first order
         return ["d2/dt2 y_model"], lambda r, y_hat, t: [np.gradient(np.gradient(y_hat, r.dt), r.dt)], [None]
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
-        """Searched to first order (the null's prediction through the mode) on a grid and refined; if that is
-        promising, it, a fast well-damped mode (and on short records the grid's two best points evaluated
-        exactly) are evaluated exactly and the best refined; otherwise the first-order optimum is evaluated."""
+        """Searched to first order (the null's prediction through the mode) on a grid and refined; if promising, the
+        best of it, a fast well-damped mode (and on short records the grid's two best points) refined exactly."""
         model = screen.extension(("resonance",))
         T = screen.drive_time
         dt = min(p.record.dt for p in screen.parts)
@@ -76,10 +73,6 @@ class Resonance(Cause):
         z = min(starts, key=lambda q: screen.evaluate(model, q)[0])
         z = screen.refine(model, z, [("natural_frequency", True), ("damping_ratio", True)], max_nfev=10)
         return [screen.candidate("resonance", "second-order mode", model, z)]
-
-    def estimates(self, params, model) -> dict:
-        return {"natural_frequency_hz": float(params["natural_frequency"]),
-                "damping_ratio": float(params["damping_ratio"])}
 
     def bounds(self, screen, parameter: str, lo: float, hi: float) -> tuple[float, float]:
         if parameter == "damping_ratio":  # a mode: underdamped

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import math
-from typing import Mapping
 
 import numpy as np
-
 from scipy.optimize import least_squares
 
-from ..candidates import NO_CUT, Candidate, bracketed_minimum, estimates_of
+from ..candidates import NO_CUT, Candidate, bracketed_minimum
 from ..cause import OUTPUT_UNIT, Cause, register
+
+SIDES = {"upper": "clipped from above", "lower": "clipped from below"}  # a clip's sides and their labels
 
 
 def clipped(y: np.ndarray, side: str, level: float) -> np.ndarray:
@@ -24,8 +24,8 @@ def unclipped(screen, y: np.ndarray, side: str, level: float) -> np.ndarray:
 
 
 def censored_fit(screen, A: np.ndarray, y: np.ndarray, side: str, level: float):
-    """(rss, theta, residual) of the censored fit at a clipping level: the linear parameters solved on the
-    samples not at the level, the prediction clipped there; (inf, None, None) if too few samples are free."""
+    """(rss, theta, residual): the linear parameters solved on the samples not at the level, the prediction
+    clipped there; (inf, None, None) if too few samples are free."""
     free = unclipped(screen, y, side, level)
     if free.sum() < A.shape[1] + 1:
         return math.inf, None, None
@@ -46,8 +46,8 @@ def slope_where_clipped(pred: np.ndarray, y: np.ndarray, side: str, level: float
 
 
 def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) -> bool:
-    """Whether these rows show a clip at the level: the censored fit's prediction passes it on enough samples
-    and the output there is flat against it (within ``max_clipped_slope``)."""
+    """Whether the censored fit's prediction passes the level on enough samples and the output there is flat
+    against it (within ``max_clipped_slope``)."""
     _, theta, _ = censored_fit(screen, A, y, side, level)
     if theta is None:
         return False
@@ -58,35 +58,28 @@ def shows_clip(screen, A: np.ndarray, y: np.ndarray, side: str, level: float) ->
 def fit_level(screen, A: np.ndarray, y: np.ndarray, side: str) -> float:
     """The clipping level of one side: a grid over the top 30 % of the output range, then Brent."""
     sign = 1.0 if side == "upper" else -1.0
-    ys = sign * y
-    top, bottom = float(np.max(ys)), float(np.min(ys))
+    top, bottom = float(np.max(sign * y)), float(np.min(sign * y))
     levels = sign * (top - np.linspace(0.0, 0.3, 31) * (top - bottom))
     return bracketed_minimum(lambda L: censored_fit(screen, A, y, side, L)[0], levels,
                              1e-3 * max(screen.noise_sd, 1e-9))[0]
 
 
-def _with_slope(screen, estimates: dict, A: np.ndarray, theta: np.ndarray, side: str, level: float) -> dict:
-    """``estimates`` with the slope where the level cuts (``slope_where_clipped``; none if it cuts no sample)."""
+def _estimates(screen, A: np.ndarray, theta: np.ndarray, side: str, level: float) -> dict:
+    """A clip's estimates with the slope where its level cuts (``slope_where_clipped``; none if it cuts nothing)."""
     slope = slope_where_clipped(A @ theta, screen.y, side, level, screen.policy.min_clipped_samples)
-    return {**estimates, "slope_where_clipped": slope} if math.isfinite(slope) else estimates
+    return {"level": float(level), "side": side, **({"slope_where_clipped": slope} if math.isfinite(slope) else {})}
 
 
-def _label(side: str) -> str:
-    return f"clipped from {'above' if side == 'upper' else 'below'}"
-
-
-def _saturation_candidate(screen, side: str, level: float, base_nl: Mapping[str, float], stage: str):
+def _of_base(screen, side: str, level: float, base_nl, stage: str) -> Candidate | None:
     A = np.concatenate(screen.base_columns(base_nl).rows)
     rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
     if theta is None:
         return None
     model = screen.extension(("saturation",), saturation_side=side)
     params = {**dict(base_nl), **dict(zip(screen.base_lin, map(float, theta))), "saturation_level": float(level)}
-    estimates = _with_slope(screen, estimates_of("saturation", params, model), A, theta, side, level)
-    c = Candidate("saturation", _label(side), model, params, model.n_params, rss, screen.n, estimates,
-                  n_effective=screen.n_effective, hyperparameters={"saturation_side": side})
-    c.stage = stage
-    return screen._finish(c)
+    return screen._finish(Candidate("saturation", SIDES[side], model, params, model.n_params, rss, screen.n,
+                                    _estimates(screen, A, theta, side, level), n_effective=screen.n_effective,
+                                    hyperparameters={"saturation_side": side}, stage=stage))
 
 
 def columns_of(screen, part: Candidate) -> np.ndarray:
@@ -96,18 +89,16 @@ def columns_of(screen, part: Candidate) -> np.ndarray:
 
 @register
 class Saturation(Cause):
-    """The output clipped at a level (censored regression), from above or below."""
-
     name = "saturation"
     units = {"level": OUTPUT_UNIT, "side": ""}
+    reported_as = {"saturation_level": "level"}
     parameters = ("saturation_level",)
     relative_to_range = ("saturation_level",)  # a level has no natural zero
     bounded = False  # its level is searched over the output's range, not between bounds
     separable = False
     carries_others = False  # nothing composes on top of a clip; a disturbance still adds
 
-    def library_terms(self, screen, y_hat_rows: np.ndarray):
-        """Hinge functions of the model's output at high and low levels."""
+    def library_terms(self, screen, y_hat_rows: np.ndarray):  # hinges of the model's output at its extremes
         q_hi, q_lo = np.quantile(y_hat_rows, [0.90, 0.97]), np.quantile(y_hat_rows, [0.03, 0.10])
         return ([f"max(y_model-{L:.3g},0)" for L in q_hi] + [f"max({L:.3g}-y_model,0)" for L in q_lo],
                 lambda r, y_hat, t: ([np.maximum(y_hat - L, 0.0) for L in q_hi]
@@ -116,23 +107,20 @@ class Saturation(Cause):
 
     def fit(self, screen, library: dict, max_order: int) -> list[Candidate]:
         """A censored fit of a clipping level on each side; the better side stands for the cause."""
-        out = None
         A = np.concatenate(screen.base_columns(screen.base_nl).rows)
-        for side in ("upper", "lower"):
-            c = _saturation_candidate(screen, side, fit_level(screen, A, screen.y, side), screen.base_nl, "fixed base")
-            if c is not None and (out is None or c.bic < out.bic):
-                out = c
-        return [] if out is None else [out]
+        fits = [_of_base(screen, side, fit_level(screen, A, screen.y, side), screen.base_nl, "fixed base")
+                for side in SIDES]
+        fits = [c for c in fits if c is not None]
+        return [min(fits, key=lambda c: c.bic)] if fits else []
 
     def joint(self, screen, c: Candidate, max_nfev: int) -> Candidate:
         """The base's nonlinear parameters free too, the level held."""
         if not screen.base_nl_names:
             return c
-        side = c.hyperparameters["saturation_side"]
+        side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
         names = list(screen.base_nl_names)
         lo = np.array([screen.bounds_of(screen.base, n)[0] for n in names])
         hi = np.array([screen.bounds_of(screen.base, n)[1] for n in names])
-        level = c.params["saturation_level"]
 
         def fun(x):
             A = np.concatenate(screen.base_columns(dict(zip(names, x))).rows)
@@ -141,55 +129,47 @@ class Saturation(Cause):
         x0 = np.clip([c.params[n] for n in names], lo, hi)
         res = least_squares(fun, x0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=hi - lo,
                             max_nfev=max_nfev)
-        out = _saturation_candidate(screen, side, level, dict(zip(names, res.x)), "joint")
+        out = _of_base(screen, side, level, dict(zip(names, res.x)), "joint")
         return out if out is not None and out.rss < c.rss else c
 
     def estimates(self, params, model) -> dict:
         return {"level": float(params["saturation_level"]), "side": getattr(model, "saturation_side", "upper")}
 
-    def from_fit(self, estimates: dict, params) -> dict:
-        return {**estimates, "level": float(params["saturation_level"])}
-
     def limit(self, screen, estimates) -> str:
         if "slope_where_clipped" not in estimates:  # the level cuts (almost) nothing
             return NO_CUT
-        if abs(estimates["slope_where_clipped"]) >= screen.policy.max_clipped_slope:
-            moves = "rises with" if estimates["slope_where_clipped"] > 0 else "moves against"
-            return (f"where it would clip, the output still {moves} the model (slope "
-                    f"{estimates['slope_where_clipped']:.2f}; a clip leaves it flat): not a clip")
+        if abs(slope := estimates["slope_where_clipped"]) >= screen.policy.max_clipped_slope:
+            return (f"where it would clip, the output still {'rises with' if slope > 0 else 'moves against'} the "
+                    f"model (slope {slope:.2f}; a clip leaves it flat): not a clip")
         return ""
 
     def on_top(self, screen, kept: Candidate, own: Candidate, search: bool) -> Candidate | None:
-        """A clip of a kept separable part's prediction (a secondary cause): its columns held at the kept fit's
-        nonlinear parameters, the level fitted on each side as for the base, the better side kept."""
+        """A clip of a kept part's prediction, its columns at the part's nonlinear parameters, the better side."""
         A = columns_of(screen, kept)
-        out = None
-        for side in ("upper", "lower"):
+        fits = []
+        for side, label in SIDES.items():
             level = fit_level(screen, A, screen.y, side)
             rss, theta, _ = censored_fit(screen, A, screen.y, side, level)
             if theta is None:
                 continue
             params = {**kept.params, **dict(zip(kept.model.linear_names, map(float, theta))), "saturation_level": level}
-            estimates = _with_slope(screen, {"level": float(level), "side": side}, A, theta, side, level)
-            c = Candidate("saturation", f"{kept.label} + {_label(side)}", kept.model, params, kept.k + 1, rss, screen.n,
+            estimates = _estimates(screen, A, theta, side, level)
+            c = Candidate("saturation", f"{kept.label} + {label}", kept.model, params, kept.k + 1, rss, screen.n,
                           estimates, n_effective=screen.n_effective,
                           hyperparameters={**kept.hyperparameters, "saturation_side": side}, clips=kept)
-            c.stage = "joint"
             c.delta_bic = c.bic - kept.bic
             c.explained = 1.0 - c.rss / kept.rss
             c.limit = screen.limit_of(c.cause, estimates)
-            if out is None or c.rss < out.rss:
-                out = c
-        return out
+            fits.append(c)
+        return min(fits, key=lambda c: c.rss) if fits else None
 
     def clip(self, c: Candidate, y: np.ndarray) -> np.ndarray:
-        """A clip's output from that of the part it clips."""
         return clipped(y, c.hyperparameters["saturation_side"], c.params["saturation_level"])
 
     def heldout_errors(self, screen, folds, c: Candidate, refit: bool, train_residuals: list | None):
-        """The linear parameters solved on the other records' free samples; with ``refit`` the level too. A fold
-        whose records show no clip at their level (``shows_clip``) predicts the left-out record unclipped: a
-        level placed just under their peaks would cut a record that goes higher."""
+        """The linear parameters solved on the other records' free samples, with ``refit`` the level too; a fold
+        whose records show no clip (``shows_clip``) predicts unclipped: a level just under their peaks would cut
+        a record that goes higher."""
         side, level = c.hyperparameters["saturation_side"], c.params["saturation_level"]
         A = columns_of(screen, c.clips) if c.clips is not None else np.concatenate(
             screen.base_columns({k: c.params[k] for k in screen.base_nl_names}).rows)
