@@ -39,9 +39,9 @@ def _label(rec) -> str:
 
 
 def figure_residual_time(diag, path: Path) -> None:
-    plt = pyplot()
     recs = diag.before
-    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False, layout="constrained")
+    fig, axes = pyplot().subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False,
+                                  layout="constrained")
     after = {rr.file: rr for rr in diag.after}
     for ax, rr in zip(axes[:, 0], recs):
         r = rr.record
@@ -63,10 +63,9 @@ def figure_residual_time(diag, path: Path) -> None:
 
 def _per_record(recs: list, path: Path, draw, xlabel: str) -> None:
     """One small panel per record, four to a row, each drawn by ``draw(ax, record_residual)``."""
-    plt = pyplot()
     cols = min(4, len(recs))
     rows = int(math.ceil(len(recs) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
+    fig, axes = pyplot().subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
     for ax, rr in zip(axes.flat, recs):
         draw(ax, rr)
         ax.set_title(_label(rr.record), fontsize=8)
@@ -104,8 +103,7 @@ def figure_residual_phase(diag, path: Path) -> None:
 
 
 def figure_spectrum(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
+    fig, axes = pyplot().subplots(1, 2, figsize=(11, 4), layout="constrained")
     ax = axes[0]
     for i, rr in enumerate(diag.before):
         f, a = periodogram(rr.residual, rr.record.dt)
@@ -136,8 +134,7 @@ def figure_spectrum(diag, path: Path) -> None:
 def figure_error_vs_frequency(diag, path: Path) -> None:
     if not any(rr.record.frequency_hz for rr in diag.before):  # no nominal drive frequency: nothing to plot
         return
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    fig, axes = pyplot().subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     series = (("before", diag.before, "0.3", "o"), ("base refit, whole records", diag.base_whole, "C0", "s"),
               ("after", diag.after, "C3", "^"))  # one without records draws nothing
     for ax, key, title in ((axes[0], "e_rms", "scored window"), (axes[1], "e_rms_whole", "whole record")):
@@ -156,8 +153,7 @@ def figure_error_vs_frequency(diag, path: Path) -> None:
 
 
 def figure_whiteness(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
+    fig, ax = pyplot().subplots(figsize=(7, 3.8), layout="constrained")
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
         rho = autocorrelation(rr.residual, LAGS)
@@ -173,9 +169,8 @@ def figure_whiteness(diag, path: Path) -> None:
 
 
 def figure_candidates(diag, path: Path) -> None:
-    plt = pyplot()
     cands = sorted(diag.candidates, key=lambda c: -c.heldout_gain)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), layout="constrained")
+    fig, axes = pyplot().subplots(1, 2, figsize=(10, 3.4), layout="constrained")
     names = [c.cause for c in cands]
     colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
     axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)

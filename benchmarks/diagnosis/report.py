@@ -54,12 +54,6 @@ def not_held_out_lines(d) -> list[str]:
                 "other fold's fit, and the held-out scores cover the rows predicted."]
 
 
-def _bound_cell(heldout: dict) -> str:
-    """The candidate table's bound column: parameters at a bound, and open-ended ones (``selection.open_ended``)."""
-    names = [*(heldout.get("at_bound") or []), *(f"{n} (open-ended)" for n in heldout.get("open_ended") or [])]
-    return ", ".join(names) or "-"
-
-
 def _also_on_validation(check: dict | None) -> str:
     """What a cause kept under "also" did on the validation records, on top of what was kept before it."""
     if not check:
@@ -193,9 +187,10 @@ def markdown(d, figures: dict[str, str], note: str = "") -> str:
                     key=lambda c: -c.heldout_gain):
         mark = " **(named)**" if c is d.chosen else (f" (not named: {c.limit})" if c.limit else "")
         h = c.heldout
+        bound = [*(h.get("at_bound") or []), *(f"{n} (open-ended)" for n in h.get("open_ended") or [])]
         lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {100 * c.heldout_gain:.3f} % | "
                      f"{_fmt(h.get('z'), 3)} | {h.get('folds_improved')}/{h.get('n_folds')} | "
-                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {_bound_cell(h)} | {_estimates(c)} |")
+                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {', '.join(bound) or '-'} | {_estimates(c)} |")
     if d.secondary_tried:
         lines += ["", "Secondary causes tried on top of the named one (held-out against the named one alone):", "",
                   "| cause | held-out gain | z | also? |", "|---|---|---|---|",
@@ -236,20 +231,19 @@ def markdown(d, figures: dict[str, str], note: str = "") -> str:
     return "\n".join(lines)
 
 
-def write_report(diag, out: str | Path, json_path: str | Path | None = None, note: str = "",
-                 prefix: str = "diagnosis") -> dict:
-    """Write ``prefix``.md, ``prefix``_*.png and the JSON (``json_path`` or ``prefix``.json in ``out``)."""
+def write_report(diag, out: str | Path, json_path: str | Path | None = None, note: str = "") -> dict:
+    """Write diagnosis.md and diagnosis_*.png in ``out``, the JSON to ``json_path`` (default: out/diagnosis.json)."""
     out = ensure_dir(out)
     figures = {}
     for key, (fn, _) in FIGURES.items():
-        file = f"{prefix}_{key}.png"
+        file = f"diagnosis_{key}.png"
         (out / file).unlink(missing_ok=True)  # a figure this diagnosis does not draw is not an earlier run's
         fn(diag, out / file)
         if (out / file).exists():
             figures[key] = file
     data = diag.to_json()
-    json_path = Path(json_path) if json_path else out / f"{prefix}.json"
+    json_path = Path(json_path) if json_path else out / "diagnosis.json"
     ensure_dir(json_path.parent)
     write_json(json_path, data)
-    write_atomic(out / f"{prefix}.md", markdown(diag, figures, note) + "\n")
+    write_atomic(out / "diagnosis.md", markdown(diag, figures, note) + "\n")
     return data
