@@ -156,8 +156,7 @@ def figure_whiteness(diag, path: Path) -> None:
     fig, ax = pyplot().subplots(figsize=(7, 3.8), layout="constrained")
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
-        rho = autocorrelation(rr.residual, LAGS)
-        ax.plot(lags, rho, "o-", ms=2, lw=0.7, color=f"C{i % 10}",
+        ax.plot(lags, autocorrelation(rr.residual, LAGS), "o-", ms=2, lw=0.7, color=f"C{i % 10}",
                 label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
     n = min(rr.record.t.size for rr in diag.before)
     ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")

@@ -32,40 +32,42 @@ def _plain(obj):
 
 @dataclass
 class Diagnosis:
-    dataset: Dataset
-    model: str
-    seed: int
-    base_fit: Fit
-    before: list[RecordResidual]
-    summaries: list[ResidualSummary]
-    noise_sd: float
-    screen: Screen
-    library: dict
-    candidates: list[Candidate]
-    relaxation_variants: list[Candidate]
-    verdict: Verdict
-    structure: dict
-    secondary_tried: list[Candidate] = field(default_factory=list)
+    dataset: Dataset  # the records diagnosed (own samples; cut into segments if asked)
+    model: str  # the base model's registry name
+    seed: int  # the seed of the fits and of the screen's row subset
+    base_fit: Fit  # the base model identified with varpro on the identification records' scored windows
+    before: list[RecordResidual]  # the base fit's residual over every record, whole
+    summaries: list[ResidualSummary]  # per record: noise sd, rms, whiteness of ``before``
+    noise_sd: float  # measurement noise sd: the median over the identification records (first differences)
+    screen: Screen  # the candidate fits on a row subset of the identification records (and the ``policy``)
+    library: dict  # the pysindy library screen of the base residual (``library_screen``)
+    candidates: list[Candidate]  # each cause's best candidate (relaxation: its best variant), scored held out
+    relaxation_variants: list[Candidate]  # relaxation with each number of time constants tried
+    verdict: Verdict  # the cause named, why, and the trace of the rules that decided it
+    structure: dict  # whether the residual repeats from period to period (``residuals.periodic_structure``)
+    secondary_tried: list[Candidate] = field(default_factory=list)  # causes tried on top of the named one
     also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
-    experiments: list[dict] = field(default_factory=list)
-    extended_fit: Fit | None = None
-    after: list[RecordResidual] = field(default_factory=list)
-    base_whole_fit: Fit | None = None
-    base_whole: list[RecordResidual] = field(default_factory=list)
-    interference_check: dict = field(default_factory=dict)
+    experiments: list[dict] = field(default_factory=list)  # suggested experiments (``experiment.suggest``)
+    extended_fit: Fit | None = None  # the named extension identified on the identification records' whole length
+    after: list[RecordResidual] = field(default_factory=list)  # the extended model's residual over every record
+    base_whole_fit: Fit | None = None  # the base refitted on the identification records' whole length
+    base_whole: list[RecordResidual] = field(default_factory=list)  # that refit's residual over every record
+    interference_check: dict = field(default_factory=dict)  # a named interference's amplitude on validation
     unexplained_check: dict | None = None  # an unexplained verdict's evidence on the validation records
     also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
-    timings: dict = field(default_factory=dict)
-    settings: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)  # wall time per step (s)
+    settings: dict = field(default_factory=dict)  # the run's settings and the records held out in part
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
     def chosen(self) -> Candidate | None:
+        """The named cause's candidate (None for none or unexplained)."""
         return self.verdict.chosen
 
     @property
     def cause(self) -> str:
+        """The cause named: a cause of the vocabulary, "none" or "unexplained"."""
         return self.verdict.cause
 
     @property
@@ -96,6 +98,7 @@ class Diagnosis:
 
     @property
     def extended_model(self) -> str | None:
+        """The registry name of the base model extended by the named cause."""
         if self.extended_fit:
             return self.extended_fit.model
         return self.chosen.model.name if self.chosen is not None else None
@@ -112,6 +115,7 @@ class Diagnosis:
 
     @property
     def uncertainty(self) -> dict:
+        """The named cause's parameters' jackknife uncertainty over the held-out folds."""
         return self.chosen.uncertainty if self.chosen is not None else {}
 
     @property
@@ -145,6 +149,7 @@ class Diagnosis:
 
     @property
     def warning(self) -> str:
+        """Why the named cause is not confirmed on the validation records ("" if it is or was not checked)."""
         if self.confirmed is not False:
             return ""
         v = self.gain()["validation"]
