@@ -34,7 +34,7 @@ from hysbench.benchmarks.cli import main as hysbench_main
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.diagnose import build_screen
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import judge, parameter_errors
-from hysbench.benchmarks.diagnosis.experiment import predict, probe_sine, separation, suggest
+from hysbench.benchmarks.diagnosis.experiment import predict, probe_sine, suggest
 from hysbench.benchmarks.diagnosis_accuracy.planted import (
     fractional_delay,
     low_pass_convolution,
@@ -620,8 +620,6 @@ def test_a_clip_on_top_is_clipped_in_the_suggested_experiments_probes():
                      2, 1.0, 10, hyperparameters={"saturation_side": "upper"}, clips=part)
     got = predict(screen, clip, u, DT)
     np.testing.assert_array_equal(got, np.where(y > level, level, y))
-    assert separation(screen, part, clip, u, DT, 0) == pytest.approx(np.sqrt(np.mean((y - got) ** 2)))
-    assert separation(screen, part, clip, u, DT, 0) > 0
 
 
 def test_a_secondary_cause_kept_for_fewer_parameters_lists_the_ones_as_good_with_their_fits():

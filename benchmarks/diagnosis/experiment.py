@@ -1,10 +1,6 @@
-"""A suggested experiment: the drive on which two fitted extensions' predictions differ most.
-
-Both fits are simulated on probe drives (eq. 1's sine over the records' input range at log-spaced
-frequencies, a multisine, and for a cause shown at rest the input held there), each from rest; the rms of
-their difference after settling is the separation. Probes on which a fit leaves the recorded output range
-by more than its width are no guide (the records did not pin the fits down there). An interference is told
-apart by a record with the drive held constant.
+"""A suggested experiment: the probe drive (eq. 1's sine at log-spaced frequencies, a multisine, the input held
+at rest) from rest on which two fitted extensions' predictions differ most (rms after settling), skipping probes
+on which a fit leaves the recorded output range; an interference is told apart with the drive held constant.
 """
 
 from __future__ import annotations
@@ -33,12 +29,9 @@ def _whole_periods(record) -> np.ndarray:
 
 
 def one_drive(records) -> dict | None:
-    """The drive every record shares -- one frequency, and over the whole periods of the scored windows the
-    same input quantiles (level, amplitude and waveform) within ``SAME_DRIVE`` of the input range -- or None (a
-    record without a drive frequency, or any two records that differ)."""
-    if not records or any(r.frequency_hz is None for r in records):
-        return None
-    if len({float(r.frequency_hz) for r in records}) > 1:
+    """The drive every record shares (one frequency, and over the whole periods of the scored windows the same
+    input quantiles within ``SAME_DRIVE`` of the input range), or None."""
+    if not records or any(r.frequency_hz is None for r in records) or len({float(r.frequency_hz) for r in records}) > 1:
         return None
     q = np.array([np.quantile(_whole_periods(r), _DRIVE_QUANTILES) for r in records])
     width = float(q[:, -1].max() - q[:, 0].min())
@@ -62,20 +55,10 @@ def predict(screen, c: Candidate, u: np.ndarray, dt: float) -> np.ndarray:
     return y if getattr(c, "clips", None) is None else c.kind.clip(c, y)
 
 
-def separation(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int) -> float:
-    """The root mean square of the two fits' difference after ``settle`` samples (nan if not finite)."""
-    return _probe(screen, a, b, u, dt, settle, recorded_range(screen))["separation"]
-
-
 def probe_sine(t: np.ndarray, frequency_hz: float, low: float, high: float) -> np.ndarray:
     """Eq. 1's sine (from its lowest point) over the input range [low, high]: eq. 1 itself on 0.5-2.5 kV."""
     unit = (paper_voltage(t, frequency_hz) - (OFFSET_KV - AMPLITUDE_KV)) / (2 * AMPLITUDE_KV)
     return low + (high - low) * unit
-
-
-def recorded_range(screen) -> tuple[float, float]:
-    """The output's range over the identification records."""
-    return (min(float(np.min(p.record.y)) for p in screen.parts), max(float(np.max(p.record.y)) for p in screen.parts))
 
 
 def _probe(screen, a: Candidate, b: Candidate, u: np.ndarray, dt: float, settle: int,
@@ -99,7 +82,8 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
                 "noise_sd": screen.noise_sd,
                 "note": "an interference is not driven by the input: record with the drive held constant"}
     lo, hi = screen.input_range
-    recorded = recorded_range(screen)
+    recorded = (min(float(np.min(p.record.y)) for p in screen.parts),
+                max(float(np.max(p.record.y)) for p in screen.parts))  # the identification records' output range
     probes, freqs = [], _probe_frequencies(screen)
     for f in freqs:
         dt = 1.0 / (f * SAMPLES_PER_PERIOD)
@@ -118,7 +102,7 @@ def suggest(screen, a: Candidate, b: Candidate) -> dict:
     finite = [p for p in probes if math.isfinite(p["separation"]) and not p["outside_recorded"]]
     if finite:
         return {**max(finite, key=lambda p: p["separation"]), "noise_sd": screen.noise_sd, "probes": probes}
-    lo_y, hi_y = recorded
     return {"drive": None, "frequency_hz": None, "separation": None, "noise_sd": screen.noise_sd, "probes": probes,
-            "note": (f"on every probe a fit leaves the recorded output range ({lo_y:.3g} to {hi_y:.3g}) by more than "
-                     "its width: these records do not pin the fits down there, so no drive can be suggested from them")}
+            "note": f"on every probe a fit leaves the recorded output range ({recorded[0]:.3g} to {recorded[1]:.3g}) "
+                    "by more than its width: these records do not pin the fits down there, so no drive can be "
+                    "suggested from them"}

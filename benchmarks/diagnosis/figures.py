@@ -1,7 +1,5 @@
-"""The figures of a diagnosis report (``FIGURES``: key -> (drawing function, caption)), each a PNG file.
-
-Large records are thinned for plotting, keeping each bin's extremes (``extremes_kept``).
-"""
+"""The figures of a diagnosis report (``FIGURES``: key -> (drawing function, caption)), each a PNG file; large
+records are thinned for plotting, keeping each bin's extremes (``extremes_kept``)."""
 
 from __future__ import annotations
 
@@ -13,7 +11,6 @@ import numpy as np
 from hysbench.benchmarks.plots import pyplot, save_figure
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
-
 
 MAX_PLOT_POINTS = 4_000  # per record and curve: a figure is about 1,000 pixels wide
 
@@ -41,13 +38,10 @@ def _label(rec) -> str:
     return f"{rec.label} ({'id' if rec.role == 'identification' else 'val'})"
 
 
-# --- figures --------------------------------------------------------------------
-
-
 def figure_residual_time(diag, path: Path) -> None:
-    plt = pyplot()
     recs = diag.before
-    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False, layout="constrained")
+    fig, axes = pyplot().subplots(len(recs), 1, figsize=(9, 1.6 * len(recs) + 0.6), squeeze=False,
+                                  layout="constrained")
     after = {rr.file: rr for rr in diag.after}
     for ax, rr in zip(axes[:, 0], recs):
         r = rr.record
@@ -69,10 +63,9 @@ def figure_residual_time(diag, path: Path) -> None:
 
 def _per_record(recs: list, path: Path, draw, xlabel: str) -> None:
     """One small panel per record, four to a row, each drawn by ``draw(ax, record_residual)``."""
-    plt = pyplot()
     cols = min(4, len(recs))
     rows = int(math.ceil(len(recs) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
+    fig, axes = pyplot().subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
     for ax, rr in zip(axes.flat, recs):
         draw(ax, rr)
         ax.set_title(_label(rr.record), fontsize=8)
@@ -92,7 +85,6 @@ def figure_residual_input(diag, path: Path) -> None:
         ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
         w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
-
     _per_record(diag.before, path, draw, f"input ({diag.dataset.input_unit or 'input units'})")
 
 
@@ -105,15 +97,13 @@ def figure_residual_phase(diag, path: Path) -> None:
         w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         order = np.argsort(ph[w])
         ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
-
     recs = [rr for rr in diag.before if rr.record.frequency_hz]
     if recs:
         _per_record(recs, path, draw, "phase within the drive period (0: input minimum)")
 
 
 def figure_spectrum(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")
+    fig, axes = pyplot().subplots(1, 2, figsize=(11, 4), layout="constrained")
     ax = axes[0]
     for i, rr in enumerate(diag.before):
         f, a = periodogram(rr.residual, rr.record.dt)
@@ -121,8 +111,7 @@ def figure_spectrum(diag, path: Path) -> None:
         keep = extremes_kept(np.log(f), a, low=False)
         ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
     ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("residual amplitude")
+    ax.set(xlabel="frequency (Hz)", ylabel="residual amplitude")
     ax.set_title("residual spectrum per record (base model)", fontsize=9)
     ax.legend(fontsize=6)
     ax = axes[1]
@@ -136,8 +125,7 @@ def figure_spectrum(diag, path: Path) -> None:
     if marker is not None:
         ax.axvline(marker, color="C3", lw=0.8, ls="--", label=f"named {diag.cause}")
         ax.legend(fontsize=7)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("pooled coherent amplitude")
+    ax.set(xlabel="frequency (Hz)", ylabel="pooled coherent amplitude")
     ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
                  fontsize=9)
     save_figure(fig, path)
@@ -146,54 +134,42 @@ def figure_spectrum(diag, path: Path) -> None:
 def figure_error_vs_frequency(diag, path: Path) -> None:
     if not any(rr.record.frequency_hz for rr in diag.before):  # no nominal drive frequency: nothing to plot
         return
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
-    series = [("before", diag.before, "0.3", "o")]
-    if diag.base_whole:
-        series.append(("base refit, whole records", diag.base_whole, "C0", "s"))
-    if diag.after:
-        series.append(("after", diag.after, "C3", "^"))
+    fig, axes = pyplot().subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    series = (("before", diag.before, "0.3", "o"), ("base refit, whole records", diag.base_whole, "C0", "s"),
+              ("after", diag.after, "C3", "^"))  # one without records draws nothing
     for ax, key, title in ((axes[0], "e_rms", "scored window"), (axes[1], "e_rms_whole", "whole record")):
         for name, recs, color, marker in series:
             pts = sorted((rr.record.frequency_hz, rr.scores()[key], rr.record.role) for rr in recs
                          if rr.record.frequency_hz)
             if not pts:
                 continue
-            f = [p[0] for p in pts]
-            ax.plot(f, [p[1] for p in pts], "-", color=color, lw=0.8, label=name)
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=0.8, label=name)
             for fr, v, role in pts:
                 ax.plot(fr, v, marker, color=color, mfc=color if role == "identification" else "white", ms=5)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("drive frequency (Hz)")
-        ax.set_ylabel("e_rms (% of measured peak-to-peak)")
+        ax.set(xscale="log", yscale="log", xlabel="drive frequency (Hz)", ylabel="e_rms (% of measured peak-to-peak)")
         ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
     axes[0].legend(fontsize=7)
     save_figure(fig, path)
 
 
 def figure_whiteness(diag, path: Path) -> None:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
+    fig, ax = pyplot().subplots(figsize=(7, 3.8), layout="constrained")
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
-        rho = autocorrelation(rr.residual, LAGS)
-        ax.plot(lags, rho, "o-", ms=2, lw=0.7, color=f"C{i % 10}",
+        ax.plot(lags, autocorrelation(rr.residual, LAGS), "o-", ms=2, lw=0.7, color=f"C{i % 10}",
                 label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
     n = min(rr.record.t.size for rr in diag.before)
     ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")
     ax.axhline(0, color="k", lw=0.4)
-    ax.set_xlabel("lag (samples)")
-    ax.set_ylabel("autocorrelation of the residual")
+    ax.set(xlabel="lag (samples)", ylabel="autocorrelation of the residual")
     ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
     ax.legend(fontsize=6)
     save_figure(fig, path)
 
 
 def figure_candidates(diag, path: Path) -> None:
-    plt = pyplot()
     cands = sorted(diag.candidates, key=lambda c: -c.heldout_gain)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), layout="constrained")
+    fig, axes = pyplot().subplots(1, 2, figsize=(10, 3.4), layout="constrained")
     names = [c.cause for c in cands]
     colors = ["C3" if diag.chosen is not None and c is diag.chosen else "0.5" for c in cands]
     axes[0].barh(names, [100 * max(c.heldout_gain, -1.0) for c in cands], color=colors)

@@ -29,8 +29,7 @@ def _estimates(c) -> str:
 
 
 def base_bound_caution(fit) -> str:
-    """What a base fit pinned at its search bounds (``Fit.diagnostics["at_bounds"]``) means for the
-    verdict ("" if none is)."""
+    """What a base fit pinned at its search bounds (``Fit.diagnostics["at_bounds"]``) means ("" if none is)."""
     pinned = fit.diagnostics.get("at_bounds") or []
     if not pinned:
         return ""
@@ -41,28 +40,18 @@ def base_bound_caution(fit) -> str:
 
 def not_held_out_lines(d) -> list[str]:
     """The records the held-out test predicts only in part (``screen.held_out_windows``), with why."""
-    skipped = d.settings.get("not_held_out") or []
-    if not skipped:
-        return []
-
-    def until(s) -> str:
-        t = s.get("held_out_until_s")
-        share = s.get("predicted_share")
+    names = []
+    for s in d.settings.get("not_held_out") or []:
+        t, share = s.get("held_out_until_s"), s.get("predicted_share")
         of = f", {100 * share:.0f} % of it" if share is not None else ""
-        return "not predicted" if t is None else f"predicted up to t = {t:.4g} s{of}"
-
-    names = ", ".join(f"{s['record']} ({until(s)}; beyond by {100 * s['beyond_others_range']:.0f} % of the input "
-                      "span)" for s in skipped)
-    return ["", f"Held out in part: {names}. A record that goes beyond the other identification records' input "
-                f"range by more than {100 * d.policy.beyond_range:.0f} % of the span is predicted only up to where it first "
-                "does (a fit on the others would extrapolate beyond); it takes part whole in every other fold's fit, "
-                "and the held-out scores cover the rows predicted."]
-
-
-def _bound_cell(heldout: dict) -> str:
-    """The candidate table's bound column: parameters at a bound, and open-ended ones (``selection.open_ended``)."""
-    names = [*(heldout.get("at_bound") or []), *(f"{n} (open-ended)" for n in heldout.get("open_ended") or [])]
-    return ", ".join(names) or "-"
+        until = "not predicted" if t is None else f"predicted up to t = {t:.4g} s{of}"
+        names.append(f"{s['record']} ({until}; beyond by {100 * s['beyond_others_range']:.0f} % of the input span)")
+    if not names:
+        return []
+    return ["", f"Held out in part: {', '.join(names)}. A record that goes beyond the other identification records' "
+                f"input range by more than {100 * d.policy.beyond_range:.0f} % of the span is predicted only up to "
+                "where it first does (a fit on the others would extrapolate beyond); it takes part whole in every "
+                "other fold's fit, and the held-out scores cover the rows predicted."]
 
 
 def _also_on_validation(check: dict | None) -> str:
@@ -76,8 +65,8 @@ def _also_on_validation(check: dict | None) -> str:
 
 
 def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[str]:
-    """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its
-    parameters and uncertainty, ambiguity and suggested experiments, the validation gain."""
+    """The verdict as plain lines (the report bullets them, the CLI prints them): the cause, its parameters and
+    uncertainty, ambiguity and suggested experiments, the validation gain."""
     unit = d.dataset.output_unit or "output units"
     lines = [f"cause: {strong(d.cause)} ({d.verdict.reason})"]
     if d.chosen is not None:  # the named parameters (per-record phases and diagnostics are in the JSON)
@@ -96,12 +85,10 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
         how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
                if d.extended_fit else "phase fitted per record")
         lines.append(f"extended model: {code(d.extended_model)} ({how})")
-    if d.verdict.partial is not None:
-        p = d.verdict.partial
+    if (p := d.verdict.partial) is not None:
         lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
                      f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
-    u = d.unexplained_check
-    if u:
+    if u := d.unexplained_check:
         lines.append(f"the best partial candidate on the validation records (records {', '.join(u['records'])}, "
                      f"fitted on the identification records' whole length): {100 * u['explained_whole']:.2f} % of "
                      f"their residual removed, z = {u['z_whole']:.2f} "
@@ -113,20 +100,17 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     for e in d.experiments:
         pair = " vs ".join(e["causes"]) + (f", on top of {e['on_top_of']}" if e.get("on_top_of") else "")
         if e.get("frequency_hz"):
-            lines.append(f"suggested experiment ({pair}): drive with a {e['drive']} at "
-                         f"{_fmt(e['frequency_hz'], 3)} Hz, where the two fits differ most ({_fmt(e['separation'], 3)} "
-                         f"{unit} rms, noise sd {_fmt(e['noise_sd'], 3)})")
+            lines.append(f"suggested experiment ({pair}): drive with a {e['drive']} at {_fmt(e['frequency_hz'], 3)} "
+                         f"Hz, where the two fits differ most ({_fmt(e['separation'], 3)} {unit} rms, noise sd "
+                         f"{_fmt(e['noise_sd'], 3)})")
         else:
             lines.append(f"suggested experiment ({pair}): {e['drive'] or 'none'}"
                          + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else "")
                          + (f": {e['note']}" if e.get("note") else ""))
-    for n in d.verdict.not_identified:
-        lines.append(f"not identified: {n}")
+    lines += [f"not identified: {n}" for n in d.verdict.not_identified]
     also = []
-    checks = d.also_check or [None] * len(d.also)  # one per cause under also once checked
-    for c, check in zip(d.also, checks):
-        text, why = c.cause, not_identified(c)
-        fits = d.as_good_as(c)
+    for c, check in zip(d.also, d.also_check or [None] * len(d.also)):  # one check per cause under also once checked
+        text, why, fits = c.cause, not_identified(c), d.as_good_as(c)
         if fits:
             text += f" (or, as good on these records: {'; '.join(f'{a.cause}: {_estimates(a)}' for a in fits)})"
         also.append(text + (f" (not identified: {why})" if why else "") + _also_on_validation(check))
@@ -140,16 +124,14 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                      "same whole records): " + strong(f"{100 * v['explained_whole']:.2f} %") + " of its residual sum "
                      f"of squares removed over whole records (z = {v['z_whole']:.2f} against the records' own noise, "
                      f"correlated noise counted; confirmed from {d.policy.z_confirm:.3g}), "
-                     f"{100 * v['explained_window']:.2f} % on the scored "
-                     f"windows; mean e_rms on the windows {v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
+                     f"{100 * v['explained_window']:.2f} % on the scored windows; mean e_rms on the windows "
+                     f"{v['mean_e_rms_before']:.3g} % -> {v['mean_e_rms_after']:.3g} %.")
         vw = g["validation_vs_base_fitted_on_windows"]
-        lines.append(f"against the base model fitted on the windows (the benchmark's): {100 * vw['explained_whole']:.2f} % "
-                     f"whole, {100 * vw['explained_window']:.2f} % on the windows.")
+        lines.append("against the base model fitted on the windows (the benchmark's): "
+                     f"{100 * vw['explained_whole']:.2f} % whole, {100 * vw['explained_window']:.2f} % on the windows.")
     if d.warning:
         lines.append(strong("warning:") + f" {d.warning}.")
-    for caution in (base_bound_caution(d.base_fit), d.one_drive_caution):
-        if caution:
-            lines.append(strong("caution:") + f" {caution}")
+    lines += [strong("caution:") + f" {c}" for c in (base_bound_caution(d.base_fit), d.one_drive_caution) if c]
     return lines
 
 
@@ -172,27 +154,24 @@ def trace_lines(d) -> list[str]:
             for i, t in enumerate(d.trace, start=1)]
 
 
-def markdown(diag, figures: dict[str, str], note: str = "") -> str:
-    d = diag
-    lines = [f"# Diagnosis: {d.model} on {d.dataset.name}", ""]
-    if note:
-        lines += [note, ""]
-    lines += [
+def markdown(d, figures: dict[str, str], note: str = "") -> str:
+    """diagnosis.md; ``figures``: the file of each figure drawn, by its key in ``FIGURES``."""
+    lines = [
+        f"# Diagnosis: {d.model} on {d.dataset.name}", "", *([note, ""] if note else []),
         f"`hysbench diagnose` (seed {d.seed}): the base model identified with varpro on the identification "
         "records' scored windows, simulated over every record whole; candidate causes fitted on the identification "
         "records' whole length and chosen by leave-one-record-out prediction against the base model refitted the "
         "same way; the named extension identified with the identifiers and scored on validation records that took "
         "part in no fit and no choice.", ""]
-    if d.settings.get("segments"):
-        k = d.settings["segments"]
-        lines += [f"Each identification record was cut into {k} consecutive records of whole periods, each from an input "
-                  f"minimum (`--segments {k}`): "
-                  "the held-out folds are neighbouring stretches of one drive, so the evidence says what holds over "
-                  "that drive, not what holds at other drives.", ""]
+    if k := d.settings.get("segments"):
+        lines += [f"Each identification record was cut into {k} consecutive records of whole periods, each from an "
+                  f"input minimum (`--segments {k}`): the held-out folds are neighbouring stretches of one drive, so "
+                  "the evidence says what holds over that drive, not what holds at other drives.", ""]
     if d.settings.get("thorough"):
-        lines += ["Every cause was tried afresh on top of the named one (`--thorough`), also on these long records.", ""]
+        lines += ["Every cause was tried afresh on top of the named one (`--thorough`), also on these long records.",
+                  ""]
     lines += ["## Verdict", ""]
-    lines += [f"* {line}" for line in verdict_lines(d, strong=lambda text: f"**{text}**", code=lambda text: f"`{text}`")]
+    lines += [f"* {line}" for line in verdict_lines(d, strong=lambda t: f"**{t}**", code=lambda t: f"`{t}`")]
     lines += ["", "## Why: the rules that decided, in order", "",
               "Each rule that decided or changed the verdict (by its id; the rules are stated at the end of this "
               "report), with what it decided and on what.", "", *trace_lines(d)]
@@ -202,38 +181,36 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
               f"{d.settings['drive_time_s']:.3g} s; creep must be slower than {d.settings['creep_min_s']:.3g} s. "
               f"P{d.policy.summary()[1:]}; every field is in the JSON (`policy`); the rule with its values is at the "
               "end of this report.", *not_held_out_lines(d), "",
-              "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound | estimates |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "| cause | candidate | stage | k | held-out gain | z | folds improved | refit per fold | at bound "
+              "| estimates |", "|---|---|---|---|---|---|---|---|---|---|"]
     for c in sorted(d.candidates + [v for v in d.relaxation_variants if v not in d.candidates],
                     key=lambda c: -c.heldout_gain):
         mark = " **(named)**" if c is d.chosen else (f" (not named: {c.limit})" if c.limit else "")
         h = c.heldout
+        bound = [*(h.get("at_bound") or []), *(f"{n} (open-ended)" for n in h.get("open_ended") or [])]
         lines.append(f"| {c.cause}{mark} | {c.label} | {c.stage} | {c.k} | {100 * c.heldout_gain:.3f} % | "
                      f"{_fmt(h.get('z'), 3)} | {h.get('folds_improved')}/{h.get('n_folds')} | "
-                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {_bound_cell(h)} | "
-                     + ", ".join(f"{k} = {_fmt(v)}" for k, v in c.estimates.items()) + " |")
+                     f"{'yes' if h.get('refit_per_fold') else 'no'} | {', '.join(bound) or '-'} | {_estimates(c)} |")
     if d.secondary_tried:
         lines += ["", "Secondary causes tried on top of the named one (held-out against the named one alone):", "",
-                  "| cause | held-out gain | z | also? |", "|---|---|---|---|"]
-        for t in d.secondary_tried:
-            lines.append(f"| {t.cause} | {100 * t.heldout_gain:.3f} % | {_fmt(t.heldout.get('z'), 3)} | "
-                         f"{'yes' if any(t is a for a in d.also) else 'no'} |")
+                  "| cause | held-out gain | z | also? |", "|---|---|---|---|",
+                  *(f"| {t.cause} | {100 * t.heldout_gain:.3f} % | {_fmt(t.heldout.get('z'), 3)} | "
+                    f"{'yes' if any(t is a for a in d.also) else 'no'} |" for t in d.secondary_tried)]
     lib = d.library
     lines += ["", "## Evidence: library screen (pysindy)", "",
               f"{lib['method']}: the base-alone residual regressed on {lib['n_library']} candidate terms (each made "
               f"orthogonal to the base model's regressors). {lib['n_terms']} term(s) kept, explaining "
               f"{100 * lib['explained_total']:.2f} % of the residual sum of squares.", ""]
     if lib["terms"]:
-        lines += ["| order | term | group | share explained |", "|---|---|---|---|"]
-        for t in lib["terms"]:
-            lines.append(f"| {t['order']} | `{t['name']}` | {t['group']} | {100 * t['explained']:.3f} % |")
+        lines += ["| order | term | group | share explained |", "|---|---|---|---|",
+                  *(f"| {t['order']} | `{t['name']}` | {t['group']} | {100 * t['explained']:.3f} % |"
+                    for t in lib["terms"])]
         lines += ["", "Share by cause: " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in lib["groups"].items()), ""]
-    lines += ["## Residuals of the base model", "",
-              f"| record | role | f (Hz) | noise sd | rms whole | rms window | lag-1 autocorr. | Ljung-Box p ({LAGS} lags) |",
-              "|---|---|---|---|---|---|---|---|"]
-    for s in d.summaries:
-        lines.append(f"| {s.file} | {s.role} | {_fmt(s.frequency_hz)} | {_fmt(s.noise_sd, 3)} | {_fmt(s.rms, 3)} | "
-                     f"{_fmt(s.rms_window, 3)} | {s.lag1_autocorrelation:.3f} | {_fmt(s.ljung_box_p, 3)} |")
+    lines += ["## Residuals of the base model", "", "| record | role | f (Hz) | noise sd | rms whole | rms window | "
+              f"lag-1 autocorr. | Ljung-Box p ({LAGS} lags) |", "|---|---|---|---|---|---|---|---|",
+              *(f"| {s.file} | {s.role} | {_fmt(s.frequency_hz)} | {_fmt(s.noise_sd, 3)} | {_fmt(s.rms, 3)} | "
+                f"{_fmt(s.rms_window, 3)} | {s.lag1_autocorrelation:.3f} | {_fmt(s.ljung_box_p, 3)} |"
+                for s in d.summaries)]
     lines += ["", "## e_m / e_rms per record (% of the measured peak-to-peak)", "",
               "Window: the record's scored window (the benchmark's metric); whole: every sample.", ""]
     three, two = ("e_m", "e_rms", "e_rms_whole"), ("e_rms", "e_rms_whole")
@@ -241,36 +218,32 @@ def markdown(diag, figures: dict[str, str], note: str = "") -> str:
             for name, recs, keys in (("before", d.before, three), ("base refit", d.base_whole, two),
                                      ("after", d.after, three)) if recs for k in keys]
     lines += ["| record | role | " + " | ".join(c for c, _, _ in cols) + " |", "|---|---|" + "---|" * len(cols)]
-    for rr in d.before:
-        lines.append(f"| {rr.file} | {rr.record.role} | " + " | ".join(f"{by[rr.file][k]:.3f}" for _, by, k in cols)
-                     + " |")
+    lines += [f"| {rr.file} | {rr.record.role} | " + " | ".join(f"{by[rr.file][k]:.3f}" for _, by, k in cols) + " |"
+              for rr in d.before]
     lines += ["", "## Figures", ""]
     for key, file in figures.items():
         lines += [f"### {FIGURES[key][1]}", "", f"![{key}]({file})", ""]
     lines += ["## The decision rule", "", d.decision_rule, ""]
-    t = d.timings
-    lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()) + ".", ""]
-    if d.base_fit.notes:
-        lines += ["Notes of the base model's fit:", ""] + [f"* {n}" for n in d.base_fit.notes] + [""]
-    if d.extended_fit and d.extended_fit.notes:
-        lines += ["Notes of the extended fit:", ""] + [f"* {n}" for n in d.extended_fit.notes] + [""]
+    lines += ["## Run", "", "Wall time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in d.timings.items()) + ".", ""]
+    for title, fit in (("the base model's fit", d.base_fit), ("the extended fit", d.extended_fit)):
+        if fit and fit.notes:
+            lines += [f"Notes of {title}:", "", *(f"* {n}" for n in fit.notes), ""]
     return "\n".join(lines)
 
 
-def write_report(diag, out: str | Path, json_path: str | Path | None = None, note: str = "",
-                 prefix: str = "diagnosis") -> dict:
-    """Write ``prefix``.md, ``prefix``_*.png and the JSON (``json_path`` or ``prefix``.json in ``out``)."""
+def write_report(diag, out: str | Path, json_path: str | Path | None = None, note: str = "") -> dict:
+    """Write diagnosis.md and diagnosis_*.png in ``out``, the JSON to ``json_path`` (default: out/diagnosis.json)."""
     out = ensure_dir(out)
     figures = {}
     for key, (fn, _) in FIGURES.items():
-        file = f"{prefix}_{key}.png"
+        file = f"diagnosis_{key}.png"
         (out / file).unlink(missing_ok=True)  # a figure this diagnosis does not draw is not an earlier run's
         fn(diag, out / file)
         if (out / file).exists():
             figures[key] = file
     data = diag.to_json()
-    json_path = Path(json_path) if json_path else out / f"{prefix}.json"
+    json_path = Path(json_path) if json_path else out / "diagnosis.json"
     ensure_dir(json_path.parent)
     write_json(json_path, data)
-    write_atomic(out / f"{prefix}.md", markdown(diag, figures, note) + "\n")
+    write_atomic(out / "diagnosis.md", markdown(diag, figures, note) + "\n")
     return data

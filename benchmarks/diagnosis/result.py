@@ -22,7 +22,6 @@ from .rule import Verdict
 from .rules import rule_text
 from .validation import borne_out
 
-
 FORMAT = "hysbench-diagnosis/3"  # 3: the thresholds in "policy" (not "settings"), the rule "trace"
 
 
@@ -33,40 +32,42 @@ def _plain(obj):
 
 @dataclass
 class Diagnosis:
-    dataset: Dataset
-    model: str
-    seed: int
-    base_fit: Fit
-    before: list[RecordResidual]
-    summaries: list[ResidualSummary]
-    noise_sd: float
-    screen: Screen
-    library: dict
-    candidates: list[Candidate]
-    relaxation_variants: list[Candidate]
-    verdict: Verdict
-    structure: dict
-    secondary_tried: list[Candidate] = field(default_factory=list)
+    dataset: Dataset  # the records diagnosed (own samples; cut into segments if asked)
+    model: str  # the base model's registry name
+    seed: int  # the seed of the fits and of the screen's row subset
+    base_fit: Fit  # the base model identified with varpro on the identification records' scored windows
+    before: list[RecordResidual]  # the base fit's residual over every record, whole
+    summaries: list[ResidualSummary]  # per record: noise sd, rms, whiteness of ``before``
+    noise_sd: float  # measurement noise sd: the median over the identification records (first differences)
+    screen: Screen  # the candidate fits on a row subset of the identification records (and the ``policy``)
+    library: dict  # the pysindy library screen of the base residual (``library_screen``)
+    candidates: list[Candidate]  # each cause's best candidate (relaxation: its best variant), scored held out
+    relaxation_variants: list[Candidate]  # relaxation with each number of time constants tried
+    verdict: Verdict  # the cause named, why, and the trace of the rules that decided it
+    structure: dict  # whether the residual repeats from period to period (``residuals.periodic_structure``)
+    secondary_tried: list[Candidate] = field(default_factory=list)  # causes tried on top of the named one
     also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
     slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
-    experiments: list[dict] = field(default_factory=list)
-    extended_fit: Fit | None = None
-    after: list[RecordResidual] = field(default_factory=list)
-    base_whole_fit: Fit | None = None
-    base_whole: list[RecordResidual] = field(default_factory=list)
-    interference_check: dict = field(default_factory=dict)
+    experiments: list[dict] = field(default_factory=list)  # suggested experiments (``experiment.suggest``)
+    extended_fit: Fit | None = None  # the named extension identified on the identification records' whole length
+    after: list[RecordResidual] = field(default_factory=list)  # the extended model's residual over every record
+    base_whole_fit: Fit | None = None  # the base refitted on the identification records' whole length
+    base_whole: list[RecordResidual] = field(default_factory=list)  # that refit's residual over every record
+    interference_check: dict = field(default_factory=dict)  # a named interference's amplitude on validation
     unexplained_check: dict | None = None  # an unexplained verdict's evidence on the validation records
     also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
-    timings: dict = field(default_factory=dict)
-    settings: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)  # wall time per step (s)
+    settings: dict = field(default_factory=dict)  # the run's settings and the records held out in part
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property
     def chosen(self) -> Candidate | None:
+        """The named cause's candidate (None for none or unexplained)."""
         return self.verdict.chosen
 
     @property
     def cause(self) -> str:
+        """The cause named: a cause of the vocabulary, "none" or "unexplained"."""
         return self.verdict.cause
 
     @property
@@ -85,9 +86,8 @@ class Diagnosis:
         return list(self.verdict.trace)
 
     def as_good_as(self, c: Candidate) -> list[Candidate]:
-        """The causes tried on top of the same kept part that predict the held-out records as well as ``c``, a
-        kept secondary cause, less those kept as well later (then the records show both); empty once a backward
-        step has replaced it."""
+        """The causes tried on top of the same kept part that predict the held-out records as well as ``c`` (a kept
+        secondary cause), less those kept as well later; empty once a backward step has replaced it."""
         alike = next((alike for kept, alike in self.also_alternatives if kept is c), [])
         return [a for a in alike if a.cause not in {k.cause for k in self.also}]
 
@@ -98,6 +98,7 @@ class Diagnosis:
 
     @property
     def extended_model(self) -> str | None:
+        """The registry name of the base model extended by the named cause."""
         if self.extended_fit:
             return self.extended_fit.model
         return self.chosen.model.name if self.chosen is not None else None
@@ -114,6 +115,7 @@ class Diagnosis:
 
     @property
     def uncertainty(self) -> dict:
+        """The named cause's parameters' jackknife uncertainty over the held-out folds."""
         return self.chosen.uncertainty if self.chosen is not None else {}
 
     @property
@@ -127,8 +129,7 @@ class Diagnosis:
         return rule_text(self.policy)
 
     def gain(self) -> dict:
-        """The named extension's gain on the validation and identification records (computed once for the
-        residuals it is given)."""
+        """The named extension's gain on the validation and identification records (computed once per residuals)."""
         if not self.after:
             return {}
         inputs = (self.base_whole, self.after, self.before)
@@ -141,17 +142,14 @@ class Diagnosis:
 
     @property
     def confirmed(self) -> bool | None:
-        """Whether the named extension lowers the validation residual against the base model refitted
-        on the same whole records, on the windows and by more than the records' noise explains (z >=
-        the policy's ``z_confirm``); an interference (phase fitted per validation record) by the same amplitude
-        there."""
+        """Whether the named extension lowers the validation residual (whole and on the windows, against the base
+        refitted the same way) by z >= ``policy.z_confirm``; an interference: by the same amplitude there."""
         v = self.gain().get("validation")
-        if not v:
-            return None
-        return borne_out(v, self.cause, self.interference_check, self.policy)
+        return borne_out(v, self.cause, self.interference_check, self.policy) if v else None
 
     @property
     def warning(self) -> str:
+        """Why the named cause is not confirmed on the validation records ("" if it is or was not checked)."""
         if self.confirmed is not False:
             return ""
         v = self.gain()["validation"]
@@ -180,45 +178,35 @@ class Diagnosis:
     def to_json(self) -> dict:
         v = self.verdict
         evidence = {
-            "noise_sd": self.noise_sd,
-            "records": [s.as_dict() for s in self.summaries],
-            "library_screen": self.library,
-            "null": self.screen.null.summary(),
+            "noise_sd": self.noise_sd, "records": [s.as_dict() for s in self.summaries],
+            "library_screen": self.library, "null": self.screen.null.summary(),
             "candidates": [c.summary() for c in sorted(self.candidates, key=lambda c: -c.heldout_gain)],
             "relaxation_variants": [c.summary() for c in self.relaxation_variants],
             "secondary_tried": [{**c.summary(), "also": any(c is a for a in self.also)} for c in self.secondary_tried],
             "slow_part_as_creep": None if self.slow_part is None else {
-                **self.slow_part.summary(), "ambiguous": any(c is self.slow_part for c in self.verdict.ambiguous_with)},
-            "periodic_structure": self.structure,
-            "decision_rule": self.decision_rule,
-            "screen_rows": self.screen.n,
+                **self.slow_part.summary(), "ambiguous": any(c is self.slow_part for c in v.ambiguous_with)},
+            "periodic_structure": self.structure, "decision_rule": self.decision_rule, "screen_rows": self.screen.n,
         }
-        extended = None
-        if self.extended_fit:
-            extended = {"name": self.extended_fit.model, "hyperparameters": self.extended_fit.hyperparameters,
-                        "method": self.extended_fit.method, "params": self.extended_fit.params,
-                        "n_params": self.extended_fit.n_params, "fitted_on": self.extended_fit.fitted_on,
-                        "notes": self.extended_fit.notes}
+        x = self.extended_fit
+        extended = {"name": x.model, "hyperparameters": x.hyperparameters, "method": x.method, "params": x.params,
+                    "n_params": x.n_params, "fitted_on": x.fitted_on, "notes": x.notes} if x else None
         as_good = {c.cause: alike for c in self.also if (alike := self.as_good_as(c))}
         data = {
             "format": FORMAT, "model": self.model, "dataset": self.dataset.name,
             "dataset_hash": self.dataset.content_hash(), "seed": self.seed, "policy": self.policy.as_dict(),
-            "cause": self.cause, "reason": v.reason, "parameters": self.parameters,
-            "uncertainty": self.uncertainty, "not_identified": v.not_identified,
-            "ambiguous_with": [c.cause for c in v.ambiguous_with], "suggested_experiments": self.experiments,
-            "partial": v.partial.summary() if v.partial is not None else None,
-            "unexplained_remainder": v.remainder,
+            "cause": self.cause, "reason": v.reason, "parameters": self.parameters, "uncertainty": self.uncertainty,
+            "not_identified": v.not_identified, "ambiguous_with": [c.cause for c in v.ambiguous_with],
+            "suggested_experiments": self.experiments,
+            "partial": v.partial.summary() if v.partial is not None else None, "unexplained_remainder": v.remainder,
             "evidence": evidence, "extended_model": self.extended_model, "extended_fit": extended,
             "base_fit": {"method": self.base_fit.method, "params": self.base_fit.params,
                          "n_params": self.base_fit.n_params, "notes": self.base_fit.notes},
-            "before": scores_by_file(self.before),
-            "after": scores_by_file(self.after) if self.after else {},
+            "before": scores_by_file(self.before), "after": scores_by_file(self.after) if self.after else {},
             "base_refit_on_whole_records": scores_by_file(self.base_whole) if self.base_whole else {},
             "gain": self.gain(), "interference_check": self.interference_check,
             "confirmed_on_validation": self.confirmed, "warning": self.warning,
             "one_drive_caution": self.one_drive_caution, "unexplained_check": self.unexplained_check,
-            "also_on_validation": self.also_check,
-            "also": [c.cause for c in self.also],
+            "also_on_validation": self.also_check, "also": [c.cause for c in self.also],
             "dropped_as_redundant": None if self.dropped is None else {
                 "cause": self.dropped.cause, "label": self.dropped.label, "heldout": self.dropped.heldout},
             "also_as_good": {cause: [a.cause for a in alike] for cause, alike in as_good.items()},
@@ -226,7 +214,6 @@ class Diagnosis:
                                            "heldout_gain": a.heldout_gain, "uncertainty": a.uncertainty}
                                           for a in alike] for cause, alike in as_good.items()},
             "also_not_identified": {c.cause: why for c in self.also if (why := not_identified(c))},
-            "trace": self.trace,
-            "timings_s": self.timings, "settings": self.settings,
+            "trace": self.trace, "timings_s": self.timings, "settings": self.settings,
         }
         return jsonable(json.loads(json.dumps(data, default=_plain)))
