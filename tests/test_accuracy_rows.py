@@ -214,6 +214,22 @@ def test_diagnosing_again_replaces_every_row_in_order_and_lists_each_change_by_h
     assert plans["balanced-4"]["rows"] == [row(4 * STRIDE)]  # not asked for: untouched
 
 
+def test_a_changed_case_names_the_first_rule_whose_outcome_changed():
+    trace = [["simplest-as-good", "delay"], ["also", "nothing"], ["validation", "confirmed"]]
+    old = {**row(1, verdict="delay"), "trace": trace}
+    also = {**old, "also": ["creep"], "trace": [trace[0], ["also", "creep"], trace[2]]}
+    shorter = {**old, "verdict": "none", "trace": [["nothing-passes", "none"]]}
+    longer = {**old, "also": ["creep"], "trace": [*trace, ["also-on-validation", "creep not borne out"]]}
+    lines = accuracy.verdict_changes([old, old, old, old, row(1)], [also, shorter, longer, {**old, "confirmed": True},
+                                                                    {**row(1), "also": ["creep"]}])
+    assert [line.rsplit("; ", 1)[-1] for line in lines] == [
+        "first rule changed: also: nothing -> also: creep",
+        "first rule changed: simplest-as-good: delay -> nothing-passes: none",
+        "first rule changed: - -> also-on-validation: creep not borne out",
+        "the rule trace is the same",
+        "nothing to confirm)"]  # rows without a trace: nothing said of it
+
+
 def test_the_command_refuses_bad_input_in_one_line_before_any_case_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(accuracy, "run_case", lambda case: pytest.fail("a case was run"))
     path = tmp_path / "rows.jsonl.gz"

@@ -223,7 +223,7 @@ def run_case(case: dict) -> dict:
             "strength_pct": truth["strength_pct"], "strength_by_effect_pct": truth["strength_by_effect_pct"],
             **({"min_strength_pct": case["min_strength_pct"], "attempts": attempts}
                if case.get("min_strength_pct") else {}),
-            "effects": truth["effects"], "verdict": d.cause,
+            "effects": truth["effects"], "verdict": d.cause, "trace": [[t["rule"], t["outcome"]] for t in d.trace],
             "confirmed": d.confirmed, "validation": _validation_gain(d), "also": also,
             "ambiguous_with": [c.cause for c in d.verdict.ambiguous_with],
             "remainder": d.verdict.remainder, "dropped": d.dropped.cause if d.dropped is not None else None,
@@ -683,7 +683,19 @@ def verdict_changes(old: list[dict], new: list[dict]) -> list[str]:
 
     return [f"{effect_label(a)} on {a['base']} (case seed {a['seed']}): {text(a)} -> {text(b)}"
             + ("" if a["right"] == b["right"] else (", right now" if b["right"] else ", wrong now"))
-            for a, b in zip(old, new) if key(a) != key(b)]
+            + first_rule_changed(a, b) for a, b in zip(old, new) if key(a) != key(b)]
+
+
+def first_rule_changed(old: dict, new: dict) -> str:
+    """Where two scorings' rule traces part ("; first rule changed: ..."), "" if either row has no trace."""
+    if "trace" not in old or "trace" not in new:
+        return ""
+    a, b = old["trace"], new["trace"]
+    i = next((i for i in range(max(len(a), len(b))) if a[i:i + 1] != b[i:i + 1]), None)
+    if i is None:
+        return "; the rule trace is the same"
+    entry = ["-" if i >= len(t) else f"{t[i][0]}: {t[i][1]}" for t in (a, b)]
+    return f"; first rule changed: {entry[0]} -> {entry[1]}"
 
 
 def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
