@@ -1,8 +1,15 @@
 """``diagnose(dataset, model)``: show where a model departs from the data, name the cause, extend, measure.
 
-The base is identified with varpro on the identification records' windows and simulated over every record;
-candidate causes are fitted on their whole length and scored by leave-one-record-out prediction (``search``);
-``selection.decide`` then ``rules.AFTER_SELECTION`` give the verdict, the validation records used last.
+1. The base model is identified with varpro on the identification records' scored windows (records that
+   share samples are first cut to their windows; ``segments`` cuts each into that many records).
+2. It is simulated over every record, whole (``residuals``).
+3. Candidate causes are fitted on the identification records' whole length (``screen``, ``causes``) and
+   scored by leave-one-record-out prediction against the base refitted the same way (``search``).
+4. The verdict: ``selection.decide`` applies ``selection.SELECTION``, then the rules of
+   ``rules.AFTER_SELECTION`` are applied in order, each on the evidence its gathering step computes; the
+   validation records are used last (``validation``).
+5. Suggested experiments for what is ambiguous (``experiment``); each cause under "also" checked on the
+   validation records (``validation.check_also``; reported only).
 """
 
 from __future__ import annotations
