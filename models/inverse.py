@@ -424,6 +424,95 @@ def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, 
     return rho
 
 
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def recursion_activity(u, dt, r_lo, r_hi, g_lo, g_hi, start, stop):
+    """The operating point of the exact inverse's error recursion at samples [start, stop) of the
+    forward model driven with u (plays from 0 at sample 0): per sample, each play's edge (1: on its
+    lower edge u - g_lo |u'| - r_lo_i, -1: on its upper edge u + g_hi |u'| + r_hi_i, 0: held; the
+    comparisons ``pi_sample``'s slope makes) and sign(u'). With these fixed, c0, c1, c2 of
+    ``recursion_radius`` are linear in the weights, polynomial and q (``RecursionRows``)."""
+    n_op = r_lo.shape[0]
+    edge = np.zeros((stop - start, n_op), dtype=np.int8)
+    sign = np.zeros(stop - start)
+    w = np.zeros(n_op)
+    inv_dt = 1.0 / dt
+    u1 = u2 = u[0]
+    for k in range(stop):
+        a, s, _ = backward_rates(u[k], u1, u2, k == 0, inv_dt, inv_dt * inv_dt)
+        for i in range(n_op):
+            lower = u[k] - g_lo * a - r_lo[i]
+            upper = u[k] + g_hi * a + r_hi[i]
+            v = play_update(w[i], lower, upper)
+            if k >= start:
+                if v == lower:
+                    edge[k - start, i] = 1
+                elif v == upper:
+                    edge[k - start, i] = -1
+            w[i] = v
+        if k >= start:
+            sign[k - start] = s
+        u2 = u1
+        u1 = u[k]
+    return edge, sign
+
+
+@dataclass
+class RecursionRows:
+    """The exact inverse's error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 at operating points
+    of a forward run (``recursion_radius``), as linear maps of the model's linear parameters:
+    c_j = C_j @ theta_L (``linear_names`` order), one row per operating point."""
+
+    c0: np.ndarray  # (n_points, n_linear)
+    c1: np.ndarray
+    c2: np.ndarray
+    sample: np.ndarray  # the sample each point was taken at
+    u: np.ndarray  # the input there
+    sign: np.ndarray  # sign(u') there
+    edge: np.ndarray  # (n_points, n_operators): 1 lower edge, -1 upper edge, 0 held (``recursion_activity``)
+    dt: float
+
+    @classmethod
+    def stack(cls, parts: list["RecursionRows"]) -> "RecursionRows":
+        cat = np.concatenate
+        return cls(cat([p.c0 for p in parts]), cat([p.c1 for p in parts]), cat([p.c2 for p in parts]),
+                   cat([p.sample for p in parts]), cat([p.u for p in parts]), cat([p.sign for p in parts]),
+                   cat([p.edge for p in parts]), min((p.dt for p in parts), default=float("nan")))
+
+
+@njit(cache=True)
+def _edge_hash(edge):
+    """FNV-1a hash of each row of ``edge`` (equal rows, equal hashes; ``distinct_operating_points``
+    also compares the rows, so a collision merges nothing)."""
+    out = np.empty(edge.shape[0], dtype=np.uint64)
+    prime = np.uint64(1099511628211)
+    for k in range(edge.shape[0]):
+        h = np.uint64(14695981039346656037)
+        for i in range(edge.shape[1]):
+            h = (h ^ np.uint64(edge[k, i] + 1)) * prime
+        out[k] = h
+    return out
+
+
+def distinct_operating_points(edge: np.ndarray, sign: np.ndarray, u: np.ndarray, input_range,
+                              n_levels: int) -> np.ndarray:
+    """Indices of a thinned set of operating points: c0, c1, c2 depend on a sample only through the
+    plays' edges, sign(u') and u (the polynomial's slope); per (edges, sign, u in one of ``n_levels``
+    equal bands of the input range) the samples with the smallest and the largest u are kept."""
+    if u.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo, hi = map(float, input_range)
+    band = np.zeros(u.size, dtype=np.int64)
+    if hi > lo:
+        band = np.clip(np.floor((u - lo) / (hi - lo) * n_levels), 0, n_levels - 1).astype(np.int64)
+    order = np.lexsort((u, band, sign, _edge_hash(np.ascontiguousarray(edge))))
+    e, sg, b = edge[order], sign[order], band[order]
+    new = np.ones(order.size, dtype=bool)
+    new[1:] = (sg[1:] != sg[:-1]) | (b[1:] != b[:-1]) | np.any(e[1:] != e[:-1], axis=1)
+    first = np.flatnonzero(new)
+    last = np.concatenate([first[1:] - 1, [order.size - 1]])
+    return np.unique(np.concatenate([order[first], order[last]]))
+
+
 # --- the model-facing side ----------------------------------------------------------
 class StepInvertible:
     """Mixin for a model that can state its one-sample structure (``step_structure``):
