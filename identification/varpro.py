@@ -20,6 +20,19 @@ is eq. 9 exactly, and is solved exactly:
 * linear parameters keep their bounds: when the unconstrained solution leaves
   them, the bounded problem is solved with scipy.optimize.lsq_linear (on the
   equivalent small system, same ridge), e.g. Preisach's non-negative weights.
+* ``stable_inverse`` (default off; the unconstrained solve above is then unchanged): every linear
+  solve keeps the model's exact inverse stable (models/inverse.py, "Why the exact inverse
+  diverges"). With the nonlinear parameters fixed, the inverse's error recursion
+  c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has coefficients linear in the linear parameters at each
+  operating point (which plays are on which edge, sign(u'), u: ``inverse_recursion_rows``, taken
+  at the distinct operating points of the fit records). Both roots have modulus <= rho exactly
+  when the four Schur-Cohn conditions ``STABILITY_CONDITIONS`` hold: linear inequalities G x >= 0.
+  Where the unconstrained solution (or a bound) breaks one, the same ridge-regularised objective
+  is minimised under them and the bounds (``linear.spectral_inequality_solve``: an LDP solved by
+  NNLS). rho is ``inverse_radius``, by default exp(-dt / T), T the fit records' shortest drive
+  period: an input error decays by e within it. P(1) = c0 + c1 + c2 is the rate-free slope, so
+  the conditions include a loading curve that increases after a reversal. The Fit's diagnostics
+  (``stable_inverse``) and notes name the active rows and the largest root at the fit's points.
 
 The nonlinear parameters are searched with several starts: the start point
 (the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
@@ -77,7 +90,7 @@ class Varpro(Identifier):
 
     def __init__(self, n_starts: int = 2, n_candidates: int = 12, max_nfev: int = 40, max_condition: float = 1e6,
                  tol: float = 1e-6, fd_step: float = 1e-6, merge_radius: float = 0.02, stable_inverse: bool = False,
-                 inverse_radius: float = 1.0):
+                 inverse_radius: float | None = None):
         self.n_starts = n_starts  # local searches, from the best candidates
         self.n_candidates = n_candidates  # Halton points evaluated before the local searches
         self.max_nfev = max_nfev  # residual evaluations per local search
@@ -86,7 +99,7 @@ class Varpro(Identifier):
         self.fd_step = fd_step  # forward-difference step, relative to each bound's width
         self.merge_radius = merge_radius  # a search this close (fraction of each width) to an earlier optimum stops
         self.stable_inverse = stable_inverse  # linear solves constrained to a stable exact inverse (module docstring)
-        self.inverse_radius = inverse_radius  # the largest root modulus of its error recursion allowed
+        self.inverse_radius = inverse_radius  # largest root modulus allowed (None: exp(-dt / shortest drive period))
 
     def check(self, model, problem=None) -> None:
         if not model.has_linear_part:
@@ -112,9 +125,9 @@ def check_stable_inverse(model, inverse_radius) -> None:
     if getattr(model, "derivative", "backward") != "backward":
         raise IdentificationError(f"option stable_inverse: model {model.name!r} has derivative="
                                   f"{model.derivative!r}; its exact inverse needs derivative='backward'")
-    if isinstance(inverse_radius, bool) or not (isinstance(inverse_radius, (int, float))
-                                                and 0.0 < inverse_radius <= 1.0):
-        raise IdentificationError(f"option inverse_radius must be in (0, 1], got {inverse_radius!r}")
+    if inverse_radius is not None and (isinstance(inverse_radius, bool) or not (
+            isinstance(inverse_radius, (int, float)) and 0.0 < inverse_radius <= 1.0)):
+        raise IdentificationError(f"option inverse_radius must be in (0, 1] (or unset), got {inverse_radius!r}")
 
 
 @dataclass
@@ -127,7 +140,7 @@ class InverseConstraints:
     h: np.ndarray
     rows: object  # the stacked ``RecursionRows``
     record: np.ndarray  # per operating point, the fit record it comes from
-    radius: float
+    radius: np.ndarray  # per operating point, the largest root modulus allowed
 
     def describe(self, index: int, files: list[str], weight_names: list[str]) -> dict:
         """A constraint row as the operating point and condition it states."""
@@ -171,7 +184,7 @@ class SeparableProblem:
     posterior and the ablation use it)."""
 
     def __init__(self, problem: Problem, max_condition: float = OPTIONS["max_condition"],
-                 inverse_radius: float | None = None):
+                 stable_inverse: bool = False, inverse_radius: float | None = None):
         model = problem.model
         if not model.has_linear_part:
             raise IdentificationError(
@@ -196,26 +209,36 @@ class SeparableProblem:
         w = problem.row_weights
         self._ys = [np.ascontiguousarray(r.y[r.scored]) / self.output_scale for r in problem.records]
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
-        # None: unconstrained; else the linear solves keep the exact inverse's recursion roots within it
+        # the linear solves keep the exact inverse's recursion roots within a radius (module docstring)
+        self.stable_inverse = bool(stable_inverse)
         self.inverse_radius = None if inverse_radius is None else float(inverse_radius)
-        if inverse_radius is not None:
+        if self.stable_inverse:
             check_stable_inverse(model, inverse_radius)
+
+    def record_radius(self, record) -> float:
+        """The largest root modulus allowed on a fit record: ``inverse_radius``, or by default
+        exp(-dt / T) with T the fit records' shortest drive period (``DataScale.time``): an input error
+        of the exact inverse decays by e within that period, before the reference reverses again."""
+        if self.inverse_radius is not None:
+            return self.inverse_radius
+        return math.exp(-record.dt / self.problem.scale.time)
 
     # --- the stable-inverse constraint ---------------------------------------
     def inverse_constraints(self, nonlinear: np.ndarray) -> InverseConstraints | None:
-        """The Schur-Cohn rows at the operating points of the fit records' scored windows
-        (``inverse_recursion_rows``) for a nonlinear parameter vector; None when unconstrained."""
-        if self.inverse_radius is None:
+        """The Schur-Cohn rows at the operating points of the fit records (``inverse_recursion_rows``
+        over each whole record: the exact inverse runs from rest, through the transient the scored
+        window follows) for a nonlinear parameter vector; None when unconstrained."""
+        if not self.stable_inverse:
             return None
         p = self.problem
         nl = {n: float(v) for n, v in zip(self.nonlinear_names, np.asarray(nonlinear, dtype=float).ravel())}
-        parts = [self.model.inverse_recursion_rows(r.u, r.dt, nl, r.scored, p.input_range) for r in p.records]
+        parts = [self.model.inverse_recursion_rows(r.u, r.dt, nl, None, p.input_range) for r in p.records]
         rows = type(parts[0]).stack(parts)
         record = np.concatenate([np.full(part.sample.size, m) for m, part in enumerate(parts)])
-        rho = self.inverse_radius
+        rho = np.array([self.record_radius(r) for r in p.records])[record][:, None]
         c0, c1, c2 = rho * rho * rows.c0, rho * rows.c1, rows.c2
         G = np.concatenate([c0 - c2, c0 + c2, c0 + c2 - c1, c0 + c2 + c1])
-        return InverseConstraints(G, np.zeros(G.shape[0]), rows, record, rho)
+        return InverseConstraints(G, np.zeros(G.shape[0]), rows, record, rho[:, 0])
 
     # --- design matrices ---------------------------------------------------
     def _as_sets(self, nonlinear_sets) -> np.ndarray:
@@ -462,8 +485,7 @@ class SeparableProblem:
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, **options) -> dict:
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
-    sep = SeparableProblem(problem, opts["max_condition"],
-                           opts["inverse_radius"] if opts["stable_inverse"] else None)
+    sep = SeparableProblem(problem, opts["max_condition"], opts["stable_inverse"], opts["inverse_radius"])
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
@@ -589,9 +611,9 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
         )
         diag["weak_directions"] = [{"relative_singular_value": sv, "loadings": load}
                                    for sv, load in final.weak_directions]
-    if final.bounded and sep.inverse_radius is None:
+    if final.bounded and not sep.stable_inverse:
         notes.append("varpro: the unconstrained linear solution left the bounds; solved with bounds (lsq_linear)")
-    if sep.inverse_radius is not None:
+    if sep.stable_inverse:
         stable_inverse_report(sep, best_nl, final, diag, notes)
     return {"x": x, "diagnostics": diag, "notes": notes}
 
@@ -618,20 +640,24 @@ def stable_inverse_report(sep: SeparableProblem, nonlinear: np.ndarray, final: L
     weights = [n for n in sep.linear_names if n.startswith("a")]
     active = [cons.describe(int(i), files, weights) for i in final.active_constraints]
     largest = float(np.max(roots, initial=0.0))
+    excess = float(np.max(roots / cons.radius, initial=0.0))  # largest root relative to its allowed radius
+    radii = sorted({float(v) for v in cons.radius})
     diag["stable_inverse"] = {
-        "inverse_radius": cons.radius, "operating_points": int(rows.sample.size),
+        "inverse_radius": radii, "operating_points": int(rows.sample.size),
         "constraint_rows": int(cons.G.shape[0]), "largest_root_at_operating_points": largest,
+        "largest_root_relative_to_radius": excess,
         "active": active, "n_active": len(active), "largest_violation": final.constraint_violation}
     kinds = {}
     for a in active:
         kinds[a["condition"]] = kinds.get(a["condition"], 0) + 1
-    held = "holds" if largest <= cons.radius * (1.0 + 1e-9) else "does NOT hold"
+    held = "holds" if excess <= 1.0 + 1e-6 else f"does NOT hold: {excess:.6g} x the radius"
     summary = ", ".join(f"{n} x {k}" for k, n in kinds.items()) or "none"
     notes.append(
         f"varpro: stable_inverse: linear solves constrained so that the exact inverse's error recursion "
-        f"c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has roots of modulus <= {cons.radius:g} at {rows.sample.size} "
-        f"operating points of the scored windows ({cons.G.shape[0]} rows); active at the optimum: {summary}; "
-        f"largest root there {largest:.6g} ({held}). Points outside the scored windows are not constrained")
+        f"c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has roots of modulus <= {', '.join(f'{v:.6g}' for v in radii)} at "
+        f"{rows.sample.size} operating points of the fit records ({cons.G.shape[0]} rows); active at the optimum: "
+        f"{summary}; largest root there {largest:.6g} ({held}). Other inputs' operating points are not "
+        "constrained: check the inverse on them")
     if final.constraint_violation > ACTIVE_SLACK:
         notes.append(f"varpro: stable_inverse: the constrained solve left a row violated by "
                      f"{final.constraint_violation:.3g} (relative): the constraint does not hold")
