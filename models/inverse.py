@@ -391,7 +391,8 @@ def mapped_reference(yd: np.ndarray, u_start: float, gain: float, y_first: float
 def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """Per sample k of the forward model driven with u, the largest root modulus of the inverse's
     linearised error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0, c_j = dy(k)/du(k-j) with the
-    play and filter states held (module docstring, "Why the exact inverse diverges"). 0 at the first
+    play and filter states held (module docstring, "Why the exact inverse diverges"), one-sided on
+    the side of u(k-1) the input came from (the edges ``pi_sample``'s slope takes). 0 at the first
     two samples and where c0 = 0 (no root: the sample's input is not determined)."""
     n = u.shape[0]
     rho = np.zeros(n)
@@ -402,12 +403,20 @@ def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, 
         if k >= 2:
             c0 = step_output(u[k], False, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                              fa, fb0, fb1, fpow, fw)[1]
-            h1 = 1e-7 * (1.0 + abs(u1))
-            c1 = (step_output(u[k], False, u1 + h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                              fa, fb0, fb1, fpow, fw)[0]
-                  - step_output(u[k], False, u1 - h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly,
-                                q, fa, fb0, fb1, fpow, fw)[0]) / (2.0 * h1)
-            c2 = q / (dt * dt)
+            # c1 exactly, on the edges c0 was taken on: the slope without the rate terms (inv_dt = 0 in
+            # the slope: no -/+ g a_i s / dt per play on an edge, no q / dt^2) minus c0 is the plays' c1
+            # less q / dt^2; a finite difference in u1 would cross a play's edge whenever the play lies
+            # within g / dt times its step of it, and report the other side's slope there
+            inv_dt = 1.0 / dt
+            a, s, d2 = backward_rates(u[k], u1, u2, False, inv_dt, inv_dt * inv_dt)
+            rate_free = pi_sample(u[k], a, s, d2, False, u1, 0.0, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights,
+                                  poly, q, fa, fb0, fb1, fpow, fw, False, True)[1]
+            c2 = q * inv_dt * inv_dt
+            c1 = rate_free - c0 - c2
+            for j in range(fa.shape[0]):
+                pw = fpow[j]
+                if pw != 0:
+                    c1 += fw[j] * fb0[j] * pw * u1 ** (pw - 1)
             if c0 != 0.0:
                 b = c1 / c0
                 c = c2 / c0

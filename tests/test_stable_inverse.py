@@ -155,3 +155,24 @@ def test_recursion_roots_agree_with_numpy():
     c = rng.standard_normal((50, 3))
     expected = [np.max(np.abs(np.roots(row))) for row in c]
     np.testing.assert_allclose(recursion_roots(c[:, 0], c[:, 1], c[:, 2]), expected, rtol=1e-12)
+
+
+def test_recursion_rows_give_the_roots_inverse_recursion_radius_reports():
+    """The rows at every operating point (no thinning) against the model's own per-sample radius,
+    across reversals and play edges (there both take the one-sided slope the inverse's search uses)."""
+    model = get_model("mrpim")
+    rng = np.random.default_rng(8)
+    params = model.default_params()
+    for name in params:
+        if name[0] in "ap":
+            params[name] = float(rng.uniform(-1.0, 1.0))
+    params.update(gamma=0.05, **{"lambda": 0.03}, q=1e-4, offset=0.1)
+    dt = 1e-3
+    t = np.arange(3000) * dt
+    u = 1.5 - np.cos(2 * np.pi * 1.0 * t) * (0.6 + 0.4 * np.sin(2 * np.pi * 0.7 * t))
+    rows = model.inverse_recursion_rows(u, dt, {"gamma": 0.05, "lambda": 0.03}, None, (0.5, 2.5), n_levels=10**9)
+    theta = np.array([params[n] for n in model.linear_names])
+    rho = model.inverse_recursion_radius(u, dt, params, (0.5, 2.5))
+    assert rows.sample.size == u.size - 2  # every sample is its own point at this resolution
+    np.testing.assert_allclose(recursion_roots(rows.c0 @ theta, rows.c1 @ theta, rows.c2 @ theta),
+                               rho[rows.sample], rtol=1e-9)
