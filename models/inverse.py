@@ -66,8 +66,9 @@ error e in the inverse's input therefore obeys c0 e(k) + c1 e(k-1) + c2 e(k-2) =
 c_j = dy(k)/du(k-j). Where a root of c0 z^2 + c1 z + c2 lies outside the unit circle (a zero
 of the model outside it) the recursion amplifies any error, rounding included, by that modulus
 per sample; no causal exact inverse is then stable. ``recursion_radius`` gives the largest
-modulus per sample (MRPIM fitted on the virtual DEA: up to 1.14 on the protocol's sines, with
-the envelopes the cause; docs/deploying.md); the export's inverse check reports it.
+modulus per sample (MRPIM fitted on the virtual DEA: up to 1.008 on the protocol's sines, above 1 on
+50-75 % of the samples, with the envelopes the cause; docs/deploying.md); the export's inverse check
+reports it. varpro's ``stable_inverse`` identifies under the conditions that keep it within a radius.
 
 The reference-driven inverse (``inverse="reference-driven"``; ``"auto"`` picks it for a model with
 rate or relaxation terms, the exact one otherwise, where the two coincide). The literature's
