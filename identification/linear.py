@@ -205,5 +205,26 @@ def spectral_inequality_solve(V: np.ndarray, denominators: np.ndarray, rhs: np.n
     c = rhs / root
     T = (V / root) / D[:, None]  # x = T (z + c)
     E = G @ T
-    z = least_distance(E, h - E @ c)
-    return None if z is None else T @ (z + c)
+    f = h - E @ c
+    z = least_distance(E, f)
+    if z is None:
+        return None
+    return T @ (polish_least_distance(E, f, z) + c)
+
+
+def polish_least_distance(E: np.ndarray, f: np.ndarray, z: np.ndarray, active_tol: float = 1e-8) -> np.ndarray:
+    """``least_distance``'s z refined on its active set: the NNLS gives z to a precision that falls as
+    ||z|| grows; the rows it holds as equalities (slack below ``active_tol`` of the row's size) define
+    the least-norm z exactly (the minimum-norm solution of E_A z = f_A), kept when every row still
+    holds at least as well as before."""
+    size = np.abs(E) @ np.abs(z) + np.abs(f)
+    size[size == 0] = 1.0
+    slack = (E @ z - f) / size
+    active = slack <= active_tol
+    if not active.any():
+        return z
+    polished = np.linalg.lstsq(E[active], f[active], rcond=None)[0]
+    worst = min(0.0, float(np.min(slack)))
+    if float(np.min((E @ polished - f) / size)) >= worst - 1e-15:
+        return polished
+    return z

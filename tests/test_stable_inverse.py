@@ -111,13 +111,15 @@ def test_a_constrained_fit_keeps_the_recursion_roots_within_the_radius(tiny):
     fit = identify("mrpim", tiny, "varpro", seed=0, stable_inverse=True, inverse_radius=0.99, **options)
     report = fit.diagnostics["varpro"]["stable_inverse"]
     assert report["inverse_radius"] == [0.99] and report["operating_points"] > 0
-    assert report["largest_root_at_operating_points"] <= 0.99 * (1 + 1e-6)
+    assert report["largest_violation"] <= 1e-9
+    # a double root on the radius moves by the square root of the conditions' rounding
+    assert report["largest_root_at_operating_points"] <= 0.99 * (1 + 1e-5)
     assert any("stable_inverse" in n and "active at the optimum" in n for n in fit.notes)
     model = get_model("mrpim")
     from hysbench.data.dataset import load_dataset
     for record in load_dataset(tiny).identification:
         rho = model.inverse_recursion_radius(record.u, record.dt, fit.params, fit.input_range)
-        assert np.max(rho) <= 0.99 * (1 + 1e-6)
+        assert np.max(rho) <= 0.99 * (1 + 1e-5)
     # the same fit without the constraint leaves the radius, so the constraint did something here
     free = identify("mrpim", tiny, "varpro", seed=0, **options)
     assert free.fitness <= fit.fitness
