@@ -150,6 +150,8 @@ def test_bad_stable_inverse_options_are_refused_in_one_line(tiny):
         identify("mrpim", tiny, "varpro", stable_inverse=True, inverse_radius=1.5)
     with pytest.raises(IdentificationError, match="does not state its exact inverse's error recursion"):
         identify("rate-dependent-pi", tiny, "varpro", stable_inverse=True)
+    with pytest.raises(IdentificationError, match="would move the parameters without the constraint"):
+        identify("mrpim", tiny, "varpro+lsq", stable_inverse=True)
 
 
 def test_recursion_roots_agree_with_numpy():
