@@ -165,6 +165,11 @@ class Chain(Identifier):
     def __init__(self, *stages: Identifier):
         if len(stages) < 2:
             raise IdentificationError("a chain needs at least two identifiers")
+        for stage, after in zip(stages, stages[1:]):
+            if getattr(stage, "stable_inverse", False):  # the next stage would move the parameters unconstrained
+                raise IdentificationError(
+                    f"option stable_inverse: stage {after.name!r} after {stage.name!r} would move the parameters "
+                    f"without the constraint; use {stage.name!r} alone (or last)")
         self._stages = list(stages)
 
     def get_params(self) -> dict:

@@ -26,6 +26,12 @@ parameters to fix there: a Householder QR of the columns in a stated priority or
 part not explained by the columns before it) is dependent; its coefficient is fixed and the
 rest solved without it (``solve_fixing``).
 
+Linear inequality constraints (``least_distance``, ``spectral_inequality_solve``): min ||A_s x - b||
+(with the same ridge) subject to G x >= h is, in the eigenvectors of the solve, a least-distance
+problem min ||z|| subject to E z >= f, solved as Lawson & Hanson's LDP through one non-negative
+least squares (``scipy.optimize.nnls``; Lawson & Hanson, Solving Least Squares Problems, 1974,
+ch. 23).
+
 ``scaled_lstsq(A, b)`` is the plain-matrix entry point: the truncated-SVD
 minimum-norm solution of the column-scaled problem (numpy's ``lstsq`` on
 A_s with ``rcond``), for one right-hand side or several.
@@ -38,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from scipy.optimize import nnls
 
 # directions whose eigenvalue of A_s^T A_s is below this fraction of the largest are dropped
 DEFAULT_EV_CUTOFF = 1e-15
@@ -163,3 +170,61 @@ def dependent_columns(A: np.ndarray, order: np.ndarray, column_scale: np.ndarray
     dependent = np.zeros(A.shape[1], dtype=bool)
     dependent[order] = diag <= tol * s_max
     return dependent
+
+
+def least_distance(E: np.ndarray, f: np.ndarray) -> np.ndarray | None:
+    """The z of least norm with E z >= f, or None where no z satisfies the rows (Lawson & Hanson's
+    LDP: the non-negative least squares min ||[E^T; f^T] v - e_{n+1}||, v >= 0, has residual r with
+    r_{n+1} != 0 exactly when the rows are consistent, and then z = -r_{1..n} / r_{n+1}). Rows are
+    scaled to unit norm first (the same constraints, a better conditioned NNLS)."""
+    E = np.asarray(E, dtype=float)
+    f = np.asarray(f, dtype=float)
+    m, n = E.shape
+    if m == 0 or np.all(f <= 0.0):
+        return np.zeros(n)  # z = 0 satisfies every row
+    norms = np.sqrt(np.einsum("ij,ij->i", E, E) + f * f)
+    norms[norms == 0] = 1.0
+    A = np.vstack([(E / norms[:, None]).T, (f / norms)[None]])
+    target = np.zeros(n + 1)
+    target[n] = 1.0
+    v, _ = nnls(A, target, maxiter=50 * (m + n + 1))
+    r = A @ v - target
+    if not abs(r[n]) > 1e-12:
+        return None
+    return -r[:n] / r[n]
+
+
+def spectral_inequality_solve(V: np.ndarray, denominators: np.ndarray, rhs: np.ndarray, D: np.ndarray,
+                              G: np.ndarray, h: np.ndarray) -> np.ndarray | None:
+    """x minimising ||A_s (D x) - b||^2 + alpha^2 ||D x||^2 subject to G x >= h, where A_s^T A_s +
+    alpha^2 I = V diag(denominators) V^T and rhs = V^T A_s^T b (``solve_spectrum``'s kept directions:
+    the solution stays in their span, as the unconstrained solve's does). With t = V^T (D x) the
+    objective is ||root t - c||^2 + const (root = sqrt(denominators), c = rhs / root), so z = root t - c
+    is a least-distance problem (``least_distance``). None where the rows are inconsistent."""
+    root = np.sqrt(denominators)
+    c = rhs / root
+    T = (V / root) / D[:, None]  # x = T (z + c)
+    E = G @ T
+    f = h - E @ c
+    z = least_distance(E, f)
+    if z is None:
+        return None
+    return T @ (polish_least_distance(E, f, z) + c)
+
+
+def polish_least_distance(E: np.ndarray, f: np.ndarray, z: np.ndarray, active_tol: float = 1e-8) -> np.ndarray:
+    """``least_distance``'s z refined on its active set: the NNLS gives z to a precision that falls as
+    ||z|| grows; the rows it holds as equalities (slack below ``active_tol`` of the row's size) define
+    the least-norm z exactly (the minimum-norm solution of E_A z = f_A), kept when every row still
+    holds at least as well as before."""
+    size = np.abs(E) @ np.abs(z) + np.abs(f)
+    size[size == 0] = 1.0
+    slack = (E @ z - f) / size
+    active = slack <= active_tol
+    if not active.any():
+        return z
+    polished = np.linalg.lstsq(E[active], f[active], rcond=None)[0]
+    worst = min(0.0, float(np.min(slack)))
+    if float(np.min((E @ polished - f) / size)) >= worst - 1e-15:
+        return polished
+    return z

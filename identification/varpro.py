@@ -20,6 +20,19 @@ is eq. 9 exactly, and is solved exactly:
 * linear parameters keep their bounds: when the unconstrained solution leaves
   them, the bounded problem is solved with scipy.optimize.lsq_linear (on the
   equivalent small system, same ridge), e.g. Preisach's non-negative weights.
+* ``stable_inverse`` (default off; the unconstrained solve above is then unchanged): every linear
+  solve keeps the model's exact inverse stable (models/inverse.py, "Why the exact inverse
+  diverges"). With the nonlinear parameters fixed, the inverse's error recursion
+  c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has coefficients linear in the linear parameters at each
+  operating point (which plays are on which edge, sign(u'), u: ``inverse_recursion_rows``, taken
+  at the distinct operating points of the fit records). Both roots have modulus <= rho exactly
+  when the four Schur-Cohn conditions ``STABILITY_CONDITIONS`` hold: linear inequalities G x >= 0.
+  Where the unconstrained solution (or a bound) breaks one, the same ridge-regularised objective
+  is minimised under them and the bounds (``linear.spectral_inequality_solve``: an LDP solved by
+  NNLS). rho is ``inverse_radius``, by default exp(-dt / T), T the fit records' shortest drive
+  period: an input error decays by e within it. P(1) = c0 + c1 + c2 is the rate-free slope, so
+  the conditions include a loading curve that increases after a reversal. The Fit's diagnostics
+  (``stable_inverse``) and notes name the active rows and the largest root at the fit's points.
 
 The nonlinear parameters are searched with several starts: the start point
 (the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
@@ -48,8 +61,8 @@ from scipy.stats import qmc
 from .base import Identifier
 from .errors import IdentificationError
 from .jacobian import CachedResidual, forward_difference
-from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_spectrum, spectrum_from_gram,
-                     spectrum_from_qr, undetermined_count)
+from .linear import (UNDETERMINED_TOL, column_norms, dependent_columns, solve_spectrum, spectral_inequality_solve,
+                     spectrum_from_gram, spectrum_from_qr, undetermined_count)
 from .problem import MAX_BATCH_ELEMENTS, Problem
 
 # a column whose spread on the scored rows is below this fraction of its largest magnitude is nearly constant:
@@ -63,6 +76,11 @@ NEAR_CONSTANT = 0.05
 # fixing an undetermined direction may cost at most this relative increase of the fitness (rounding, the
 # ridge); a bounded solve whose bounds pin the direction down costs more, and is kept whole
 FREE_FIX = 1e-6
+# a constraint row whose slack is below this fraction of |row| . |x| is active at the solution
+ACTIVE_SLACK = 1e-9
+# the four Schur-Cohn (Jury) conditions of c0 z^2 + c1 z + c2 with both roots of modulus <= rho, in the
+# order of ``InverseConstraints`` rows; c0 > 0 follows from the first two (with any c2)
+STABILITY_CONDITIONS = ("rho^2 c0 >= c2", "rho^2 c0 >= -c2", "rho^2 c0 + c2 >= rho c1", "rho^2 c0 + c2 >= -rho c1")
 
 
 class Varpro(Identifier):
@@ -71,7 +89,8 @@ class Varpro(Identifier):
     name = "varpro"
 
     def __init__(self, n_starts: int = 2, n_candidates: int = 12, max_nfev: int = 40, max_condition: float = 1e6,
-                 tol: float = 1e-6, fd_step: float = 1e-6, merge_radius: float = 0.02):
+                 tol: float = 1e-6, fd_step: float = 1e-6, merge_radius: float = 0.02, stable_inverse: bool = False,
+                 inverse_radius: float | None = None):
         self.n_starts = n_starts  # local searches, from the best candidates
         self.n_candidates = n_candidates  # Halton points evaluated before the local searches
         self.max_nfev = max_nfev  # residual evaluations per local search
@@ -79,18 +98,60 @@ class Varpro(Identifier):
         self.tol = tol  # ftol = xtol = gtol of least_squares
         self.fd_step = fd_step  # forward-difference step, relative to each bound's width
         self.merge_radius = merge_radius  # a search this close (fraction of each width) to an earlier optimum stops
+        self.stable_inverse = stable_inverse  # linear solves constrained to a stable exact inverse (module docstring)
+        self.inverse_radius = inverse_radius  # largest root modulus allowed (None: exp(-dt / shortest drive period))
 
     def check(self, model, problem=None) -> None:
         if not model.has_linear_part:
             raise IdentificationError(
                 f"method 'varpro' cannot identify model {model.name!r}: it has no linear parameters to solve "
                 "exactly (use 'lsq' or 'mpso')")
+        if self.stable_inverse:
+            check_stable_inverse(model, self.inverse_radius)
 
     def search(self, problem, seed, start, x0=None) -> dict:
         return run(problem, seed, start, **self.get_params())
 
 
 OPTIONS = Varpro().get_params()
+
+
+def check_stable_inverse(model, inverse_radius) -> None:
+    """Refuse, in one line, a model or radius the stable-inverse constraint cannot work with."""
+    if not hasattr(model, "inverse_recursion_rows"):
+        raise IdentificationError(
+            f"option stable_inverse: model {model.name!r} does not state its exact inverse's error recursion as "
+            "linear rows (classical-pi and mrpim do)")
+    if getattr(model, "derivative", "backward") != "backward":
+        raise IdentificationError(f"option stable_inverse: model {model.name!r} has derivative="
+                                  f"{model.derivative!r}; its exact inverse needs derivative='backward'")
+    if inverse_radius is not None and (isinstance(inverse_radius, bool) or not (
+            isinstance(inverse_radius, (int, float)) and 0.0 < inverse_radius <= 1.0)):
+        raise IdentificationError(f"option inverse_radius must be in (0, 1] (or unset), got {inverse_radius!r}")
+
+
+@dataclass
+class InverseConstraints:
+    """G x >= h on the linear parameters (``linear_names`` order, divided by the output scale): the
+    Schur-Cohn conditions (``STABILITY_CONDITIONS``) at each operating point of ``rows``, rows
+    ordered condition-major (all points of the first condition, then the second, ...)."""
+
+    G: np.ndarray
+    h: np.ndarray
+    rows: object  # the stacked ``RecursionRows``
+    record: np.ndarray  # per operating point, the fit record it comes from
+    radius: np.ndarray  # per operating point, the largest root modulus allowed
+
+    def describe(self, index: int, files: list[str], weight_names: list[str]) -> dict:
+        """A constraint row as the operating point and condition it states."""
+        n = self.rows.sample.size
+        point, condition = index % n, index // n
+        edge = self.rows.edge[point]
+        return {"condition": STABILITY_CONDITIONS[condition], "record": files[self.record[point]],
+                "sample": int(self.rows.sample[point]), "u": float(self.rows.u[point]),
+                "direction": {1.0: "rising", -1.0: "falling"}.get(float(self.rows.sign[point]), "still"),
+                "lower_edge": [weight_names[i] for i in np.flatnonzero(edge == 1)],
+                "upper_edge": [weight_names[i] for i in np.flatnonzero(edge == -1)]}
 
 
 class _SameBasin(Exception):
@@ -113,13 +174,17 @@ class LinearSolution:
     fixed: dict = field(default_factory=dict)  # {name: value} linear parameters fixed because the data do not determine them
     condition_number_full: float = math.nan  # of the design before rank-deficient columns were fixed
     nearly_constant: list = field(default_factory=list)  # of ``fixed``: columns nearly constant on the scored rows
+    inverse_constrained: bool = False  # the stable-inverse constraint moved the solution (some row active)
+    active_constraints: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # active rows of G
+    constraint_violation: float = 0.0  # largest relative violation of a constraint row at the solution
 
 
 class SeparableProblem:
     """Linear solves and projected residuals of a ``Problem`` (public: the
     posterior and the ablation use it)."""
 
-    def __init__(self, problem: Problem, max_condition: float = OPTIONS["max_condition"]):
+    def __init__(self, problem: Problem, max_condition: float = OPTIONS["max_condition"],
+                 stable_inverse: bool = False, inverse_radius: float | None = None):
         model = problem.model
         if not model.has_linear_part:
             raise IdentificationError(
@@ -144,6 +209,36 @@ class SeparableProblem:
         w = problem.row_weights
         self._ys = [np.ascontiguousarray(r.y[r.scored]) / self.output_scale for r in problem.records]
         self.b = np.concatenate([wm * y for wm, y in zip(w, self._ys)])
+        # the linear solves keep the exact inverse's recursion roots within a radius (module docstring)
+        self.stable_inverse = bool(stable_inverse)
+        self.inverse_radius = None if inverse_radius is None else float(inverse_radius)
+        if self.stable_inverse:
+            check_stable_inverse(model, inverse_radius)
+
+    def record_radius(self, record) -> float:
+        """The largest root modulus allowed on a fit record: ``inverse_radius``, or by default
+        exp(-dt / T) with T the fit records' shortest drive period (``DataScale.time``): an input error
+        of the exact inverse decays by e within that period, before the reference reverses again."""
+        if self.inverse_radius is not None:
+            return self.inverse_radius
+        return math.exp(-record.dt / self.problem.scale.time)
+
+    # --- the stable-inverse constraint ---------------------------------------
+    def inverse_constraints(self, nonlinear: np.ndarray) -> InverseConstraints | None:
+        """The Schur-Cohn rows at the operating points of the fit records (``inverse_recursion_rows``
+        over each whole record: the exact inverse runs from rest, through the transient the scored
+        window follows) for a nonlinear parameter vector; None when unconstrained."""
+        if not self.stable_inverse:
+            return None
+        p = self.problem
+        nl = {n: float(v) for n, v in zip(self.nonlinear_names, np.asarray(nonlinear, dtype=float).ravel())}
+        parts = [self.model.inverse_recursion_rows(r.u, r.dt, nl, None, p.input_range) for r in p.records]
+        rows = type(parts[0]).stack(parts)
+        record = np.concatenate([np.full(part.sample.size, m) for m, part in enumerate(parts)])
+        rho = np.array([self.record_radius(r) for r in p.records])[record][:, None]
+        c0, c1, c2 = rho * rho * rows.c0, rho * rows.c1, rows.c2
+        G = np.concatenate([c0 - c2, c0 + c2, c0 + c2 - c1, c0 + c2 + c1])
+        return InverseConstraints(G, np.zeros(G.shape[0]), rows, record, rho[:, 0])
 
     # --- design matrices ---------------------------------------------------
     def _as_sets(self, nonlinear_sets) -> np.ndarray:
@@ -173,7 +268,8 @@ class SeparableProblem:
                  r.y[r.scored].copy(), r.weight / r.n_scored) for r in p.records]
 
     # --- the linear solve ----------------------------------------------------
-    def solve_blocks(self, blocks: list[np.ndarray], accurate: bool = False) -> LinearSolution:
+    def solve_blocks(self, blocks: list[np.ndarray], accurate: bool = False,
+                     constraints: InverseConstraints | None = None) -> LinearSolution:
         """Exact (regularised, bounded) least squares for one set's per-record regressors.
 
         Works on the column-scaled matrix A_s = A D^-1 (unit-norm columns) of
@@ -188,9 +284,11 @@ class SeparableProblem:
         ``column_priority``). In both paths, next to an intercept, a column nearly constant on the
         scored rows is fixed at 0 (``varying_columns``). A model output that is not
         finite gives an infinite fitness and is counted in the problem's ``n_nonfinite``.
+        ``constraints`` (``inverse_constraints``): the solve keeps G x >= h and the bounds
+        (``linear.spectral_inequality_solve``) when the unconstrained solution breaks them.
         """
         keep = self.varying_columns(blocks)
-        sol = self._solve(blocks, accurate, None if keep.all() else keep)
+        sol = self._solve(blocks, accurate, None if keep.all() else keep, constraints)
         sol.nearly_constant = [n for n, k in zip(self.linear_names, keep) if not k]
         if not (accurate and sol.n_undetermined and math.isfinite(sol.fitness)):
             return sol
@@ -200,7 +298,7 @@ class SeparableProblem:
         if not dependent.any():
             return sol
         keep[cols[dependent]] = False
-        reduced = self._solve(blocks, True, keep)
+        reduced = self._solve(blocks, True, keep, constraints)
         if not reduced.fitness <= sol.fitness * (1.0 + FREE_FIX):  # the bounds determine those directions
             return sol
         reduced.condition_number_full = sol.condition_number
@@ -235,7 +333,8 @@ class SeparableProblem:
         group = self.column_groups(blocks)
         return np.lexsort((np.arange(group.size), group))
 
-    def _solve(self, blocks: list[np.ndarray], accurate: bool, keep: np.ndarray | None) -> LinearSolution:
+    def _solve(self, blocks: list[np.ndarray], accurate: bool, keep: np.ndarray | None,
+               constraints: InverseConstraints | None = None) -> LinearSolution:
         """``solve_blocks`` on the columns ``keep`` (None: all); the others are fixed at 0 (or the bound
         nearest 0) and their contribution taken off the data."""
         w = self.problem.row_weights
@@ -245,11 +344,17 @@ class SeparableProblem:
         ys = self._ys
         b = self.b
         x_fixed = np.zeros(0)
+        Gc = hc = None  # the constraint rows (G is the Gram matrix below)
+        if constraints is not None:
+            Gc, hc = constraints.G, constraints.h
         if keep is not None:
             x_fixed = np.clip(0.0, lo[~keep], hi[~keep])
             if np.any(x_fixed != 0.0):
                 ys = [y - Phi[:, ~keep] @ x_fixed for Phi, y in zip(blocks, ys)]
                 b = np.concatenate([wm * y for wm, y in zip(w, ys)])
+            if Gc is not None:
+                hc = hc - Gc[:, ~keep] @ x_fixed
+                Gc = Gc[:, keep]
             blocks = [np.ascontiguousarray(Phi[:, keep]) for Phi in blocks]
             names = [nm for nm, k in zip(names, keep) if k]
             lo, hi = lo[keep], hi[keep]
@@ -282,7 +387,26 @@ class SeparableProblem:
         denom, safe = spec.denominators, spec.kept
         x = spec.x_scaled / D
         bounded = False
-        if np.any(x < lo) or np.any(x > hi):
+        inverse_constrained, active, violation = False, np.zeros(0, dtype=int), 0.0
+        if Gc is not None:
+            # the constraint rows and the bounds, as one system G_all x >= h_all
+            finite_lo, finite_hi = np.isfinite(lo), np.isfinite(hi)
+            eye = np.eye(x.size)
+            G_all = np.concatenate([Gc, eye[finite_lo], -eye[finite_hi]])
+            h_all = np.concatenate([hc, lo[finite_lo], -hi[finite_hi]])
+            if np.any(G_all @ x < h_all):
+                solved = spectral_inequality_solve(V[:, safe], denom[safe], rhs[safe], D, G_all, h_all)
+                if solved is not None:
+                    x = solved
+            size = np.abs(G_all) @ np.abs(x) + np.abs(h_all)  # the size of the terms each row sums
+            slack = (G_all @ x - h_all) / np.where(size > 0, size, 1.0)
+            violation = float(max(0.0, -np.min(slack, initial=0.0)))
+            at = np.flatnonzero(slack <= ACTIVE_SLACK)
+            active = at[at < Gc.shape[0]]
+            inverse_constrained = active.size > 0
+            bounded = bool(np.any(at >= Gc.shape[0]))
+            x = np.clip(x, lo, hi)
+        elif np.any(x < lo) or np.any(x > hi):
             bounded = True
             # min ||A_s xs - b||^2 + alpha2 ||xs||^2 as the small system M xs ~ c
             root = np.sqrt(denom[safe])
@@ -310,7 +434,9 @@ class SeparableProblem:
             x = x_all
         return LinearSolution(x * scale, fit * scale * scale, r, cond, regularised,
                               math.sqrt(alpha2 / ev_max) if regularised else 0.0, bounded, weak,
-                              undetermined_count(ev) if accurate else 0, fixed)
+                              undetermined_count(ev) if accurate else 0, fixed,
+                              inverse_constrained=inverse_constrained, active_constraints=active,
+                              constraint_violation=violation)
 
     def _Atb(self, blocks):
         return sum((wm * wm) * (Phi.T @ y) for wm, Phi, y in zip(self.problem.row_weights, blocks, self._ys))
@@ -333,7 +459,8 @@ class SeparableProblem:
             vec = np.array([float(nonlinear[n]) for n in self.nonlinear_names])
         else:
             vec = np.asarray(nonlinear, dtype=float).reshape(len(self.nonlinear_names))
-        return self.solve_blocks([B[0] for B in self.blocks(vec[None])], accurate=accurate)
+        return self.solve_blocks([B[0] for B in self.blocks(vec[None])], accurate=accurate,
+                                 constraints=self.inverse_constraints(vec))
 
     def projected_batch(self, nonlinear_sets: np.ndarray) -> list[LinearSolution]:
         """Linear solves for many nonlinear sets; the best fitness goes to the history."""
@@ -343,7 +470,8 @@ class SeparableProblem:
         sols = []
         for a in range(0, sets.shape[0], chunk):
             blocks = self.blocks(sets[a:a + chunk])
-            sols.extend(self.solve_blocks([B[i] for B in blocks]) for i in range(blocks[0].shape[0]))
+            sols.extend(self.solve_blocks([B[i] for B in blocks], constraints=self.inverse_constraints(sets[a + i]))
+                        for i in range(blocks[0].shape[0]))
         self.problem.note(min(s.fitness for s in sols))
         return sols
 
@@ -357,7 +485,7 @@ class SeparableProblem:
 def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, **options) -> dict:
     """Identify by variable projection; returns params, diagnostics and notes."""
     opts = {**OPTIONS, **options}
-    sep = SeparableProblem(problem, opts["max_condition"])
+    sep = SeparableProblem(problem, opts["max_condition"], opts["stable_inverse"], opts["inverse_radius"])
     x_start = problem.start_vector(start)
     d = len(sep.nonlinear_names)
     diag: dict = {"n_nonlinear": d, "n_linear": len(sep.linear_names)}
@@ -483,6 +611,54 @@ def run(problem: Problem, seed: int | None, start: Mapping[str, float] | None, *
         )
         diag["weak_directions"] = [{"relative_singular_value": sv, "loadings": load}
                                    for sv, load in final.weak_directions]
-    if final.bounded:
+    if final.bounded and not sep.stable_inverse:
         notes.append("varpro: the unconstrained linear solution left the bounds; solved with bounds (lsq_linear)")
+    if sep.stable_inverse:
+        stable_inverse_report(sep, best_nl, final, diag, notes)
     return {"x": x, "diagnostics": diag, "notes": notes}
+
+
+def recursion_roots(c0: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> np.ndarray:
+    """The largest root modulus of c0 z^2 + c1 z + c2 per row (inf where c0 = 0 and c1 or c2 is not)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b, c = c1 / c0, c2 / c0
+        disc = b * b - 4.0 * c
+        sq = np.sqrt(np.abs(disc))
+        rho = np.where(disc >= 0.0, np.maximum(np.abs(-b + sq), np.abs(-b - sq)) / 2.0, np.sqrt(np.abs(c)))
+    return np.where(c0 != 0.0, rho, np.where((c1 != 0.0) | (c2 != 0.0), np.inf, 0.0))
+
+
+def stable_inverse_report(sep: SeparableProblem, nonlinear: np.ndarray, final: LinearSolution, diag: dict,
+                          notes: list) -> None:
+    """What the stable-inverse constraint did at the optimum, into the diagnostics and notes (always: a
+    constraint that held without being needed is said too)."""
+    cons = sep.inverse_constraints(nonlinear)
+    theta = final.linear
+    rows = cons.rows
+    roots = recursion_roots(rows.c0 @ theta, rows.c1 @ theta, rows.c2 @ theta)
+    files = [r.file for r in sep.problem.records]
+    weights = [n for n in sep.linear_names if n.startswith("a")]
+    active = [cons.describe(int(i), files, weights) for i in final.active_constraints]
+    largest = float(np.max(roots, initial=0.0))
+    excess = float(np.max(roots / cons.radius, initial=0.0))  # largest root relative to its allowed radius
+    radii = sorted({float(v) for v in cons.radius})
+    diag["stable_inverse"] = {
+        "inverse_radius": radii, "operating_points": int(rows.sample.size),
+        "constraint_rows": int(cons.G.shape[0]), "largest_root_at_operating_points": largest,
+        "largest_root_relative_to_radius": excess,
+        "active": active, "n_active": len(active), "largest_violation": final.constraint_violation}
+    kinds = {}
+    for a in active:
+        kinds[a["condition"]] = kinds.get(a["condition"], 0) + 1
+    # the conditions are what the solve holds, to rounding; a double root moves by the square root of that
+    held = (f"the conditions hold to {final.constraint_violation:.1e} relative"
+            if final.constraint_violation <= ACTIVE_SLACK else
+            f"does NOT hold: a condition is violated by {final.constraint_violation:.3g} relative")
+    summary = ", ".join(f"{n} x {k}" for k, n in kinds.items()) or "none"
+    notes.append(
+        f"varpro: stable_inverse: linear solves constrained so that the exact inverse's error recursion "
+        f"c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has roots of modulus <= {', '.join(f'{v:.6g}' for v in radii)} at "
+        f"{rows.sample.size} operating points of the fit records ({cons.G.shape[0]} rows); active at the optimum: "
+        f"{summary}; largest root there {largest:.6g} ({held}). Other inputs' operating points are not "
+        "constrained: check the inverse on them")
+

@@ -66,8 +66,9 @@ error e in the inverse's input therefore obeys c0 e(k) + c1 e(k-1) + c2 e(k-2) =
 c_j = dy(k)/du(k-j). Where a root of c0 z^2 + c1 z + c2 lies outside the unit circle (a zero
 of the model outside it) the recursion amplifies any error, rounding included, by that modulus
 per sample; no causal exact inverse is then stable. ``recursion_radius`` gives the largest
-modulus per sample (MRPIM fitted on the virtual DEA: up to 1.14 on the protocol's sines, with
-the envelopes the cause; docs/deploying.md); the export's inverse check reports it.
+modulus per sample (MRPIM fitted on the virtual DEA: up to 1.008 on the protocol's sines, above 1 on
+50-75 % of the samples, with the envelopes the cause; docs/deploying.md); the export's inverse check
+reports it. varpro's ``stable_inverse`` identifies under the conditions that keep it within a radius.
 
 The reference-driven inverse (``inverse="reference-driven"``; ``"auto"`` picks it for a model with
 rate or relaxation terms, the exact one otherwise, where the two coincide). The literature's
@@ -391,7 +392,8 @@ def mapped_reference(yd: np.ndarray, u_start: float, gain: float, y_first: float
 def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, fb0, fb1, fpow, fw):
     """Per sample k of the forward model driven with u, the largest root modulus of the inverse's
     linearised error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0, c_j = dy(k)/du(k-j) with the
-    play and filter states held (module docstring, "Why the exact inverse diverges"). 0 at the first
+    play and filter states held (module docstring, "Why the exact inverse diverges"), one-sided on
+    the side of u(k-1) the input came from (the edges ``pi_sample``'s slope takes). 0 at the first
     two samples and where c0 = 0 (no root: the sample's input is not determined)."""
     n = u.shape[0]
     rho = np.zeros(n)
@@ -402,12 +404,20 @@ def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, 
         if k >= 2:
             c0 = step_output(u[k], False, u1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
                              fa, fb0, fb1, fpow, fw)[1]
-            h1 = 1e-7 * (1.0 + abs(u1))
-            c1 = (step_output(u[k], False, u1 + h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-                              fa, fb0, fb1, fpow, fw)[0]
-                  - step_output(u[k], False, u1 - h1, u2, dt, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly,
-                                q, fa, fb0, fb1, fpow, fw)[0]) / (2.0 * h1)
-            c2 = q / (dt * dt)
+            # c1 exactly, on the edges c0 was taken on: the slope without the rate terms (inv_dt = 0 in
+            # the slope: no -/+ g a_i s / dt per play on an edge, no q / dt^2) minus c0 is the plays' c1
+            # less q / dt^2; a finite difference in u1 would cross a play's edge whenever the play lies
+            # within g / dt times its step of it, and report the other side's slope there
+            inv_dt = 1.0 / dt
+            a, s, d2 = backward_rates(u[k], u1, u2, False, inv_dt, inv_dt * inv_dt)
+            rate_free = pi_sample(u[k], a, s, d2, False, u1, 0.0, base[k], w, xf, r_lo, r_hi, g_lo, g_hi, weights,
+                                  poly, q, fa, fb0, fb1, fpow, fw, False, True)[1]
+            c2 = q * inv_dt * inv_dt
+            c1 = rate_free - c0 - c2
+            for j in range(fa.shape[0]):
+                pw = fpow[j]
+                if pw != 0:
+                    c1 += fw[j] * fb0[j] * pw * u1 ** (pw - 1)
             if c0 != 0.0:
                 b = c1 / c0
                 c = c2 / c0
@@ -422,6 +432,95 @@ def recursion_radius(u, dt, base, r_lo, r_hi, g_lo, g_hi, weights, poly, q, fa, 
         u2 = u1
         u1 = u[k]
     return rho
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def recursion_activity(u, dt, r_lo, r_hi, g_lo, g_hi, start, stop):
+    """The operating point of the exact inverse's error recursion at samples [start, stop) of the
+    forward model driven with u (plays from 0 at sample 0): per sample, each play's edge (1: on its
+    lower edge u - g_lo |u'| - r_lo_i, -1: on its upper edge u + g_hi |u'| + r_hi_i, 0: held; the
+    comparisons ``pi_sample``'s slope makes) and sign(u'). With these fixed, c0, c1, c2 of
+    ``recursion_radius`` are linear in the weights, polynomial and q (``RecursionRows``)."""
+    n_op = r_lo.shape[0]
+    edge = np.zeros((stop - start, n_op), dtype=np.int8)
+    sign = np.zeros(stop - start)
+    w = np.zeros(n_op)
+    inv_dt = 1.0 / dt
+    u1 = u2 = u[0]
+    for k in range(stop):
+        a, s, _ = backward_rates(u[k], u1, u2, k == 0, inv_dt, inv_dt * inv_dt)
+        for i in range(n_op):
+            lower = u[k] - g_lo * a - r_lo[i]
+            upper = u[k] + g_hi * a + r_hi[i]
+            v = play_update(w[i], lower, upper)
+            if k >= start:
+                if v == lower:
+                    edge[k - start, i] = 1
+                elif v == upper:
+                    edge[k - start, i] = -1
+            w[i] = v
+        if k >= start:
+            sign[k - start] = s
+        u2 = u1
+        u1 = u[k]
+    return edge, sign
+
+
+@dataclass
+class RecursionRows:
+    """The exact inverse's error recursion c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 at operating points
+    of a forward run (``recursion_radius``), as linear maps of the model's linear parameters:
+    c_j = C_j @ theta_L (``linear_names`` order), one row per operating point."""
+
+    c0: np.ndarray  # (n_points, n_linear)
+    c1: np.ndarray
+    c2: np.ndarray
+    sample: np.ndarray  # the sample each point was taken at
+    u: np.ndarray  # the input there
+    sign: np.ndarray  # sign(u') there
+    edge: np.ndarray  # (n_points, n_operators): 1 lower edge, -1 upper edge, 0 held (``recursion_activity``)
+    dt: float
+
+    @classmethod
+    def stack(cls, parts: list["RecursionRows"]) -> "RecursionRows":
+        cat = np.concatenate
+        return cls(cat([p.c0 for p in parts]), cat([p.c1 for p in parts]), cat([p.c2 for p in parts]),
+                   cat([p.sample for p in parts]), cat([p.u for p in parts]), cat([p.sign for p in parts]),
+                   cat([p.edge for p in parts]), min((p.dt for p in parts), default=float("nan")))
+
+
+@njit(cache=True)
+def _edge_hash(edge):
+    """FNV-1a hash of each row of ``edge`` (equal rows, equal hashes; ``distinct_operating_points``
+    also compares the rows, so a collision merges nothing)."""
+    out = np.empty(edge.shape[0], dtype=np.uint64)
+    prime = np.uint64(1099511628211)
+    for k in range(edge.shape[0]):
+        h = np.uint64(14695981039346656037)
+        for i in range(edge.shape[1]):
+            h = (h ^ np.uint64(edge[k, i] + 1)) * prime
+        out[k] = h
+    return out
+
+
+def distinct_operating_points(edge: np.ndarray, sign: np.ndarray, u: np.ndarray, input_range,
+                              n_levels: int) -> np.ndarray:
+    """Indices of a thinned set of operating points: c0, c1, c2 depend on a sample only through the
+    plays' edges, sign(u') and u (the polynomial's slope); per (edges, sign, u in one of ``n_levels``
+    equal bands of the input range) the samples with the smallest and the largest u are kept."""
+    if u.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo, hi = map(float, input_range)
+    band = np.zeros(u.size, dtype=np.int64)
+    if hi > lo:
+        band = np.clip(np.floor((u - lo) / (hi - lo) * n_levels), 0, n_levels - 1).astype(np.int64)
+    order = np.lexsort((u, band, sign, _edge_hash(np.ascontiguousarray(edge))))
+    e, sg, b = edge[order], sign[order], band[order]
+    new = np.ones(order.size, dtype=bool)
+    new[1:] = (sg[1:] != sg[:-1]) | (b[1:] != b[:-1]) | np.any(e[1:] != e[:-1], axis=1)
+    first = np.flatnonzero(new)
+    last = np.concatenate([first[1:] - 1, [order.size - 1]])
+    return np.unique(np.concatenate([order[first], order[last]]))
 
 
 # --- the model-facing side ----------------------------------------------------------

@@ -22,7 +22,7 @@ from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, backward_second_difference_at, derivatives
 from .errors import ModelError
 from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
-from .inverse import StepStructure
+from .inverse import RecursionRows, StepStructure, distinct_operating_points, recursion_activity
 from .pi_stepper import SteppableStructure
 from .kernels import (
     pi_output,
@@ -213,6 +213,61 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
             poly=np.array([params[f"p{j}"] for j in range(1, self.poly_order + 1)]),
             q=params["q"] if self.q_term else 0.0,
             base=np.full(n_samples, params["offset"] if self.offset else 0.0))
+
+    #: operating points of ``inverse_recursion_rows``: the input range is cut into this many bands
+    RECURSION_LEVELS = 32
+
+    def inverse_recursion_rows(self, u, dt: float, nonlinear: Mapping[str, float], window=None,
+                               input_range=None, n_levels: int | None = None) -> RecursionRows:
+        """The exact inverse's recursion coefficients (``inverse.recursion_radius``) at the distinct
+        operating points of the forward run on u within ``window`` (default: the whole record; points
+        from its third sample on), as rows linear in the linear parameters. With the plays' edges and
+        sign(u') fixed (``recursion_activity``), per play on its lower edge c0 gets a_i (1 - gamma s/dt)
+        and c1 a_i gamma s/dt, on its upper edge c0 gets a_i (1 + lambda s/dt) and c1 -a_i lambda s/dt;
+        the polynomial adds p'(u) to c0; q adds (1, -2, 1) / dt^2 to (c0, c1, c2). Thinned by
+        ``distinct_operating_points`` (``n_levels`` bands of the input range)."""
+        u = self._check_input(u, dt)
+        if self.derivative != "backward":
+            raise ModelError(f"{self.name}: the inverse recursion needs derivative='backward'")
+        nonlinear = dict(nonlinear or {})
+        if set(nonlinear) != set(self.nonlinear_names):
+            raise ModelError(f"{self.name}: recursion rows need exactly the nonlinear parameters "
+                             f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}")
+        g_lo = float(nonlinear.get("gamma", 0.0))
+        g_hi = float(nonlinear.get("lambda", 0.0))
+        input_range = self._input_range(u, input_range)
+        r = self.thresholds(u, input_range)
+        start, stop = (0, u.size) if window is None else self._window_bounds(u, window)
+        first = max(start, 2)  # the recursion starts at the third sample (``recursion_radius``)
+        edge, sign = recursion_activity(u, float(dt), r, np.zeros_like(r), g_lo, g_hi, first, max(first, stop))
+        samples = np.arange(first, max(first, stop))
+        rows = None if window is None else self._window_rows(u, window)
+        if rows is not None:
+            pick = np.isin(samples, rows)
+            samples, edge, sign = samples[pick], edge[pick], sign[pick]
+        levels = self.RECURSION_LEVELS if n_levels is None else check_int(self.name, "n_levels", n_levels, 1)
+        keep = distinct_operating_points(edge, sign, u[samples], input_range, levels)
+        samples, edge, sign = samples[keep], edge[keep], sign[keep]
+        uk = u[samples]
+        names = self.linear_names
+        n = len(samples)
+        c0, c1, c2 = (np.zeros((n, len(names))) for _ in range(3))
+        inv_dt = 1.0 / float(dt)
+        lower = edge == 1
+        upper = edge == -1
+        first_weight = names.index("a1") if self.n_operators else 0
+        ops = slice(first_weight, first_weight + self.n_operators)
+        s = sign[:, None]
+        c0[:, ops] = np.where(lower, 1.0 - g_lo * s * inv_dt, 0.0) + np.where(upper, 1.0 + g_hi * s * inv_dt, 0.0)
+        c1[:, ops] = np.where(lower, g_lo * s * inv_dt, 0.0) - np.where(upper, g_hi * s * inv_dt, 0.0)
+        for j in range(1, self.poly_order + 1):
+            c0[:, names.index(f"p{j}")] = j * uk ** (j - 1)
+        if self.q_term:
+            iq = names.index("q")
+            c0[:, iq] = inv_dt * inv_dt
+            c1[:, iq] = -2.0 * inv_dt * inv_dt
+            c2[:, iq] = inv_dt * inv_dt
+        return RecursionRows(c0, c1, c2, samples, uk, sign, edge, float(dt))
 
     # --- windowed regressors (what identifiers fit) -----------------------
     def _static_columns(self, u: np.ndarray, dt: float, start: int, stop: int,

@@ -465,7 +465,7 @@ def test_reference_driven_inverse_of_a_rate_independent_model_is_the_exact_one()
 
 
 # MRPIM fitted by varpro on the virtual DEA (data/virtual_dea; a fixed model, so no fit runs
-# here): its exact inverse's error recursion has roots up to about 1.1 per sample
+# here): its exact inverse's error recursion has roots up to about 1.008 per sample
 DEA_MRPIM = {"gamma": 0.1, "lambda": 0.07502, "p1": -1.34117, "p2": 2.19027, "p3": -0.138619, "p4": -0.0204397,
              "q": 0.0237183, "a1": -1.31949, "a2": 1.55213, "a3": -0.405417, "a4": 0.19744, "a5": 0.0531297,
              "a6": 0.161204, "a7": 0.176602, "a8": 0.243429, "a9": 0.321282, "a10": 0.447268, "a11": 2.28218,
