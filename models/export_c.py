@@ -507,7 +507,9 @@ class InverseCheck:
                 f"{self.max_error:.3g} of the input span (above {self.tolerance:g} from sample {self.first_sample} of "
                 f"{self.n_samples}; {self.n_clipped} clipped): " + (
                     f"its linearised error recursion has roots of modulus up to {self.max_root:.3g} (above 1 on "
-                    f"{100 * self.share_unstable:.0f} % of the samples), so it amplifies any error, rounding included"
+                    f"{100 * self.share_unstable:.0f} % of the samples), so it amplifies any error, rounding included "
+                    "(classical-pi and mrpim identified with --method varpro --option stable_inverse=true have a "
+                    "stable one)"
                     if self.max_root == self.max_root and self.max_root > 1.0 else
                     "the inverse recursion amplifies small errors or jumps to another root")
                 + ", so it is not safe as a feedforward")
