@@ -1113,7 +1113,8 @@ PINNED = {
         {"gain-modulation": {"depth": 0.065, "period_s": 40.0, "phase_rad": 5.75}}, cause=NOT_A_CAUSE),
     # one line on every fold names an interference below the gain floor, the rest unexplained
     "line-below-the-gain-floor": Pin(("interference",), "virtual-dea", "triangles", 104, cause="interference",
-                                     remainder=0.9, errors={"interference": {"frequency_hz": 1e-3}}),
+                                     remainder=0.9, rules=(("specific-part", "interference"),),
+                                     errors={"interference": {"frequency_hz": 1e-3}}),
     "line-on-top-of-the-physics-relaxation": Pin(
         ("interference",), "virtual-dea", "sines", 4, {"interference": {"frequency_hz": 13.7, "amplitude": 0.08}},
         cause="relaxation", also_has=("interference",), errors={"interference": {"frequency_hz": 0.25}}),
@@ -1145,7 +1146,7 @@ PINNED = {
     "specific-part-named-beside-an-unstable-best": Pin(
         ("interference",), "virtual-dea", "triangles", 2200104, cause="interference", remainder=0.5,
         rules=(("specific-part", "interference"),),
-        errors={"interference": {"frequency_hz": 0.01, "amplitude": 0.25}}),
+        errors={"interference": {"frequency_hz": 0.01, "amplitude": 0.25}}, variant=True),
     "clip-searched-on-top-of-the-named-cause": Pin(
         ("saturation",), "virtual-dea", "multisines", 2200046, cause="relaxation", also_has=("saturation",),
         errors={"saturation": {"level_over_p2p": 0.01}}),
