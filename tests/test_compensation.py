@@ -6,15 +6,19 @@ import numpy as np
 import pytest
 
 from hysbench.benchmarks.cli import main as cli_main
+from hysbench.benchmarks.compensation.controllers import ModelInverse
 from hysbench.benchmarks.compensation.plant import DEAPlant, ModelPlant
 from hysbench.benchmarks.compensation.references import references
-from hysbench.data.dataset import load_dataset
+from hysbench.benchmarks.compensation.run import compensate
+from hysbench.data.dataset import Dataset, Record, load_dataset, save_dataset
 from hysbench.data.dea_sensor import LaserSensor
 from hysbench.data.metrics import e_rms
-from hysbench.data.protocol import simulated_dataset
+from hysbench.data.protocol import paper_voltage, protocol_time, role_of, simulated_dataset, weight_of
 from hysbench.data.virtual_dea import command_voltage, default_dataset_path, displacement_mm
 from hysbench.identification.api import identify
 from hysbench.models import get_model
+from hysbench.models import inverse as inverse_module
+from hysbench.models.errors import HysbenchError
 
 DT = 1e-3
 
@@ -104,3 +108,85 @@ def test_cli_writes_report_and_json(tmp_path, capsys):
     assert "mrpim+delay" in data["not_invertible"]
     assert "mrpim+delay: cannot be inverted" in capsys.readouterr().out
     assert (out / "compensation.md").read_text().count("| sine-1Hz |") == 2
+
+
+def small_dea_dataset(frequencies=(0.2, 0.4, 1.0), n_periods=2) -> Dataset:
+    """The virtual DEA's physics (no noise) on the protocol's drive, two periods per record: short enough
+    for a compensation run in seconds (references run as long as their records)."""
+    records = []
+    for f in frequencies:
+        t = protocol_time(f, n_periods, DT)
+        u = paper_voltage(t, f)
+        records.append(Record(file=f"f{f:g}Hz.npz", t=t, u=u, y=displacement_mm(u), role=role_of(f),
+                              frequency_hz=f, weight=weight_of(f)))
+    return Dataset(name="small-dea", records=records, input_unit="kV", output_unit="mm")
+
+
+def test_identifier_options_reach_the_fit_and_the_inverse_asked_for_runs():
+    ds = small_dea_dataset()
+    quiet = lambda msg: None  # noqa: E731
+    stable, _ = compensate(ds, ["classical-pi", "mrpim"], method="varpro", reference_names=["sine-1Hz"], log=quiet,
+                           identify_options={"stable_inverse": True}, inverse="exact")
+    plain, _ = compensate(ds, ["mrpim"], method="varpro", reference_names=["sine-1Hz"], log=quiet)
+    for name in ("classical-pi", "mrpim"):
+        m = stable["models"][name]
+        assert m["identify_options"] == {"stable_inverse": True}
+        assert any("stable_inverse: linear solves constrained" in n for n in m["notes"])  # the fit ran it
+        assert m["inverse"] == "numerical (exact)"
+    assert not any("stable_inverse" in n for n in plain["models"]["mrpim"]["notes"])
+    assert stable["inverse_option"] == "exact" and plain["inverse_option"] == "auto"
+    assert plain["models"]["mrpim"]["inverse"] == "numerical (reference-driven)"  # auto: mrpim has rate terms
+    inv = ModelInverse.identify("classical-pi", ds, method="varpro", inverse="exact", stable_inverse=True)
+    assert inv.fit.options["varpro"]["stable_inverse"] is True and inv.causal_inverse == "exact"
+
+
+def test_an_inverse_the_fit_cannot_run_is_reported_and_the_others_kept(monkeypatch):
+    # the reference-driven inverse needs an increasing loading curve: the guide's gain made negative for a
+    # model without rate terms (classical P-I), kept for one with them (MRPIM)
+    guide_gain = inverse_module.guide_gain
+    monkeypatch.setattr(inverse_module, "guide_gain", lambda s, r: guide_gain(s, r) if s.q != 0.0 else -1.0)
+    result, runs = compensate(small_dea_dataset(), ["classical-pi", "mrpim"], method="varpro",
+                              reference_names=["sine-1Hz"], log=lambda msg: None, inverse="reference-driven")
+    assert "reference-driven inverse needs an increasing loading curve" in result["not_invertible"]["classical-pi"]
+    assert list(result["models"]) == ["mrpim"] and "mrpim" in runs["sine-1Hz"]
+    assert result["models"]["mrpim"]["inverse"] == "numerical (reference-driven)"
+    with pytest.raises(HysbenchError, match="no model to compare: classical-pi cannot be inverted"):
+        compensate(small_dea_dataset(), ["classical-pi"], method="varpro", reference_names=["sine-1Hz"],
+                   log=lambda msg: None, inverse="reference-driven")
+
+
+@pytest.mark.parametrize("extra, named", [
+    (["--option", "nosuch=1"], "classical-pi: unknown option 'nosuch' for method 'varpro'"),
+    (["--option", "stable_inverse"], "--option 'stable_inverse' is not KEY=VALUE"),
+    (["--option", "stable_inverse=maybe"], "option stable_inverse must be true or false"),
+    (["--models", "classical-pi,rate-dependent-pi", "--option", "stable_inverse=true"],
+     "rate-dependent-pi: option stable_inverse: model 'rate-dependent-pi' does not state"),
+    (["--method", "varpro+lsq", "--option", "stable_inverse=true"], "stage 'lsq' after 'varpro'"),
+    (["--inverse", "inexact"], "argument --inverse: invalid choice: 'inexact'"),
+])
+def test_cli_refuses_bad_identifier_options_and_inverse_in_one_line_before_any_fit(extra, named, capsys, tmp_path,
+                                                                                     monkeypatch):
+    fitted = []
+    monkeypatch.setattr(ModelInverse, "identify", classmethod(lambda *a, **k: fitted.append(a)))
+    argv = ["compensate", str(default_dataset_path()), "--method", "varpro", "--out", str(tmp_path / "new")]
+    argv += extra if "--models" in extra else ["--models", "classical-pi"] + extra
+    assert cli_main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and named in err[0], err
+    assert not fitted and not (tmp_path / "new").exists()
+    with pytest.raises(HysbenchError, match="inverse must be one of auto, exact, reference-driven"):
+        compensate(default_dataset_path(), ["classical-pi"], inverse="inexact", log=lambda m: None)
+
+
+def test_cli_options_reach_the_report_and_its_command_line(tmp_path):
+    data = save_dataset(small_dea_dataset(), tmp_path / "small")
+    out = tmp_path / "res"
+    assert cli_main(["compensate", str(data), "--model", "classical-pi", "--method", "varpro", "--references",
+                     "sine-1Hz", "--option", "stable_inverse=true", "--option", "inverse_radius=0.99", "--inverse",
+                     "exact", "--out", str(out), "--quiet"]) == 0
+    result = json.loads((out / "compensation.json").read_text())
+    assert result["models"]["classical-pi"]["identify_options"] == {"stable_inverse": True, "inverse_radius": 0.99}
+    assert result["models"]["classical-pi"]["inverse"] == "numerical (exact)"
+    report = (out / "compensation.md").read_text()
+    assert ("--option stable_inverse=true --option inverse_radius=0.99 --inverse exact" in report
+            and "| classical-pi | varpro (stable_inverse=True, inverse_radius=0.99) | numerical (exact) |" in report)

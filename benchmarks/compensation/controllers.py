@@ -37,7 +37,7 @@ from hysbench.identification.api import identify
 from hysbench.identification.fit import Fit
 from hysbench.models import ClassicalPI, Viscoelastic, get_model
 from hysbench.models.errors import HysbenchError, ModelError
-from hysbench.models.inverse import Inversion, StepInvertible
+from hysbench.models.inverse import INVERSES, Inversion, StepInvertible
 
 PI_BANDWIDTH_HZ = 5.0
 PI_ZERO_S = 0.016
@@ -80,6 +80,10 @@ class PI:
         return cls(kp=ki * zero_s, ki=ki, bandwidth_hz=bandwidth_hz, zero_s=zero_s)
 
 
+class InverseNotRunnable(ModelError):
+    """The identified model cannot run the causal inverse asked for (``ModelInverse.identify``)."""
+
+
 @dataclass
 class ModelInverse:
     """A model identified on a dataset, ready to invert references."""
@@ -90,36 +94,54 @@ class ModelInverse:
     identify_seconds: float
     max_rate: float | None  # the numerical inverse's |du/dt| limit (input units per second; None: none)
     identify_options: dict = field(default_factory=dict)
+    causal_inverse: str | None = None  # the P-I family's causal inverse that runs ("exact", "reference-driven")
 
     @classmethod
     def identify(cls, name: str, dataset: Dataset, method: str = "auto", seed: int = 0,
-                 u_limits=(0.5, 2.5), **options) -> "ModelInverse":
-        """``options``: the identifier's options (``identify``'s keyword arguments)."""
+                 u_limits=(0.5, 2.5), inverse: str = "auto", **options) -> "ModelInverse":
+        """``options``: the identifier's options (``identify``'s keyword arguments). ``inverse``: the
+        P-I family's causal inverse (``models.inverse.INVERSES``; other models ignore it): "auto"
+        takes classical P-I's analytic inverse where it applies, else ``resolve_inverse``'s choice;
+        "exact" or "reference-driven" runs that numerical inverse (a fit it cannot run on raises
+        ``InverseNotRunnable``, after the identification)."""
+        check_inverse_option(inverse)
         model = get_model(name)
         if model.inverse_unavailable:
             raise ModelError(f"model {name!r} cannot be inverted: {model.inverse_unavailable}")
         t0 = time.perf_counter()
         fit = identify(model, dataset, method=method, seed=seed, **options)
         seconds = time.perf_counter() - t0
-        inverse = "numerical (physics kernel)" if isinstance(model, Viscoelastic) else "numerical"
-        if isinstance(model, StepInvertible):  # the P-I family: which causal inverse "auto" runs
+        label = "numerical (physics kernel)" if isinstance(model, Viscoelastic) else "numerical"
+        chosen = None
+        if isinstance(model, StepInvertible):  # the P-I family: which causal inverse runs
             dt = dataset.records[0].dt
-            chosen, _ = model.resolve_inverse("auto", model._structure(dt, fit.params, fit.input_range, 1),
-                                              fit.input_range)
-            inverse = f"numerical ({chosen})"
-        if isinstance(model, ClassicalPI) and model.poly_order == 1:
+            try:
+                chosen, _ = model.resolve_inverse(inverse, model._structure(dt, fit.params, fit.input_range, 1),
+                                                  fit.input_range)
+            except ModelError as err:
+                raise InverseNotRunnable(str(err)) from None
+            label = f"numerical ({chosen})"
+        if inverse == "auto" and isinstance(model, ClassicalPI) and model.poly_order == 1:
             try:
                 model.invert_analytic(np.zeros(2), 1e-3, fit.params, fit.input_range)
-                inverse = "analytic"
+                label, chosen = "analytic", None
             except ModelError:
                 pass  # loading curve not increasing: the numerical inverse (it counts where it clips)
         rates = [np.max(np.abs(np.diff(r.u))) / r.dt for r in dataset.records if r.role == "identification"]
         max_rate = None if name in RATE_FREE else RATE_FACTOR * float(max(rates))
-        return cls(name, fit, inverse, seconds, max_rate, dict(options))
+        return cls(name, fit, label, seconds, max_rate, dict(options), chosen)
 
     def invert(self, reference: np.ndarray, dt: float, u_limits) -> Inversion:
         model = self.fit.model_instance()
         if self.inverse == "analytic":
             return model.invert_analytic(reference, dt, self.fit.params, self.fit.input_range)
+        which = {} if self.causal_inverse is None else {"inverse": self.causal_inverse}
         return model.invert(reference, dt, self.fit.params, input_range=self.fit.input_range, input_limits=u_limits,
-                            max_rate=self.max_rate, u_start=u_limits[0])
+                            max_rate=self.max_rate, u_start=u_limits[0], **which)
+
+
+def check_inverse_option(inverse) -> str:
+    """The P-I family's inverse option (``INVERSES``), refused in one line otherwise."""
+    if inverse not in INVERSES:
+        raise HysbenchError(f"inverse must be one of {', '.join(INVERSES)}; got {inverse!r}")
+    return inverse

@@ -19,17 +19,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 
 from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.data.metrics import e_m, e_rms
+from hysbench.identification.api import build_identifier
+from hysbench.identification.errors import IdentificationError
 from hysbench.models import get_model
 from hysbench.models.errors import HysbenchError
 
 from ..matrix.cells import MATRIX_BUDGET
 
-from .controllers import PI, PI_BANDWIDTH_HZ, LinearGain, ModelInverse
+from .controllers import (PI, PI_BANDWIDTH_HZ, InverseNotRunnable, LinearGain, ModelInverse,
+                          check_inverse_option)
 from .plant import DEAPlant
 from .references import Reference, references
 
@@ -41,6 +45,27 @@ DEFAULT_MODELS = ("classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxatio
 # of 8 candidates). On the default dataset it reaches the same optimum as varpro's own default
 # budget (validation e_rms 6.998223 % both, parameters equal to 3 digits) in 24 s instead of 90 s.
 AUTO_IDENTIFY_OPTIONS = {"bouc-wen": MATRIX_BUDGET["varpro"]}
+
+
+def identify_options_for(name: str, method: str, options: Mapping | None = None) -> dict:
+    """The identifier options a model gets: the user's ``options`` over ``AUTO_IDENTIFY_OPTIONS``
+    (those only under ``--method auto``)."""
+    return {**(AUTO_IDENTIFY_OPTIONS.get(name, {}) if method == "auto" else {}), **(options or {})}
+
+
+def check_identify_options(names, method: str, options: Mapping | None) -> None:
+    """Refuse, in one line naming the model, a method or option any of ``names`` cannot be identified
+    with (the identifier built and checked against the model as ``identify`` does), before any fit.
+    The common options (fit_on, bounds, start) are checked when each model's identification starts."""
+    if options is not None and not isinstance(options, Mapping):
+        raise HysbenchError(f"identify_options must map option names to values, got {type(options).__name__}")
+    for name in names:
+        model = get_model(name)
+        try:
+            for stage in build_identifier(method, model, identify_options_for(name, method, options)).stages():
+                stage.check(model)
+        except IdentificationError as err:
+            raise IdentificationError(f"{name}: {err}") from None
 
 
 @dataclass
@@ -80,9 +105,17 @@ def check_models(names) -> tuple[list[str], dict[str, str]]:
 
 def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "auto", seed: int = 0,
                bandwidth_hz: float = PI_BANDWIDTH_HZ, plant: DEAPlant | None = None,
-               reference_names=None, log=print) -> tuple[dict, dict]:
-    """(result JSON, runs {reference: {controller: Tracking}}) for the dataset's plant."""
+               reference_names=None, log=print, identify_options: Mapping | None = None,
+               inverse: str = "auto") -> tuple[dict, dict]:
+    """(result JSON, runs {reference: {controller: Tracking}}) for the dataset's plant.
+
+    ``identify_options``: identifier options for every model (``identify``'s keyword arguments,
+    e.g. ``{"stable_inverse": True}``), over ``AUTO_IDENTIFY_OPTIONS``. ``inverse``: the P-I
+    family's causal inverse, "auto", "exact" or "reference-driven" (``ModelInverse.identify``);
+    a model whose fit cannot run the one asked for is reported in ``not_invertible``. Both are
+    checked before any identification."""
     t_start = time.perf_counter()
+    check_inverse_option(inverse)
     ds = load_dataset(dataset) if not isinstance(dataset, Dataset) else dataset
     plant = plant or DEAPlant()
     dt = ds.records[0].dt
@@ -103,16 +136,26 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
     if not invertible:
         raise HysbenchError("no model to compare: " + "; ".join(f"{n} cannot be inverted ({why})"
                                                                  for n, why in not_invertible.items()))
+    check_identify_options(invertible, method, identify_options)
     for name, why in not_invertible.items():
         log(f"{name}: cannot be inverted: {why}")
     linear = LinearGain.fit(ds)
     pi = PI.design(linear.gain, bandwidth_hz)
     inverses = {}
     for name in invertible:
-        options = AUTO_IDENTIFY_OPTIONS.get(name, {}) if method == "auto" else {}
-        inverses[name] = ModelInverse.identify(name, ds, method=method, seed=seed, u_limits=plant.u_limits, **options)
+        options = identify_options_for(name, method, identify_options)
+        try:
+            inverses[name] = ModelInverse.identify(name, ds, method=method, seed=seed, u_limits=plant.u_limits,
+                                                   inverse=inverse, **options)
+        except InverseNotRunnable as err:  # the fit cannot run the inverse asked for: say so, keep the others
+            not_invertible[name] = str(err)
+            log(f"{name}: cannot be inverted: {err}")
+            continue
         log(f"{name}: identified ({inverses[name].fit.method}, {inverses[name].identify_seconds:.1f} s), "
             f"{inverses[name].inverse} inverse")
+    if not inverses:
+        raise HysbenchError("no model to compare: " + "; ".join(f"{n} cannot be inverted ({why})"
+                                                                 for n, why in not_invertible.items()))
     runs: dict[str, dict[str, Tracking]] = {}
     invert_seconds = 0.0
     for ref in refs:
@@ -148,6 +191,7 @@ def compensate(dataset: Dataset | str, models=DEFAULT_MODELS, method: str = "aut
                           "input_range": list(inv.fit.input_range), "notes": list(inv.fit.notes)}
                    for name, inv in inverses.items()},
         "not_invertible": not_invertible,
+        "inverse_option": inverse,
         "seed": seed,
         "references": {ref: {c: t.scores for c, t in by.items()} for ref, by in runs.items()},
         "invert_seconds": invert_seconds,
