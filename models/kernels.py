@@ -196,15 +196,17 @@ def horner_step(p, dp, c, u):
     return t * u, dp * u + t
 
 
-HORNER_STEPS = 4  # written out: the batch kernel's polynomial has no loop up to this order
+HORNER_STEPS = 4  # the batch kernel's polynomial takes this many steps without a loop (every order up to it)
 
 
 @njit(nogil=True)
 def horner_coefficients(poly):
-    """poly from its top coefficient, led by zeros to at least HORNER_STEPS entries, for ``pi_sample``'s
-    ``horner``. Leading zeros leave Horner's result as it was: after them p is +0.0 or -0.0 and dp
-    +0.0, and the first real step's p + c equals 0.0 + c once a top coefficient -0.0 is made +0.0
-    (here, without fast-math, which could drop the addition)."""
+    """poly from its top coefficient, led by zeros to at least HORNER_STEPS entries (``pi_sample``'s
+    ``horner``). The leading zeros leave Horner's result as it was: after them p is +0.0 or -0.0 and
+    dp +0.0, and the first real step's p + c equals the loop's 0.0 + c once a top coefficient -0.0
+    is made +0.0 (here, without fast-math, which could drop that addition). Order 0: p is +0.0 or
+    -0.0 where the loop gives +0.0, which the sum y = acc + p + q u'' + offset turns into the same
+    output unless every term of it is a zero."""
     m = poly.shape[0]
     n = max(m, HORNER_STEPS)
     out = np.zeros(n)
@@ -231,7 +233,9 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
     ``want_slope``; the batch kernel): a scratch as long as r_lo, ``padded_weights`` the weights
     zero-padded to that length: the play loop also forms each weighted play there, vectorised with
     the plays, and the sum adds them in play order (the same products in the same order: the
-    same result, in fewer instructions per sample). The one home of
+    same result, in fewer instructions per sample). ``horner`` (the batch kernel):
+    ``horner_coefficients(poly)``, whose first HORNER_STEPS steps run without a loop (same
+    result). The one home of
     the P-I family's per-sample maths: the batch kernels, the inverse, the steppers call it, and
     the exported C (models/export_c.py) is generated from the same expressions in the same order."""
     acc = 0.0
@@ -273,7 +277,7 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
     p = 0.0
     dp = 0.0
     if horner is not None:
-        # the batch kernel: HORNER_STEPS written out (fixed count), then any higher orders
+        # a fixed count of steps (LLVM writes them out), then the rest of an order above HORNER_STEPS
         for j in range(HORNER_STEPS):
             p, dp = horner_step(p, dp, horner[j], u)
         for j in range(HORNER_STEPS, horner.shape[0]):
