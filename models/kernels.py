@@ -190,8 +190,37 @@ def backward_rates(u, u1, u2, first, inv_dt, inv_dt2):
 
 
 @njit(inline="always", fastmath=KERNEL_FASTMATH)
+def horner_step(p, dp, c, u):
+    """One Horner step of p(u) = sum_j c_j u^(j+1) (c from the top) and of its derivative dp."""
+    t = p + c
+    return t * u, dp * u + t
+
+
+HORNER_STEPS = 4  # the batch kernel's polynomial takes this many steps without a loop (every order up to it)
+
+
+@njit(nogil=True)
+def horner_coefficients(poly):
+    """poly from its top coefficient, led by zeros to at least HORNER_STEPS entries (``pi_sample``'s
+    ``horner``). The leading zeros leave Horner's result as it was: after them p is +0.0 or -0.0 and
+    dp +0.0, and the first real step's p + c equals the loop's 0.0 + c once a top coefficient -0.0
+    is made +0.0 (here, without fast-math, which could drop that addition). Order 0: p is +0.0 or
+    -0.0 where the loop gives +0.0, which the sum y = acc + p + q u'' + offset turns into the same
+    output unless every term of it is a zero."""
+    m = poly.shape[0]
+    n = max(m, HORNER_STEPS)
+    out = np.zeros(n)
+    for j in range(m):
+        out[n - 1 - j] = poly[j]
+    if m > 0:
+        out[n - m] = out[n - m] + 0.0
+    return out
+
+
+@njit(inline="always", fastmath=KERNEL_FASTMATH)
 def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_hi, weights, poly, q,
-              fa, fb0, fb1, fpow, fw, commit, want_slope, upper_offsets=True):
+              fa, fb0, fb1, fpow, fw, commit, want_slope, upper_offsets=True, padded_weights=None, products=None,
+              horner=None):
     """One sample of the P-I family's step structure (models/inverse.py): (y(k), dy/du).
 
     u: the input at this sample; a = |u'|, s = sign(u'), d2 = u'' (``backward_rates``, or a
@@ -200,7 +229,13 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
     inverse's Newton steps). With ``commit``, r_lo, r_hi and w may be longer than weights:
     padding plays that move but are not summed (the batch kernel's whole vectors).
     ``upper_offsets=False``: r_hi is all zero and not read (the one-sided plays of classical-pi
-    and mrpim; the batch kernel's fast path, same result). The one home of
+    and mrpim; the batch kernel's fast path, same result). ``products`` (with ``commit``, not
+    ``want_slope``; the batch kernel): a scratch as long as r_lo, ``padded_weights`` the weights
+    zero-padded to that length: the play loop also forms each weighted play there, vectorised with
+    the plays, and the sum adds them in play order (the same products in the same order: the
+    same result, in fewer instructions per sample). ``horner`` (the batch kernel):
+    ``horner_coefficients(poly)``, whose first HORNER_STEPS steps run without a loop (same
+    result). The one home of
     the P-I family's per-sample maths: the batch kernels, the inverse, the steppers call it, and
     the exported C (models/export_c.py) is generated from the same expressions in the same order."""
     acc = 0.0
@@ -214,7 +249,19 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
             upper = u + g_hi * a
             if upper_offsets:
                 upper += r_hi[i]
-            w[i] = play_update(w[i], u - g_lo * a - r_lo[i], upper)
+            v = play_update(w[i], u - g_lo * a - r_lo[i], upper)
+            w[i] = v
+            if products is not None:
+                products[i] = padded_weights[i] * v
+    if products is not None:
+        # Whole eights first, then the rest: the first loop has no remainder and the second, of
+        # fewer than eight trips, unrolls (docs/deploying.md, Speed).
+        n8 = n & ~7
+        for i in range(n8):
+            acc += products[i]
+        for i in range(n8, n):
+            acc += products[i]
+        n = 0  # summed: the loop below makes no trip
     for i in range(n):
         lower = u - g_lo * a - r_lo[i]
         upper = u + g_hi * a
@@ -229,10 +276,15 @@ def pi_sample(u, a, s, d2, first, u1, inv_dt, base, w, xf, r_lo, r_hi, g_lo, g_h
                 dy += weights[i] * (1.0 + g_hi * s * inv_dt)
     p = 0.0
     dp = 0.0
-    for j in range(poly.shape[0] - 1, -1, -1):  # Horner: p = sum_j poly[j] u^(j+1), dp its derivative
-        t = p + poly[j]
-        dp = dp * u + t
-        p = t * u
+    if horner is not None:
+        # a fixed count of steps (LLVM writes them out), then the rest of an order above HORNER_STEPS
+        for j in range(HORNER_STEPS):
+            p, dp = horner_step(p, dp, horner[j], u)
+        for j in range(HORNER_STEPS, horner.shape[0]):
+            p, dp = horner_step(p, dp, horner[j], u)
+    else:
+        for j in range(poly.shape[0] - 1, -1, -1):  # Horner: p = sum_j poly[j] u^(j+1), dp its derivative
+            p, dp = horner_step(p, dp, poly[j], u)
     y = acc + p + q * d2 + base
     if want_slope:
         dy += dp
@@ -263,6 +315,10 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
     for i in range(n_pad):
         w[i] = w0
     r_hi = np.zeros(n_pad)
+    padded_weights = np.zeros(n_pad)
+    padded_weights[:n_op] = weights
+    products = np.empty(n_pad)
+    horner = horner_coefficients(poly)
     no_filter = np.zeros(0)
     no_power = np.zeros(0, dtype=np.int64)
     u1 = u[0]
@@ -278,7 +334,8 @@ def _pi_output_window(u, dt, backward, abs_du, ddu, gamma, lam, thresholds, weig
             sgn = 0.0
             d2 = ddu[k]
         y, _ = pi_sample(uk, a_du, sgn, d2, k == 0, u1, inv_dt, offset, w, no_filter, r_lo, r_hi, gamma, lam,
-                         weights, poly, q, no_filter, no_filter, no_filter, no_power, no_filter, True, False, False)
+                         weights, poly, q, no_filter, no_filter, no_filter, no_power, no_filter, True, False, False,
+                         padded_weights, products, horner)
         u2 = u1
         u1 = uk
         if k >= start:
