@@ -678,7 +678,7 @@ def stable_inverse_report(sep: SeparableProblem, nonlinear: np.ndarray, final: L
     notes.append(
         f"varpro: stable_inverse: linear solves constrained so that the exact inverse's error recursion "
         f"c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has roots of modulus <= {', '.join(f'{v:.6g}' for v in radii)} at "
-        f"{rows.sample.size} operating points ({from_records} of the fit records, {rows.sample.size - from_records} "
-        f"{RANGE_COVER} [{lo:g}, {hi:g}]; {cons.G.shape[0]} rows); active at the optimum: {summary}; largest "
+        f"{rows.sample.size} operating points ({from_records} of the fit records and {rows.sample.size - from_records} "
+        f"covering {RANGE_COVER} [{lo:g}, {hi:g}]; {cons.G.shape[0]} rows); active at the optimum: {summary}; largest "
         f"root there {largest:.6g} ({held})")
 
