@@ -253,7 +253,7 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
         lo, hi = map(float, input_range)
         levels = self.RECURSION_LEVELS if n_levels is None else check_int(self.name, "n_levels", n_levels, 1)
         r = self.thresholds(np.array([lo, hi]), (lo, hi))
-        edge, sign, uk = reachable_operating_points(r, (lo, hi), levels)
+        edge, sign, uk = reachable_operating_points(r, (lo, hi), levels, g_lo, g_hi)
         rows = self._recursion_rows(edge, sign, uk, np.full(uk.size, -1), dt, g_lo, g_hi)
         _, keep = np.unique(np.hstack([rows.c0, rows.c1, rows.c2]), axis=0, return_index=True)
         keep = np.sort(keep)

@@ -156,24 +156,25 @@ def random_inputs(rng, lo, hi, n_inputs, n=3000, dt=1e-3):
         yield x
 
 
-@pytest.mark.parametrize("seed", [11, 12])
-def test_every_visited_operating_point_is_in_the_input_ranges_cover(seed):
-    """The cover (``reachable_operating_points``) against the operating points random inputs visit:
-    each visited (edges, sign) is one of the cover's patterns (play 1's edges meet at u' = 0, where
-    either label gives the same row), with u within the pattern's interval."""
+@pytest.mark.parametrize("seed, rates", [(11, (0.0, 0.1)), (12, (0.0, 0.1)), (13, (-0.1, 0.1))])
+def test_every_visited_operating_point_is_in_the_input_ranges_cover(seed, rates):
+    """The cover (``reachable_operating_points``) against the operating points random inputs visit,
+    for random rate coefficients (non-negative, or of either sign): each visited (edges, sign) is one
+    of the cover's patterns (play 1's edges meet at u' = 0, where either label gives the same row),
+    with u within the pattern's interval."""
     rng = np.random.default_rng(seed)
     model = get_model("mrpim")
     lo, hi = 0.5, 2.5
     r = model.thresholds(np.array([lo, hi]), (lo, hi))
-    edge, sign, u = reachable_operating_points(r, (lo, hi), 32)
-    span = {}
-    for e, s, x in zip(edge, sign, u):
-        key = (e.tobytes(), s)
-        a, b = span.get(key, (np.inf, -np.inf))
-        span[key] = (min(a, x), max(b, x))
     visited = 0
     for x in random_inputs(rng, lo, hi, 8):
-        g_lo, g_hi = rng.uniform(0.0, 0.1, 2)
+        g_lo, g_hi = rng.uniform(*rates, 2)
+        edge, sign, u = reachable_operating_points(r, (lo, hi), 32, g_lo, g_hi)
+        span = {}
+        for e, s, v in zip(edge, sign, u):
+            key = (e.tobytes(), s)
+            a, b = span.get(key, (np.inf, -np.inf))
+            span[key] = (min(a, v), max(b, v))
         e_run, s_run = recursion_activity(x, 1e-3, r, np.zeros_like(r), g_lo, g_hi, 2, x.size)
         for e, s, v in zip(e_run, s_run, x[2:]):
             e = e.copy()
