@@ -25,14 +25,16 @@ is eq. 9 exactly, and is solved exactly:
   diverges"). With the nonlinear parameters fixed, the inverse's error recursion
   c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has coefficients linear in the linear parameters at each
   operating point (which plays are on which edge, sign(u'), u: ``inverse_recursion_rows``, taken
-  at the distinct operating points of the fit records). Both roots have modulus <= rho exactly
+  at the distinct operating points of the fit records, and ``inverse_recursion_cover``: every
+  operating point any input within the input range can reach). Both roots have modulus <= rho exactly
   when the four Schur-Cohn conditions ``STABILITY_CONDITIONS`` hold: linear inequalities G x >= 0.
   Where the unconstrained solution (or a bound) breaks one, the same ridge-regularised objective
   is minimised under them and the bounds (``linear.spectral_inequality_solve``: an LDP solved by
   NNLS). rho is ``inverse_radius``, by default exp(-dt / T), T the fit records' shortest drive
   period: an input error decays by e within it. P(1) = c0 + c1 + c2 is the rate-free slope, so
   the conditions include a loading curve that increases after a reversal. The Fit's diagnostics
-  (``stable_inverse``) and notes name the active rows and the largest root at the fit's points.
+  (``stable_inverse``) and notes name the constrained points, the active rows and the largest root
+  at them.
 
 The nonlinear parameters are searched with several starts: the start point
 (the model's defaults or ``start``) and ``n_candidates`` points of a scrambled
@@ -116,9 +118,13 @@ class Varpro(Identifier):
 OPTIONS = Varpro().get_params()
 
 
+#: what the cover rows of ``inverse_constraints`` are (``inverse_recursion_cover``)
+RANGE_COVER = "every operating point an input reaches within the input range"
+
+
 def check_stable_inverse(model, inverse_radius) -> None:
     """Refuse, in one line, a model or radius the stable-inverse constraint cannot work with."""
-    if not hasattr(model, "inverse_recursion_rows"):
+    if not hasattr(model, "inverse_recursion_cover"):
         raise IdentificationError(
             f"option stable_inverse: model {model.name!r} does not state its exact inverse's error recursion as "
             "linear rows (classical-pi and mrpim do)")
@@ -139,7 +145,7 @@ class InverseConstraints:
     G: np.ndarray
     h: np.ndarray
     rows: object  # the stacked ``RecursionRows``
-    record: np.ndarray  # per operating point, the fit record it comes from
+    record: np.ndarray  # per operating point, the fit record it comes from (len(records): the input range's cover)
     radius: np.ndarray  # per operating point, the largest root modulus allowed
 
     def describe(self, index: int, files: list[str], weight_names: list[str]) -> dict:
@@ -147,7 +153,8 @@ class InverseConstraints:
         n = self.rows.sample.size
         point, condition = index % n, index // n
         edge = self.rows.edge[point]
-        return {"condition": STABILITY_CONDITIONS[condition], "record": files[self.record[point]],
+        return {"condition": STABILITY_CONDITIONS[condition],
+                "record": files[self.record[point]] if self.record[point] < len(files) else RANGE_COVER,
                 "sample": int(self.rows.sample[point]), "u": float(self.rows.u[point]),
                 "direction": {1.0: "rising", -1.0: "falling"}.get(float(self.rows.sign[point]), "still"),
                 "lower_edge": [weight_names[i] for i in np.flatnonzero(edge == 1)],
@@ -227,15 +234,23 @@ class SeparableProblem:
     def inverse_constraints(self, nonlinear: np.ndarray) -> InverseConstraints | None:
         """The Schur-Cohn rows at the operating points of the fit records (``inverse_recursion_rows``
         over each whole record: the exact inverse runs from rest, through the transient the scored
-        window follows) for a nonlinear parameter vector; None when unconstrained."""
+        window follows) and at every operating point an input within the input range can reach
+        (``inverse_recursion_cover``; ``record`` is then len(records)) for a nonlinear parameter
+        vector; None when unconstrained."""
         if not self.stable_inverse:
             return None
         p = self.problem
         nl = {n: float(v) for n, v in zip(self.nonlinear_names, np.asarray(nonlinear, dtype=float).ravel())}
         parts = [self.model.inverse_recursion_rows(r.u, r.dt, nl, None, p.input_range) for r in p.records]
+        radius = [self.record_radius(r) for r in p.records]
+        # every operating point an input within the input range reaches, at each sample time of the
+        # records (the inverse runs at the rate the model was identified at), the tightest radius there
+        for dt in sorted({float(r.dt) for r in p.records}):
+            parts.append(self.model.inverse_recursion_cover(dt, nl, p.input_range))
+            radius.append(min(self.record_radius(r) for r in p.records if float(r.dt) == dt))
         rows = type(parts[0]).stack(parts)
         record = np.concatenate([np.full(part.sample.size, m) for m, part in enumerate(parts)])
-        rho = np.array([self.record_radius(r) for r in p.records])[record][:, None]
+        rho = np.array(radius)[record][:, None]
         c0, c1, c2 = rho * rho * rows.c0, rho * rows.c1, rows.c2
         G = np.concatenate([c0 - c2, c0 + c2, c0 + c2 - c1, c0 + c2 + c1])
         return InverseConstraints(G, np.zeros(G.shape[0]), rows, record, rho[:, 0])
@@ -642,8 +657,13 @@ def stable_inverse_report(sep: SeparableProblem, nonlinear: np.ndarray, final: L
     largest = float(np.max(roots, initial=0.0))
     excess = float(np.max(roots / cons.radius, initial=0.0))  # largest root relative to its allowed radius
     radii = sorted({float(v) for v in cons.radius})
+    from_records = int(np.sum(cons.record < len(files)))
+    lo, hi = map(float, sep.problem.input_range)
     diag["stable_inverse"] = {
         "inverse_radius": radii, "operating_points": int(rows.sample.size),
+        "constrained_points": f"the fit records' operating points and {RANGE_COVER} [{lo:g}, {hi:g}]",
+        "operating_points_fit_records": from_records,
+        "operating_points_input_range": int(rows.sample.size) - from_records,
         "constraint_rows": int(cons.G.shape[0]), "largest_root_at_operating_points": largest,
         "largest_root_relative_to_radius": excess,
         "active": active, "n_active": len(active), "largest_violation": final.constraint_violation}
@@ -658,7 +678,7 @@ def stable_inverse_report(sep: SeparableProblem, nonlinear: np.ndarray, final: L
     notes.append(
         f"varpro: stable_inverse: linear solves constrained so that the exact inverse's error recursion "
         f"c0 e(k) + c1 e(k-1) + c2 e(k-2) = 0 has roots of modulus <= {', '.join(f'{v:.6g}' for v in radii)} at "
-        f"{rows.sample.size} operating points of the fit records ({cons.G.shape[0]} rows); active at the optimum: "
-        f"{summary}; largest root there {largest:.6g} ({held}). Other inputs' operating points are not "
-        "constrained: check the inverse on them")
+        f"{rows.sample.size} operating points ({from_records} of the fit records and {rows.sample.size - from_records} "
+        f"covering {RANGE_COVER} [{lo:g}, {hi:g}]; {cons.G.shape[0]} rows); active at the optimum: {summary}; largest "
+        f"root there {largest:.6g} ({held})")
 

@@ -523,6 +523,51 @@ def distinct_operating_points(edge: np.ndarray, sign: np.ndarray, u: np.ndarray,
     return np.unique(np.concatenate([order[first], order[last]]))
 
 
+def reachable_operating_points(r_lo: np.ndarray, input_range, n_levels: int, g_lo: float = 0.0,
+                               g_hi: float = 0.0) -> tuple:
+    """Every operating point of ``recursion_activity`` that an input within ``input_range`` can reach
+    (plays from 0 at sample 0, lower edges u - g_lo |u'| - r_lo_i with r_lo increasing from 0,
+    upper edges u + g_hi |u'|): (edge, sign, u), u at the ``n_levels`` + 1 band ends of the range
+    and at the ends of each pattern's interval.
+
+    The plays share their edges but for r_lo, so from a common start their states are ordered
+    (w_i >= w_j for r_i <= r_j: the clamp is monotone) and 1-Lipschitz in r (the clamp is
+    1-Lipschitz in its bounds): the plays on the upper edge are plays 1..j, those on the lower edge
+    plays 1..k. With g_lo, g_hi >= 0 both sets are nonempty only where play 1's edges meet (u' = 0,
+    either label gives the same row), and a play's state stays within [min(0, lo), max(0, hi - r_i)]
+    (only the edges move it, from 0): plays 1..k on the lower edge need u >= r_k + min(0, lo), plays
+    1..j on the upper edge u <= max(0, hi - r_j). A negative rate coefficient lets fast inputs push
+    the states beyond, and (g_lo + g_hi <= 0) cross or close the edges of plays 1..k, which then sit on the
+    lower edge with k+1..j on the upper: every u and those mixed patterns are then taken. Each
+    pattern with each sign(u') in {-1, 0, 1}: the rates' sizes only decide which of these points
+    an input visits, not the recursion's coefficients there."""
+    lo, hi = map(float, input_range)
+    r = np.asarray(r_lo, dtype=float)
+    n_op = r.size
+    grid = np.linspace(lo, hi, int(n_levels) + 1)
+    patterns = [(0, 0, lo, hi)]  # (plays on the lower edge, last play on the upper edge, u interval)
+    if g_lo >= 0.0 and g_hi >= 0.0:
+        patterns += [(k, 0, max(lo, r[k - 1] + min(0.0, lo)), hi) for k in range(1, n_op + 1)]
+        patterns += [(0, j, lo, min(hi, max(0.0, hi - r[j - 1]))) for j in range(1, n_op + 1)]
+    else:
+        mixed = g_lo + g_hi <= 0.0
+        patterns += [(k, j, lo, hi) for k in range(n_op + 1) for j in range(n_op + 1)
+                     if (k, j) != (0, 0) and (j == 0 or (j > k and (mixed or k == 0)))]
+    edges, signs, us = [], [], []
+    for k, j, a, b in patterns:
+        if a > b:
+            continue
+        u = np.unique(np.concatenate([grid[(grid > a) & (grid < b)], [a, b]]))
+        edge = np.zeros(n_op, dtype=np.int8)
+        edge[k:j] = -1
+        edge[:k] = 1
+        for s in (-1.0, 0.0, 1.0):
+            edges.append(np.broadcast_to(edge, (u.size, n_op)))
+            signs.append(np.full(u.size, s))
+            us.append(u)
+    return np.concatenate(edges), np.concatenate(signs), np.concatenate(us)
+
+
 # --- the model-facing side ----------------------------------------------------------
 class StepInvertible:
     """Mixin for a model that can state its one-sample structure (``step_structure``):

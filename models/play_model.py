@@ -22,7 +22,8 @@ from .base import DataScale, HysteresisModel, Parameter
 from .derivatives import DERIVATIVE_METHODS, backward_second_difference_at, derivatives
 from .errors import ModelError
 from .hyperparameters import MAX_OPERATORS, check_bool, check_choice, check_int, check_number
-from .inverse import RecursionRows, StepStructure, distinct_operating_points, recursion_activity
+from .inverse import (RecursionRows, StepStructure, distinct_operating_points, reachable_operating_points,
+                      recursion_activity)
 from .pi_stepper import SteppableStructure
 from .kernels import (
     pi_output,
@@ -227,14 +228,7 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
         the polynomial adds p'(u) to c0; q adds (1, -2, 1) / dt^2 to (c0, c1, c2). Thinned by
         ``distinct_operating_points`` (``n_levels`` bands of the input range)."""
         u = self._check_input(u, dt)
-        if self.derivative != "backward":
-            raise ModelError(f"{self.name}: the inverse recursion needs derivative='backward'")
-        nonlinear = dict(nonlinear or {})
-        if set(nonlinear) != set(self.nonlinear_names):
-            raise ModelError(f"{self.name}: recursion rows need exactly the nonlinear parameters "
-                             f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}")
-        g_lo = float(nonlinear.get("gamma", 0.0))
-        g_hi = float(nonlinear.get("lambda", 0.0))
+        g_lo, g_hi = self._recursion_rates(nonlinear)
         input_range = self._input_range(u, input_range)
         r = self.thresholds(u, input_range)
         start, stop = (0, u.size) if window is None else self._window_bounds(u, window)
@@ -247,10 +241,40 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
             samples, edge, sign = samples[pick], edge[pick], sign[pick]
         levels = self.RECURSION_LEVELS if n_levels is None else check_int(self.name, "n_levels", n_levels, 1)
         keep = distinct_operating_points(edge, sign, u[samples], input_range, levels)
-        samples, edge, sign = samples[keep], edge[keep], sign[keep]
-        uk = u[samples]
+        return self._recursion_rows(edge[keep], sign[keep], u[samples[keep]], samples[keep], dt, g_lo, g_hi)
+
+    def inverse_recursion_cover(self, dt: float, nonlinear: Mapping[str, float], input_range,
+                                n_levels: int | None = None) -> RecursionRows:
+        """The rows of ``inverse_recursion_rows`` at every operating point an input within
+        ``input_range`` can reach (``inverse.reachable_operating_points``: plays 1..k on the lower edge
+        or 1..j on the upper edge, each sign(u'), u at the ends of ``n_levels`` bands of the range and
+        of each pattern's interval), rows that coincide merged; ``sample`` is -1 (no record)."""
+        g_lo, g_hi = self._recursion_rates(nonlinear)
+        lo, hi = map(float, input_range)
+        levels = self.RECURSION_LEVELS if n_levels is None else check_int(self.name, "n_levels", n_levels, 1)
+        r = self.thresholds(np.array([lo, hi]), (lo, hi))
+        edge, sign, uk = reachable_operating_points(r, (lo, hi), levels, g_lo, g_hi)
+        rows = self._recursion_rows(edge, sign, uk, np.full(uk.size, -1), dt, g_lo, g_hi)
+        _, keep = np.unique(np.hstack([rows.c0, rows.c1, rows.c2]), axis=0, return_index=True)
+        keep = np.sort(keep)
+        return RecursionRows(rows.c0[keep], rows.c1[keep], rows.c2[keep], rows.sample[keep], rows.u[keep],
+                             rows.sign[keep], rows.edge[keep], rows.dt)
+
+    def _recursion_rates(self, nonlinear) -> tuple[float, float]:
+        """(gamma, lambda) of the nonlinear parameters the recursion rows are taken at."""
+        if self.derivative != "backward":
+            raise ModelError(f"{self.name}: the inverse recursion needs derivative='backward'")
+        nonlinear = dict(nonlinear or {})
+        if set(nonlinear) != set(self.nonlinear_names):
+            raise ModelError(f"{self.name}: recursion rows need exactly the nonlinear parameters "
+                             f"{sorted(self.nonlinear_names)}, got {sorted(nonlinear)}")
+        return float(nonlinear.get("gamma", 0.0)), float(nonlinear.get("lambda", 0.0))
+
+    def _recursion_rows(self, edge, sign, uk, samples, dt, g_lo, g_hi) -> RecursionRows:
+        """The recursion's coefficients at operating points (edge, sign, u) as rows linear in the
+        linear parameters (``inverse_recursion_rows``)."""
         names = self.linear_names
-        n = len(samples)
+        n = len(uk)
         c0, c1, c2 = (np.zeros((n, len(names))) for _ in range(3))
         inv_dt = 1.0 / float(dt)
         lower = edge == 1

@@ -10,12 +10,14 @@ import math
 import numpy as np
 import pytest
 
+from hysbench.data.dataset import load_dataset
 from hysbench.identification import identify
 from hysbench.identification.errors import IdentificationError
 from hysbench.identification.linear import (column_norms, least_distance, solve_spectrum,
                                             spectral_inequality_solve, spectrum_from_qr)
 from hysbench.identification.varpro import Varpro, recursion_roots
 from hysbench.models import get_model
+from hysbench.models.inverse import reachable_operating_points, recursion_activity
 
 from tiny_dataset import write_tiny_dataset
 
@@ -126,6 +128,86 @@ def test_a_constrained_fit_keeps_the_recursion_roots_within_the_radius(tiny):
     worst = max(np.max(model.inverse_recursion_radius(r.u, r.dt, free.params, free.input_range))
                 for r in load_dataset(tiny).identification)
     assert worst > 0.99
+
+
+def random_inputs(rng, lo, hi, n_inputs, n=3000, dt=1e-3):
+    """Inputs within [lo, hi] from rest at lo: band-limited random, sines, triangles and steps at
+    random rates, amplitudes and offsets (each call with its own generator: fresh inputs)."""
+    t = np.arange(n) * dt
+    for i in range(n_inputs):
+        amp = rng.uniform(0.05, 0.5) * (hi - lo)
+        mid = rng.uniform(lo + amp, hi - amp)
+        f = 10 ** rng.uniform(-1.0, 1.0)
+        kind = i % 4
+        if kind == 0:
+            spectrum = np.fft.rfft(rng.standard_normal(n))
+            spectrum[np.fft.rfftfreq(n, dt) > 3 * f] = 0.0
+            x = np.fft.irfft(spectrum, n)
+            x = mid + amp * x / np.max(np.abs(x))
+        elif kind == 1:
+            x = mid + amp * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+        elif kind == 2:
+            x = mid + amp * (2 * np.abs(2 * ((f * t + rng.uniform()) % 1.0) - 1) - 1)
+        else:
+            levels = rng.uniform(lo, hi, 12)
+            x = levels[np.minimum((t * 12 / t[-1]).astype(int), 11)]
+        x = np.clip(x, lo, hi)
+        x[0] = lo
+        yield x
+
+
+@pytest.mark.parametrize("seed, rates", [(11, (0.0, 0.1)), (12, (0.0, 0.1)), (13, (-0.1, 0.1))])
+def test_every_visited_operating_point_is_in_the_input_ranges_cover(seed, rates):
+    """The cover (``reachable_operating_points``) against the operating points random inputs visit,
+    for random rate coefficients (non-negative, or of either sign): each visited (edges, sign) is one
+    of the cover's patterns (play 1's edges meet at u' = 0, where either label gives the same row),
+    with u within the pattern's interval."""
+    rng = np.random.default_rng(seed)
+    model = get_model("mrpim")
+    lo, hi = 0.5, 2.5
+    r = model.thresholds(np.array([lo, hi]), (lo, hi))
+    visited = 0
+    for x in random_inputs(rng, lo, hi, 8):
+        g_lo, g_hi = rng.uniform(*rates, 2)
+        edge, sign, u = reachable_operating_points(r, (lo, hi), 32, g_lo, g_hi)
+        span = {}
+        for e, s, v in zip(edge, sign, u):
+            key = (e.tobytes(), s)
+            a, b = span.get(key, (np.inf, -np.inf))
+            span[key] = (min(a, v), max(b, v))
+        e_run, s_run = recursion_activity(x, 1e-3, r, np.zeros_like(r), g_lo, g_hi, 2, x.size)
+        for e, s, v in zip(e_run, s_run, x[2:]):
+            e = e.copy()
+            if s == 0.0 and e[0] == 1 and np.any(e == -1):
+                e[0] = -1  # u' = 0: play 1's edges coincide
+            a, b = span[(e.tobytes(), s)]
+            assert a - 1e-12 <= v <= b + 1e-12
+            visited += 1
+    assert visited > 0
+
+
+def test_a_constrained_fit_keeps_the_roots_within_the_radius_on_inputs_it_never_saw(tiny):
+    """The constraint covers every operating point an input within the input range reaches: along
+    fresh random inputs (not the fit records, not used to build any row) the roots stay within rho."""
+    options = {"n_candidates": 4, "n_starts": 1, "max_nfev": 10}
+    fit = identify("mrpim", tiny, "varpro", seed=0, stable_inverse=True, inverse_radius=0.99, **options)
+    report = fit.diagnostics["varpro"]["stable_inverse"]
+    assert report["operating_points_input_range"] > 0
+    assert report["operating_points"] == report["operating_points_fit_records"] + report["operating_points_input_range"]
+    assert "within the input range" in report["constrained_points"]
+    model = get_model("mrpim")
+    lo, hi = fit.input_range
+    free = identify("mrpim", tiny, "varpro", seed=0, **options)
+    worst = {"constrained": 0.0, "free": 0.0}
+    rng = np.random.default_rng(2024)
+    for dt in sorted({r.dt for r in load_dataset(tiny).identification}):  # the rate the inverse runs at
+        for x in random_inputs(rng, lo, hi, 12, n=600, dt=dt):
+            for name, f in (("constrained", fit), ("free", free)):
+                rho = model.inverse_recursion_radius(x, dt, f.params, f.input_range)
+                worst[name] = max(worst[name], float(np.max(rho)))
+    # u between the cover's points (band ends) moves only the polynomial's slope
+    assert worst["constrained"] <= 0.99 * (1 + 1e-4)
+    assert worst["free"] > 1.0  # these inputs do reach unstable operating points of an unconstrained fit
 
 
 def test_the_default_radius_is_a_decay_within_the_shortest_drive_period(tiny):
