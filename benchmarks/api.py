@@ -138,7 +138,7 @@ def load_model(path: str | os.PathLike):
 
     Returns a ``hysbench.models.FittedModel``: ``simulate(u, dt)`` gives the fitted model's output
     bit for bit, ``stepper(dt)`` and ``inverse_stepper(dt)`` advance it one sample at a time.
-    A file of a newer format version or with a missing field raises ``ModelFileError`` in one line.
+    A file of another format version or with a missing field raises ``ModelFileError`` in one line.
 
     Example::
 

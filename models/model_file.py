@@ -5,7 +5,7 @@ back into a ``FittedModel`` whose ``simulate`` gives exactly the fitted model's 
 written with Python's shortest round-trip repr, so every parameter comes back bit for bit).
 No pickle: the file names the model by its registry name and hyperparameters and rebuilds it.
 
-Fields (all required; ``FORMAT_VERSION`` is the version this code writes and the newest it reads):
+Fields (all required; ``FORMAT_VERSION`` is the version this code writes and the only one it reads):
 
     format               "hysbench-model"
     format_version       integer
@@ -46,7 +46,7 @@ REQUIRED = ("format", "format_version", "model", "hyperparameters", "params", "i
 
 
 class ModelFileError(HysbenchError):
-    """A model file that cannot be read: missing, malformed, of a newer format, or naming an unknown model."""
+    """A model file that cannot be read: missing, malformed, of another format version, or naming an unknown model."""
 
 
 def _version() -> str:
@@ -158,11 +158,11 @@ class FittedModel:
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise ModelFileError(f"{where}: not a hysbench model file (no \"format\": {FORMAT!r})")
         version = d.get("format_version")
-        if not isinstance(version, int) or isinstance(version, bool):
-            raise ModelFileError(f"{where}: format_version must be an integer, got {version!r}")
-        if version > FORMAT_VERSION:
-            raise ModelFileError(f"{where}: format version {version} is newer than this hysbench reads "
-                                 f"({FORMAT_VERSION}); upgrade hysbench")
+        if type(version) is not int or version != FORMAT_VERSION:  # type(): true and 1.0 are not 1 here
+            found = f"format_version {json.dumps(version, default=repr)}" if "format_version" in d else "no format_version"
+            advice = "; upgrade hysbench" if type(version) is int and version > FORMAT_VERSION else ""
+            raise ModelFileError(f"{where}: {found}, but this hysbench reads format_version {FORMAT_VERSION} "
+                                 f"only{advice}")
         missing = [k for k in REQUIRED if k not in d]
         if missing:
             raise ModelFileError(f"{where}: missing field(s) {', '.join(missing)}")

@@ -38,7 +38,7 @@ def test_saved_and_loaded_model_simulates_bit_for_bit(tmp_path):
 
 
 @pytest.mark.parametrize("change, named", [
-    (lambda d: d.update(format_version=FORMAT_VERSION + 1), "newer than this hysbench reads"),
+    (lambda d: d.update(format_version=FORMAT_VERSION + 1), "upgrade hysbench"),
     (lambda d: d.pop("sample_time"), "missing field(s) sample_time"),
     (lambda d: d.update(model="no-such-model"), "unknown model 'no-such-model'"),
     (lambda d: d["params"].pop("a3"), "missing a3"),
@@ -52,6 +52,30 @@ def test_bad_model_file_is_refused_in_one_line(tmp_path, change, named):
     with pytest.raises(ModelFileError) as err:
         load_model(path)
     assert named in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("version, spelled", [
+    (FORMAT_VERSION + 1, str(FORMAT_VERSION + 1)), (0, "0"), (-3, "-3"), (str(FORMAT_VERSION), f'"{FORMAT_VERSION}"'),
+    (float(FORMAT_VERSION), f"{FORMAT_VERSION}.0"), (True, "true"), (None, "null"),
+])
+def test_model_file_of_another_format_version_is_refused_naming_both_versions(tmp_path, version, spelled):
+    d = fitted_mrpim_relaxation().to_dict()
+    d["format_version"] = version
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(ModelFileError) as err:
+        load_model(path)
+    message = str(err.value)
+    assert f"format_version {spelled}, but this hysbench reads format_version {FORMAT_VERSION} only" in message
+    assert "\n" not in message
+
+
+def test_model_file_without_a_format_version_is_refused(tmp_path):
+    d = fitted_mrpim_relaxation().to_dict()
+    del d["format_version"]
+    with pytest.raises(ModelFileError, match=f"no format_version, but this hysbench reads format_version "
+                                             f"{FORMAT_VERSION} only"):
+        FittedModel.from_dict(d)
 
 
 def test_not_json_and_missing_file(tmp_path):
@@ -78,11 +102,13 @@ def test_fit_save_writes_a_model_file_that_reproduces_the_fit(tmp_path, capsys):
     assert d["scores"]["validation_e_rms"] == max(validation)
 
 
-def test_cli_refuses_a_newer_model_file_with_status_2(tmp_path, capsys):
+@pytest.mark.parametrize("version", [FORMAT_VERSION + 1, 0])
+def test_cli_refuses_a_model_file_of_another_format_version_with_status_2(tmp_path, capsys, version):
     d = fitted_mrpim_relaxation().to_dict()
-    d["format_version"] = FORMAT_VERSION + 1
+    d["format_version"] = version
     (tmp_path / "m.json").write_text(json.dumps(d))
     code = main(["export", str(tmp_path / "m.json"), "--out", str(tmp_path / "c"), "--prefix", "dea"])
     err = capsys.readouterr().err
-    assert code == 2 and "newer than this hysbench reads" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert f"format_version {version}, but this hysbench reads format_version {FORMAT_VERSION} only" in err
     assert not (tmp_path / "c").exists()
