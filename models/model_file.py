@@ -159,7 +159,8 @@ class FittedModel:
             raise ModelFileError(f"{where}: not a hysbench model file (no \"format\": {FORMAT!r})")
         version = d.get("format_version")
         if type(version) is not int or version != FORMAT_VERSION:  # type(): true and 1.0 are not 1 here
-            found = f"format_version {json.dumps(version, default=repr)}" if "format_version" in d else "no format_version"
+            found = (f"format_version {json.dumps(version, default=repr)}" if "format_version" in d
+                     else "no format_version")
             advice = "; upgrade hysbench" if type(version) is int and version > FORMAT_VERSION else ""
             raise ModelFileError(f"{where}: {found}, but this hysbench reads format_version {FORMAT_VERSION} "
                                  f"only{advice}")
