@@ -564,6 +564,7 @@ def factory(base: str, components: Sequence[str]):
                              f"and components {list(given)!r}")
         return ExtendedModel(base=base, components=tuple(components), **hyper)
 
+    make.hyperparameter_names = ExtendedModel._hyperparameter_names()
     return make
 
 

@@ -199,7 +199,7 @@ def test_sample_time_none_is_fixed_at_fit_from_the_drive_period():
     ("narx-mlp", {"learning_rate": 0.0}, "learning_rate must be a positive number"),
     ("narx-mlp", {"seed": -1}, "seed must be an integer"),
     ("gru", {"width": "8"}, "width must be an integer"),
-    ("narx-mlp", {"hidden": 3}, "bad hyperparameters for model 'narx-mlp'"),
+    ("narx-mlp", {"hidden": 3}, "unknown hyperparameter 'hidden' for model 'narx-mlp'; it takes: sample_time"),
     ("narx-mlp", {"prefilter": "lowpass"}, "prefilter must be one of step-mean, none"),
 ])
 def test_bad_hyperparameters_are_one_line(name, hyper, text):

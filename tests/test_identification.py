@@ -459,6 +459,7 @@ def test_cli_fit_writes_the_json(tmp_path, noisy, capsys):
     (["--model", "mrpim", "--option", "n_starts"], "is not KEY=VALUE"),
     (["--model", "mrpim", "--option", "n_starts=-1"], "n_starts must be"),
     (["--model", "mrpim", "--hyper", "n_operators=0"], "n_operators"),
+    (["--model", "mrpim", "--hyper", "n_operatorz=9"], "unknown hyperparameter 'n_operatorz' for model 'mrpim'"),
     (["--model", "mrpim", "--seed", "-3"], "--seed"),
     (["--model", "mrpim", "--json", "/proc/hysbench-no/fit.json"], "cannot create output folder"),
 ])
