@@ -272,8 +272,8 @@ def _load_record(folder: Path, index: int, rm: dict, columns, csv_columns, delim
             raise DatasetError(f"{where}: window must be [start, end] in seconds")
         window = (_number(where, "window start", window[0]), _number(where, "window end", window[1]))
     file_path = record_path(folder, file, where)
-    t, u, y = _read_columns(file_path, where, columns, csv_columns, delimiter)
-    check_series(where, t, u, y, columns)
+    (t, u, y), line_numbers = _read_columns(file_path, where, columns, csv_columns, delimiter)
+    check_series(where, t, u, y, columns, line_numbers)
     record = Record(file=file, t=t, u=u, y=y, role=role, frequency_hz=freq, weight=weight, window=window)
     _check_output_span(where, record.y[record.scored])
     return record
@@ -317,6 +317,7 @@ def _check_output_span(where: str, y: np.ndarray) -> None:
 
 
 def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
+    """The columns' arrays and, for a CSV file, the file's line number of each sample (None for .npz)."""
     if path.suffix == ".npz":
         _check_npz_size(path, where, columns)
         try:
@@ -337,7 +338,7 @@ def _read_columns(path: Path, where: str, columns, csv_columns, delimiter):
                 raise DatasetError(f"{where}: column {c} is not numeric ({a.dtype})")
             if np.issubdtype(a.dtype, np.complexfloating):
                 raise DatasetError(f"{where}: column {c} is complex ({a.dtype}); columns must be real numbers")
-        return [a.astype(float) for a in arrays]
+        return [a.astype(float) for a in arrays], None
     return _read_csv(path, where, columns, csv_columns, delimiter)
 
 
@@ -374,17 +375,19 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{where}: cannot read CSV file: {exc}") from None
-    lines = [ln for ln in text.splitlines() if ln.strip()]  # blank lines are skipped
+    # blank lines are skipped; lines are numbered as an editor numbers them (\n, \r\n or \r ends one)
+    numbered = [(n, ln) for n, ln in enumerate(re.split(r"\r\n|\r|\n", text), start=1) if ln.strip()]
     if csv_columns is None:
-        if not lines:
+        if not numbered:
             raise DatasetError(f"{where}: empty record (the file holds no header row and no data)")
-        header = [h.strip() for h in next(csv.reader([lines[0]], delimiter=delimiter))]
-        body = lines[1:]
+        header = [h.strip() for h in next(csv.reader([numbered[0][1]], delimiter=delimiter))]
+        numbered = numbered[1:]
         names_from = "the header row"
     else:
         header = list(csv_columns)
-        body = lines
         names_from = "csv_columns"
+    line_numbers = np.array([n for n, _ in numbered], dtype=np.int64)
+    body = [ln for _, ln in numbered]
     missing = [c for c in columns if c not in header]
     if missing:  # the header's own text is not echoed: the file may be anything
         raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} ({names_from} names "
@@ -399,7 +402,7 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     counts = np.array([ln.count(delimiter) + 1 for ln in body]) if '"' not in text else None
     if counts is not None and np.any(counts != len(header)):
         k = int(np.flatnonzero(counts != len(header))[0])
-        raise DatasetError(f"{where}: columns of unequal length (data row {k + 1} has {counts[k]} fields, "
+        raise DatasetError(f"{where}: columns of unequal length (line {line_numbers[k]} has {counts[k]} fields, "
                            f"{names_from} names {len(header)})")
     try:
         data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
@@ -413,27 +416,34 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         data = np.empty((len(rows), len(wanted)))
         for i, r in enumerate(rows):
             for k, j in enumerate(wanted):
-                data[i, k] = _csv_number(r[j], where, i, columns[k])
-    return [data[:, k].copy() for k in range(len(columns))]
+                data[i, k] = _csv_number(r[j], where, int(line_numbers[i]), columns[k])
+    return [data[:, k].copy() for k in range(len(columns))], line_numbers
 
 
 # a decimal number in ASCII digits (float() would also take '1_0' as 10, and digits of other scripts)
 CSV_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.ASCII | re.IGNORECASE)
 
 
-def _csv_number(cell: str, where: str, row: int, column: str) -> float:
+def _csv_number(cell: str, where: str, line: int, column: str) -> float:
     """A CSV cell as a float, strictly: Python's float() would also read '1_0' as 10; an empty cell is NaN
     (refused by ``check_series``). The cell's text is not echoed."""
     cell = cell.strip()
     if not cell:
         return np.nan
     if not CSV_NUMBER.fullmatch(cell):
-        raise DatasetError(f"{where}: non-numeric value in data row {row + 1}, column {column}")
+        raise DatasetError(f"{where}: non-numeric value on line {line}, column {column}")
     return float(cell)
 
 
-def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y")) -> None:
-    """Refuse unequal lengths, empty records, NaN/inf, values beyond MAX_MAGNITUDE and non-uniform time."""
+def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, columns=("t", "u", "y"),
+                 line_numbers: np.ndarray | None = None) -> None:
+    """Refuse unequal lengths, empty records, NaN/inf, values beyond MAX_MAGNITUDE and non-uniform time.
+
+    A sample is named by its file line (``line_numbers[k]``, a CSV file's) or else by its index from 0."""
+
+    def at(k: int) -> str:
+        return f"on line {line_numbers[k]}" if line_numbers is not None else f"at sample {k}"
+
     lengths = {c: a.size for c, a in zip(columns, (t, u, y))}
     if len(set(lengths.values())) > 1:
         raise DatasetError(f"{where}: columns of unequal length ({', '.join(f'{c}: {n}' for c, n in lengths.items())})")
@@ -442,28 +452,28 @@ def check_series(where: str, t: np.ndarray, u: np.ndarray, y: np.ndarray, column
     for c, a in zip(columns, (t, u, y)):
         if not np.all(np.isfinite(a)):
             k = int(np.flatnonzero(~np.isfinite(a))[0])
-            raise DatasetError(f"{where}: column {c} holds NaN or inf (first at sample {k})")
+            raise DatasetError(f"{where}: column {c} holds NaN or inf (first {at(k)})")
         small = (a != 0) & (np.abs(a) < MIN_MAGNITUDE)
         if np.any(small):
             k = int(np.flatnonzero(small)[0])
-            raise DatasetError(f"{where}: column {c} holds {a[k]:g} at sample {k}, subnormal (below {MIN_MAGNITUDE:g} "
+            raise DatasetError(f"{where}: column {c} holds {a[k]:g} {at(k)}, subnormal (below {MIN_MAGNITUDE:g} "
                                "in magnitude): too few digits to compute with (rescale the column's unit)")
         if np.any(np.abs(a) > MAX_MAGNITUDE):
             k = int(np.flatnonzero(np.abs(a) > MAX_MAGNITUDE)[0])
-            raise DatasetError(f"{where}: column {c} holds {a[k]:g} at sample {k}, beyond {MAX_MAGNITUDE:g} in "
+            raise DatasetError(f"{where}: column {c} holds {a[k]:g} {at(k)}, beyond {MAX_MAGNITUDE:g} in "
                                "magnitude: sums of squares would overflow (rescale the column's unit)")
     if t.size < 2:
         raise DatasetError(f"{where}: a record needs at least two samples")
     steps = np.diff(t)
     if np.any(steps <= 0):
         k = int(np.flatnonzero(steps <= 0)[0])
-        raise DatasetError(f"{where}: time is not increasing (at sample {k + 1})")
+        raise DatasetError(f"{where}: time is not increasing ({at(k + 1)})")
     median = float(np.median(steps))
     dev = np.abs(steps - median) > UNIFORM_STEP_TOLERANCE * median
     if np.any(dev):
         k = int(np.flatnonzero(dev)[0])
         raise DatasetError(
-            f"{where}: time step is not uniform (step {steps[k]:.6g} s at sample {k + 1} vs median {median:.6g} s; "
+            f"{where}: time step is not uniform (step {steps[k]:.6g} s {at(k + 1)} vs median {median:.6g} s; "
             f"tolerance {UNIFORM_STEP_TOLERANCE:.0%})"
         )
 

@@ -139,7 +139,7 @@ CASES = [
     Case("CSV number with an underscore",
          lambda r: ["check", _manifest(r, [(str(_csv(r / "u.csv", _good_rows()[:10] + ["0.1,1_0,0.5"]
                                                      + _good_rows()[11:])), "identification")])],
-         "non-numeric value in data row 11, column u"),
+         "non-numeric value on line 12, column u"),
     Case("output beyond the loader's limit", lambda r: ["check", _tiny(r, output_factor=1e200)], "beyond 1e+100"),
     Case("subnormal output", lambda r: ["check", _tiny(r, output_factor=2.0**-1070)], "subnormal"),
     Case("dataset init on a folder", lambda r: ["dataset", "init", str(r), "--time", "t", "--input", "u",

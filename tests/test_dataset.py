@@ -138,8 +138,28 @@ def test_refuses_nan(tmp_path):
     text = (folder / "r.csv").read_text().splitlines()
     text[10] = "0.009,nan,1.0"
     (folder / "r.csv").write_text("\n".join(text))
-    with pytest.raises(DatasetError, match="r.csv: column u holds NaN or inf"):
+    with pytest.raises(DatasetError, match=r"r.csv: column u holds NaN or inf \(first on line 11\)"):
         load_dataset(folder)
+
+
+@pytest.mark.parametrize("header_row", [True, False])
+@pytest.mark.parametrize("cell, refused", [("oops", "non-numeric value on line {line}, column u"),
+                                           ("nan", r"column u holds NaN or inf \(first on line {line}\)"),
+                                           ("", r"column u holds NaN or inf \(first on line {line}\)")])
+def test_a_bad_cell_is_named_by_the_line_an_editor_shows_it_on(tmp_path, header_row, cell, refused):
+    """Counting the header row and the blank lines the loader skips, whichever message names it."""
+    t = np.arange(1000) * 1e-3
+    lines = [f"{a:.17g},{np.sin(4 * np.pi * a):.17g},{2 * np.sin(4 * np.pi * a):.17g}" for a in t]
+    lines[40] = f"{t[40]:.17g},{cell},1.0"
+    lines.insert(5, "")
+    if header_row:
+        lines.insert(0, "t,u,y")
+    (tmp_path / "r.csv").write_text("\r\n".join(lines) + "\r\n")
+    columns = "" if header_row else 'csv_columns = ["t", "u", "y"]\n'
+    (tmp_path / "dataset.toml").write_text(HEADER + columns + GOOD)
+    line = lines.index(f"{t[40]:.17g},{cell},1.0") + 1
+    with pytest.raises(DatasetError, match=refused.format(line=line)):
+        load_dataset(tmp_path)
 
 
 def test_refuses_inf_in_npz(tmp_path):
@@ -148,7 +168,7 @@ def test_refuses_inf_in_npz(tmp_path):
     y[5] = np.inf
     np.savez(tmp_path / "r.npz", t=t, u=t, y=y)
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD.replace("r.csv", "r.npz"))
-    with pytest.raises(DatasetError, match="r.npz: column y holds NaN or inf"):
+    with pytest.raises(DatasetError, match=r"r.npz: column y holds NaN or inf \(first at sample 5\)"):
         load_dataset(tmp_path)
 
 
@@ -168,7 +188,7 @@ def test_refuses_time_not_increasing(tmp_path):
     lines = (folder / "r.csv").read_text().splitlines()
     lines[20], lines[21] = lines[21], lines[20]
     (folder / "r.csv").write_text("\n".join(lines))
-    with pytest.raises(DatasetError, match="r.csv: time is not increasing"):
+    with pytest.raises(DatasetError, match=r"r.csv: time is not increasing \(on line 22\)"):
         load_dataset(folder)
 
 
@@ -354,7 +374,7 @@ def test_refuses_a_ragged_row_even_in_columns_it_does_not_use(tmp_path, change):
     lines[30] = lines[30] + ",7" if change == "extra field" else lines[30].rsplit(",", 1)[0]
     (tmp_path / "r.csv").write_text("\n".join(lines) + "\n")
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
-    with pytest.raises(DatasetError, match="unequal length .*data row 30"):
+    with pytest.raises(DatasetError, match=r"unequal length \(line 31 has"):
         load_dataset(tmp_path)
 
 
