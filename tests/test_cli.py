@@ -24,6 +24,16 @@ def test_every_report_shows_an_example(report, capsys):
     assert f"example (every argument at its default):\n  hysbench report {report}" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("argv", [["--help"], ["report", "--help"]])
+def test_the_help_lists_every_report(argv, capsys):
+    assert main(argv) == 0
+    words = capsys.readouterr().out.split("regenerate a report: ", 1)[1].split()  # argparse wraps the line
+    listed = [words[0]]
+    while listed[-1].endswith(","):  # the list ends at its first word without a comma
+        listed.append(words[len(listed)])
+    assert [name.rstrip(",") for name in listed] == list(REPORTS)
+
+
 BAD = {
     "check": (["check", "/no/such/folder"], "no/such/folder"),
     "data": (["data", "virtual-dea", "--out", "x", "--seed", "-3"], "--seed"),

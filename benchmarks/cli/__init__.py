@@ -19,7 +19,7 @@ from hysbench.models.errors import HysbenchError
 
 from .common import OneLineParser
 
-# subcommand -> (module, one-line help)
+# subcommand -> (module, one-line help); None: the module's SUMMARY, built from what it registers
 COMMANDS = {
     "check": ("hysbench.benchmarks.cli.check", "check a dataset folder and summarise its records"),
     "data": ("hysbench.benchmarks.cli.data", "generate a dataset: virtual-dea (the default dataset)"),
@@ -31,8 +31,7 @@ COMMANDS = {
     "ablate": ("hysbench.benchmarks.cli.ablate", "which parts of MRPIM earn their parameters (order, q, envelopes, N)"),
     "fit": ("hysbench.benchmarks.cli.fit", "identify one model on a dataset with one identifier"),
     "export": ("hysbench.benchmarks.cli.export", "C99 code for a fitted model and its inverse (from fit --save)"),
-    "report": ("hysbench.benchmarks.cli.report", "regenerate a report: identification, baselines, virtual-dea, "
-                                                 "bouc-wen, calibrate-virtual-dea"),
+    "report": ("hysbench.benchmarks.cli.report", None),
     "diagnose": ("hysbench.benchmarks.cli.diagnose",
                  "find what a model gets wrong: show it, name the cause, extend the model, measure the gain"),
     "accuracy": ("hysbench.benchmarks.cli.accuracy",
@@ -56,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name, (module, help_text) in COMMANDS.items():
         mod = importlib.import_module(module)
+        help_text = help_text or mod.SUMMARY
         p = sub.add_parser(name, help=help_text, description=help_text, epilog=f"example:\n  {mod.EXAMPLE}",
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_module=module)

@@ -117,6 +117,8 @@ REPORTS = {
                               _calibration_arguments, _calibrate),
 }
 
+SUMMARY = f"regenerate a report: {', '.join(REPORTS)}"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="report", metavar="NAME", parser_class=OneLineParser)
