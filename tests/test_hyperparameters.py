@@ -157,6 +157,21 @@ def test_the_helpers_name_owner_key_and_value():
     assert check_number("m", "x", 2, positive=True) == 2.0
 
 
+@pytest.mark.parametrize("name", list_models())
+def test_an_unknown_hyperparameter_is_named_with_the_model_and_what_the_model_takes(name):
+    takes = ", ".join(get_model(name).get_hyperparameters())
+    with pytest.raises(ModelError) as info:
+        get_model(name, n_operatorz=9)
+    message = str(info.value)
+    assert message.startswith(f"unknown hyperparameter 'n_operatorz' for model {name!r}")
+    assert message.endswith(f"; it takes: {takes}") and "\n" not in message
+
+
+def test_an_unknown_hyperparameter_suggests_the_closest_name():
+    with pytest.raises(ModelError, match=r"for model 'mrpim' \(did you mean n_operators\?\); it takes: n_operators,"):
+        get_model("mrpim", n_operatorz=9)
+
+
 def test_cli_refuses_a_bad_boolean_in_one_line_with_status_2(tmp_path, capsys):
     dataset = str(default_dataset_path())
     for hyper, named in (("q_term=no", "q_term must be true or false, got 'no'"),

@@ -101,18 +101,6 @@ def test_bad_hyperparameters(bad):
         get_model("mrpim", **bad)
 
 
-@pytest.mark.parametrize("name, takes", [
-    ("mrpim", "n_operators, poly_order, q_term, envelopes, offset, derivative, derivative_window"),
-    ("mrpim+relaxation", "base, components, base_hyperparameters, n_relaxation, relaxation_powers"),
-])
-def test_unknown_hyperparameter_names_itself_the_model_and_what_the_model_takes(name, takes):
-    with pytest.raises(ModelError) as err:
-        get_model(name, n_operatorz=9)
-    message = str(err.value)
-    assert f"unknown hyperparameter 'n_operatorz' for model {name!r}" in message and takes in message
-    assert "\n" not in message and "__init__" not in message and "keyword argument" not in message
-
-
 def test_bad_parameters_and_inputs():
     model = get_model("mrpim")
     with pytest.raises(ModelError, match="missing"):
