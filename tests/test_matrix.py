@@ -16,9 +16,10 @@ from dataclasses import replace
 
 from hysbench.benchmarks.cli import main as hysbench
 from hysbench.benchmarks.matrix import cells as cells_module
+from hysbench.benchmarks.matrix import execute as execute_module
 from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
 from hysbench.benchmarks.matrix.execute import run_matrix
-from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows
+from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows, seconds_per_cell
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data import load_dataset
 from hysbench.identification import Fit
@@ -266,6 +267,36 @@ def test_run_matrix_reuses_a_cell_of_the_same_code_and_recomputes_after_a_code_c
     results = run_matrix(plan(), store, jobs=1, on_result=computed.append, quiet=True)
     assert len(computed) == 2 and computed[1]["key"] != computed[0]["key"]  # other code: recomputed
     assert list(results) == [computed[1]["key"]]
+
+
+def test_run_matrix_starts_the_cells_expected_to_take_longest_first(small_dataset, tmp_path, monkeypatch):
+    ds = load_dataset(small_dataset)
+    cells = plan_cells([(small_dataset, ds)], ["classical-pi", "mrpim"], ["varpro", "lsq"], seed=0)
+    names = [c.name for c in cells]
+    started = []
+
+    def run(cell):
+        started.append(cell.name)
+        return {"key": cell.key, "status": "failed"}
+
+    monkeypatch.setattr(execute_module, "run_cell", run)
+    expected = {names[0]: 1.0, names[1]: 5.0, names[2]: 3.0}  # the last cell has no figure: it starts first
+    run_matrix(cells, CellStore(tmp_path), jobs=1, quiet=True, expected_seconds=expected)
+    assert started == [names[3], names[1], names[2], names[0]]
+    started.clear()
+    run_matrix(cells, CellStore(tmp_path), jobs=1, quiet=True)
+    assert started == names  # without figures: the plan's order
+
+
+def test_a_cells_expected_seconds_are_its_fit_and_simulation_in_an_earlier_matrix_csv(tmp_path):
+    path = tmp_path / "matrix.csv"
+    rows = ["dataset,model,method,record,fit_seconds,simulate_seconds",
+            "d,mrpim,varpro,a.csv,2.5,0.5", "d,mrpim,varpro,b.csv,2.5,0.5", "d,bouc-wen,lsq,a.csv,nan,0.1"]
+    path.write_text("\n".join(rows) + "\n")
+    assert seconds_per_cell(path) == {"d/mrpim/varpro": 3.0}  # a non-finite figure is no figure
+    assert seconds_per_cell(tmp_path / "absent.csv") == {}
+    (tmp_path / "other.csv").write_text("a,b\n1,2\n")
+    assert seconds_per_cell(tmp_path / "other.csv") == {}
 
 
 class _NaNModel(HysteresisModel):

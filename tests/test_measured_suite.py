@@ -54,6 +54,24 @@ def test_unseen_records_are_scored_from_the_stored_fit_without_refitting(sines):
     assert "non-finite" in unseen.unseen_csv([bad]).replace("nonfinite", "non-finite")
 
 
+def test_unseen_scores_are_read_back_for_the_same_cell_and_dataset_and_scored_again_otherwise(sines, tmp_path,
+                                                                                             monkeypatch):
+    fitted, other = load_dataset(sines[0]), load_dataset(sines[1])
+    cell = plan_cells([(sines[0], fitted)], ["classical-pi"], ["lsq"], seed=0,
+                      method_options={"lsq": {"max_nfev": 30}})[0]
+    result = run_cell(cell)
+    cache = tmp_path / unseen.CACHE_FILE
+    first = unseen.score_cells([result], other, cache=cache)
+    calls = []
+    real = unseen.score_unseen
+    monkeypatch.setattr(unseen, "score_unseen", lambda r, ds: calls.append(ds.name) or real(r, ds))
+    assert unseen.score_cells([result], other, cache=cache) == first and calls == []  # read back, exactly
+    unseen.score_cells([result], fitted, cache=cache)  # another dataset: scored
+    assert calls == [fitted.name]
+    cache.write_text("{not json")
+    assert unseen.score_cells([result], other, cache=cache) == first and calls[-1] == other.name
+
+
 def test_hysbench_run_reports_both_protocols(sines, tmp_path):
     assert main(["run", str(sines[0]), "--unseen", str(sines[1]), "--out", str(tmp_path), *FAST]) == 0
     report = (tmp_path / "report.md").read_text()

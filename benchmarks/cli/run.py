@@ -26,7 +26,7 @@ from hysbench.models.errors import HysbenchError
 from hysbench.benchmarks.matrix.cells import (DEFAULT_METHODS, code_fingerprint, method_options, package_version,
                                               plan_cells)
 from hysbench.benchmarks.matrix.execute import run_matrix
-from hysbench.benchmarks.matrix.report import write_matrix_csv, write_report
+from hysbench.benchmarks.matrix.report import seconds_per_cell, write_matrix_csv, write_report
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.benchmarks.matrix import measured, unseen
 
@@ -141,9 +141,10 @@ def main(args) -> int:
         results[res["key"]] = res
         write_matrix_csv(out, list(results.values()), csv_name)
 
+    expected = seconds_per_cell(out / csv_name)  # read before this run rewrites it
     try:
         all_results = run_matrix(cells, store, jobs=args.jobs, dask_address=args.dask, force=args.force,
-                                 on_result=on_result, quiet=args.quiet)
+                                 on_result=on_result, quiet=args.quiet, expected_seconds=expected)
     except BaseException:
         if not out_existed and not any(p.is_file() for p in out.rglob("*")):  # no empty folders left behind
             shutil.rmtree(out, ignore_errors=True)
@@ -152,7 +153,7 @@ def main(args) -> int:
     write_matrix_csv(out, ordered, csv_name)
     extra = []
     if unseen_ds is not None:
-        scored = unseen.score_cells(ordered, unseen_ds)
+        scored = unseen.score_cells(ordered, unseen_ds, cache=store.folder / unseen.CACHE_FILE)
         unseen.write_unseen_csv(out, scored)
         extra = unseen.unseen_section([r for r in ordered if r["status"] == "ok"], scored, unseen_ds)
     elapsed = time.perf_counter() - started

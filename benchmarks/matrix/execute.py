@@ -10,6 +10,7 @@ cell is recomputed by the next run); a worker whose parent dies exits with it.
 from __future__ import annotations
 
 import ctypes
+import math
 import os
 import signal
 import sys
@@ -17,7 +18,7 @@ import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from multiprocessing import get_context
-from typing import Callable
+from typing import Callable, Mapping
 
 from hysbench.models.errors import HysbenchError
 
@@ -76,8 +77,11 @@ def _progress(total: int, quiet: bool):
 
 
 def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, dask_address: str | None = None,
-               force: bool = False, on_result: Callable[[dict], None] | None = None, quiet: bool = False) -> dict:
-    """Run cells not already in the store; return {key: result dict} for all cells."""
+               force: bool = False, on_result: Callable[[dict], None] | None = None, quiet: bool = False,
+               expected_seconds: Mapping[str, float] | None = None) -> dict:
+    """Run cells not already in the store; return {key: result dict} for all cells. ``expected_seconds``
+    (by ``Cell.name``, e.g. an earlier run's times: ``report.seconds_per_cell``) starts the longest cells
+    first, so that no worker is left with a long cell at the end; cells without a figure start before them."""
     results: dict[str, dict] = {}
     todo = []
     for cell in cells:
@@ -86,6 +90,8 @@ def run_matrix(cells: list[Cell], store: CellStore, *, jobs: int | None = None, 
             results[cell.key] = cached
         else:
             todo.append(cell)
+    if expected_seconds:
+        todo.sort(key=lambda c: -expected_seconds.get(c.name, math.inf))
     bar = _progress(len(cells), quiet)
     bar.update(len(cells) - len(todo))
 

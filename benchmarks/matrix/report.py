@@ -55,6 +55,19 @@ def write_matrix_csv(out: Path, results: list[dict], name: str = "matrix.csv") -
     write_atomic(out / name, matrix_csv(results))
 
 
+def seconds_per_cell(path: Path) -> dict[str, float]:
+    """Fit plus simulate seconds of each cell ("dataset/model/method") of a matrix CSV an earlier run wrote
+    ({} when there is none or it cannot be read): how long each cell is likely to take again."""
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+        seconds = {f"{r['dataset']}/{r['model']}/{r['method']}": float(r["fit_seconds"]) + float(r["simulate_seconds"])
+                   for r in rows}
+    except (OSError, KeyError, TypeError, ValueError, csv.Error):
+        return {}
+    return {name: s for name, s in seconds.items() if math.isfinite(s)}
+
+
 # --- summaries ------------------------------------------------------------
 def cell_summary(res: dict) -> dict:
     val = [r for r in res["records"] if r["role"] == "validation"]

@@ -12,7 +12,10 @@ scored.
 from __future__ import annotations
 
 import csv
+import functools
+import hashlib
 import io
+import json
 import math
 from pathlib import Path
 
@@ -27,6 +30,7 @@ from .report import best_per_model, ranking
 
 IDENTIFIED_ON = "virtual-dea"
 UNSEEN_CSV = "matrix_unseen.csv"
+CACHE_FILE = "unseen_scores.json"  # in the cell store's folder
 CSV_COLUMNS = ("identified_on", "dataset", "model", "method", "record", "status", "e_m", "e_rms")
 
 
@@ -53,10 +57,34 @@ def score_unseen(result: dict, dataset: Dataset) -> dict:
     return out
 
 
-def score_cells(results: list[dict], dataset: Dataset, identified_on: str = IDENTIFIED_ON) -> list[dict]:
-    """Every finished (status ok) cell identified on ``identified_on``, scored on ``dataset``."""
+def score_cells(results: list[dict], dataset: Dataset, identified_on: str = IDENTIFIED_ON,
+                cache: Path | None = None) -> list[dict]:
+    """Every finished (status ok) cell identified on ``identified_on``, scored on ``dataset``. With ``cache``
+    (a JSON file), a cell already scored on this dataset (same cell key, same dataset content) is read from
+    it, not simulated again; the file is rewritten with the scores of these cells."""
     cells = [r for r in results if r["dataset"] == identified_on and r["status"] == "ok" and r.get("fit")]
-    return [score_unseen(r, dataset) for r in sorted(cells, key=lambda r: (r["model"], r["method"]))]
+    stored = _read_cache(cache)
+    digest = f"{dataset.content_hash()}:{_scoring_code()}"  # the cell key covers the Fit's code, not this file
+    scored = {}
+    for r in sorted(cells, key=lambda r: (r["model"], r["method"])):
+        key = f"{r['key']}:{digest}"
+        scored[key] = stored[key] if key in stored else score_unseen(r, dataset)
+    if cache is not None:
+        write_atomic(cache, json.dumps(scored, sort_keys=True))
+    return list(scored.values())
+
+
+@functools.lru_cache(maxsize=1)
+def _scoring_code() -> str:
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+
+
+def _read_cache(path: Path | None) -> dict:
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8")) if path is not None else {}
+    except (OSError, ValueError):
+        return {}  # absent or unreadable: every cell is scored again
+    return data if isinstance(data, dict) else {}
 
 
 def unseen_csv(scored: list[dict]) -> str:
