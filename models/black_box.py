@@ -30,6 +30,7 @@ these models declare ``native_training`` and are identified by ``method="native"
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
@@ -419,7 +420,9 @@ class SparseNARX(LaggedBlackBox):
         candidates = []
         for threshold in thresholds:
             opt = ps.STLSQ(threshold=float(threshold), alpha=self.ridge, max_iter=self.max_iter)
-            opt.fit(theta, T[:, None])
+            with warnings.catch_warnings():  # a threshold that removes every term is one candidate of the sweep
+                warnings.filterwarnings("ignore", message="Sparsity parameter is too big", category=UserWarning)
+                opt.fit(theta, T[:, None])
             coefs = np.asarray(opt.coef_, dtype=float).ravel()
             params = {**scaling, **dict(zip(names, (float(c) for c in coefs)))}
             error = simulation_error(params)

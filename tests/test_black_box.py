@@ -90,6 +90,15 @@ def test_sparse_narx_recovers_a_known_polynomial_narx_exactly(sparse_fit, narx_d
     assert sparse_fit.n_evaluations == len(diag["candidates"])
 
 
+def test_a_threshold_that_removes_every_term_is_a_candidate_without_a_library_warning(narx_data, recwarn):
+    """The sweep's largest thresholds may remove every term (pysindy warns): that candidate is listed with
+    no nonzero weight, and the user sees no library warning for it."""
+    fit = identify(get_model("narx-sparse", sample_time=DT, degree=1, n_thresholds=2, max_threshold=1e6),
+                   narx_data, "native", seed=0)
+    assert any(c["n_nonzero"] == 0 for c in fit.diagnostics["native"]["candidates"])
+    assert not [w for w in recwarn if "Sparsity parameter" in str(w.message)]
+
+
 def test_sparse_narx_on_a_coarser_step_runs_interleaved_chains():
     """sample_time = 3 dt: the known system at lag spacing 3 is recovered exactly."""
     ds = _dataset(lambda u: reference_narx(u, k=3))
