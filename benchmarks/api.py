@@ -126,9 +126,11 @@ def diagnose(dataset=None, model: str = "mrpim", seed: int = 0, **settings):
     Example::
 
         >>> import hysbench as hb
-        >>> diag = hb.diagnose(model="mrpim", seed=0)     # doctest: +SKIP  (about a minute)
+        >>> diag = hb.diagnose(model="mrpim", seed=0)     # doctest: +SKIP
         >>> diag.cause                                     # doctest: +SKIP
         'relaxation'
+
+    (The example takes about half a minute on two cores.)
     """
     return diagnose_model(load_dataset() if dataset is None else dataset, model, seed=seed, **settings)
 

@@ -12,13 +12,23 @@ import hysbench.identification
 import hysbench.models
 from hysbench.benchmarks.cli import main
 
-NAMES = ["load_dataset", "get_model", "list_models", "identify", "run_matrix", "diagnose"]
+NAMES = ["load_dataset", "get_model", "list_models", "identify", "run_matrix", "diagnose", "load_model"]
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_name_has_a_docstring_with_an_example(name):
     doc = getattr(hb, name).__doc__
     assert doc and "Example::" in doc and "import hysbench as hb" in doc
+
+
+def test_the_docstring_examples_give_what_they_show():
+    """Every example of the API's docstrings runs and prints what it shows (those marked +SKIP take long)."""
+    import doctest
+
+    import hysbench.benchmarks.api as api
+
+    result = doctest.testmod(api, optionflags=doctest.ELLIPSIS, verbose=False)
+    assert result.failed == 0 and result.attempted >= 10
 
 
 def test_version_is_the_installed_distribution():
