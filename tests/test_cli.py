@@ -18,6 +18,12 @@ def test_every_command_shows_an_example(command, capsys):
     assert "example:\n  hysbench " + command in out
 
 
+@pytest.mark.parametrize("command", [["dataset", "init"], ["data", "virtual-dea"]])
+def test_a_command_with_an_action_shows_its_example_on_the_actions_help_too(command, capsys):
+    assert main([*command, "--help"]) == 0
+    assert "example:\n  hysbench " + " ".join(command) in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("report", list(REPORTS))
 def test_every_report_shows_an_example(report, capsys):
     assert main(["report", report, "--help"]) == 0

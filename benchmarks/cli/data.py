@@ -44,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="data_command", metavar="DATASET")
     sub.required = True
     p = sub.add_parser("virtual-dea", help="the virtual DEA's seven records (the default dataset)",
-                       description=__doc__.split("\n\n")[1])
+                       description=__doc__.split("\n\n")[1], epilog=f"example:\n  {EXAMPLE}",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True,
                    help="output folder (replaced if it holds a virtual DEA made by this command, else only with --force)")
     p.add_argument("--force", action="store_true", help="replace any dataset folder at --out")

@@ -29,7 +29,8 @@ ROLE_NAMES = ("time", "input", "output")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="dataset_command", metavar="ACTION")
     sub.required = True
-    p = sub.add_parser("init", help="write dataset.toml for a bare CSV file", description=__doc__.split("\n\n")[1])
+    p = sub.add_parser("init", help="write dataset.toml for a bare CSV file", description=__doc__.split("\n\n")[1],
+                       epilog=f"example:\n  {EXAMPLE}", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("csv", metavar="CSV", help="the CSV file (the manifest is written in its folder)")
     for role in ROLE_NAMES:
         p.add_argument(f"--{role}", required=True, metavar="COL", help=f"{role} column: a name or a 0-based index")
