@@ -61,6 +61,23 @@ def test_confirmed_causes_are_counted_on_the_nulls_of_the_mrpim_and_the_piezo_re
         accuracy.markdown(rows, s, 1.0))
 
 
+def test_the_rules_that_decided_are_counted_from_the_rows_traces_in_the_decision_rules_order():
+    """Each rule counts a case once, however often it acted on it; rows without a trace are left out and named; a
+    plan without any trace has no such section."""
+    rows = [_row(["delay"], True), _row(["delay"], False), _row(["null-white"], True)]
+    rows[0]["trace"] = [["also", "relaxation"], ["nothing-passes", "none"], ["also", "creep"]]
+    rows[1]["trace"] = [["also", "delay"]]
+    s = accuracy.summary(rows)["rules"]
+    assert list(s["rules"]) == ["nothing-passes", "also"]  # selection's rules come before those after it
+    assert s["rules"]["also"] == {"cases": 2, "right": 1, "outcomes": {"relaxation": 1, "creep": 1, "delay": 1}}
+    assert (s["traced"], s["cases"]) == (2, 3) and "validation" in s["never"] and "also" not in s["never"]
+    text = accuracy.markdown(rows, accuracy.summary(rows), 1.0)
+    assert "| `also` | 2 | 1 | relaxation 1, creep 1, delay 1 |" in text and "(2 of 3 rows here)" in text
+    untraced = [_row(["delay"], True)]
+    assert "rules" not in accuracy.summary(untraced)
+    assert "The rules that decided" not in accuracy.markdown(untraced, accuracy.summary(untraced), 1.0)
+
+
 def stored(rows, design="balanced", **meta):
     """A plan as the row file holds it (``rows.plan_rows``), its id from its cases' plan seed."""
     seed = rows[0]["seed"] // accuracy.PLAN_STRIDE

@@ -5,7 +5,12 @@ from __future__ import annotations
 import math
 from operator import itemgetter
 
+from collections import Counter
+
 from scipy import stats
+
+from hysbench.benchmarks.diagnosis.rules import AFTER_SELECTION
+from hysbench.benchmarks.diagnosis.selection import SELECTION
 
 from .evidence_ceiling import extension_on_kept
 from .planted import NULLS, OUT_OF_VOCABULARY, VOCABULARY
@@ -145,3 +150,23 @@ def ceiling(rows: list[dict]) -> dict:
                 n, right, rest = reach([r for r in vocab if r["base"] == b], has)
                 v.update({f"{name}_cases": n, f"{name}_cases_right": right, f"{name}_without_right": rest})
     return {"evidence": out}
+
+
+def rule_counts(rows: list[dict]) -> dict | None:
+    """Per rule id, in the decision rule's order: the cases whose trace holds it (the rule decided or changed their
+    verdict), of them judged right, and its outcomes counted; over the rows that hold a trace (None: no row does)."""
+    traced = [r for r in rows if "trace" in r]
+    if not traced:
+        return None
+    order = [rule.id for rule in (*SELECTION, *AFTER_SELECTION)]
+    out: dict = {}
+    for r in traced:
+        for rule in dict.fromkeys(rule for rule, _ in r["trace"]):
+            entry = out.setdefault(rule, {"cases": 0, "right": 0, "outcomes": Counter()})
+            entry["cases"] += 1
+            entry["right"] += bool(r["right"])
+            entry["outcomes"].update(outcome for rid, outcome in r["trace"] if rid == rule)
+    ranked = sorted(out, key=lambda rule: order.index(rule) if rule in order else len(order))
+    rules = {rule: {**out[rule], "outcomes": dict(out[rule]["outcomes"].most_common())} for rule in ranked}
+    return {"traced": len(traced), "cases": len(rows), "never": [rule for rule in order if rule not in out],
+            "rules": rules}
