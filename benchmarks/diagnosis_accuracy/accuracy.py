@@ -66,7 +66,7 @@ from .rows import ROWS_FILE, plan_id, plan_rows, read_plans, store_plan
 from .stated_limits import in_scope, minimum_strengths, out_of_scope, stated_from
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_validation, ceiling, confirmed_counts,
                      detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of, rule_counts,
-                     span_text, wilson_interval, within_tolerance)
+                     rule_lines, span_text, wilson_interval, within_tolerance)
 
 PATTERN = ([(k,) for k in VOCABULARY for _ in range(3)] + [("null-white",)] * 2 + [("null-ar1",)] * 3
            + [(k,) for k in OUT_OF_VOCABULARY]
@@ -444,7 +444,7 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         val = f"{lim['strength_pct']:.3g}" if lim["strength_pct"] is not None else "not reached"
         lines.append(f"| {cause} | {lim['cases']} | {val} | {lim['cases_above']} | {rng} |")
     lines += _ceiling_lines(s)
-    lines += _rule_lines(s.get("rules"))
+    lines += rule_lines(s.get("rules"))
     lines += ["", "## Wrong verdicts", "",
               "| case | base | drive | strength % | verdict | ambiguous with | also | planted effect's own evidence |",
               "|---|---|---|---|---|---|---|---|"]
@@ -454,24 +454,6 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
                          f"{r['verdict']} | {', '.join(r['ambiguous_with']) or '-'} | {', '.join(r['also']) or '-'} | "
                          f"{_evidence_cell(r)} |")
     return "\n".join(lines) + "\n"
-
-
-def _rule_lines(rules: dict | None) -> list[str]:
-    """How often each rule decided or changed a verdict (nothing when no row holds a trace)."""
-    if not rules:
-        return []
-    lines = ["", "## The rules that decided", "",
-             f"Each row holds its diagnosis's rule trace ({rules['traced']} of {rules['cases']} rows here): the rules "
-             "that decided or changed its verdict, by the ids of docs/diagnosis.md's \"The decision rule\". A rule "
-             "that decides few cases is where a simpler rule set costs least.", "",
-             "| rule | cases it decided or changed | of them right | outcomes |", "|---|---|---|---|"]
-    for rule, c in rules["rules"].items():
-        outcomes = ", ".join(f"{k} {v}" for k, v in c["outcomes"].items())
-        lines.append(f"| `{rule}` | {c['cases']} | {c['right']} | {outcomes} |")
-    if rules["never"]:
-        lines += ["", "Rules that decided or changed no verdict here: " + ", ".join(f"`{r}`" for r in rules["never"])
-                  + "."]
-    return lines
 
 
 def _within_limits_lines(rows: list[dict], s: dict) -> list[str]:

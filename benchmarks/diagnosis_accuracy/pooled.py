@@ -29,7 +29,8 @@ from hysbench.models.errors import HysbenchError
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
 from .stated_limits import stated_from
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
-                     judged_parameters, plan_seed_of, span_text, wilson_interval, within_tolerance)
+                     judged_parameters, plan_seed_of, rule_counts, rule_lines, span_text, wilson_interval,
+                     within_tolerance)
 
 _CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
 
@@ -160,6 +161,7 @@ def pool(plans: list[dict], check: list[dict] | None = None) -> dict:
                                for e, per in sorted(by_effect.items(), key=lambda kv: _effect_order(kv[0]))},
         "by_base_and_drive": {b: {d: _share(by_drive[b][d]) for d in (*DRIVES, RECORDED) if by_drive[b][d]} for b in bases},
         "detection_limits": limits, "ceiling": pooled_ceiling(rows),
+        **({"rules": rules} if (rules := rule_counts(rows)) else {}),  # rows that hold their rule traces
         **({"checked": {"plans": checked[0], "all_cases": _share(checked[1]),
                         **confirmed_counts(checked[1]),
                         **check_limits(limits, checked[1])}} if checked else {}),
@@ -225,6 +227,7 @@ def pooled_markdown(p: dict) -> str:
     lines += [f"| {c} | " + " | ".join(_limit_cell(per[b]) for b in bases) + " |"
               for c, per in p["detection_limits"].items()]
     lines += _pooled_ceiling_lines(p)
+    lines += rule_lines(p.get("rules"), "###")
     if "checked" in p:
         lines += ["", *_checked_lines(p["checked"])]
     return "\n".join(lines) + "\n"

@@ -170,3 +170,21 @@ def rule_counts(rows: list[dict]) -> dict | None:
     rules = {rule: {**out[rule], "outcomes": dict(out[rule]["outcomes"].most_common())} for rule in ranked}
     return {"traced": len(traced), "cases": len(rows), "never": [rule for rule in order if rule not in out],
             "rules": rules}
+
+
+def rule_lines(rules: dict | None, heading: str = "##") -> list[str]:
+    """How often each rule decided or changed a verdict (nothing when no row holds a trace)."""
+    if not rules:
+        return []
+    lines = ["", f"{heading} The rules that decided", "",
+             f"Each row holds its diagnosis's rule trace ({rules['traced']} of {rules['cases']} rows here): the rules "
+             "that decided or changed its verdict, by the ids of docs/diagnosis.md's \"The decision rule\". A rule "
+             "that decides few cases is where a simpler rule set costs least.", "",
+             "| rule | cases it decided or changed | of them right | outcomes |", "|---|---|---|---|"]
+    for rule, c in rules["rules"].items():
+        outcomes = ", ".join(f"{k} {v}" for k, v in c["outcomes"].items())
+        lines.append(f"| `{rule}` | {c['cases']} | {c['right']} | {outcomes} |")
+    if rules["never"]:
+        lines += ["", "Rules that decided or changed no verdict here: " + ", ".join(f"`{r}`" for r in rules["never"])
+                  + "."]
+    return lines
