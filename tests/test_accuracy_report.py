@@ -72,7 +72,7 @@ def test_the_rules_that_decided_are_counted_from_the_rows_traces_in_the_decision
     assert s["rules"]["also"] == {"cases": 2, "right": 1, "outcomes": {"relaxation": 1, "creep": 1, "delay": 1}}
     assert (s["traced"], s["cases"]) == (2, 3) and "validation" in s["never"] and "also" not in s["never"]
     text = accuracy.markdown(rows, accuracy.summary(rows), 1.0)
-    assert "| `also` | 2 | 1 | relaxation 1, creep 1, delay 1 |" in text and "(2 of 3 rows here)" in text
+    assert "| `also` | 2 | 1 | relaxation 1; creep 1; delay 1 |" in text and "(2 of 3 rows here)" in text
     pooled_rules = pooled.pool([stored([dict(r, seed=i) for i, r in enumerate(rows)])])["rules"]
     assert pooled_rules["rules"] == s["rules"] and "### The rules that decided" in pooled.pooled_markdown(
         pooled.pool([stored([dict(r, seed=i) for i, r in enumerate(rows)])]))

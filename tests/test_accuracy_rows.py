@@ -120,6 +120,8 @@ def test_a_run_stores_its_plan_in_the_row_file_and_a_rerun_of_it_replaces_its_ro
     stored = rows.read_plans(path)["balanced-4"]
     assert [r["seed"] for r in stored["rows"]] == [4 * STRIDE + i for i in range(6)]
     assert stored["meta"]["design"] == "balanced" and "note" not in stored["meta"]  # the partial write replaced
+    assert stored["meta"]["code"] == accuracy.diagnosis_code()
+    assert f"Diagnosed by code `{accuracy.diagnosis_code()}`" in report.read_text()
     assert "6 cases (`hysbench accuracy run --seed 4 --cases 6`)" in report.read_text()
     accuracy.run_accuracy(3, 5, path, None)
     accuracy.run_accuracy(2, 4, path, None)
@@ -211,6 +213,7 @@ def test_diagnosing_again_replaces_every_row_in_order_and_lists_each_change_by_h
     plans = rows.read_plans(path)
     assert [r["verdict"] for r in plans["balanced-2"]["rows"]] == ["none", "delay", "none"]
     assert plans["within-limits-3"]["rows"][0]["attempts"] == 2 and "note" not in plans["within-limits-3"]["meta"]
+    assert plans["within-limits-3"]["meta"]["code"] == accuracy.diagnosis_code()  # the code that diagnosed again
     assert plans["balanced-4"]["rows"] == [row(4 * STRIDE)]  # not asked for: untouched
 
 
@@ -260,4 +263,21 @@ def test_list_names_every_stored_plan(tmp_path, capsys):
     path = tmp_path / "rows.jsonl.gz"
     rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": [row(2 * STRIDE), row(2 * STRIDE + 1, right=False)]}})
     assert hysbench(["accuracy", "list", "--rows", str(path)]) == 0
-    assert capsys.readouterr().out == "balanced-2: 2 cases, 1 right\n"
+    assert capsys.readouterr().out == "balanced-2: 2 cases, 1 right; code not recorded\n"
+    plans = {"balanced-2": {"meta": {**meta(2), "code": accuracy.diagnosis_code()}, "rows": [row(2 * STRIDE)]},
+             "balanced-3": {"meta": {**meta(3), "code": "0123456789abcdef"}, "rows": [row(3 * STRIDE)]}}
+    rows.write_plans(path, plans)
+    assert hysbench(["accuracy", "list", "--rows", str(path)]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        f"balanced-2: 1 cases, 1 right; code {accuracy.diagnosis_code()} (the installed code)",
+        "balanced-3: 1 cases, 1 right; code 0123456789abcdef (not the installed code)"]
+
+
+def test_the_diagnosis_code_fingerprint_follows_the_planted_effects_source(tmp_path, monkeypatch):
+    before = accuracy.diagnosis_code()
+    edited = tmp_path / "planted.py"
+    edited.write_text(Path(accuracy.planted_effects.__file__).read_text() + "\n# edited\n")
+    monkeypatch.setattr(accuracy.planted_effects, "__file__", str(edited))
+    assert accuracy.diagnosis_code() != before
+    monkeypatch.undo()
+    assert accuracy.diagnosis_code() == before

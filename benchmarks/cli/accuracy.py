@@ -105,8 +105,12 @@ def main(args) -> int:
         return _run(args)
     plans = rows.read_plans(args.rows)
     if args.action == "list":
+        installed = accuracy.diagnosis_code()
         for pid, plan in plans.items():
-            print(f"{pid}: {len(plan['rows'])} cases, {sum(bool(r['right']) for r in plan['rows'])} right")
+            code = plan["meta"].get("code")
+            print(f"{pid}: {len(plan['rows'])} cases, {sum(bool(r['right']) for r in plan['rows'])} right; "
+                  + ("code not recorded" if not code else f"code {code}"
+                     + (" (the installed code)" if code == installed else " (not the installed code)")))
         if not plans:
             print(f"no plans in {args.rows}")
         return 0

@@ -56,7 +56,13 @@ from hysbench.data.dataset import Dataset, load_dataset
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
+import hysbench.benchmarks.diagnosis
+import hysbench.data
+import hysbench.identification
+import hysbench.models
 from hysbench.benchmarks.diagnosis.diagnose import diagnose
+from hysbench.benchmarks.matrix.cells import source_fingerprint
+from . import planted as planted_effects
 from .evidence_ceiling import effect_evidence, extension_could_show, shows_evidence, shows_on_kept
 from .own_timing import needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
@@ -198,6 +204,13 @@ def judge(truth: dict, verdict: str, also: list[str], own: str | None = None) ->
 def _validation_gain(d) -> dict:
     v = d.gain().get("validation") or {}
     return {k: v[k] for k in ("explained_whole", "explained_window", "z_whole") if k in v}
+
+
+def diagnosis_code() -> str:
+    """The fingerprint of the code a row depends on (the models, data layer, identifiers, the diagnosis and the
+    planted effects): a plan stores it, so rows of other code are told apart."""
+    return source_fingerprint((hysbench.models, hysbench.data, hysbench.identification, hysbench.benchmarks.diagnosis),
+                              (planted_effects.__file__,))
 
 
 def run_case(case: dict) -> dict:
@@ -343,7 +356,9 @@ def markdown(rows: list[dict], s: dict, wall_s: float, note: str = "") -> str:
         f"{s['cases']} cases (`{plan_command(s, rows)}`), base model {'MRPIM' if model == 'mrpim' else model}; "
         "generators `hysbench.benchmarks.diagnosis_accuracy.planted` (functional forms independent of the "
         "extensions: FFT convolution, frequency-domain delay, RK45 mode, logarithmic creep, ...). "
-        f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}).", "",
+        f"Wall time {wall_s / 60:.1f} min ({s['seconds'] / max(s['cases'], 1):.1f} s per diagnosis; {_machine(s)}). "
+        + (f"Diagnosed by code `{s['code']}` (`hysbench accuracy list` shows whether it is the installed code's)."
+           if s.get("code") else "The code that diagnosed it is not recorded."), "",
         *_on_lines(on),
         *_within_limits_lines(rows, s),
         "## Targets", "",
@@ -584,7 +599,7 @@ def plan_summary(plan: dict) -> dict:
     """A stored plan's summary (``summary`` of its rows) with how it was run (its meta line, ``rows``)."""
     meta = plan["meta"]
     return {**summary(plan["rows"]), "plan": plan["id"], "plan_seed": meta["seed"], "planned_cases": meta["cases"],
-            "wall_s": meta.get("wall_s"), "machine": meta.get("machine"),
+            "wall_s": meta.get("wall_s"), "machine": meta.get("machine"), "code": meta.get("code"),
             "missing_bases": dict(meta.get("missing_bases") or {}), "plan_design": meta["design"],
             "note": meta.get("note", ""), **({"on": meta["on"]} if meta.get("on") else {})}
 
@@ -630,6 +645,7 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, rows_file: str | Path = ROWS
                   **({"segments": segments} if segments else {}), **({"thorough": True} if thorough else {})}
         rows, t0 = [], time.perf_counter()
         machine = {"cpu_count": os.cpu_count(), "load_start": os.getloadavg()[0], "jobs": jobs}
+        code = diagnosis_code()
         cases = (plan_on(n_cases, seed, ds, model, own["verdict"], segments, thorough) if on
                  else plan(n_cases, seed, bases, design))
         missing = missing_bases(bases) if not on else {}
@@ -639,7 +655,7 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, rows_file: str | Path = ROWS
 
         def keep(note: str) -> dict:
             meta = {"design": design, "seed": seed, "cases": len(cases), "wall_s": time.perf_counter() - t0,
-                    "machine": {**machine, "load_end": os.getloadavg()[0]}, "missing_bases": missing,
+                    "code": code, "machine": {**machine, "load_end": os.getloadavg()[0]}, "missing_bases": missing,
                     **({"note": note} if note else {}), **({"on": on} if on else {})}
             store_plan(rows_file, pid, meta, rows)
             plan_ = {"id": pid, "meta": meta, "rows": rows}
@@ -708,6 +724,7 @@ def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
     changes} (``verdict_changes``)."""
     say = progress or (lambda m: None)
     plans = plan_rows(read_plans(rows_file), ids, rows_file)  # every plan read first: a missing one stops before any run
+    code = diagnosis_code()
     todo = [_case_of(r, p["meta"]) for p in plans for r in p["rows"]]
     done = []
     with contextlib.ExitStack() as stack:
@@ -718,7 +735,7 @@ def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
             load_start, rows = os.getloadavg()[0], []
             for r in p["rows"]:
                 rows.append({**next(results), **({"attempts": r["attempts"]} if "attempts" in r else {})})
-            meta = {**p["meta"], "wall_s": time.perf_counter() - t0,
+            meta = {**p["meta"], "wall_s": time.perf_counter() - t0, "code": code,
                     "machine": {"cpu_count": os.cpu_count(), "load_start": load_start, "load_end": os.getloadavg()[0],
                                 "jobs": jobs}}
             meta.pop("note", None)

@@ -20,7 +20,7 @@ from hysbench.data.files import ensure_dir, jsonable, write_atomic
 from hysbench.models.errors import HysbenchError
 
 ROWS_FILE = Path("results") / "diagnosis_accuracy_rows.jsonl.gz"
-META_KEYS = ("design", "seed", "cases", "wall_s", "machine", "missing_bases", "note", "on")
+META_KEYS = ("design", "seed", "cases", "wall_s", "code", "machine", "missing_bases", "note", "on")
 
 
 def plan_id(design: str, seed: int, on: dict | None = None) -> str:

@@ -182,7 +182,7 @@ def rule_lines(rules: dict | None, heading: str = "##") -> list[str]:
              "that decides few cases is where a simpler rule set costs least.", "",
              "| rule | cases it decided or changed | of them right | outcomes |", "|---|---|---|---|"]
     for rule, c in rules["rules"].items():
-        outcomes = ", ".join(f"{k} {v}" for k, v in c["outcomes"].items())
+        outcomes = "; ".join(f"{k} {v}" for k, v in c["outcomes"].items())
         lines.append(f"| `{rule}` | {c['cases']} | {c['right']} | {outcomes} |")
     if rules["never"]:
         lines += ["", "Rules that decided or changed no verdict here: " + ", ".join(f"`{r}`" for r in rules["never"])

@@ -32,18 +32,22 @@ def package_version() -> str:
         return "0+unknown"
 
 
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """SHA-256 over the source of everything a cell's result depends on: the models, the data
-    layer, the identifiers and this module (not the reports, the CLI or the figures). A cell
-    computed by other code gets another key, so ``hysbench run`` never reuses it."""
+def source_fingerprint(packages, files=()) -> str:
+    """SHA-256 (16 hex digits) over the Python source of ``packages`` (their folders, recursively) and ``files``."""
     digest = hashlib.sha256()
-    folders = [Path(p) for pkg in (hysbench.models, hysbench.data, hysbench.identification) for p in pkg.__path__]
-    files = sorted({f for folder in folders for f in folder.rglob("*.py")} | {Path(__file__)})
-    for f in files:
+    folders = [Path(p) for pkg in packages for p in pkg.__path__]
+    for f in sorted({f for folder in folders for f in folder.rglob("*.py")} | {Path(f) for f in files}):
         digest.update(f.name.encode())
         digest.update(f.read_bytes())
     return digest.hexdigest()[:16]
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """The source of everything a cell's result depends on: the models, the data layer, the identifiers and
+    this module (not the reports, the CLI or the figures). A cell computed by other code gets another key, so
+    ``hysbench run`` never reuses it."""
+    return source_fingerprint((hysbench.models, hysbench.data, hysbench.identification), (__file__,))
 
 
 @dataclass(frozen=True)
