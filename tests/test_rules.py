@@ -3,12 +3,16 @@ it returns (the one passed in unchanged) and its trace entry (rule id, outcome, 
 
 import dataclasses
 import string
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from hysbench.benchmarks.diagnosis.backward import DROP_REDUNDANT_PRIMARY, Option
 from hysbench.benchmarks.diagnosis.candidates import Candidate
+from hysbench.benchmarks.diagnosis.heldout import Folds, HeldOut
 from hysbench.benchmarks.diagnosis.policy import Policy
+from hysbench.benchmarks.diagnosis.report import _inputs_text
 from hysbench.benchmarks.diagnosis.rule import Verdict, apply, render
 from hysbench.benchmarks.diagnosis.rules import AFTER_SELECTION, SELECTION, rule_text
 from hysbench.benchmarks.diagnosis.secondary import ALSO, Forward
@@ -147,6 +151,25 @@ def test_with_nothing_passing_the_verdict_is_unexplained_only_on_a_structured_re
     assert (out.cause, out.chosen, out.partial) == (outcome, None, None)
     decided = Verdict("creep", candidate("creep"))
     assert apply(rule("nothing-passes"), ev, decided, POLICY) == decided  # decided already: the rule is silent
+
+
+def test_the_simplest_as_good_entry_lists_each_passing_candidate_by_its_label_with_its_score():
+    named = candidate("relaxation", gain=0.9, z=6.0)
+    named.label, named.heldout["sse"] = "relaxation, 2 time constants", 1.0
+    weak = candidate("creep", gain=0.001, z=0.5)  # no evidence: not passing
+    held = HeldOut(Folds(np.array([0, 5, 10]), policy=POLICY), np.ones(10))
+    ev = Scores(SimpleNamespace(n_held_out_rows=10, noise_sd=0.0), held, (named, weak), (), True)
+    out = apply(rule("simplest-as-good"), ev, Verdict(UNDECIDED, None), POLICY)
+    entry = out.trace[-1]
+    assert (entry["rule"], entry["outcome"], out.chosen) == ("simplest-as-good", "relaxation", named)
+    assert [(s["label"], s["gain"], s["z"]) for s in entry["inputs"]["passing"]] == [
+        ("relaxation, 2 time constants", 0.9, 6.0)]
+
+
+def test_a_trace_entry_names_a_candidate_by_its_label_and_its_cause():
+    text = _inputs_text({"as_good": [{"cause": "relaxation", "label": "relaxation, 3 time constants", "gain": 0.9},
+                                     {"cause": "creep", "label": "slow drift since the start", "gain": 0.5}]})
+    assert "relaxation, 3 time constants (gain" in text and "creep: slow drift since the start (gain" in text
 
 
 def test_every_rule_has_its_own_id_and_states_itself_with_policy_fields_only():

@@ -136,10 +136,13 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
 
 
 def _inputs_text(value) -> str:
-    """A trace entry's inputs in one line: numbers to 3 significant digits, a candidate's score by its cause."""
+    """A trace entry's inputs in one line: numbers to 3 significant digits, a candidate's score by its cause and
+    label (a cause can have several candidates)."""
     if isinstance(value, dict):
         if "cause" in value and "gain" in value:
-            return f"{value['cause']} (gain {_fmt(value['gain'], 3)}, z {_fmt(value.get('z'), 3)})"
+            label = value.get("label") or value["cause"]
+            name = label if label.startswith(value["cause"]) else f"{value['cause']}: {label}"
+            return f"{name} (gain {_fmt(value['gain'], 3)}, z {_fmt(value.get('z'), 3)})"
         return ", ".join(f"{k} {_inputs_text(v)}" for k, v in value.items())
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_inputs_text(v) for v in value) + "]"

@@ -137,7 +137,7 @@ def simplest_as_good(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict
     return (replace(v, cause=chosen.cause, chosen=chosen, ambiguous_with=tuple(others.values()),
                     reason=_named_reason(chosen, best, pol)),
             step("simplest-as-good", chosen.cause, best=_score_of(best), as_good=[_score_of(c) for c in same],
-                 passing=[c.cause for c in ok]))
+                 passing=[_score_of(c) for c in ok]))
 
 
 def merge_duplicates(ev: Scores, v: Verdict, pol: Policy) -> tuple[Verdict, dict | None]:
