@@ -684,7 +684,7 @@ def test_the_planted_mrpim_plant_is_one_system_that_varpro_recovers_on_multisine
     every identification peak, leave a misfit several times the noise."""
     ds, truth = planted_case(("null-white",), "mrpim", "multisines", seed)
     peaks = [float(r.u.max()) for r in ds.records]
-    assert max(peaks) - min(peaks) > 0.05  # the records differ in peak: the case that went wrong
+    assert max(peaks) - min(peaks) > 0.05  # the records differ in peak: each record's own thresholds would differ
     fit = identify(get_model("mrpim"), ds, method="varpro", seed=0)
     for r in ds.records:
         assert np.sqrt(np.mean((r.y - fit.predict(r)) ** 2)) < 1.05 * truth["noise_sd"], r.file
@@ -1598,7 +1598,7 @@ def test_one_recording_is_diagnosed_in_segments_without_its_validation_window(sh
     Without --segments: refused in one line that names the option. With it, the identification window is cut
     at input minima into records of whole periods (two remain after its first minimum), no record the
     diagnosis fits on holds a validation sample, and the cuts cost the base model next to nothing (a cut at
-    the window's own start, mid-sweep, had tripled its error: 0.41-0.51 % against 0.14 %)."""
+    the window's own start, mid-sweep, would triple its error: 0.41-0.51 % against 0.14 %)."""
     folder = shared_datasets / "piezo_sindy_1hz"
     res = _hysbench(capsys, "diagnose", str(folder), "--out", str(tmp_path / "none"), "--quiet")
     assert res.returncode == 2 and "--segments" in res.stderr and len(res.stderr.strip().splitlines()) == 1
@@ -1708,7 +1708,7 @@ def test_the_delay_profile_is_scanned_where_it_is_rough_at_the_scale_of_a_sample
         return ((d - floor) / 0.004) ** 2 + 0.5 * (1 - math.cos(2 * math.pi * (d - floor) / dt))
 
     plain = minimize_scalar(rss, bounds=(0.0038, 0.00725), method="bounded").x
-    assert abs(plain - floor) > dt / 2  # the failure this guards against
+    assert abs(plain - floor) > dt / 2  # Brent alone stops in a ripple minimum
     assert abs(scan_minimum(rss, 0.0038, 0.00725, dt) - floor) < dt / 20
 
 
@@ -1870,8 +1870,8 @@ def test_a_delay_shorter_than_one_sample_is_not_a_delay():
 
 
 def test_no_error_against_frequency_figure_is_drawn_for_records_without_a_drive_frequency(tmp_path):
-    """Records without a nominal drive frequency (the Bouc-Wen benchmark's) would leave that figure empty (it was,
-    with a warning): it is not drawn; with one it is."""
+    """Records without a nominal drive frequency (the Bouc-Wen benchmark's) would leave that figure empty: it is
+    not drawn; with one it is."""
     from hysbench.benchmarks.diagnosis import figures
 
     record = SimpleNamespace(frequency_hz=None, role="identification")

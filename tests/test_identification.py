@@ -516,7 +516,8 @@ def test_fit_records_that_all_weigh_zero_are_refused(method):
 
 
 def test_more_parameters_than_scored_samples_are_refused():
-    """varpro had stopped with a matmul shape error after minutes (1006 linear parameters, 800 rows)."""
+    """A model with more parameters than the fit records' scored samples is refused in one message when the
+    problem is built, before any search runs."""
     model = get_model("classical-pi", n_operators=60)
     ds = simulated_dataset(get_model("mrpim"), get_model("mrpim").preset("paper"), n_periods=1.5, seed=1,
                            frequencies=(1.0,), dt=0.025, name="short")

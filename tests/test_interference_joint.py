@@ -84,7 +84,7 @@ def test_a_line_near_a_drive_harmonic_keeps_its_amplitude_in_every_fold():
     planted = truth["effects"]["interference"]
     null_train = []
     heldout_null(s, folds, null_train)
-    on_residual = fold_frequencies(s, null_train)  # the old way: the line on the base's residual alone
+    on_residual = fold_frequencies(s, null_train)  # the line chosen on the base's residual alone
     assert abs(on_residual[0] - planted["frequency_hz"]) > 0.2
     c = next(c for c in d.candidates if c.cause == "interference")
     _, fold_est = heldout_errors(s, folds, c, refit=True)
