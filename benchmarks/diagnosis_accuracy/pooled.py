@@ -253,7 +253,8 @@ def _pooled_ceiling_lines(p: dict) -> list[str]:
         lo, hi = e["intervals"][k]
         lines.append(f"| {i}. {label} | {e[cases]} of {e['vocabulary_cases']} | {e[right]} | "
                      f"**{e[k]} / {n} = {100 * e[k] / n:.1f} %** | {100 * lo:.1f}-{100 * hi:.1f} % |")
-    lines += ["", f"Right now: {p['right']} / {n} = {100 * p['right_share']:.1f} %; the target is 90 %."]
+    lines += ["", f"Right by the diagnosis: {p['right']} / {n} = {100 * p['right_share']:.1f} %; "
+                  "the target is 90 %."]
     lines += ["", "By base, the vocabulary cases right and at most right by each reading:", "",
               "| base | vocabulary cases | right | " + " | ".join(f"reading {i}" for i, _ in readings) + " |",
               "|---|---|---|" + "---|" * len(readings)]
