@@ -49,7 +49,7 @@ from .virtual_dea import (
 REGULARISATION = 0.1  # per unit of log(parameter)
 MONOTONE_MARGIN_PCT = 0.5  # each step between neighbouring frequencies must move by at least this much
 FREQS = FREQUENCIES_HZ
-# A start away from the issue's set, to show the calibration finds its way (``--start perturbed``).
+# A start away from ISSUE_START, to show the calibration finds its way (``--start perturbed``).
 PERTURBATION = {"mu": 1.3, "eta_v": 0.7, "mu_k": (0.8, 1.25, 0.8), "tau_k": (1.3, 0.75, 1.2)}
 
 

@@ -91,7 +91,7 @@ class DEAParameters:
         }
 
 
-# The issue's known-good set: the calibration's starting point.
+# A known-good parameter set: the calibration's starting point (``--start issue``).
 ISSUE_START = DEAParameters(mu=7.85e3, J=100.0, eta_v=15.9e3, mu_k=(178e3, 117e3, 351e3), tau_k=(0.268, 2.03, 58.6))
 
 # Calibrated by ``python -m hysbench.data.calibrate_virtual_dea`` from ISSUE_START (rounded to

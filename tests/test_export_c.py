@@ -108,7 +108,7 @@ def test_generated_c_agrees_with_simulate_and_the_inverse_stepper(tmp_path, name
 
 @needs_cc
 def test_mrpim_on_the_validation_record_forward_and_inverse(tmp_path):
-    """The issue's acceptance record (0.2 Hz validation, 410 000 samples) with Table 2's MRPIM (a fixed
+    """The virtual DEA's 0.2 Hz validation record (410 000 samples) with Table 2's MRPIM (a fixed
     model, so no fit runs here): the C model reproduces simulate, and the C inverse driven with that
     prediction reproduces Python's inverse stepper. (Whether the inverse gives the input back is the
     model's property, not the export's: MRPIM's inverse recursion through q u'' is unstable, see

@@ -72,7 +72,7 @@ def _amplitude(args) -> int:
 
 def _calibration_arguments(parser):
     parser.add_argument("--start", choices=("issue", "perturbed"), default="issue",
-                        help="start from the issue's known-good set, or from it perturbed (default: issue)")
+                        help="start from the known-good starting set, or from it perturbed (default: issue)")
     parser.add_argument("--max-nfev", type=positive_int, default=30, help="residual evaluations (default 30)")
 
 
