@@ -1531,6 +1531,13 @@ def _hysbench(capsys, *args):
     return SimpleNamespace(returncode=code, stdout=out.out, stderr=out.err)
 
 
+def _json_fields_documented() -> set[str]:
+    """The field names (in backticks) of docs/diagnosis.md's section on diagnosis.json."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "diagnosis.md").read_text()
+    section = text.split("## diagnosis.json, field by field", 1)[1].split("\n## ", 1)[0]
+    return set(re.findall(r"`([a-z_0-9]+)`", section))
+
+
 def test_cli_writes_report_and_json(tmp_path, capsys):
     ds, truth = _draw_above(("interference",), LIMITS["interference"], start=5)
     save_dataset(ds, tmp_path / "ds")
@@ -1554,6 +1561,10 @@ def test_cli_writes_report_and_json(tmp_path, capsys):
     assert data["trace"][-1]["rule"] == "validation"
     assert data["trace"][-1]["outcome"] == ("confirmed" if data["confirmed_on_validation"] else "not confirmed")
     assert set(data["before"]) == {r.file for r in ds.records} == set(data["after"])
+    documented = _json_fields_documented()
+    summaries = [data["evidence"]["null"], *data["evidence"]["candidates"], *data["evidence"]["secondary_tried"]]
+    fields = {*data, *data["evidence"], *(k for c in summaries for k in c), *(k for c in summaries for k in c["heldout"])}
+    assert fields <= documented, f"diagnosis.json fields not in docs/diagnosis.md: {sorted(fields - documented)}"
     md = (out / "diagnosis.md").read_text()
     assert "Policy v1, changed from the default rule: max_secondary = 3" in md and "## Why" in md
     for png in ("residual_time", "residual_input", "residual_phase", "residual_spectrum", "error_vs_frequency",
