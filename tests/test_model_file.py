@@ -66,8 +66,10 @@ def _text_of(change) -> str:
 @pytest.mark.parametrize("text, named", [
     ("[" * 100000 + "]" * 100000, "nested too deeply"),
     (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": ' + "1" * 5000), "too many digits"),
-    (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": ' + "1" * 400), "sample_time is not a finite number"),
-    (_text_of(lambda d: d["params"].update(c1="1" * 400)).replace('"' + "1" * 400 + '"', "1" * 400), "params.c1 is not a finite number"),
+    (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": ' + "1" * 400),
+     "sample_time is not a finite number"),
+    (_text_of(lambda d: d["params"].update(c1="1" * 400)).replace('"' + "1" * 400 + '"', "1" * 400),
+     "params.c1 is not a finite number"),
     (_text_of(lambda d: d.update(model=["mrpim"])), "model must be a registry name"),
     (_text_of(lambda d: d.update(input_range=5)), "input_range must be [low, high]"),
     (_text_of(lambda d: d["params"].update(c1=True)), "params.c1 must be a number, got true"),
