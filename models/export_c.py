@@ -515,6 +515,7 @@ class InverseCheck:
                 + ", so it is not safe as a feedforward")
 
 
+MAX_CHECK_SAMPLES = 2**22  # the longest sine check_inverse drives (a tiny max_rate asks for a slow one)
 VARIATION_LIMIT = 2.0  # the reference-driven inverse's input may vary at most this many times as much as the sine's
 
 
@@ -532,7 +533,14 @@ def check_inverse(fitted: FittedModel, tolerance: float = 1e-6, periods: int = 2
     lo, hi = fitted.input_range
     shortest = float((fitted.metadata.get("scale") or {}).get("time") or 1.0)
     if options.get("max_rate"):
-        shortest = max(shortest, np.pi * (hi - lo) / float(options["max_rate"]))
+        with np.errstate(over="ignore", divide="ignore"):
+            shortest = max(shortest, float(np.pi * (hi - lo) / np.float64(options["max_rate"])))
+    shortest = max(shortest, 2.0 * fitted.sample_time)  # two samples a period at least (an edited file's time)
+    longest = periods * 10.0 * shortest / fitted.sample_time
+    if not longest <= MAX_CHECK_SAMPLES:
+        raise HysbenchError(f"{fitted.name}: checking the inverse would drive it with a sine of "
+                            f"{longest:.3g} samples, above the limit of {MAX_CHECK_SAMPLES}: its period is set by "
+                            "max_rate (input range / max_rate) and the sample time; give a larger max_rate")
     span = hi - lo if hi > lo else 1.0
     worst = None
     for period in shortest * np.logspace(0.0, 1.0, 3):

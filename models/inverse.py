@@ -697,7 +697,7 @@ class InverseArguments:
         n_grid = check_int(name, "n_grid", n_grid, 2)
         max_rate = check_max_rate(name, max_rate)
         max_step = np.inf if max_rate is None else max_rate * float(dt)
-        start = lo if u_start is None else float(u_start)
+        start = lo if u_start is None else check_number(name, "u_start", u_start)
         return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
                    1e-12 * (1.0 + float(np.max(np.abs(yd)))))
 

@@ -28,6 +28,7 @@ import hashlib
 import json
 import math
 import os
+import stat
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,6 +71,25 @@ def _plain(obj):
     if isinstance(obj, (float, np.floating)):
         return float(obj) if math.isfinite(float(obj)) else None
     return obj
+
+
+def _shown(value) -> str:
+    """A JSON value for a message, cut short (a file's content is not echoed at length)."""
+    text = json.dumps(value, default=repr)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _number(where: str, key: str, value) -> float:
+    """A model file's number as a finite float: a JSON number, not true/false, not null, not beyond a float."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ModelFileError(f"{where}: {key} must be a number, got {_shown(value)}")
+    try:
+        x = float(value)
+    except OverflowError:
+        x = math.inf
+    if not math.isfinite(x):
+        raise ModelFileError(f"{where}: {key} is not a finite number")
+    return x
 
 
 @dataclass
@@ -169,22 +189,30 @@ class FittedModel:
             raise ModelFileError(f"{where}: missing field(s) {', '.join(missing)}")
         if not isinstance(d["hyperparameters"], dict) or not isinstance(d["params"], dict):
             raise ModelFileError(f"{where}: hyperparameters and params must be JSON objects")
+        if not isinstance(d["model"], str):
+            raise ModelFileError(f"{where}: model must be a registry name (a string), got {_shown(d['model'])}")
         try:
             model = get_model(d["model"], **d["hyperparameters"])
         except ModelError as exc:
             raise ModelFileError(f"{where}: {exc}") from None
-        try:
-            params = {str(k): float(v) for k, v in d["params"].items()}
-            lo, hi = (float(v) for v in d["input_range"])
-            dt = float(d["sample_time"])
-        except (TypeError, ValueError) as exc:
-            raise ModelFileError(f"{where}: params, input_range and sample_time must be numbers ({exc})") from None
-        if not all(math.isfinite(v) for v in params.values()):
-            raise ModelFileError(f"{where}: a parameter is not finite (null in the file)")
-        if not (math.isfinite(lo) and math.isfinite(hi) and hi >= lo):
+        if not (isinstance(d["input_range"], list) and len(d["input_range"]) == 2):
+            raise ModelFileError(f"{where}: input_range must be [low, high], got {_shown(d['input_range'])}")
+        params = {str(k): _number(where, f"params.{k}", v) for k, v in d["params"].items()}
+        lo, hi = (_number(where, "input_range", v) for v in d["input_range"])
+        dt = _number(where, "sample_time", d["sample_time"])
+        if not hi >= lo:
             raise ModelFileError(f"{where}: input_range must be two finite numbers low <= high, got {d['input_range']!r}")
-        if not (math.isfinite(dt) and dt > 0):
+        if not dt > 0:
             raise ModelFileError(f"{where}: sample_time must be positive, got {d['sample_time']!r}")
+        for key in ("scale", "dataset", "identifier", "scores"):
+            if not isinstance(d[key], dict):
+                raise ModelFileError(f"{where}: {key} must be a JSON object, got {_shown(d[key])}")
+        for key, value in d["scale"].items():  # null: a scale the fit could not state
+            if value is not None and not _number(where, f"scale.{key}", value) > 0:
+                raise ModelFileError(f"{where}: scale.{key} must be positive, got {value!r}")
+        for key in ("input_unit", "output_unit", "hysbench_version"):
+            if not isinstance(d[key], str):
+                raise ModelFileError(f"{where}: {key} must be a string, got {_shown(d[key])}")
         try:
             model.pack(params)
         except ModelError as exc:
@@ -203,13 +231,25 @@ def load_model(path: str | os.PathLike) -> FittedModel:
     """The ``FittedModel`` a model file holds; ModelFileError (one line) when it cannot be read."""
     path = Path(path)
     try:
-        text = path.read_text()
+        mode = os.stat(path).st_mode
     except FileNotFoundError:
         raise ModelFileError(f"model file {path} does not exist") from None
+    except OSError as exc:
+        raise ModelFileError(f"cannot read model file {path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
+        raise ModelFileError(f"model file {path} is a folder")
+    if not stat.S_ISREG(mode):  # a FIFO or a device would be read forever
+        raise ModelFileError(f"model file {path} is not a regular file (a device, FIFO or socket)")
+    try:
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelFileError(f"cannot read model file {path}: {exc}") from None
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ModelFileError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    except ValueError:  # an integer of more digits than Python converts
+        raise ModelFileError(f"{path}: not JSON this hysbench reads (an integer with too many digits)") from None
+    except RecursionError:
+        raise ModelFileError(f"{path}: not JSON this hysbench reads (arrays or objects nested too deeply)") from None
     return FittedModel.from_dict(d, where=str(path))

@@ -66,6 +66,25 @@ def test_a_damaged_row_file_is_refused_in_one_message(tmp_path):
         rows.read_plans(path)
 
 
+
+@pytest.mark.parametrize("plan, named", [
+    ({"meta": meta(1), "rows": []}, "has no rows"),
+    ({"meta": {"seed": 1}, "rows": [row(STRIDE)]}, "its meta line has no design, cases"),
+    ({"meta": meta(1), "rows": [{k: v for k, v in row(STRIDE).items() if k != "base"}]}, "case 0 has no base"),
+])
+@pytest.mark.parametrize("action", [["limits"], ["report"], ["pool"], ["again"]])
+def test_a_stored_plan_without_its_rows_or_fields_is_refused_before_anything_is_written(tmp_path, capsys, action,
+                                                                                      plan, named):
+    path = tmp_path / "rows.jsonl.gz"
+    rows.write_plans(path, {"balanced-1": plan})
+    before = path.read_bytes()
+    out = ["--out", str(tmp_path / "limits.json")] if action == ["limits"] else (
+        ["--report", str(tmp_path / "r.md")] if action != ["again"] else [])
+    code = hysbench(["accuracy", *action, "balanced-1", "--rows", str(path), *out])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and named in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rows.jsonl.gz"] and path.read_bytes() == before
+
 def test_plan_ids_and_ranges():
     assert rows.plan_id("balanced", 45) == "balanced-45"
     assert rows.plan_id("balanced", 1, {"name": "virtual-dea", "model": "mrpim", "thorough": True}) == (

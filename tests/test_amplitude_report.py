@@ -44,3 +44,12 @@ def test_cli_writes_the_report_and_refuses_a_folder_without_cells(results, tmp_p
     assert main(["report", "amplitude", "--results", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no cells/ folder" in err[0]
+
+
+def test_a_damaged_cell_file_is_named_in_one_line(tmp_path, capsys):
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "cells" / "a.json").write_bytes(b"\xff[1]")
+    assert main(["report", "amplitude", "--results", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a.json is not a readable cell file" in err[0]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "cells"]

@@ -87,6 +87,15 @@ def _npz_claiming(path: Path, n: int) -> Path:
     return path
 
 
+def _export(model_file: Path) -> list[str]:
+    return ["export", str(model_file), "--out", str(model_file.parent / "c"), "--prefix", "dea"]
+
+
+def _written(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
 def _nested_toml(root: Path) -> list[str]:
     folder = root / "deep"
     folder.mkdir()
@@ -150,6 +159,9 @@ CASES = [
     Case("report identification with no identification records",
          lambda r: ["report", "identification", _tiny(r, roles={"f1Hz.npz": "validation", "f2Hz.npz": "validation"}),
                     "--out", str(r / "new" / "out")], "no identification records"),
+    Case("model file nested 100000 deep", lambda r: _export(_written(r / "m.json", "[" * 100000 + "]" * 100000)),
+         "nested too deeply"),
+    Case("FIFO as a model file", lambda r: _export(_fifo(r / "m.json")), "not a regular file"),
 ]
 
 

@@ -1,5 +1,7 @@
 """`hysbench dataset init`: a bare CSV to a loadable dataset in one command; bad columns refused."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -96,3 +98,18 @@ def test_a_loader_refusal_names_the_file_once(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "unequal length" in err
     assert err.count("ragged.csv") == 1, err  # the file is named once, not once per layer
+
+
+@pytest.mark.parametrize("file_name, extra, named", [
+    (b"run-\xff.csv", [], "the CSV's file name run-"),
+    (b"run.csv", ["--name", os.fsdecode(b"x\xff")], "--name is not valid UTF-8"),
+    (b"run.csv", ["--output-unit", os.fsdecode(b"\xb5m")], "--output-unit is not valid UTF-8"),
+])
+def test_a_name_a_utf8_manifest_cannot_hold_is_named_and_nothing_is_written(tmp_path, capsys, file_name, extra, named):
+    t, u, y = _series()
+    csv = tmp_path / os.fsdecode(file_name)
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y", *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and named in err and "is not valid UTF-8" in err, err
+    assert [p.name for p in tmp_path.iterdir()] == [csv.name]

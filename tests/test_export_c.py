@@ -162,6 +162,28 @@ def test_a_prefix_that_is_not_a_c_identifier_is_refused(tmp_path, capsys):
     assert json.loads(path.read_text())["model"] == "mrpim"
 
 
+
+@pytest.mark.parametrize("option, named", [(["--max-rate", "1e-300"], "above the limit"),
+                                           (["--max-rate", "1e-320"], "above the limit"),
+                                           (["--u-start", "nan"], "u_start must be a finite number"),
+                                           (["--u-start", "inf"], "u_start must be a finite number")])
+def test_an_inverse_option_export_cannot_honour_is_refused_in_one_line(tmp_path, capsys, option, named):
+    path = fitted("classical-pi").save(tmp_path / "m.json")
+    code = main(["export", str(path), "--out", str(tmp_path / "c"), "--prefix", "dea", *option])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and named in err, err
+    assert not (tmp_path / "c").exists()
+
+
+def test_the_inverse_check_drives_two_samples_a_period_at_least():
+    """A model file whose scale time is below two sample times (an edited file) is checked without 0/0."""
+    from hysbench.models.export_c import check_inverse
+    model = get_model("classical-pi")
+    params = dict(model.default_params(), p1=1.0, **{f"a{i}": 0.1 for i in range(1, 14)})
+    with np.errstate(all="raise"):
+        check = check_inverse(FittedModel(model, params, RANGE, 1.0, {"scale": {"time": 0.5}}))
+    assert check.n_samples >= 4 and check.stable
+
 def test_the_inverse_check_passes_a_monotone_p_i_and_names_an_inverse_that_loses_the_input():
     from hysbench.models.export_c import check_inverse
     model = get_model("classical-pi")

@@ -250,6 +250,13 @@ def test_stored_cells_of_other_code_or_format_are_recomputed(small_dataset, tmp_
     assert store.get(cell.key) is None
 
 
+@pytest.mark.parametrize("content", [b"\xff\xfe", b"[1]", b"[" * 100000, b"1" * 5000, b"{\"key\": "])
+def test_a_damaged_cell_file_is_computed_again(tmp_path, content):
+    store = CellStore(tmp_path)
+    store.path("k").write_bytes(content)
+    assert store.get("k") is None
+
+
 def test_run_matrix_reuses_a_cell_of_the_same_code_and_recomputes_after_a_code_change(small_dataset, tmp_path,
                                                                                      monkeypatch):
     ds = load_dataset(small_dataset)

@@ -1,6 +1,7 @@
 """The model file: save -> load gives the same model (bit for bit); bad files are refused in one line."""
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,47 @@ def test_bad_model_file_is_refused_in_one_line(tmp_path, change, named):
         load_model(path)
     assert named in str(err.value) and "\n" not in str(err.value)
 
+
+
+def _text_of(change) -> str:
+    d = fitted_mrpim_relaxation().to_dict()
+    d["sample_time"] = "SAMPLE_TIME"
+    change(d)
+    return json.dumps(d).replace('"SAMPLE_TIME"', "0.001")
+
+
+@pytest.mark.parametrize("text, named", [
+    ("[" * 100000 + "]" * 100000, "nested too deeply"),
+    (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": ' + "1" * 5000), "too many digits"),
+    (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": ' + "1" * 400),
+     "sample_time is not a finite number"),
+    (_text_of(lambda d: d["params"].update(c1="1" * 400)).replace('"' + "1" * 400 + '"', "1" * 400),
+     "params.c1 is not a finite number"),
+    (_text_of(lambda d: d.update(model=["mrpim"])), "model must be a registry name"),
+    (_text_of(lambda d: d.update(input_range=5)), "input_range must be [low, high]"),
+    (_text_of(lambda d: d["params"].update(c1=True)), "params.c1 must be a number, got true"),
+    (_text_of(lambda d: None).replace('"sample_time": 0.001', '"sample_time": true'), "sample_time must be a number"),
+    (_text_of(lambda d: d.update(scale="x")), "scale must be a JSON object"),
+    (_text_of(lambda d: d.update(scale={"time": "x"})), "scale.time must be a number"),
+    (_text_of(lambda d: d.update(scale={"time": -1})), "scale.time must be positive"),
+    (_text_of(lambda d: d.update(scores=[])), "scores must be a JSON object"),
+    (_text_of(lambda d: d.update(output_unit=3)), "output_unit must be a string"),
+], ids=["deep", "digits", "int-overflow", "param-overflow", "model-list", "range-number", "param-bool", "time-bool",
+        "scale-text", "scale-text-value", "scale-negative", "scores-list", "unit-number"])
+def test_a_malformed_model_file_is_refused_in_one_line(tmp_path, text, named):
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    with pytest.raises(ModelFileError) as err:
+        load_model(path)
+    assert named in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_fifo_or_a_folder_as_model_file_is_refused_without_reading_it(tmp_path):
+    os.mkfifo(tmp_path / "m.json")  # reading it would wait for a writer forever
+    with pytest.raises(ModelFileError, match="not a regular file"):
+        load_model(tmp_path / "m.json")
+    with pytest.raises(ModelFileError, match="is a folder"):
+        load_model(tmp_path)
 
 @pytest.mark.parametrize("version, spelled", [
     (FORMAT_VERSION + 1, str(FORMAT_VERSION + 1)), (0, "0"), (-3, "-3"), (str(FORMAT_VERSION), f'"{FORMAT_VERSION}"'),

@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 
 from hysbench.data.dataset import ROLES, DatasetError, load_dataset
-from hysbench.data.files import write_atomic
+from hysbench.data.files import shown, write_atomic
 
 from .common import CommandError
 
@@ -87,16 +87,27 @@ def manifest(args, csv_path: Path, header: list[str] | None, columns: list[int],
     else:
         names = header
     chosen = [names[k] for k in columns]
-    q = json.dumps  # a JSON string is a TOML basic string
-    lines = [f"name = {q(args.name or csv_path.stem.replace('_', '-'))}",
-             f"description = {q(f'{csv_path.name}, described by hysbench dataset init')}",
-             f"time_column = {q(chosen[0])}", f"input_column = {q(chosen[1])}", f"output_column = {q(chosen[2])}",
-             f"input_unit = {q(args.input_unit)}", f"output_unit = {q(args.output_unit)}"]
+
+    def q(text: str, what: str) -> str:
+        """``text`` as a TOML basic string (a JSON string is one); TOML is UTF-8, so a name whose bytes are not
+        (a file name or argument as the OS gave it) is refused, naming what holds it."""
+        try:
+            text.encode("utf-8")
+        except UnicodeEncodeError:
+            raise CommandError(f"{what} is not valid UTF-8, so dataset.toml (UTF-8) cannot hold it") from None
+        return json.dumps(text)
+
+    file_name = f"the CSV's file name {shown(csv_path.name)}"
+    lines = [f"name = {q(args.name, '--name') if args.name else q(csv_path.stem.replace('_', '-'), file_name)}",
+             f"description = {q(f'{csv_path.name}, described by hysbench dataset init', file_name)}",
+             *(f"{role}_column = {q(c, 'a column name in the header row')}" for role, c in zip(ROLE_NAMES, chosen)),
+             f"input_unit = {q(args.input_unit, '--input-unit')}",
+             f"output_unit = {q(args.output_unit, '--output-unit')}"]
     if header is None:
-        lines.append(f"csv_columns = [{', '.join(q(n) for n in names)}]")
+        lines.append(f"csv_columns = [{', '.join(q(n, 'a column name') for n in names)}]")
     if args.delimiter != ",":
-        lines.append(f"delimiter = {q(args.delimiter)}")
-    lines += ["", "[[records]]", f"file = {q(csv_path.name)}", f"role = {q(args.role)}"]
+        lines.append(f"delimiter = {q(args.delimiter, '--delimiter')}")
+    lines += ["", "[[records]]", f"file = {q(csv_path.name, file_name)}", f"role = {q(args.role, '--role')}"]
     if args.frequency is not None:
         lines.append(f"frequency_hz = {args.frequency!r}")
     if args.window:

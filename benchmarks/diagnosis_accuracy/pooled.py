@@ -27,27 +27,11 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
+from .rows import CASE_KEYS, checked_rows
 from .stated_limits import stated_from
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, rule_counts, rule_lines, span_text, wilson_interval,
                      within_tolerance)
-
-_CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right", "parameter_errors", "parameters_within")
-
-
-def _checked_rows(plan: dict) -> list[dict]:
-    """A stored plan's rows (``rows.plan_rows``), each checked for the fields pooling needs."""
-    rows = plan["rows"]
-    if not rows:
-        raise HysbenchError(f"plan {plan['id']} has no rows")
-    for i, r in enumerate(rows):
-        bad = [k for k in _CASE_KEYS if k not in r] if isinstance(r, dict) else ["fields"]
-        if not bad and not (isinstance(r["seed"], int) and isinstance(r["kinds"], list)
-                            and isinstance(r["strength_pct"], (int, float))):
-            bad = ["seed, kinds or strength_pct of the right type"]
-        if bad:
-            raise HysbenchError(f"plan {plan['id']}: case {i} has no {', '.join(bad)}")
-    return rows
 
 
 def _share(rows: list[dict]) -> dict:
@@ -67,7 +51,7 @@ def _read_plans(plans: list[dict], seen: set, why: str = "") -> tuple[list[dict]
     plan seed in ``seen`` (or given twice) raises HysbenchError (``why``: added to its message)."""
     out, rows = [], []
     for plan in plans:
-        plan_rows = _checked_rows(plan)
+        plan_rows = checked_rows(plan, (*CASE_KEYS, "parameter_errors", "parameters_within"))
         seed = plan_seed_of(plan_rows)
         if seed in seen:
             raise HysbenchError(f"plan seed {seed} is given twice ({plan['id']}){why}")

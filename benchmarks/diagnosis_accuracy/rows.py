@@ -67,12 +67,40 @@ def read_plans(path: str | os.PathLike = ROWS_FILE) -> dict[str, dict]:
     return plans
 
 
+CASE_KEYS = ("kinds", "base", "drive", "seed", "strength_pct", "right")  # the fields every use of a row reads
+PLAN_META_KEYS = ("design", "seed", "cases")  # the meta fields a plan's report, limits and rerun read
+
+
+def checked_rows(plan: dict, keys: tuple[str, ...] = CASE_KEYS) -> list[dict]:
+    """A plan's rows ({"id", "rows"}), each checked for the fields ``keys`` (default: those the reports, pooling
+    and the limits all read); HysbenchError naming the plan and the first case that lacks one."""
+    rows = plan["rows"]
+    if not rows:
+        raise HysbenchError(f"plan {plan['id']} has no rows")
+    for i, r in enumerate(rows):
+        bad = [k for k in keys if k not in r] if isinstance(r, dict) else ["fields"]
+        if not bad and not (isinstance(r["seed"], int) and isinstance(r["kinds"], list)
+                            and isinstance(r["strength_pct"], (int, float))):
+            bad = ["seed, kinds or strength_pct of the right type"]
+        if bad:
+            raise HysbenchError(f"plan {plan['id']}: case {i} has no {', '.join(bad)}")
+    return rows
+
+
 def plan_rows(plans: dict[str, dict], ids: list[str], path: str | os.PathLike = ROWS_FILE) -> list[dict]:
-    """The stored plans ``ids`` ({"id", "meta", "rows"} each); a missing one raises HysbenchError naming it."""
+    """The stored plans ``ids`` ({"id", "meta", "rows"} each); a missing one, one without rows or one whose meta
+    or rows lack a field (``checked_rows``) raises HysbenchError naming it, before anything is computed from them."""
     missing = [i for i in ids if i not in plans]
     if missing:
         raise HysbenchError(f"no plan {', '.join(missing)} in {path} ({len(plans)} stored: hysbench accuracy list)")
-    return [{"id": i, **plans[i]} for i in ids]
+    chosen = [{"id": i, **plans[i]} for i in ids]
+    for plan in chosen:
+        meta = plan["meta"]
+        lacking = [k for k in PLAN_META_KEYS if k not in meta] if isinstance(meta, dict) else ["meta"]
+        if lacking:
+            raise HysbenchError(f"plan {plan['id']} in {path}: its meta line has no {', '.join(lacking)}")
+        checked_rows(plan)
+    return chosen
 
 
 def write_plans(path: str | os.PathLike, plans: dict[str, dict]) -> None:

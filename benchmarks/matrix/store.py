@@ -29,15 +29,21 @@ class CellStore:
         return self.folder / f"{key}.json"
 
     def get(self, key: str) -> dict | None:
-        p = self.path(key)
-        if not p.is_file():
-            return None
-        try:
-            d = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError):
-            return None  # unreadable: recompute
-        ok = d.get("key") == key and d.get("format") == CELL_FORMAT and d.get("status") in KEPT
+        d = read_cell(self.path(key))  # None (absent or unreadable): recompute
+        ok = d is not None and d.get("key") == key and d.get("format") == CELL_FORMAT and d.get("status") in KEPT
         return d if ok else None
 
     def put(self, result: dict) -> Path:
         return write_json(self.path(result["key"]), result)
+
+
+def read_cell(path: Path) -> dict | None:
+    """A cell file's JSON object; None if it is absent, not a regular file, or damaged (not UTF-8, not JSON,
+    nested too deeply, not an object)."""
+    if not path.is_file():
+        return None
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):  # ValueError: JSON and UTF-8 errors alike
+        return None
+    return d if isinstance(d, dict) else None

@@ -13,7 +13,6 @@ Writes DIR/amplitude_extrapolation.md and DIR/erms_amplitude.png.
 
 from __future__ import annotations
 
-import json
 import math
 from functools import lru_cache
 from pathlib import Path
@@ -21,11 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from hysbench.benchmarks.matrix.report import best_per_model, kind_of, ranking
+from hysbench.benchmarks.matrix.store import read_cell
 from hysbench.benchmarks.plots import pyplot, save_figure
 from hysbench.data.files import write_atomic
 from hysbench.data.metrics import e_rms
 from hysbench.data.virtual_dea import SAMPLE_TIME_S, displacement_mm
 from hysbench.identification import Fit
+from hysbench.models.errors import HysbenchError
 
 AMPLITUDES_KV = (0.5, 1.0, 1.25)
 OFFSET_KV = 1.5
@@ -48,7 +49,12 @@ def reference(amplitude_kv: float) -> np.ndarray:
 
 
 def best_cells(results_dir: Path) -> list[dict]:
-    cells = [json.loads(p.read_text()) for p in sorted((results_dir / "cells").glob("*.json"))]
+    cells = []
+    for path in sorted((results_dir / "cells").glob("*.json")):
+        cell = read_cell(path)
+        if cell is None:
+            raise HysbenchError(f"{path} is not a readable cell file (hysbench run computes it again)")
+        cells.append(cell)
     cells = [c for c in cells if c.get("dataset") == IDENTIFIED_ON and c.get("status") == "ok" and c.get("fit")]
     return [res for res, _ in best_per_model(ranking(cells, IDENTIFIED_ON))]
 
