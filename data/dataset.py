@@ -368,6 +368,9 @@ def _check_npz_size(path: Path, where: str, columns) -> None:
                            f"{MAX_RECORD_BYTES / 2**20:.0f} MiB per record (refused before loading)")
 
 
+CSV_DELIMITERS = (",", ";", "\t", " ", "|")  # the ones a missing column is checked against (a hint)
+
+
 def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     if path.stat().st_size > MAX_RECORD_BYTES:
         raise DatasetError(f"{where}: CSV file larger than the limit of {MAX_RECORD_BYTES / 2**20:.0f} MiB per record")
@@ -377,10 +380,12 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         raise DatasetError(f"{where}: cannot read CSV file: {exc}") from None
     # blank lines are skipped; lines are numbered as an editor numbers them (\n, \r\n or \r ends one)
     numbered = [(n, ln) for n, ln in enumerate(re.split(r"\r\n|\r|\n", text), start=1) if ln.strip()]
+    header_line = None
     if csv_columns is None:
         if not numbered:
             raise DatasetError(f"{where}: empty record (the file holds no header row and no data)")
-        header = [h.strip() for h in next(csv.reader([numbered[0][1]], delimiter=delimiter))]
+        header_line = numbered[0][1]
+        header = [h.strip() for h in next(csv.reader([header_line], delimiter=delimiter))]
         numbered = numbered[1:]
         names_from = "the header row"
     else:
@@ -390,8 +395,11 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     body = [ln for _, ln in numbered]
     missing = [c for c in columns if c not in header]
     if missing:  # the header's own text is not echoed: the file may be anything
+        other = next((d for d in CSV_DELIMITERS if d != delimiter and header_line is not None
+                      and all(c in [h.strip() for h in header_line.split(d)] for c in columns)), None)
+        hint = f"; its fields look separated by {other!r}: set the dataset's delimiter" if other else ""
         raise DatasetError(f"{where}: missing column(s) {', '.join(missing)} ({names_from} names "
-                           f"{len(header)} column{'s' if len(header) != 1 else ''}, not these)")
+                           f"{len(header)} column{'s' if len(header) != 1 else ''}, not these{hint})")
     for c in columns:
         if header.count(c) > 1:
             raise DatasetError(f"{where}: column name {c!r} appears {header.count(c)} times in {names_from}; "
@@ -425,11 +433,11 @@ CSV_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|in
 
 
 def _csv_number(cell: str, where: str, line: int, column: str) -> float:
-    """A CSV cell as a float, strictly: Python's float() would also read '1_0' as 10; an empty cell is NaN
-    (refused by ``check_series``). The cell's text is not echoed."""
+    """A CSV cell as a float, strictly: Python's float() would also read '1_0' as 10. The cell's text is not
+    echoed."""
     cell = cell.strip()
     if not cell:
-        return np.nan
+        raise DatasetError(f"{where}: empty cell on line {line}, column {column}")
     if not CSV_NUMBER.fullmatch(cell):
         raise DatasetError(f"{where}: non-numeric value on line {line}, column {column}")
     return float(cell)

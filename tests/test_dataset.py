@@ -1,5 +1,6 @@
 """The dataset format: round trips, defaults, and one test per refused case."""
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -145,7 +146,7 @@ def test_refuses_nan(tmp_path):
 @pytest.mark.parametrize("header_row", [True, False])
 @pytest.mark.parametrize("cell, refused", [("oops", "non-numeric value on line {line}, column u"),
                                            ("nan", r"column u holds NaN or inf \(first on line {line}\)"),
-                                           ("", r"column u holds NaN or inf \(first on line {line}\)")])
+                                           ("", "empty cell on line {line}, column u")])
 def test_a_bad_cell_is_named_by_the_line_an_editor_shows_it_on(tmp_path, header_row, cell, refused):
     """Counting the header row and the blank lines the loader skips, whichever message names it."""
     t = np.arange(1000) * 1e-3
@@ -159,6 +160,15 @@ def test_a_bad_cell_is_named_by_the_line_an_editor_shows_it_on(tmp_path, header_
     (tmp_path / "dataset.toml").write_text(HEADER + columns + GOOD)
     line = lines.index(f"{t[40]:.17g},{cell},1.0") + 1
     with pytest.raises(DatasetError, match=refused.format(line=line)):
+        load_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("separator", [";", "\t"])
+def test_a_header_separated_otherwise_is_refused_with_the_separator_it_looks_like(tmp_path, separator):
+    lines = [separator.join(("t", "u", "y"))] + [separator.join((f"{k * 1e-3:g}", "1.0", "2.0")) for k in range(50)]
+    (tmp_path / "r.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    with pytest.raises(DatasetError, match=f"missing column.*separated by {re.escape(repr(separator))}"):
         load_dataset(tmp_path)
 
 
