@@ -698,7 +698,9 @@ class InverseArguments:
         max_rate = check_max_rate(name, max_rate)
         max_step = np.inf if max_rate is None else max_rate * float(dt)
         start = lo if u_start is None else check_number(name, "u_start", u_start)
-        return cls(yd, tuple(map(float, input_range)), lo, hi, min(max(start, lo), hi), max_step, int(n_grid),
+        if not lo <= start <= hi:  # the input before the first sample is one the actuator can be at
+            raise ModelError(f"{name}: u_start {start:g} is outside the input limits [{lo:g}, {hi:g}]")
+        return cls(yd, tuple(map(float, input_range)), lo, hi, start, max_step, int(n_grid),
                    1e-12 * (1.0 + float(np.max(np.abs(yd)))))
 
 

@@ -48,7 +48,7 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import Inversion, check_max_rate
+from .inverse import InverseArguments, Inversion, check_max_rate
 from .stepper import ArrayInverseStepper, ArrayStepper
 
 
@@ -261,10 +261,8 @@ class Viscoelastic(HysteresisModel):
         (input units; default ``input_range``) whose output is ``y_desired``, sample by sample;
         ``max_rate`` limits |du/dt| (input units per s), ``u_start`` is the input at sample 0
         (default the lower limit). The output at sample 0 is the rest output whatever the input."""
-        yd = np.ascontiguousarray(y_desired, dtype=float)
-        limits = input_limits if input_limits is not None else input_range
-        if limits is None or yd.ndim != 1 or yd.size == 0 or not np.all(np.isfinite(yd)):
-            raise ModelError(f"{self.name}: invert needs input_limits and a finite, non-empty 1-D desired output")
+        a = InverseArguments.check(self.name, y_desired, dt, input_range, input_limits, 2, max_rate, u_start)
+        yd = a.yd
         P = self._check_param_sets(self.pack(params) if isinstance(params, Mapping) else params)
         K = self.n_branches
         length = P[0, 2 + 2 * K]
@@ -272,10 +270,8 @@ class Viscoelastic(HysteresisModel):
         if not length > 0:
             raise ModelError(f"{self.name}: invert needs a positive length, got {length!r}")
         kv = self.volts_per_input_unit / 1000.0
-        lo, hi = float(limits[0]) * kv, float(limits[1]) * kv
-        max_rate = check_max_rate(self.name, max_rate)
-        step = np.inf if max_rate is None else max_rate * kv * float(dt)
-        start = lo if u_start is None else float(u_start) * kv
+        lo, hi, start = a.lo * kv, a.hi * kv, a.u_start * kv
+        step = a.max_step * kv
         dlam = (yd - offset) / length
         tol = 1e-12 * (1.0 + float(np.max(np.abs(dlam))))
         u_kv, clipped = dea_physics.invert_stretch(dlam, float(dt), self.physical_vectors(P)[0], K, lo, hi, start, step,
@@ -297,10 +293,8 @@ class Viscoelastic(HysteresisModel):
                     u_start=u_start)  # refuse bad options now, in invert's words
         limits = input_limits if input_limits is not None else input_range
         kv = self.volts_per_input_unit / 1000.0
-        lo, hi = float(limits[0]) * kv, float(limits[1]) * kv
-        max_rate = check_max_rate(self.name, max_rate)
-        step = np.inf if max_rate is None else max_rate * kv * float(dt)
-        start = lo if u_start is None else float(u_start) * kv
+        lo, hi, start = a.lo * kv, a.hi * kv, a.u_start * kv
+        step = a.max_step * kv
         scale = 0.0 if reference_scale is None else check_number(self.name, "reference_scale", reference_scale)
         return ViscoelasticInverseStepper(self, dt, params, (lo, hi), start, step, scale)
 

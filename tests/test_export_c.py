@@ -166,7 +166,8 @@ def test_a_prefix_that_is_not_a_c_identifier_is_refused(tmp_path, capsys):
 @pytest.mark.parametrize("option, named", [(["--max-rate", "1e-300"], "above the limit"),
                                            (["--max-rate", "1e-320"], "above the limit"),
                                            (["--u-start", "nan"], "u_start must be a finite number"),
-                                           (["--u-start", "inf"], "u_start must be a finite number")])
+                                           (["--u-start", "inf"], "u_start must be a finite number"),
+                                           (["--u-start", "1e6"], "outside the input limits")])
 def test_an_inverse_option_export_cannot_honour_is_refused_in_one_line(tmp_path, capsys, option, named):
     path = fitted("classical-pi").save(tmp_path / "m.json")
     code = main(["export", str(path), "--out", str(tmp_path / "c"), "--prefix", "dea", *option])

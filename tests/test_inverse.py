@@ -160,6 +160,16 @@ def test_rate_limit_is_kept_and_counted():
     assert inv.clipped[2] and inv.clipped[3]
 
 
+@pytest.mark.parametrize("name", ["classical-pi", "mrpim", "viscoelastic", "bouc-wen", "preisach"])
+def test_a_start_input_outside_the_input_limits_is_refused_not_clipped(name):
+    m = get_model(name)
+    lo, hi = LIMITS
+    with pytest.raises(ModelError, match="u_start .* outside the input limits"):
+        m.invert(np.ones(5), DT, m.default_params(), input_range=LIMITS, u_start=hi + 0.1 * (hi - lo))
+    with pytest.raises(ModelError, match="outside the input limits"):
+        m.inverse_stepper(DT, m.default_params(), input_range=LIMITS, u_start=lo - 1.0)
+
+
 @pytest.mark.parametrize("name", ["classical-pi", "mrpim", "viscoelastic", "bouc-wen"])
 @pytest.mark.parametrize("bad", [True, 0.0, -1.0, float("nan"), float("inf"), "5"])
 def test_a_rate_limit_that_is_no_positive_number_is_refused(name, bad):
