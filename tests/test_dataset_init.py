@@ -96,3 +96,15 @@ def test_a_loader_refusal_names_the_file_once(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "unequal length" in err
     assert err.count("ragged.csv") == 1, err  # the file is named once, not once per layer
+
+
+def test_check_keeps_its_columns_aligned_for_a_long_file_name(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / ("a_long_measurement_file_name_" * 2 + ".csv")
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y", "--frequency", "1"]) == 0
+    capsys.readouterr()
+    assert main(["check", str(tmp_path)]) == 0
+    header, row = capsys.readouterr().out.splitlines()[1:3]
+    assert header.index("role") == row.index("identification")
+    assert len(header) == len(row)
