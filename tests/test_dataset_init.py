@@ -108,3 +108,21 @@ def test_check_keeps_its_columns_aligned_for_a_long_file_name(tmp_path, capsys):
     header, row = capsys.readouterr().out.splitlines()[1:3]
     assert header.index("role") == row.index("identification")
     assert len(header) == len(row)
+
+
+def test_two_datasets_with_one_name_are_refused_naming_both_folders_and_the_fix(tmp_path, capsys):
+    """Two CSV files called run1.csv in two folders get the same dataset name from dataset init."""
+    t, u, y = _series()
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        csv = tmp_path / folder / "run1.csv"
+        np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="", fmt="%.10g")
+        assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 0
+    capsys.readouterr()
+    status = main(["run", str(tmp_path / "a"), str(tmp_path / "b"), "--models", "classical-pi",
+                   "--methods", "varpro", "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert "share the name 'run1'" in err and "dataset.toml" in err
+    assert str(tmp_path / "a") in err and str(tmp_path / "b") in err
+    assert not (tmp_path / "out").exists()
