@@ -19,7 +19,8 @@ def test_a_headerless_csv_by_index(tmp_path, capsys):
     csv = tmp_path / "run1.csv"
     np.savetxt(csv, np.column_stack([np.arange(t.size), y, t, u]), delimiter=",", fmt="%.10g")  # index, y, t, u
     assert main(["dataset", "init", str(csv), "--time", "2", "--input", "3", "--output", "1", "--frequency", "1"]) == 0
-    assert "hysbench run" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "hysbench run" in out and "scored 100 samples (3-3.99 s)" in out  # the last period, as check shows
     ds = load_dataset(tmp_path)
     rec = ds.records[0]
     assert ds.name == "run1" and rec.role == "identification" and rec.frequency_hz == 1.0

@@ -144,6 +144,7 @@ def main(args) -> int:
     finally:
         check.unlink(missing_ok=True)
     rec = ds.records[0]
-    print(f"wrote {target}: {rec.t.size} samples, dt {rec.dt:.6g} s, scored {rec.n_scored}; "
+    print(f"wrote {target}: {rec.t.size} samples, dt {rec.dt:.6g} s, scored {rec.n_scored} samples "
+          f"({rec.t[rec.start]:.6g}-{rec.t[rec.stop - 1]:.6g} s); "
           f"score it with: hysbench run {csv_path.parent}")
     return 0
