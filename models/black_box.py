@@ -314,7 +314,8 @@ class LaggedBlackBox(HysteresisModel):
                 raise ModelError(f"model {self.name!r}: u_scale, y_scale and sample_time must be positive")
             us = (u - p["u_center"]) / p["u_scale"]
             ys = self._run(us, lag_step(p["sample_time"], dt), (0.0 - p["y_center"]) / p["y_scale"], p)
-            out[s] = ys * p["y_scale"] + p["y_center"]
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverged run is inf: the scoring names it
+                out[s] = ys * p["y_scale"] + p["y_center"]
         return out
 
     def stepper(self, dt: float, params, input_range=None) -> BlackBoxStepper:

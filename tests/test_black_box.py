@@ -8,6 +8,7 @@ optional extra [neural] (PyTorch); those tests skip, naming it, when it is not i
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -134,6 +135,17 @@ def _random_params(model, seed: int, sample_time: float, scale: float = 0.3) -> 
     p = {n: float(scale * rng.normal()) for n in model.param_names}
     p.update(u_center=1.0, u_scale=0.5, y_center=0.2, y_scale=2.0, sample_time=sample_time)
     return p
+
+
+def test_a_diverging_run_is_non_finite_without_a_numpy_warning():
+    """A polynomial NARX that diverges in free run gives inf (the scoring names the record); numpy's
+    overflow warning would only repeat that on the user's terminal, once per worker."""
+    model = get_model("narx-sparse", sample_time=DT, degree=2)
+    params = {**_random_params(model, 5, DT, 1.0), "y_scale": 1e10}  # large terms: the run overflows
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        y = model.simulate(_input(3, 400), DT, params)
+    assert not np.all(np.isfinite(y))
 
 
 @pytest.mark.parametrize("name,hyper", [("narx-sparse", {"degree": 2}), ("narx-mlp", {"depth": 2, "width": 5}),

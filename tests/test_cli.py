@@ -148,3 +148,16 @@ def test_options_refused_before_any_work(argv, named, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and named.replace("{tmp}", str(tmp_path)) in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "new").exists()
+
+
+def test_a_reader_that_goes_away_stops_the_command_without_a_traceback():
+    """`hysbench check | head -1`: standard output closed by its reader is no traceback on stderr."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "hysbench.benchmarks.cli", "check"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the command writes anything: its first line meets a closed pipe
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 1
+    assert "Traceback" not in err and "BrokenPipeError" not in err and "Exception ignored" not in err, err

@@ -21,7 +21,8 @@ def test_a_headerless_csv_by_index(tmp_path, capsys):
     csv = tmp_path / "run1.csv"
     np.savetxt(csv, np.column_stack([np.arange(t.size), y, t, u]), delimiter=",", fmt="%.10g")  # index, y, t, u
     assert main(["dataset", "init", str(csv), "--time", "2", "--input", "3", "--output", "1", "--frequency", "1"]) == 0
-    assert "hysbench run" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "hysbench run" in out and "scored 100 samples (3-3.99 s)" in out  # the last period, as check shows
     ds = load_dataset(tmp_path)
     rec = ds.records[0]
     assert ds.name == "run1" and rec.role == "identification" and rec.frequency_hz == 1.0
@@ -113,3 +114,33 @@ def test_a_name_a_utf8_manifest_cannot_hold_is_named_and_nothing_is_written(tmp_
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and named in err and "is not valid UTF-8" in err, err
     assert [p.name for p in tmp_path.iterdir()] == [csv.name]
+
+
+def test_check_keeps_its_columns_aligned_for_a_long_file_name(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / ("a_long_measurement_file_name_" * 2 + ".csv")
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="", fmt="%.10g")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y", "--frequency", "1"]) == 0
+    capsys.readouterr()
+    assert main(["check", str(tmp_path)]) == 0
+    header, row = capsys.readouterr().out.splitlines()[1:3]
+    assert header.index("role") == row.index("identification")
+    assert len(header) == len(row)
+
+
+def test_two_datasets_with_one_name_are_refused_naming_both_folders_and_the_fix(tmp_path, capsys):
+    """Two CSV files called run1.csv in two folders get the same dataset name from dataset init."""
+    t, u, y = _series()
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        csv = tmp_path / folder / "run1.csv"
+        np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="", fmt="%.10g")
+        assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]) == 0
+    capsys.readouterr()
+    status = main(["run", str(tmp_path / "a"), str(tmp_path / "b"), "--models", "classical-pi",
+                   "--methods", "varpro", "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert "share the name 'run1'" in err and "dataset.toml" in err
+    assert str(tmp_path / "a") in err and str(tmp_path / "b") in err
+    assert not (tmp_path / "out").exists()

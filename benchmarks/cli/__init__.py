@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 from importlib.metadata import PackageNotFoundError, version as _dist_version
 import importlib
+import os
 import sys
 
 from hysbench.data.files import CREATED_FOLDERS, remove_created_empty_folders
@@ -82,4 +83,11 @@ def main(argv=None) -> int:
         remove_created_empty_folders()
         print(f"hysbench {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of standard output went away (``| head``): stop without a traceback
+        remove_created_empty_folders()
+        try:  # what is still buffered has nowhere to go; so Python's exit does not report it either
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # a standard output with no file descriptor
+            pass
+        return 1
 

@@ -1,7 +1,7 @@
 """``hysbench data virtual-dea --out DIR [--seed N] [--excitation NAME[,NAME...]|all]``: write the virtual DEA dataset.
 
 The dataset is the paper's seven-frequency protocol applied to the virtual DEA
-(``hysbench.data.virtual_dea``): one record per frequency from t = 0 through the
+(hysbench.data.virtual_dea): one record per frequency from t = 0 through the
 creep transition to two stable periods, measured by the virtual laser sensor with
 the given seed. The default dataset shipped in data/virtual_dea/ is this command's
 output with the default seed.

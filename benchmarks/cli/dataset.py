@@ -2,11 +2,11 @@
 
 Columns are given by name (a CSV with a header row) or by 0-based index (any CSV).
 A CSV whose first row is all numbers is read as headerless: its columns are named
-in ``csv_columns`` (time, input, output for the chosen ones, colK for the others).
-The manifest is written beside the CSV (one record; ``--role``, ``--frequency`` and
-``--window`` as in data/dataset.py), checked by loading the dataset before it takes
-the name dataset.toml, so a refused file leaves nothing behind. Then
-``hysbench run DIR`` scores it.
+in csv_columns (time, input, output for the chosen ones, colK for the others).
+The manifest is written beside the CSV (one record; --role, --frequency and
+--window are the record's role, frequency_hz and window, docs/datasets.md), checked
+by loading the dataset before it takes the name dataset.toml, so a refused file
+leaves nothing behind. Then hysbench run DIR scores it.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--frequency", type=float, metavar="F", help="drive frequency in Hz (a periodic record)")
     p.add_argument("--role", choices=ROLES, default="identification", help="the record's role (default identification)")
     p.add_argument("--window", metavar="START,END", help="scored window in seconds (default: last period or all)")
-    p.add_argument("--name", help="dataset name (default: the CSV's file name)")
+    p.add_argument("--name", help="dataset name (default: the CSV's file name without its suffix, _ written as -)")
     p.add_argument("--input-unit", default="", help="unit of the input column")
     p.add_argument("--output-unit", default="", help="unit of the output column")
     p.add_argument("--delimiter", default=",", help="field delimiter (default ,)")
@@ -155,6 +155,7 @@ def main(args) -> int:
     finally:
         check.unlink(missing_ok=True)
     rec = ds.records[0]
-    print(f"wrote {target}: {rec.t.size} samples, dt {rec.dt:.6g} s, scored {rec.n_scored}; "
+    print(f"wrote {target}: {rec.t.size} samples, dt {rec.dt:.6g} s, scored {rec.n_scored} samples "
+          f"({rec.t[rec.start]:.6g}-{rec.t[rec.stop - 1]:.6g} s); "
           f"score it with: hysbench run {csv_path.parent}")
     return 0

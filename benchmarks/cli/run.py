@@ -119,7 +119,10 @@ def main(args) -> int:
     unseen_ds = _unseen_dataset(args, datasets)
     names = [ds.name for _, ds in datasets]
     if len(set(names)) != len(names):
-        raise HysbenchError(f"two datasets share a name ({', '.join(names)}); names label the results")
+        twice = next(name for name in names if names.count(name) > 1)
+        folders = " and ".join(shown(path) for path, ds in datasets if ds.name == twice)
+        raise HysbenchError(f"datasets {folders} share the name {twice!r}, which labels the results: "
+                            "give one of them another name (name = ... in its dataset.toml)")
     for method in user_options:
         if method not in (methods or DEFAULT_METHODS):
             raise HysbenchError(f"--option names method {method!r}, which is not being run")
