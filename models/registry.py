@@ -48,7 +48,7 @@ def get_model(name: str, **hyperparameters) -> HysteresisModel:
     accepted = hyperparameter_names(name)
     unknown = [k for k in hyperparameters if accepted is not None and k not in accepted]
     if unknown:
-        close = difflib.get_close_matches(unknown[0], accepted, n=1)
+        close = difflib.get_close_matches(unknown[0], accepted, n=1, cutoff=0.75)  # a typo, not any likeness
         hint = f" (did you mean {close[0]}?)" if close else ""
         raise ModelError(f"unknown hyperparameter {unknown[0]!r} for model {name!r}{hint}; it takes: "
                          f"{', '.join(accepted) or 'none'}")

@@ -1,6 +1,7 @@
 """The command line as one package: every command shows an example, shares its argument types,
 and refuses bad input in one line with exit status 2."""
 
+import json
 import os
 
 import pytest
@@ -148,6 +149,25 @@ def test_options_refused_before_any_work(argv, named, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and named.replace("{tmp}", str(tmp_path)) in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "new").exists()
+
+
+def test_a_fit_keeps_its_model_file_when_its_reader_goes_away(tmp_path):
+    """`hysbench fit ... --save m.json | head -1`: the model file is written before anything is printed."""
+    import subprocess
+    import sys
+
+    from tiny_dataset import write_tiny_dataset
+
+    folder = write_tiny_dataset(tmp_path / "tiny")
+    saved, report = tmp_path / "m.json", tmp_path / "fit.json"
+    proc = subprocess.Popen([sys.executable, "-m", "hysbench.benchmarks.cli", "fit", str(folder), "--model",
+                             "classical-pi", "--method", "varpro", "--save", str(saved), "--json", str(report)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 1 and "Traceback" not in err, err
+    assert json.loads(saved.read_text())["model"] == "classical-pi"
+    assert json.loads(report.read_text())["model"] == "classical-pi"
 
 
 def test_a_reader_that_goes_away_stops_the_command_without_a_traceback():

@@ -172,6 +172,12 @@ def test_an_unknown_hyperparameter_suggests_the_closest_name():
         get_model("mrpim", n_operatorz=9)
 
 
+def test_an_unknown_hyperparameter_like_no_name_gets_no_suggestion():
+    with pytest.raises(ModelError, match="unknown hyperparameter 'nope'") as info:
+        get_model("mrpim", nope=1)
+    assert "did you mean" not in str(info.value)
+
+
 def test_cli_refuses_a_bad_boolean_in_one_line_with_status_2(tmp_path, capsys):
     dataset = str(default_dataset_path())
     for hyper, named in (("q_term=no", "q_term must be true or false, got 'no'"),

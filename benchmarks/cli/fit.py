@@ -59,13 +59,20 @@ def main(args) -> int:
             check_output_file(out)
     data = load_dataset(dataset) if args.save else dataset
     fit = identify(model, data, method=args.method, seed=args.seed, **options)
+    # the files first: what the fit computed is kept even if printing fails (a reader closing the pipe)
     to_stdout = args.json == STDOUT
+    if args.json and not to_stdout:
+        ensure_dir(Path(args.json).resolve().parent)
+        write_json(args.json, fit.to_dict())
+    dts = [r.dt for r in data.identification] if args.save else []
+    if args.save and fit.success:
+        fitted = fit.fitted_model(dts[0], data.input_unit, data.output_unit)
+        ensure_dir(Path(args.save).resolve().parent)
+        write_json(args.save, fitted.to_dict())
     print(fit.summary(), file=sys.stderr if to_stdout else sys.stdout)
     if to_stdout:
         write_json(STDOUT, fit.to_dict())
     elif args.json:
-        ensure_dir(Path(args.json).resolve().parent)
-        write_json(args.json, fit.to_dict())
         print(f"\nwrote {args.json}")
     if not fit.success:
         print(f"hysbench fit: {fit.message}", file=sys.stderr)
@@ -73,12 +80,8 @@ def main(args) -> int:
             print(f"hysbench fit: no model file written ({args.save})", file=sys.stderr)
         return 1
     if args.save:
-        dts = [r.dt for r in data.identification]
         if max(dts) - min(dts) > 1e-9 * max(dts):
             print(f"hysbench fit: note: the identification records' sample times differ ({min(dts):g} to "
                   f"{max(dts):g} s); the model file records the first, {dts[0]:g} s", file=sys.stderr)
-        fitted = fit.fitted_model(dts[0], data.input_unit, data.output_unit)
-        ensure_dir(Path(args.save).resolve().parent)
-        write_json(args.save, fitted.to_dict())
         print(f"wrote {args.save}")
     return 0
