@@ -501,3 +501,82 @@ def test_bouc_wen_finely_sampled_slow_input_against_solve_ivp():
     for beta, gamma, n in [(3.0, 1.0, 1.5), (0.3, -0.05, 3.9), (12.0, 4.0, 2.0)]:
         z = model.hysteretic_state(xi, DT, beta, gamma, n, input_range=(-1.0, 1.0))
         np.testing.assert_allclose(z, _bouc_wen_reference_in_xi(xi, beta, gamma, n), atol=1e-8)
+
+
+@settings(max_examples=25, deadline=None)
+@given(pts=st.lists(st.floats(0.0, 1.0), min_size=4, max_size=4, unique=True), seed=st.integers(0, 100),
+       first_low=st.booleans())
+def test_preisach_minor_loops_between_the_same_extrema_are_congruent(pts, seed, first_low):
+    """Mayergoyz's congruency: after different histories, the loop traced while the input cycles
+    between the same two extrema u1 < u2 differs only by a constant shift (from the second cycle,
+    when the relays outside u1 <= beta <= alpha <= u2 no longer switch)."""
+    h1, h2, u1, u2 = pts
+    u1, u2 = min(u1, u2), max(u1, u2)
+    cycle = np.concatenate((np.linspace(u1, u2, 25)[1:], np.linspace(u2, u1, 25)[1:]))
+    model = Preisach(grid_size=7)
+    w = np.random.default_rng(seed).uniform(0, 1, model.n_params)
+    loops = []
+    for history in ((0.0, 1.0, h1), (1.0, 0.0, h2)) if first_low else ((1.0, h1), (0.0, 1.0, 0.0, h2)):
+        path = np.concatenate([np.linspace(a, b, 20) for a, b in zip((0.0, *history), (*history, u1))])
+        u = np.concatenate((path, cycle, cycle))
+        y = model.simulate(u, DT, w, input_range=(0.0, 1.0))
+        second = y[path.size + cycle.size - 1:]  # from u1, the end of the first cycle
+        loops.append(second - second[0])
+    np.testing.assert_allclose(loops[0], loops[1], rtol=0, atol=1e-12)
+
+
+def test_batch_and_windowed_kernels_of_the_baselines_match_slow_references():
+    """Many parameter sets at once (the parallel batch kernels) and the windowed regressors of
+    many sets, against the per-sample references above, for rate-dependent P-I, Bouc-Wen, Preisach."""
+    u = wandering_input(160, seed=7, lo=-1.0, hi=1.0)
+    window = np.array([2, 40, 41, 100, 159])
+    for name in ("rate-dependent-pi", "bouc-wen", "preisach"):
+        model = get_model(name)
+        P = random_sets(model, 3, seed=12)
+        refs = []
+        for row in P:
+            p = dict(zip(model.param_names, row))
+            if name == "rate-dependent-pi":
+                poly = [p[f"p{j}"] for j in range(1, model.poly_order + 1)]
+                weights = [p[f"a{i}"] for i in range(1, model.n_operators + 1)]
+                r0 = np.arange(model.n_operators) / model.n_operators * 0.5 * 2.0
+                refs.append(_rd_pi_reference(u, DT, r0, p["beta"], poly, weights, p["offset"]))
+            elif name == "bouc-wen":
+                z = _bouc_wen_reference(u, p["beta"], p["gamma"], p["n"])
+                refs.append(p["offset"] + p["kx"] * u + p["kz"] * z)
+            else:
+                alphas, betas = model.grid(u, (-1.0, 1.0))
+                refs.append(_preisach_reference(u, alphas, betas, row[:-1], p["offset"]))
+        refs = np.array(refs)
+        # Bouc-Wen: the scheme's stated error, 1e-8 in z, times the largest |k_z|
+        kz = np.abs(P[:, model.param_names.index("kz")]).max() if name == "bouc-wen" else 0.0
+        atol = 1e-8 * max(1.0, kz) if name == "bouc-wen" else 1e-10
+        np.testing.assert_allclose(model.simulate_batch(u, DT, P, input_range=(-1.0, 1.0)), refs, rtol=0, atol=atol)
+        lin = P[:, [model.param_names.index(n) for n in model.linear_names]]
+        sets = P[:, [model.param_names.index(n) for n in model.nonlinear_names]]
+        for some in (sets, sets[:1]):
+            R = model.windowed_regressors_batch(u, DT, some, window, input_range=(-1.0, 1.0))
+            np.testing.assert_allclose(np.einsum("brl,bl->br", R, lin[:len(some)]), refs[:len(some), window],
+                                       rtol=0, atol=atol)
+
+
+
+@settings(max_examples=40, deadline=None)
+@given(z0=st.floats(-0.5, 0.5).filter(lambda z: abs(z) > 1e-3), past=st.floats(0.01, 0.5), n=st.floats(2.0, 4.0),
+       beta=st.floats(0.5, 15.0), ratio=st.floats(-0.8, 1.0))
+def test_bouc_wen_step_through_zero_against_solve_ivp(z0, past, n, beta, ratio):
+    """One sample interval in which z crosses 0 (xi moving towards z's other side by |z0| + past):
+    n >= 2 takes no finer sub-steps near 0, so the landing on 0 inside a sub-step carries the
+    interval's error; it stays at the scheme's RK4 error (< 5e-9 here), not one of ~|z|^(n+1)."""
+    from hysbench.models.bouc_wen import bouc_wen_step
+
+    gamma = ratio * beta
+    d = -np.sign(z0) * (abs(z0) + past)
+    z = bouc_wen_step(z0, d, beta, gamma, n)
+
+    def rhs(_x, zz):
+        a = abs(zz[0])
+        return [1.0 - np.sign(d) * beta * a ** (n - 1) * zz[0] - gamma * a**n]
+
+    ref = solve_ivp(rhs, (0.0, d), [z0], method="DOP853", rtol=1e-13, atol=1e-15).y[0, -1]
+    assert abs(z - ref) < 5e-9

@@ -290,3 +290,72 @@ def test_gru_learns_a_linear_system_and_is_seeded():
     rms = math.sqrt(float(np.mean((fit.simulate(u, DT) - y) ** 2)))
     assert rms < 0.025 * np.ptp(y), rms
     assert identify(model, ds, "native", seed=0).params == fit.params
+
+
+# --- the kernels against slow references from their defining equations ------------------------
+def _lag_vector(us, ys, i, k, n_out, n_in, y_rest):
+    """Past outputs y(i - k), ..., y(i - n_out k) (y_rest before the record), then inputs
+    u(i), u(i - k), ..., u(i - (n_in - 1) k) (u(0) before the record)."""
+    past = [ys[i - a * k] if i - a * k >= 0 else y_rest for a in range(1, n_out + 1)]
+    inputs = [us[i - b * k] if i - b * k >= 0 else us[0] for b in range(n_in)]
+    return np.array(past + inputs)
+
+
+def test_polynomial_and_perceptron_kernels_match_slow_references():
+    from hysbench.models.black_box import mlp_simulate, poly_simulate
+
+    rng = np.random.default_rng(11)
+    us = rng.normal(size=40)
+    k, n_out, n_in, y_rest = 2, 2, 3, 0.3
+    n_var = n_out + n_in
+    exponents = rng.integers(0, 3, size=(7, n_var))
+    coefs = rng.normal(0, 0.2, size=7)
+    coefs[2] = 0.0
+    ys = []
+    for i in range(us.size):
+        x = _lag_vector(us, ys, i, k, n_out, n_in, y_rest)
+        ys.append(sum(c * np.prod(x ** e) for c, e in zip(coefs, exponents)))
+    np.testing.assert_allclose(poly_simulate(us, k, n_out, n_in, y_rest, exponents, coefs), ys,
+                               rtol=1e-12, atol=1e-12)
+
+    sizes = np.array([n_var, 4, 3, 1])
+    layers = [(rng.normal(0, 0.5, (a, b)), rng.normal(0, 0.5, b)) for a, b in zip(sizes[:-1], sizes[1:])]
+    weights = np.concatenate([np.concatenate((W.ravel(), c)) for W, c in layers])
+    ys = []
+    for i in range(us.size):
+        a = _lag_vector(us, ys, i, k, n_out, n_in, y_rest)
+        for j, (W, c) in enumerate(layers):
+            a = a @ W + c
+            a = np.tanh(a) if j < len(layers) - 1 else a
+        ys.append(a[0])
+    np.testing.assert_allclose(mlp_simulate(us, k, n_out, n_in, y_rest, weights, sizes), ys,
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_gru_kernel_matches_the_gru_equations():
+    """PyTorch's GRU cell written out (r, z gates; n = tanh(W_in x + b_in + r (W_hn h + b_hn));
+    h' = (1 - z) n + z h), k interleaved chains from h = 0, a linear readout; no PyTorch needed."""
+    from hysbench.models.recurrent import gru_simulate
+
+    rng = np.random.default_rng(12)
+    H, k = 4, 3
+    w_ih, w_hh = rng.normal(size=3 * H), rng.normal(0, 0.6, (3 * H, H))
+    b_ih, b_hh = rng.normal(size=3 * H), rng.normal(size=3 * H)
+    readout, readout_bias = rng.normal(size=H), 0.4
+    us = rng.normal(size=30)
+
+    def sigmoid(v):
+        return 1.0 / (1.0 + np.exp(-v))
+
+    g = slice(0, H), slice(H, 2 * H), slice(2 * H, 3 * H)
+    chains = [np.zeros(H) for _ in range(k)]
+    ref = []
+    for i, x in enumerate(us):
+        h = chains[i % k]
+        r = sigmoid(w_ih[g[0]] * x + b_ih[g[0]] + w_hh[g[0]] @ h + b_hh[g[0]])
+        z = sigmoid(w_ih[g[1]] * x + b_ih[g[1]] + w_hh[g[1]] @ h + b_hh[g[1]])
+        n = np.tanh(w_ih[g[2]] * x + b_ih[g[2]] + r * (w_hh[g[2]] @ h + b_hh[g[2]]))
+        chains[i % k] = (1 - z) * n + z * h
+        ref.append(readout @ chains[i % k] + readout_bias)
+    np.testing.assert_allclose(gru_simulate(us, k, w_ih, w_hh, b_ih, b_hh, readout, readout_bias), ref,
+                               rtol=1e-12, atol=1e-12)

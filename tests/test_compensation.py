@@ -190,3 +190,42 @@ def test_cli_options_reach_the_report_and_its_command_line(tmp_path):
     report = (out / "compensation.md").read_text()
     assert ("--option stable_inverse=true --option inverse_radius=0.99 --inverse exact" in report
             and "| classical-pi | varpro (stable_inverse=True, inverse_radius=0.99) | numerical (exact) |" in report)
+
+
+def test_closed_loop_kernel_is_the_pi_law_written_out():
+    """run_loop against the module's timing and PI law in plain Python (conditional integration,
+    clipping), the sensor as its docstring's formula, the actuator stepped by dea_physics."""
+    from hysbench.models import dea_physics
+
+    plant = DEAPlant(seed=3)
+    n, dt, kp, ki = 400, plant.dt, 0.2, 9.0
+    reference = np.concatenate([np.full(100, 2.0), np.full(100, 60.0), np.full(100, -5.0), np.full(100, 4.0)])
+    feedforward = 1.0 + 0.3 * np.sin(np.arange(n) * 0.05)
+    run = plant.run(reference, feedforward, kp=kp, ki=ki)
+
+    rest_mm, mm_per_volt, full_scale_v, lsb_v, rest_code, lsb_mm = plant.sensor.constants()
+    noise = plant.sensor.noise_volts(n, np.random.default_rng(3))
+    phys, n_br = plant.params.vector(), plant.params.n_branches
+    lo, hi = plant.u_limits
+    state = dea_physics.initial_state(phys, n_br)
+    u = [min(max(feedforward[0], lo), hi)]
+    m = dea_physics.substeps(u[0], dt, phys, n_br)
+    integral, y, clipped = 0.0, [], [u[0] != feedforward[0]]
+    for k in range(n):
+        x = 1e3 * phys[5] * (state[0] - phys[3])
+        volts = min(max((rest_mm + x) / mm_per_volt + noise[k], 0.0), full_scale_v)
+        y.append((round(volts / lsb_v) - rest_code) * lsb_mm)
+        if k == n - 1:
+            break
+        e = reference[k] - y[k]
+        wanted = feedforward[k + 1] + kp * e + integral + ki * dt * e
+        if not ((wanted > hi and e > 0) or (wanted < lo and e < 0)):
+            integral += ki * dt * e
+        v = feedforward[k + 1] + kp * e + integral
+        u.append(min(max(v, lo), hi))
+        clipped.append(u[-1] != v)
+        assert dea_physics.advance_sample(state, u[k], u[k + 1], dt, m, phys, n_br)
+    assert run.clipped.sum() > 50 and not run.clipped.all()  # both the clipped and the free law are exercised
+    np.testing.assert_allclose(run.u, u, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(run.y, y, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(run.clipped, clipped)

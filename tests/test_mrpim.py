@@ -7,8 +7,9 @@ from hysbench.data.protocol import paper_voltage, protocol_time
 from hysbench.models import PAPER_TABLE2, ModelError, get_model
 
 
-def mrpim_reference(V, T, p, n_ops=13, w0=0.0):
-    """Eq. 6-8 written out sample by sample, as in the paper."""
+def mrpim_reference(V, T, p, n_ops=13, w0=0.0, rates=None):
+    """Eq. 6-8 written out sample by sample, as in the paper. ``rates``: (dV, ddV) given per sample
+    in place of the backward differences (the smoothed derivative); p's "offset", if any, is added."""
     norm = max(abs(v) for v in V)
     r = [(i - 1) / n_ops * norm for i in range(1, n_ops + 1)]
     W = [w0] * n_ops
@@ -18,13 +19,30 @@ def mrpim_reference(V, T, p, n_ops=13, w0=0.0):
         v_prev2 = V[k - 2] if k >= 2 else V[0]
         dV = (V[k] - v_prev) / T
         ddV = (V[k] - 2 * v_prev + v_prev2) / T**2
+        if rates is not None:
+            dV, ddV = rates[0][k], rates[1][k]
         h_l = V[k] - p["gamma"] * abs(dV)
         h_r = V[k] + p["lambda"] * abs(dV)
         for i in range(n_ops):
             W[i] = max(h_l - r[i], min(h_r, W[i]))
         g = p["p1"] * V[k] + p["p2"] * V[k] ** 2 + p["p3"] * V[k] ** 3 + p["p4"] * V[k] ** 4
-        y.append(g + p["q"] * ddV + sum(p[f"a{i + 1}"] * W[i] for i in range(n_ops)))
+        y.append(g + p["q"] * ddV + sum(p[f"a{i + 1}"] * W[i] for i in range(n_ops)) + p.get("offset", 0.0))
     return np.array(y)
+
+
+def random_sets(model, n_sets, seed):
+    """Parameter sets drawn uniformly within the model's bounds, as dicts and as rows."""
+    rng = np.random.default_rng(seed)
+    lo, hi = model.bounds()
+    P = lo + (hi - lo) * rng.random((n_sets, model.n_params))
+    return [dict(zip(model.param_names, row)) for row in P], P
+
+
+def wandering_voltage(n, seed):
+    """A short random input with reversals and minor loops: a random walk, smoothed, in 0.5..2.5."""
+    rng = np.random.default_rng(seed)
+    walk = np.convolve(np.cumsum(rng.normal(size=n + 9)), np.ones(10) / 10, mode="valid")
+    return 0.5 + 2.0 * (walk - walk.min()) / np.ptp(walk)
 
 
 @pytest.mark.parametrize("f,n_periods", [(1.0, 2), (0.4, 1.5), (0.1, 0.3)])
@@ -58,6 +76,36 @@ def test_batch_equals_single():
     Y = model.simulate_batch(V, 1e-3, P)
     for b in range(5):
         np.testing.assert_allclose(Y[b], model.simulate(V, 1e-3, P[b]), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("derivative", ["backward", "smoothed"])
+def test_batch_and_window_kernels_match_reference(derivative):
+    """The parallel batch kernel, the windowed kernels (one set and many) and the windowed play
+    regressors against eq. 5-8 written out, for each derivative (smoothed: the same dV, ddV given)."""
+    from hysbench.models.derivatives import derivatives
+
+    model = get_model("mrpim", derivative=derivative, derivative_window=0.02)
+    dicts, P = random_sets(model, 3, seed=4)
+    V = wandering_voltage(300, seed=5)
+    rates = None if derivative == "backward" else derivatives(V, 1e-3, "smoothed", 0.02)
+    refs = [mrpim_reference(list(V), 1e-3, p, rates=rates) for p in dicts]
+    Y = model.simulate_batch(V, 1e-3, P)
+    rows = np.array([3, 50, 51, 120, 299])
+    for b in range(3):
+        np.testing.assert_allclose(Y[b], refs[b], rtol=1e-10, atol=1e-9)
+        np.testing.assert_allclose(model.simulate_window_batch(V, 1e-3, P[b:b + 1], slice(40, 260))[0],
+                                   refs[b][40:260], rtol=1e-10, atol=1e-9)
+    W = model.simulate_window_batch(V, 1e-3, P, slice(40, 260))
+    np.testing.assert_allclose(W, np.array(refs)[:, 40:260], rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(model.simulate_window_batch(V, 1e-3, P, rows), np.array(refs)[:, rows],
+                               rtol=1e-10, atol=1e-9)
+    # regressor rows times the linear parameters (plays from the windowed play kernels)
+    lin = [[p[n] for n in model.linear_names] for p in dicts]
+    sets = P[:, [model.param_names.index(n) for n in model.nonlinear_names]]
+    for window in (slice(40, 260), rows):
+        R = model.windowed_regressors_batch(V, 1e-3, sets, window)
+        for b in range(3):
+            np.testing.assert_allclose(R[b] @ lin[b], refs[b][window], rtol=1e-9, atol=1e-9)
 
 
 @pytest.mark.parametrize("hyper", [{}, {"poly_order": 2, "q_term": False}, {"envelopes": False, "offset": False},

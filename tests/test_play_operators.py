@@ -95,3 +95,12 @@ def test_mrpim_is_rate_dependent():
     y1 = model.simulate(u, 1e-3, params)
     y2 = model.simulate(u, 1e-2, params)
     assert np.max(np.abs(y1 - y2)) > 1e-2
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=0, max_size=40).map(np.array))
+def test_all_finite_is_whether_every_value_is_finite(x):
+    from hysbench.models.kernels import all_finite
+
+    x = np.ascontiguousarray(x, dtype=float)
+    assert all_finite(x) == bool(np.all(np.isfinite(x)))
