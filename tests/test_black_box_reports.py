@@ -45,3 +45,14 @@ def test_the_bouc_wen_report_lists_a_black_box_by_its_count_of_values_not_its_we
             assert f"{len(row['params'])} values" in line and " = " not in line
         else:
             assert all(f"{k} = " in line for k in row["params"])
+
+
+def test_the_bouc_wen_report_names_a_learner_it_did_not_run():
+    """Without PyTorch the report has no gru row; it says so instead of reading as every learner."""
+    stored = json.loads((Path(__file__).parents[1] / "results" / "bouc_wen_benchmark.json").read_text())
+    assert "not_run" not in stored and "Not run:" not in render(stored)
+    stored["rows"] = [row for row in stored["rows"] if row["model"] != "gru"]
+    stored["not_run"] = [{"model": "gru", "reason": "PyTorch is not installed"}]
+    text = render(stored)
+    assert "Not run: gru (PyTorch is not installed); the table and the comparisons below leave it out." in text
+    assert "| gru |" not in text
