@@ -524,3 +524,21 @@ def test_more_parameters_than_scored_samples_are_refused():
     assert sum(r.n_scored for r in ds.identification) < model.n_params
     with pytest.raises(IdentificationError, match="more than the .* scored samples"):
         identify(model, ds, method="varpro", seed=0)
+
+
+def test_the_report_says_varpro_fixes_operators_it_lists_as_undetermined_and_which_configuration_has_an_offset():
+    from types import SimpleNamespace
+
+    from hysbench.benchmarks.reports.identification import collinear_operators
+    from hysbench.models import get_model
+
+    def fit(offset: bool, undetermined: list[str]):
+        params = {"a12": 0.0 if undetermined else 1.8, "a13": 0.0 if undetermined else 12.8,
+                  **({"offset": 0.1} if offset else {})}
+        return SimpleNamespace(method="varpro", model="mrpim", input_range=(0.5, 2.5), params=params,
+                               undetermined=undetermined, model_instance=lambda: get_model("mrpim", offset=offset),
+                               diagnostics={"varpro": {"condition_number": 3e3, "regularised": False}})
+
+    with_offset, without = collinear_operators([("with", [fit(True, ["a12", "a13"])]), ("without", [fit(False, [])])])
+    assert "fixes them at 0" in with_offset and "has none" not in with_offset
+    assert "a12 = 1.800" in without and "(this configuration has none)" in without

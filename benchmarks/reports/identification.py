@@ -217,12 +217,17 @@ def collinear_operators(results) -> list[str]:
         if d["regularised"]:
             line += ("; with the output offset they are exactly collinear, so varpro regularised, and their "
                      "individual values are the ridge's choice, not the data's.")
+        elif fixed := [f"a{i}" for i in flat if f"a{i}" in fit.undetermined]:
+            line += (f" (not regularised). With the model's output offset the scored data do not determine "
+                     f"{', '.join(fixed)}, so varpro fixes {'it' if len(fixed) == 1 else 'them'} at 0 (the fit lists "
+                     "them as undetermined).")
         else:
             vals = ", ".join(f"a{i} = {fit.params[f'a{i}']:.3f} (Table 2: {PAPER_TABLE2.get(f'a{i}', math.nan):.3f})"
                              for i in flat)
-            line += (f" (not regularised); varpro finds {vals}. Together the pair acts as an output offset (this "
-                     "configuration has none), and only those small differences between records separate the two "
-                     "weights; how well measured data determine them is for the posterior to say.")
+            offset = "beside the model's own" if "offset" in fit.params else "(this configuration has none)"
+            line += (f" (not regularised); varpro finds {vals}. Together the operators act as an output offset "
+                     f"{offset}, and only those small differences between records separate their weights; how "
+                     "well measured data determine them is for the posterior to say.")
         out.append(line)
     return out
 
