@@ -48,7 +48,7 @@ from .dea_physics import TRUTH
 from .base import DataScale, HysteresisModel, Parameter
 from .errors import ModelError
 from .hyperparameters import check_bool, check_int, check_number
-from .inverse import InverseArguments, Inversion, check_max_rate
+from .inverse import InverseArguments, Inversion
 from .stepper import ArrayInverseStepper, ArrayStepper
 
 
@@ -291,7 +291,7 @@ class Viscoelastic(HysteresisModel):
         references (sets the reach tolerance as ``invert`` sets it from its whole reference)."""
         self.invert(np.zeros(1), dt, params, input_range, input_limits, max_rate=max_rate,
                     u_start=u_start)  # refuse bad options now, in invert's words
-        limits = input_limits if input_limits is not None else input_range
+        a = InverseArguments.check(self.name, np.zeros(1), dt, input_range, input_limits, 2, max_rate, u_start)
         kv = self.volts_per_input_unit / 1000.0
         lo, hi, start = a.lo * kv, a.hi * kv, a.u_start * kv
         step = a.max_step * kv
