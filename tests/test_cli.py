@@ -170,6 +170,14 @@ def test_a_fit_keeps_its_model_file_when_its_reader_goes_away(tmp_path):
     assert json.loads(report.read_text())["model"] == "classical-pi"
 
 
+@pytest.mark.parametrize("low", ["-1e3", "-1000", "-.5e1", "-2.5"])
+def test_a_negative_number_in_any_form_is_read_as_a_number_not_an_option(low):
+    from hysbench.benchmarks.cli import build_parser
+
+    args = build_parser().parse_args(["export", "m.json", "--out", "c", "--prefix", "x", "--input-limits", low, "1"])
+    assert args.input_limits == [float(low), 1.0]
+
+
 def test_a_reader_that_goes_away_stops_the_command_without_a_traceback():
     """`hysbench check | head -1`: standard output closed by its reader is no traceback on stderr."""
     import subprocess
