@@ -148,13 +148,14 @@ def main(args) -> int:
         ess = "-" if v["ess"] is None else f"{v['ess']:.0f}"
         tau = "-" if v["tau"] is None else f"{v['tau']:.1f}"
         print(f"{n:<10} {v['mean']:>11.5g} {v['sd']:>10.3g} {v['q05']:>11.5g} {v['q95']:>11.5g} {ess:>7} {tau:>6}")
+    unit = f" {dataset.output_unit}" if dataset.output_unit else ", in the output's unit"  # a dataset may name none
     for p in summary["predictive"]["validation"]:
         c = p["coverage"]
         if c is None:
             print(f"validation {p['file']}: no posterior draw gave a finite model output", file=sys.stderr)
             continue
         print(f"validation {p['file']}: {c['90']:.1%} of measured samples inside the 90 % predictive band "
-              f"(mean width {c['width_90']:.4g} {dataset.output_unit}), {c['50']:.1%} inside the 50 % band"
+              f"(mean width {c['width_90']:.4g}{unit}), {c['50']:.1%} inside the 50 % band"
               + (f"; {p['nonfinite_draws']} draws with non-finite output left out" if p["nonfinite_draws"] else ""))
     outside = [p["file"] for p in summary["predictive"]["validation"] if p.get("inside_fitted_range") is False]
     if outside:
