@@ -31,7 +31,7 @@ from hysbench.models.base import HysteresisModel
 
 from .criteria import aic, bic
 from .errors import IdentificationError
-from .fit import Fit
+from .fit import Fit, squared_unit
 from .problem import Problem
 
 
@@ -113,7 +113,8 @@ class Identifier(ABC):
         fitness = scaled_fitness * problem.output_scale**2
         if fitness == 0.0 < scaled_fitness or math.isinf(fitness) and math.isfinite(scaled_fitness):
             notes.append(f"fitness (eq. 9) is {scaled_fitness:.6g} x 2^{2 * math.frexp(problem.output_scale)[1] - 2} "
-                         "in the output's unit squared, beyond the range of a float: shown as "
+                         f"{squared_unit(dataset.output_unit or '') or 'in the output unit squared'}, beyond the range "
+                         "of a float: shown as "
                          f"{fitness:g}; e_m and e_rms are exact")
         if finite:
             success, message = True, f"identified with {name} in {problem.n_evaluations} evaluations"
@@ -155,6 +156,7 @@ class Identifier(ABC):
             aic=aic(fitness, n_rows, k) if finite else math.nan,
             bic=bic(fitness, n_rows, k) if finite else math.nan,
             undetermined=[str(n) for n in diagnostics[self.stages()[-1].name].get("undetermined", {})],
+            output_unit=dataset.output_unit or "",
             _instance=model,
         )
 

@@ -13,13 +13,16 @@ parameter sets gave non-finite output, and AIC / BIC computed once from eq. 9's
 fitness as a Gaussian likelihood with n = the scored rows of the fit records
 and k = the free parameters (identification/criteria.py; residuals are
 correlated, so these favour bigger models: the ablation and the diagnosis use
-the effective-sample-size forms). It simulates new inputs and round-trips
-through JSON (``to_dict`` / ``from_dict``).
+the effective-sample-size forms). ``output_unit`` is the dataset's output unit
+("" when it names none): the fitness is in its square, the summary prints it
+so. It simulates new inputs and round-trips through JSON (``to_dict`` /
+``from_dict``; a fit written without ``output_unit`` reads as naming none).
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -39,6 +42,14 @@ FORMAT = "hysbench-fit/1"
 
 def _float(x):
     return math.nan if x is None else float(x)
+
+
+def squared_unit(unit: str) -> str:
+    """A unit squared as the summary prints it: "mm" -> "mm²", "m/s" -> "(m/s)²", "" -> ""."""
+    unit = unit.strip()
+    if not unit:
+        return ""
+    return f"{unit}²" if re.fullmatch(r"[^\W\d_]+", unit) else f"({unit})²"
 
 
 def _shown(x: float, spec: str) -> str:
@@ -75,6 +86,7 @@ class Fit:
     aic: float = math.nan
     bic: float = math.nan
     undetermined: list[str] = field(default_factory=list)  # parameters the scored data do not determine (fixed)
+    output_unit: str = ""  # the dataset's output unit ("" when it names none): the fitness is in its square
     _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
 
     # --- the fitted model ----------------------------------------------------
@@ -92,10 +104,11 @@ class Fit:
         """Output of the fitted model for a new input, from its first sample."""
         return self.model_instance().simulate(u, dt, self.params, input_range=self.input_range)
 
-    def fitted_model(self, sample_time: float, input_unit: str = "", output_unit: str = "") -> FittedModel:
+    def fitted_model(self, sample_time: float, input_unit: str = "", output_unit: str | None = None) -> FittedModel:
         """The fitted model with what its model file records (models/model_file.py): the dataset's
-        sample time and units, the data scale, the dataset's name and hash, the identifier and the
-        worst validation e_rms and e_m."""
+        sample time and units (``output_unit`` None: the fit's own), the data scale, the dataset's name
+        and hash, the identifier and the worst validation e_rms and e_m."""
+        output_unit = self.output_unit if output_unit is None else output_unit
         if not self.success:
             raise IdentificationError(f"fit of {self.model} failed ({self.message}): no model to save")
         meta = {
@@ -132,7 +145,7 @@ class Fit:
         """A short text table: the fit, per-record errors, parameters."""
         lines = [
             f"model {self.model} ({self.n_params} parameters), method {self.method}, seed {self.seed}",
-            f"fitness (eq. 9) {_shown(self.fitness, '.6g')}   evaluations {self.n_evaluations}   "
+            f"fitness (eq. 9) {_shown(self.fitness, '.6g')}{self._fitness_unit()}   evaluations {self.n_evaluations}   "
             f"time {self.fit_seconds:.2f} s",
         ]
         if not self.success:
@@ -157,6 +170,11 @@ class Fit:
             lines += ["", f"note: {note}"]
         return "\n".join(lines)
 
+    def _fitness_unit(self) -> str:
+        """" mm²" after a finite fitness when the dataset names its output unit, else nothing."""
+        unit = squared_unit(self.output_unit)
+        return f" {unit}" if unit and math.isfinite(self.fitness) else ""
+
     # --- JSON ------------------------------------------------------------------
     def to_dict(self) -> dict:
         return jsonable({
@@ -167,6 +185,7 @@ class Fit:
             "n_params": self.n_params,
             "params": self.params,
             "fitness": self.fitness,
+            "output_unit": self.output_unit,
             "fit_seconds": self.fit_seconds,
             "n_evaluations": self.n_evaluations,
             "records": [s.as_dict() for s in self.records],
@@ -226,6 +245,13 @@ class Fit:
                 aic=_float(d.get("aic")),
                 bic=_float(d.get("bic")),
                 undetermined=[str(n) for n in d.get("undetermined", [])],
+                output_unit=_unit(d.get("output_unit", "")),
             )
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise IdentificationError(f"malformed fit record: {exc!r}") from None
+
+
+def _unit(value) -> str:
+    if not isinstance(value, str):
+        raise IdentificationError(f"malformed fit record: output_unit must be a string, got {value!r}")
+    return value

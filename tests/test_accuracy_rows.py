@@ -26,6 +26,11 @@ def meta(seed, design="balanced"):
     return {"design": design, "seed": seed, "cases": 2, "wall_s": 1.0, "machine": None, "missing_bases": {}}
 
 
+def stored(plan):
+    """A plan as read, without the line numbers ``read_plans`` adds for its messages."""
+    return {k: plan[k] for k in ("meta", "rows")}
+
+
 def test_rows_written_are_read_back_the_same_and_storing_a_plan_replaces_only_its_rows(tmp_path):
     path = tmp_path / "rows.jsonl.gz"
     one = {"meta": meta(1), "rows": [row(STRIDE), row(STRIDE + 1, ("null-white",), verdict="delay", right=False)]}
@@ -34,11 +39,13 @@ def test_rows_written_are_read_back_the_same_and_storing_a_plan_replaces_only_it
     rows.write_plans(path, {"balanced-1": one, "balanced-2": two})
     back = rows.read_plans(path)
     assert list(back) == ["balanced-1", "balanced-2"]
-    assert back["balanced-1"] == one
+    assert stored(back["balanced-1"]) == one
+    assert back["balanced-2"]["lines"] == {"file": str(path), "meta": 4, "rows": [5, 6]}
     assert back["balanced-2"]["rows"][0]["parameter_errors"] == {"delay_s": None}
     lines = gzip.decompress(path.read_bytes()).decode().splitlines()
     assert [json.loads(x)["plan"] for x in lines] == ["balanced-1"] * 3 + ["balanced-2"] * 3
     assert all(("meta" in json.loads(x)) != ("row" in json.loads(x)) for x in lines)
+    assert {json.loads(x)["format"] for x in lines} == {rows.ROWS_FORMAT}
     before = path.read_bytes()
     rows.write_plans(path, rows.read_plans(path))
     assert path.read_bytes() == before  # the same plans: the same bytes (no time stamp)
@@ -46,7 +53,7 @@ def test_rows_written_are_read_back_the_same_and_storing_a_plan_replaces_only_it
     rows.store_plan(path, "balanced-1", meta(1), new_one)
     after = rows.read_plans(path)
     assert list(after) == ["balanced-1", "balanced-2"] and after["balanced-1"]["rows"] == new_one
-    assert after["balanced-2"] == back["balanced-2"]
+    assert stored(after["balanced-2"]) == stored(back["balanced-2"])
     rows.store_plan(path, "within-limits-3", meta(3, "within-limits"), [row(3 * STRIDE)])
     assert list(rows.read_plans(path)) == ["balanced-1", "balanced-2", "within-limits-3"]
     assert [p["id"] for p in rows.plan_rows(rows.read_plans(path), ["within-limits-3", "balanced-1"])] == [
@@ -56,21 +63,143 @@ def test_rows_written_are_read_back_the_same_and_storing_a_plan_replaces_only_it
     assert rows.read_plans(tmp_path / "none.jsonl.gz") == {}
 
 
-def test_a_damaged_row_file_is_refused_in_one_message(tmp_path):
-    path = tmp_path / "rows.jsonl.gz"
-    path.write_bytes(gzip.compress(b'{"plan": "balanced-1", "row": {}}\nnot json\n'))
-    with pytest.raises(HysbenchError, match="not an accuracy row file"):
-        rows.read_plans(path)
-    path.write_bytes(b"plain text")
-    with pytest.raises(HysbenchError, match="not an accuracy row file"):
-        rows.read_plans(path)
+def _lines(path):
+    return [json.loads(x) for x in gzip.decompress(path.read_bytes()).decode().splitlines()]
 
+
+def _write_lines(path, entries):
+    path.write_bytes(gzip.compress(b"".join((e if isinstance(e, bytes) else json.dumps(e).encode()) + b"\n"
+                                            for e in entries), mtime=0))
+
+
+def _on_plan(path):
+    """A row file of two plans, one of them on a user's dataset: lines 1-3 and 4-5."""
+    on = {"dataset": "data/x", "name": "x", "model": "mrpim",
+          "own": {"verdict": "none", "also": [], "reason": "r", "confirmed": None}}
+    rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": [row(2 * STRIDE), row(2 * STRIDE + 1)]},
+                            "on-x-3": {"meta": {**meta(3), "on": on}, "rows": [row(3 * STRIDE)]}})
+
+
+def _edit(line, change):
+    """A damage to one line of the file (1-based), made on its parsed JSON."""
+    def damage(entries):
+        change(entries[line - 1])
+        return entries
+    return damage
+
+
+def _raw(change):
+    """A damage to the file's bytes."""
+    return change
+
+
+# damage, then the words the one-line message holds besides the file's name
+DAMAGES = {
+    "meta field missing": (_edit(1, lambda e: e["meta"].pop("cases")), "line 1: meta has no field 'cases'"),
+    "meta field of the wrong type": (_edit(1, lambda e: e["meta"].update(seed="2")),
+                                     "line 1: meta field 'seed' must be an integer >= 0, got \"2\""),
+    "unknown design": (_edit(1, lambda e: e["meta"].update(design="random")), "line 1: meta field 'design' must be"),
+    "machine of the wrong type": (_edit(1, lambda e: e["meta"].update(machine={"cpu_count": 2, "load_start": "x",
+                                                                             "load_end": 0.1})),
+                                  "line 1: meta field 'machine.load_start' must be a number"),
+    "dataset's own verdict missing": (_edit(4, lambda e: e["meta"]["on"]["own"].pop("verdict")),
+                                      "line 4: meta has no field 'on.own.verdict'"),
+    "row field missing": (_edit(3, lambda e: e["row"].pop("right")), "line 3: row has no field 'right'"),
+    "row field of the wrong type": (_edit(2, lambda e: e["row"].update(right=1)),
+                                    "line 2: row field 'right' must be true or false, got 1"),
+    "empty kinds": (_edit(5, lambda e: e["row"].update(kinds=[])), "line 5: row field 'kinds' must be a non-empty"),
+    "trace of the wrong shape": (_edit(2, lambda e: e["row"].update(trace=[["also"]])),
+                                 "line 2: row field 'trace' must be a list of"),
+    "row of another format version": (_edit(3, lambda e: e.update(format="hysbench-accuracy-rows/2")),
+                                      "line 3: field 'format' is \"hysbench-accuracy-rows/2\"; this hysbench reads"),
+    "no plan id": (_edit(2, lambda e: e.pop("plan")), "line 2: field 'plan' must be a plan id"),
+    "both meta and row": (_edit(2, lambda e: e.update(meta=meta(2))), "line 2: needs exactly one of"),
+    "row not an object": (_edit(2, lambda e: e.update(row=[1])), "line 2: field 'row' must be an object"),
+    "a row before its meta line": (lambda entries: [entries[1], entries[0], *entries[2:]],
+                                   "line 1: a row of plan balanced-2 before its meta line"),
+    "a second meta line": (lambda entries: [*entries[:3], entries[0], *entries[3:]],
+                           "line 4: a second meta line for plan balanced-2 (the first is line 1)"),
+    "not JSON": (lambda entries: [*entries[:2], b'{"plan": "balanced-2", "row": {', *entries[3:]],
+                 "line 3: not JSON"),
+    "not an object": (lambda entries: [*entries[:1], b"[1, 2]", *entries[2:]], "line 2: not a JSON object"),
+    "truncated gzip": (_raw(lambda raw: raw[:len(raw) // 2]), "truncated: the gzip stream ends inside line"),
+    "damaged gzip": (_raw(lambda raw: raw[:20] + bytes(b ^ 0xFF for b in raw[20:60]) + raw[60:]),
+                     "damaged: the gzip stream cannot be read past line 1"),
+    "not gzip": (_raw(lambda raw: gzip.decompress(raw)), "not a gzip-compressed accuracy row file"),
+    "empty": (_raw(lambda raw: b""), "empty, not a gzip-compressed accuracy row file"),
+    "last line cut short": (_raw(lambda raw: gzip.compress(gzip.decompress(raw)[:-5], mtime=0)),
+                            "line 5: the last line is cut short"),
+}
+
+
+def damaged(tmp_path, name):
+    """A row file (``_on_plan``) with the damage ``name``; (path, the words its message holds)."""
+    path = tmp_path / "rows.jsonl.gz"
+    _on_plan(path)
+    damage, words = DAMAGES[name]
+    if damage.__name__ == "damage" or name in ("a row before its meta line", "a second meta line", "not JSON",
+                                               "not an object"):
+        _write_lines(path, damage(_lines(path)))
+    else:
+        path.write_bytes(damage(path.read_bytes()))
+    return path, words
+
+
+@pytest.mark.parametrize("name", DAMAGES)
+def test_a_damaged_row_file_is_refused_in_one_line_naming_the_file_the_line_and_the_field(tmp_path, name):
+    path, words = damaged(tmp_path, name)
+    with pytest.raises(rows.RowFileError) as e:
+        rows.read_plans(path)
+    message = str(e.value)
+    assert message.startswith(str(path)) and words in message and "\n" not in message, message
+
+
+@pytest.mark.parametrize("name", ["row field of the wrong type", "row of another format version", "not JSON",
+                                  "truncated gzip", "meta field missing", "not gzip"])
+@pytest.mark.parametrize("action", ["list", "report", "pool", "limits", "again", "run"])
+def test_every_command_that_reads_the_row_file_refuses_a_damaged_one_with_exit_2_and_writes_nothing(
+        tmp_path, capsys, monkeypatch, action, name):
+    """One line naming the file, the line and the field; no case run, the row file untouched, nothing written."""
+    monkeypatch.setattr(accuracy, "run_case", lambda case: pytest.fail("a case was run"))
+    path, words = damaged(tmp_path, name)
+    before = path.read_bytes()
+    args = {"list": [], "report": ["balanced-2", "--report", str(tmp_path / "r.md")],
+            "pool": ["balanced-2", "--report", str(tmp_path / "r.md")],
+            "limits": ["balanced-2", "--out", str(tmp_path / "limits.json")], "again": ["balanced-2", "--jobs", "1"],
+            "run": ["--seed", "2", "--cases", "2", "--jobs", "1", "--report", str(tmp_path / "r.md")]}[action]
+    code = hysbench(["accuracy", action, *args, "--rows", str(path)])
+    captured = capsys.readouterr()
+    err = captured.err
+    assert code == 2 and err.count("\n") == 1 and str(path) in err and words in err, err
+    assert "Traceback" not in err and captured.out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rows.jsonl.gz"] and path.read_bytes() == before
+
+
+def test_lines_without_a_format_are_read_as_the_one_format():
+    """hysbench 0.2.0 wrote the same layout without "format" (as the committed row file): read as it."""
+    lines = gzip.decompress((RESULTS / rows.ROWS_FILE.name).read_bytes()).decode().splitlines()
+    assert all("format" not in json.loads(x) for x in lines[:50])
+    assert len(rows.read_plans(RESULTS / rows.ROWS_FILE.name)) > 30
+
+
+def test_a_report_of_rows_without_the_fields_it_reads_names_the_line_and_the_field(tmp_path, capsys):
+    """Rows with only the fields the limits read (kinds, base, drive, seed, strength_pct, right) serve
+    ``limits``; ``report``, ``pool`` and ``again`` name the first row and field they lack."""
+    path = tmp_path / "rows.jsonl.gz"
+    least = {k: row(2 * STRIDE)[k] for k in rows.CASE_KEYS}
+    rows.write_plans(path, {"balanced-2": {"meta": meta(2), "rows": [least]}})
+    for action, more in (("report", ["--report", str(tmp_path / "r.md")]), ("pool", []), ("again", ["--jobs", "1"])):
+        assert hysbench(["accuracy", action, "balanced-2", "--rows", str(path), *more]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{path}, line 2: row has no field 'verdict' (plan balanced-2, case 0)" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rows.jsonl.gz"]
 
 
 @pytest.mark.parametrize("plan, named", [
     ({"meta": meta(1), "rows": []}, "has no rows"),
-    ({"meta": {"seed": 1}, "rows": [row(STRIDE)]}, "its meta line has no design, cases"),
-    ({"meta": meta(1), "rows": [{k: v for k, v in row(STRIDE).items() if k != "base"}]}, "case 0 has no base"),
+    ({"meta": {"seed": 1}, "rows": [row(STRIDE)]}, "rows.jsonl.gz, line 1: meta has no field 'design'"),
+    ({"meta": meta(1), "rows": [{k: v for k, v in row(STRIDE).items() if k != "base"}]},
+     "rows.jsonl.gz, line 2: row has no field 'base'"),
 ])
 @pytest.mark.parametrize("action", [["limits"], ["report"], ["pool"], ["again"]])
 def test_a_stored_plan_without_its_rows_or_fields_is_refused_before_anything_is_written(tmp_path, capsys, action,

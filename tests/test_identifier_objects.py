@@ -108,3 +108,51 @@ def test_forward_difference_against_the_analytic_jacobian():
     z = np.array([0.1, 0.2])
     cached(z), cached(z.copy()), cached(z + 1e-3)
     assert len(calls) == 2
+
+
+# --- the fitness's unit ---------------------------------------------------------------
+def _with_unit(unit):
+    ds = _linear_dataset()
+    ds.output_unit = unit
+    return ds
+
+
+def test_the_fit_knows_the_output_unit_and_prints_the_fitness_in_its_square():
+    """``identify`` takes the unit from the dataset; the summary prints eq. 9's fitness in its square, the JSON
+    carries it, and it round-trips."""
+    fit = identify("classical-pi", _with_unit("mm"), method="varpro", seed=0)
+    assert fit.output_unit == "mm"
+    line = fit.summary().splitlines()[1]
+    assert line.startswith(f"fitness (eq. 9) {fit.fitness:.6g} mm²   evaluations"), line
+    d = json.loads(json.dumps(fit.to_dict()))
+    assert d["output_unit"] == "mm" and Fit.from_dict(d).output_unit == "mm"
+    assert fit.fitted_model(1e-3).metadata["output_unit"] == "mm"  # the model file's unit, the fit's own
+
+
+def test_a_fit_without_an_output_unit_prints_the_fitness_alone():
+    """A dataset that names no unit, and a fit written before the unit was recorded: no unit printed."""
+    fit = identify("classical-pi", _with_unit(""), method="varpro", seed=0)
+    assert fit.summary().splitlines()[1].startswith(f"fitness (eq. 9) {fit.fitness:.6g}   evaluations")
+    older = {k: v for k, v in identify("classical-pi", _with_unit("mm"), method="varpro", seed=0).to_dict().items()
+             if k != "output_unit"}
+    assert Fit.from_dict(older).output_unit == "" and " mm²" not in Fit.from_dict(older).summary()
+    with pytest.raises(IdentificationError, match="output_unit must be a string"):
+        Fit.from_dict({**older, "output_unit": 3})
+
+
+def test_a_unit_squared():
+    from hysbench.identification.fit import squared_unit
+    assert [squared_unit(u) for u in ("mm", "µm", "kV", "m/s", "N m", "")] == ["mm²", "µm²", "kV²", "(m/s)²",
+                                                                               "(N m)²", ""]
+
+
+def test_hysbench_fit_prints_the_fitness_with_its_unit_and_writes_it_to_the_json(tmp_path, capsys):
+    from hysbench.benchmarks.cli import main as cli_main
+    from hysbench.data.dataset import save_dataset
+
+    save_dataset(_with_unit("um"), tmp_path / "ds")
+    assert cli_main(["fit", str(tmp_path / "ds"), "--model", "classical-pi", "--json", "-"]) == 0
+    out = capsys.readouterr()
+    d = json.loads(out.out)
+    assert d["output_unit"] == "um"
+    assert f"fitness (eq. 9) {d['fitness']:.6g} um²   evaluations" in out.err

@@ -117,7 +117,7 @@ def main(args) -> int:
     if args.action == "report":
         report = args.report or default_report(args.plan)
         check_output_file(report)
-        s = accuracy.write_report(rows.plan_rows(plans, [args.plan], args.rows)[0], report)
+        s = accuracy.write_report(rows.plan_rows(plans, [args.plan], args.rows, rows.REPORT_KEYS)[0], report)
         print(f"{args.plan}: {s['right']} / {s['cases']} right; report {report}")
         return 0
     if args.action == "pool":

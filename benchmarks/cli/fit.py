@@ -1,9 +1,9 @@
 """``hysbench fit DATASET --model NAME --method NAME [--seed N] [--json FILE]``: one identification.
 
-Prints a short table (fitness, evaluations, time, e_m / e_rms per record,
-parameters). ``--json`` writes the Fit (keys ``model``, ``method``,
-``params``, ``fitness``, ``fit_seconds``, ``n_evaluations``, ``records`` and
-more; see ``Fit.to_dict``). ``--hyper key=value`` sets model
+Prints a short table (fitness in the output unit squared, evaluations, time,
+e_m / e_rms per record, parameters). ``--json`` writes the Fit (keys ``model``,
+``method``, ``params``, ``fitness``, ``output_unit``, ``fit_seconds``,
+``n_evaluations``, ``records`` and more; see ``Fit.to_dict``). ``--hyper key=value`` sets model
 hyperparameters, ``--option key=value`` identifier options (values are read
 as JSON, e.g. ``--option n_starts=4 --option 'bounds={"gamma": [0, 0.1]}'``,
 falling back to a plain string). ``--save MODEL.json`` writes the model file

@@ -68,7 +68,7 @@ from .own_timing import needs_lead, own_lead
 from .planted import (ADAPTIVE_MODE_SAMPLES, BASES, NULLS, OUT_OF_VOCABULARY, PIEZO, RECORDED, VOCABULARY,
                       piezo_available, planted_case)
 from .pooled import plan_span
-from .rows import ROWS_FILE, plan_id, plan_rows, read_plans, store_plan
+from .rows import PLAN_DESIGNS, REPORT_KEYS, ROWS_FILE, plan_id, plan_rows, read_plans, store_plan
 from .stated_limits import in_scope, minimum_strengths, out_of_scope, stated_from
 from .shares import (CONFIDENCE, PLAN_STRIDE, RIGHT_SHARE, TOLERANCE, also_on_validation, ceiling, confirmed_counts,
                      detection_limit, effect_label, interval_text, judged_parameters, plan_seed_of, rule_counts,
@@ -87,7 +87,6 @@ COMBINATIONS = (("mrpim", "sines"), ("virtual-dea", "triangles"), ("piezo", "sin
                 ("mrpim", "sines"), ("virtual-dea", "sines"), ("mrpim", "triangles"), ("piezo", "sines"),
                 ("mrpim", "sines"), ("virtual-dea", "multisines"), ("mrpim", "sines"), ("piezo", "sines"))
 SLOT_SPREAD = 5  # consecutive slots of one effect start this far apart in COMBINATIONS
-PLAN_DESIGNS = ("balanced", "within-limits")
 ATTEMPT_STRIDE = 1000  # within-limits: a redraw's seed is the case's seed + this times the attempt
 MAX_ATTEMPTS = PLAN_STRIDE // ATTEMPT_STRIDE - 1  # the redraws stay within the plan's seeds
 
@@ -628,9 +627,10 @@ def run_accuracy(n_cases: int = 200, seed: int = 0, rows_file: str | Path = ROWS
     plan's rows, ``rows.store_plan``) and write its report to ``report`` (None: none); both also every
     ``write_every`` cases, so a stopped run leaves its largest honest part, its note saying so. ``jobs`` > 1
     runs the cases in that many processes (one numba thread each); the cases are independent and seeded, so the
-    rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with raises
-    HysbenchError before anything is written."""
+    rows are the same. Returns the summary. A dataset or model the diagnosis cannot work with, or a row file
+    that cannot be read (``rows.read_plans``), raises HysbenchError before anything is written."""
     say = progress or (lambda s: None)
+    read_plans(rows_file)  # a damaged row file is refused before any case runs (storing the plan reads it)
     with contextlib.ExitStack() as stack:
         # the workers are forked before the parent runs any numba kernel (forking after OpenMP is unsafe)
         pool = stack.enter_context(ProcessPoolExecutor(jobs, initializer=_one_thread)) if jobs > 1 else None
@@ -723,7 +723,8 @@ def again(ids: list[str], rows_file: str | Path = ROWS_FILE, jobs: int = 1,
     processes). A within-limits row keeps its redraw count. Returns per plan {plan, right_before, right_after,
     changes} (``verdict_changes``)."""
     say = progress or (lambda m: None)
-    plans = plan_rows(read_plans(rows_file), ids, rows_file)  # every plan read first: a missing one stops before any run
+    plans = plan_rows(read_plans(rows_file), ids, rows_file, REPORT_KEYS)  # every plan read first: a missing or
+    # damaged one stops before any run
     code = diagnosis_code()
     todo = [_case_of(r, p["meta"]) for p in plans for r in p["rows"]]
     done = []

@@ -27,7 +27,7 @@ from hysbench.data.files import ensure_dir, write_atomic, write_json
 from hysbench.models.errors import HysbenchError
 
 from .planted import BASES, DRIVES, NULLS, OUT_OF_VOCABULARY, RECORDED, VOCABULARY
-from .rows import CASE_KEYS, checked_rows
+from .rows import REPORT_KEYS, checked_rows
 from .stated_limits import stated_from
 from .shares import (CONFIDENCE, RIGHT_SHARE, ceiling, confirmed_counts, detection_limit, effect_label, interval_text,
                      judged_parameters, plan_seed_of, rule_counts, rule_lines, span_text, wilson_interval,
@@ -51,7 +51,7 @@ def _read_plans(plans: list[dict], seen: set, why: str = "") -> tuple[list[dict]
     plan seed in ``seen`` (or given twice) raises HysbenchError (``why``: added to its message)."""
     out, rows = [], []
     for plan in plans:
-        plan_rows = checked_rows(plan, (*CASE_KEYS, "parameter_errors", "parameters_within"))
+        plan_rows = checked_rows(plan, REPORT_KEYS)
         seed = plan_seed_of(plan_rows)
         if seed in seen:
             raise HysbenchError(f"plan seed {seed} is given twice ({plan['id']}){why}")

@@ -21,7 +21,7 @@ from hysbench.models.base import HysteresisModel
 
 from ..api import identify
 from ..errors import IdentificationError
-from .backend import open_backend, settings_fingerprint, store_start
+from .backend import open_backend, seconds_of, settings_fingerprint, store_start
 from .convergence import TAU_FACTOR, Convergence, convergence
 from .discrepancy import Calibration, calibrate_scale
 from .modes import (JUMP_SHARE, PILOT_STEPS, find_modes, jump_centres, mode_covariances, mode_locations,
@@ -293,7 +293,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     fingerprint = settings_fingerprint(post, dataset, n_walkers, seed, moves)
     path = Path(chain_file) if chain_file is not None else None
     if path is not None:
-        backend, done, start = open_backend(path, fingerprint, restart)
+        backend, done, start = open_backend(path, fingerprint, restart, coord_names=list(post.coord_names))
     if done and start is None:
         start = {}
     p0 = None
@@ -383,7 +383,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     earlier = {"wall": 0.0, "sampling": 0.0}
     if path is not None:  # seconds spent on this chain file, over every run that built it
         with h5py.File(path, "a") as f:
-            earlier = json.loads(f.attrs.get("hysbench_seconds", json.dumps(earlier)))
+            earlier = seconds_of(f.attrs, str(path))  # checked when the file was opened
             f.attrs["hysbench_seconds"] = json.dumps({"wall": earlier["wall"] + wall,
                                                       "sampling": earlier["sampling"] + sampling_seconds})
     run = PosteriorRun(post=post, chain=chain, draws=draws, log_prob=sampler.get_log_prob(), conv=conv,
