@@ -481,3 +481,17 @@ def test_api_refuses_models_without_a_linear_part_and_bad_settings():
 class _NoLinear(_Drifting):
     def parameters(self, scale=None):
         return (Parameter("k", 0.0, -1, 1, False),)
+
+
+def test_a_chain_of_a_few_steps_is_too_short_to_be_converged_and_gives_no_warning():
+    """On a few steps emcee's estimate of tau is 0 or far below 1 (no correlation can be resolved), which would
+    give an infinite or huge effective sample size: it is NaN, and a chain shorter after burn-in than
+    ``TAU_FACTOR`` steps is never called converged."""
+    rng = np.random.default_rng(2)
+    for n in (2, 3, 4, 6, 20):
+        x = rng.normal(size=(n, 8, 2)).cumsum(axis=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            c = convergence(x, np.zeros((n, 8, 0)), np.full(8, 0.4 * n), burn=0)
+        assert np.all(np.isnan(c.tau) | (c.tau > 0)) and not np.any(np.isinf(c.ess)), (n, c.tau, c.ess)
+        assert not c.converged and any("steps long" in q for q in c.problems), (n, c.problems)

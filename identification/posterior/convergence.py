@@ -21,7 +21,8 @@ def autocorr_times(x: np.ndarray) -> np.ndarray:
 
     Parameters that never change (e.g. fixed) get NaN, and so does a parameter on which some walker did not
     move over the whole window (emcee averages the walkers' autocorrelation functions, and a constant walker's
-    is 0/0); callers report NaN as "could not be estimated".
+    is 0/0), or whose estimate is not positive (a window of a few steps); callers report NaN as "could not be
+    estimated".
     """
     x = np.asarray(x, dtype=float)
     taus = np.full(x.shape[2], np.nan)
@@ -30,7 +31,8 @@ def autocorr_times(x: np.ndarray) -> np.ndarray:
         if x.shape[0] < 2 or not np.all(np.isfinite(col)) or np.all(col == col[0]):
             continue
         with np.errstate(invalid="ignore", divide="ignore"):  # a stuck walker: NaN, reported, not a warning
-            taus[k] = float(emcee.autocorr.integrated_time(col[:, :, None], c=5, tol=0, quiet=True)[0])
+            t = float(emcee.autocorr.integrated_time(col[:, :, None], c=5, tol=0, quiet=True)[0])
+        taus[k] = t if t > 0 else np.nan
     return taus
 
 
@@ -62,7 +64,10 @@ class Convergence:
         p = []
         if not np.all(np.isfinite(self.tau)):
             p.append("the autocorrelation time of some parameter could not be estimated")
-        if self.length_in_tau < self.tau_factor:
+        if self.kept < self.tau_factor:  # tau >= 1 for these chains: fewer steps cannot be long enough
+            p.append(f"the chain after burn-in is {self.kept} steps long (< {self.tau_factor:g}), too short to "
+                     f"measure its autocorrelation time: run more steps")
+        elif self.length_in_tau < self.tau_factor:
             p.append(f"the chain after burn-in is {self.length_in_tau:.1f} autocorrelation times long "
                      f"(< {self.tau_factor:g}): run more steps")
         stuck = int(np.sum(self.acceptance < MIN_ACCEPTANCE))
