@@ -116,8 +116,10 @@ P_h[u] = max(u - h, min(u + h, P(k-1))), 0 < h_2 < ... and A_i = a0 + sum_{j<=i}
     u = z / a0 + sum_i b_i P_{s_i}[z],   s_i = a0 h_i + sum_{j<i} a_j (h_i - h_j),
     b_i = -a_i / (A_i A_{i-1}),  initial states q_i = A_i p_i + sum_{j>i} a_j p_j
 
-(p_i the forward plays' initial states). hysbench's one-sided play F_r[u] (band
-[u - r, u], from 0) is P_{r/2}[u] - r/2 with initial state r/2, which gives the constants.
+(p_i the forward plays' initial states, a memory some input history leaves: |p_{i+1} - p_i| <=
+h_{i+1} - h_i; from other states these q_i do not reproduce the input). hysbench's one-sided
+play F_r[u] (band [u - r, u], from 0) is P_{r/2}[u] - r/2 with initial state r/2, which gives
+the constants.
 """
 
 from __future__ import annotations
@@ -843,7 +845,9 @@ def classical_pi_inverse(z, a0: float, weights: np.ndarray, half_thresholds: np.
                          initial_states: np.ndarray) -> np.ndarray:
     """u with a0 u + sum_i weights_i P_{h_i}[u] = z (symmetric plays, thresholds h_i > 0 increasing,
     plays starting from ``initial_states``); see the module docstring. Raises ModelError where the
-    loading curve does not increase (no P-I inverse exists)."""
+    loading curve does not increase (no P-I inverse exists) and where the initial states are no memory
+    an input history can leave (|p_{i+1} - p_i| <= h_{i+1} - h_i): the inverse's initial states
+    q_i = A_i p_i + sum_{j>i} a_j p_j reproduce the input only from such a memory."""
     a = np.asarray(weights, dtype=float)
     h = np.asarray(half_thresholds, dtype=float)
     p = np.asarray(initial_states, dtype=float)
@@ -854,6 +858,13 @@ def classical_pi_inverse(z, a0: float, weights: np.ndarray, half_thresholds: np.
                          "use the numerical inverse, which clips where the model cannot be inverted")
     if np.any(np.diff(h) <= 0) or (h.size and h[0] <= 0):
         raise ModelError("classical P-I: the analytic inverse needs strictly increasing positive thresholds")
+    if p.shape != h.shape:
+        raise ModelError(f"classical P-I: {p.size} initial play states for {h.size} thresholds")
+    gap = np.abs(np.diff(p)) - np.diff(h)
+    if np.any(gap > 1e-12 * (1.0 + np.max(np.abs(p), initial=0.0))):
+        raise ModelError("classical P-I: the analytic inverse needs initial play states an input history can "
+                         "leave (|p_{i+1} - p_i| <= h_{i+1} - h_i; exceeded by "
+                         f"{float(np.max(gap)):.3g}): from other states it does not reproduce the input")
     previous = np.concatenate(([a0], cumulative[:-1]))  # A_{i-1}
     s = np.array([a0 * h[i] + float(np.sum(a[:i] * (h[i] - h[:i]))) for i in range(h.size)])
     b = -a / (cumulative * previous)

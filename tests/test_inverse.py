@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from hysbench.models import MRPIM, get_model
 from hysbench.models.errors import ModelError
-from hysbench.models.inverse import guide_gain, guided_simulate
+from hysbench.models.inverse import _pi_operator, classical_pi_inverse, guide_gain, guided_simulate
 from test_baselines import _bouc_wen_reference, _branch_reference, _preisach_reference
 
 DT = 1e-3
@@ -129,6 +129,65 @@ def test_analytic_classical_pi_inverse_agrees_with_the_numerical_one():
     assert numerical.n_clipped == 0
     np.testing.assert_allclose(analytic.u, numerical.u, atol=1e-9)
     np.testing.assert_allclose(analytic.u, u, atol=1e-9)  # monotone: the input is unique
+
+
+def symmetric_pi(x, c0, weights, half_widths, states):
+    """c0 x + sum_i c_i P_{h_i}[x], each symmetric play P_h[x](k) = max(x(k) - h, min(x(k) + h, P(k-1)))
+    starting from its state, one sample at a time."""
+    q = [float(v) for v in states]
+    out = []
+    for xk in x:
+        acc = c0 * xk
+        for i, h in enumerate(half_widths):
+            q[i] = max(xk - h, min(xk + h, q[i]))
+            acc += weights[i] * q[i]
+        out.append(acc)
+    return np.array(out)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), n_plays=st.integers(0, 6), b0=st.floats(-3.0, 3.0))
+def test_pi_operator_is_its_formula(seed, n_plays, b0):
+    """_pi_operator: u = b0 z + sum_i b_i P_{s_i}[z] from the states q0, written out plainly (any signs
+    of the weights, widths from zero up, states inside and outside the first band)."""
+    rng = np.random.default_rng(seed)
+    z = np.cumsum(rng.normal(0.0, 0.3, 400))
+    s = np.sort(rng.uniform(0.0, 2.0, n_plays))
+    b, q0 = rng.normal(size=n_plays), rng.normal(0.0, 2.0, n_plays)
+    got = _pi_operator(z, b0, b, s, q0)
+    np.testing.assert_allclose(got, symmetric_pi(z, b0, b, s, q0), rtol=1e-14, atol=1e-14 * np.max(np.abs(z)))
+    assert np.array_equal(q0, q0.copy())  # the caller's states are not advanced
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), n_plays=st.integers(1, 6))
+def test_analytic_classical_pi_inverse_inverts_the_operator(seed, n_plays):
+    """Property: the P-I operator classical_pi_inverse builds (thresholds s_i, weights b_i, states q_i of
+    the module docstring) returns the input of a0 u + sum_i a_i P_{h_i}[u], written out plainly, for
+    weights of either sign with increasing partial sums, from the play states a random history left."""
+    rng = np.random.default_rng(seed)
+    a0 = rng.uniform(0.2, 2.0)
+    a = rng.normal(0.0, 1.0, n_plays)
+    while np.any(a0 + np.cumsum(a) <= 0.05):  # the loading curve increases
+        a = np.where(a0 + np.cumsum(a) <= 0.05, np.abs(a), a)
+    h = np.cumsum(rng.uniform(0.05, 0.5, n_plays))
+    history = np.cumsum(rng.normal(0.0, 0.3, 100))
+    p = np.array([symmetric_pi(history, 0.0, np.eye(n_plays)[i], h, np.zeros(n_plays))[-1] for i in range(n_plays)])
+    u = history[-1] + np.cumsum(rng.normal(0.0, 0.2, 500))
+    z = symmetric_pi(u, a0, a, h, p)
+    np.testing.assert_allclose(classical_pi_inverse(z, a0, a, h, p), u, rtol=0, atol=1e-11 * np.max(np.abs(u)))
+
+
+def test_analytic_inverse_refuses_play_states_no_history_leaves():
+    """Plays 0.1 apart in threshold cannot differ by 0.5: from such states the formula's inverse misses
+    the input (here by 0.035 at the first samples), so it is refused; states at the edge are accepted."""
+    a0, a, h = 1.0, np.array([0.8, 0.5]), np.array([0.1, 0.2])
+    u = 0.05 * np.arange(10)
+    with pytest.raises(ModelError, match="input history can leave"):
+        classical_pi_inverse(symmetric_pi(u, a0, a, h, [0.0, 0.5]), a0, a, h, np.array([0.0, 0.5]))
+    for edge in ([0.0, 0.1], [0.0, -0.1]):
+        np.testing.assert_allclose(classical_pi_inverse(symmetric_pi(u, a0, a, h, edge), a0, a, h, np.array(edge)),
+                                   u, rtol=0, atol=1e-14)
 
 
 def test_analytic_inverse_refuses_a_decreasing_loading_curve():

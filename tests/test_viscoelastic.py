@@ -1,15 +1,20 @@
 """The ``viscoelastic`` model: interface, agreement with the data generator, batching,
-regressors, bounds, and identification of its own simulated data."""
+regressors, bounds, identification of its own simulated data, and the batch and window kernels
+against scipy's solve_ivp for several parameter sets."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
 
 from hysbench.data import Dataset, Record
 from hysbench.data import virtual_dea as vd
 from hysbench.identification import identify
 from hysbench.models import DataScale, ModelError, get_model, list_models
+from hysbench.models import dea_physics
 
 DT = 1e-3
 
@@ -161,3 +166,126 @@ def test_long_warmup_steps_change_the_window_negligibly(model, truth):
     assert np.array_equal(exact, full)
     assert np.max(np.abs(fast - exact)) < 1e-5 * np.ptp(exact)
     assert not np.array_equal(fast, exact)  # the long steps were taken
+
+
+# --- the batch and window kernels against solve_ivp, several parameter sets ---------------------------
+N_REF = 161
+#: rows of (mu, eta_v, mu1..3, tau1..3, length, offset) in the model's units (kPa, kPa s, s, mm, mm): the
+#: virtual DEA, fast branches (two RK4 substeps per sample), a stiff third branch (four substeps)
+REFERENCE_SETS = np.array([
+    [7.87, 15.9, 178.0, 117.0, 349.0, 0.268, 2.03, 58.2, 14.0, 0.0],
+    [5.0, 9.0, 250.0, 60.0, 500.0, 0.02, 0.15, 3.0, 11.0, 0.3],
+    [7.87, 5.0, 178.0, 117.0, 1000.0, 0.05, 0.5, 10.0, 17.0, -0.2],
+])
+
+
+def reference_drive():
+    t = np.arange(N_REF) * DT
+    return 2.4 * np.sin(np.pi * t / t[-1]) ** 2 * (1.0 + 0.3 * np.sin(2 * np.pi * 15.0 * t))
+
+
+def dea_rhs(u_kv, state, p):
+    """The virtual DEA's equations (hysbench.data.virtual_dea), each region's nominal stress along the
+    actuation direction from the Gent energies, the branches' Zhao-Koh-Suo flow, the dashpot and the
+    Maxwell stress in the platform's force balance."""
+    K = p.n_branches
+    lam_a = state[0]
+    ratio = p.L_active / p.L_passive
+    lam_p = p.lam0 - ratio * (lam_a - p.lam0)
+    d = [0.0] * len(state)
+    stress = []
+    for reg, lam in enumerate((lam_a, lam_p)):
+        l3 = 1.0 / (lam * p.lam_t)  # thickness stretch, incompressible
+        s = p.mu * (lam - l3 * l3 / lam) / (1.0 - (lam ** 2 + p.lam_t ** 2 + l3 ** 2 - 3.0) / p.J)
+        for k in range(K):
+            j = 1 + 2 * (reg * K + k)
+            xi, xi_t = state[j], state[j + 1]
+            e = (lam / xi, p.lam_t / xi_t, xi * xi_t * l3)  # the branch spring's elastic stretches
+            g = p.mu_k[k] / (1.0 - (e[0] ** 2 + e[1] ** 2 + e[2] ** 2 - 3.0) / p.J)
+            sig = [g * v * v for v in e]  # its true stresses, up to the pressure
+            s += (sig[0] - sig[2]) / lam
+            eta = p.mu_k[k] * p.tau_k[k]
+            d[j] = xi * (2 * sig[0] - sig[1] - sig[2]) / (6 * eta)
+            d[j + 1] = xi_t * (2 * sig[1] - sig[0] - sig[2]) / (6 * eta)
+        stress.append(s)
+    thickness = p.H / (lam_a * p.lam_t)
+    maxwell = p.eps_r * dea_physics.EPS0 * (1e3 * u_kv / thickness) ** 2 / lam_a
+    c_a, c_p = 4 * p.eta_v / lam_a ** 2, 4 * p.eta_v / lam_p ** 2
+    d[0] = (stress[1] - stress[0] + maxwell) / (c_a + ratio * c_p)
+    return d
+
+
+def reference_output(u, row):
+    """y(t_k) = length (lam_a - lam0) + offset by solve_ivp (DOP853, rtol 1e-12), one call per sample
+    interval (the input, linear between samples, kinks there), from the rest state."""
+    p = vd.TRUTH.with_changes(mu=row[0] * 1e3, eta_v=row[1] * 1e3, mu_k=tuple(row[2:5] * 1e3),
+                              tau_k=tuple(row[5:8]))
+    state = np.array([p.lam0] + [p.lam0, p.lam_t] * (2 * p.n_branches))
+    out = [state[0]]
+    for k in range(u.size - 1):
+        def rhs(t, x, k=k):
+            return dea_rhs(u[k] + (t - k * DT) / DT * (u[k + 1] - u[k]), x, p)
+
+        sol = solve_ivp(rhs, (k * DT, (k + 1) * DT), state, method="DOP853", rtol=1e-12, atol=1e-14)
+        assert sol.success
+        state = sol.y[:, -1]
+        out.append(state[0])
+    return row[8] * (np.array(out) - p.lam0) + row[9]
+
+
+@pytest.fixture(scope="module")
+def reference_outputs():
+    u = reference_drive()
+    return u, np.array([reference_output(u, row) for row in REFERENCE_SETS])
+
+
+def test_batch_kernel_matches_solve_ivp_for_three_parameter_sets(model, reference_outputs):
+    """simulate_batch (every sample interval by RK4, |J| h <= 0.25) against solve_ivp for three parameter
+    sets: within 2e-7 of each output's peak-to-peak (RK4's error at the kernel's step, 5e-8 at most
+    here, falls 16-fold per halved step); each row is the serial kernel's single-set result."""
+    u, ref = reference_outputs
+    phys = model.physical_vectors(REFERENCE_SETS)
+    assert [dea_physics.substeps(u[0], DT, phys[i], 3) for i in range(3)] == [1, 2, 4]
+    Y = model.simulate_batch(u, DT, REFERENCE_SETS)
+    for i in range(3):
+        assert np.max(np.abs(Y[i] - ref[i])) < 2e-7 * np.ptp(ref[i])
+        single = REFERENCE_SETS[i, 8] * dea_physics.simulate_stretch(u, DT, phys[i], 3) + REFERENCE_SETS[i, 9]
+        assert np.array_equal(Y[i], single)
+
+
+def test_window_kernel_matches_solve_ivp_for_three_parameter_sets(model, reference_outputs):
+    """simulate_window_batch for three parameter sets: exact (warmup_stride 1) within 2e-7 of each
+    output's peak-to-peak of solve_ivp, on a window and on a row subset; with the identifiers' 5-sample
+    warm-up steps (sized for stability, not accuracy) within 2e-5, the window starting right after a
+    15 Hz drive (the docstring's 2e-7 is for the virtual DEA's records)."""
+    u, ref = reference_outputs
+    exact = get_model("viscoelastic", warmup_stride=1)
+    window, rows = slice(80, N_REF), np.array([3, 40, 81, 82, 150, N_REF - 1])
+    tolerance = np.ptp(ref, axis=1)[:, None]
+    assert np.all(np.abs(exact.simulate_window_batch(u, DT, REFERENCE_SETS, window) - ref[:, window])
+                  < 2e-7 * tolerance)
+    assert np.all(np.abs(exact.simulate_window_batch(u, DT, REFERENCE_SETS, rows) - ref[:, rows]) < 2e-7 * tolerance)
+    fast = model.simulate_window_batch(u, DT, REFERENCE_SETS, window)
+    assert np.all(np.abs(fast - ref[:, window]) < 2e-5 * tolerance)
+    for i in range(3):
+        assert np.array_equal(fast[i], model.simulate_window_batch(u, DT, REFERENCE_SETS[i:i + 1], window)[0])
+
+
+@settings(max_examples=15)
+@given(seed=st.integers(0, 10_000), n_sets=st.integers(1, 4), start=st.integers(0, N_REF - 1),
+       stride=st.sampled_from([1, 5]))
+def test_window_batch_rows_are_the_single_set_runs(seed, n_sets, start, stride):
+    """Property: each row of the window kernel, for any parameter sets, window and warm-up stride, is that
+    set run alone (stride 1: the serial kernel's samples in the window)."""
+    model = get_model("viscoelastic", warmup_stride=stride)
+    rng = np.random.default_rng(seed)
+    P = REFERENCE_SETS[rng.integers(0, 3, n_sets)] * np.exp(rng.uniform(-0.3, 0.3, (n_sets, 10)))
+    u = reference_drive()
+    window = slice(start, N_REF)
+    W = model.simulate_window_batch(u, DT, P, window)
+    phys = model.physical_vectors(P)
+    for i in range(n_sets):
+        assert np.array_equal(W[i], model.simulate_window_batch(u, DT, P[i:i + 1], window)[0])
+        if stride == 1:
+            single = P[i, 8] * dea_physics.simulate_stretch(u, DT, phys[i], 3)[window] + P[i, 9]
+            assert np.array_equal(W[i], single)
