@@ -362,3 +362,27 @@ def test_an_unreachable_dask_scheduler_leaves_no_output_folder(small_dataset, tm
     assert proc.returncode == 2 and "cannot connect to the Dask scheduler" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_an_abandoned_pool_is_stopped_at_once_and_leaves_no_thread_to_race_the_exit():
+    """On SIGINT the run kills its workers and does not wait for their cells; the pool's manager thread is
+    over when it returns, so Python's exit has no pipe of it left to write to while it closes."""
+    import multiprocessing
+    import threading
+    import time as clock
+    from concurrent.futures import ProcessPoolExecutor
+
+    from hysbench.benchmarks.matrix.execute import _abandon
+
+    pool = ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn"))
+    futures = [pool.submit(clock.sleep, 60) for _ in range(3)]
+    workers = list(pool._processes.values())
+    manager = pool._executor_manager_thread
+    t0 = clock.monotonic()
+    _abandon(pool)
+    assert clock.monotonic() - t0 < 2.0
+    assert not manager.is_alive() and manager not in threading.enumerate()
+    for w in workers:
+        w.join(2.0)
+        assert not w.is_alive()
+    assert all(f.done() for f in futures)

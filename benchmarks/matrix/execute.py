@@ -59,14 +59,21 @@ def _die_with_parent(parent_pid: int) -> None:
         threading.Thread(target=watch, name="hysbench-parent-watch", daemon=True).start()
 
 
-def _stop_workers(pool: ProcessPoolExecutor) -> None:
-    """Kill the pool's worker processes now (a running cell is not waited for: the cells that finished are
-    already in the store)."""
+def _abandon(pool: ProcessPoolExecutor, timeout: float = 1.0) -> None:
+    """Stop the pool now: its worker processes are killed (a running cell is not waited for: the cells that
+    finished are already in the store), its queued calls cancelled, and its manager thread, which then finds
+    the workers dead, given ``timeout`` seconds to close its pipes. Python's exit joins that thread anyway;
+    joined here, its closing of its wake-up pipe cannot overlap the exit's write to that pipe (which CPython
+    before 3.12 does not lock: "Exception ignored ... Bad file descriptor" after the run's last line)."""
+    manager = getattr(pool, "_executor_manager_thread", None)
     for proc in list((getattr(pool, "_processes", None) or {}).values()):
         try:
             proc.kill()
         except (OSError, ValueError):
             pass
+    pool.shutdown(wait=False, cancel_futures=True)
+    if manager is not None:
+        manager.join(timeout)
 
 
 def _progress(total: int, quiet: bool):
@@ -137,11 +144,10 @@ def _run_processes(todo: list[Cell], jobs: int, finished, bar) -> None:
             for fut in done:
                 pending.pop(fut)
                 finished(fut.result())
-    except BaseException:  # e.g. SIGINT: stop within a second, keeping what finished; the killed pool is
-        for fut in pending:  # not joined (its manager thread may wait on the dead workers' queues)
+    except BaseException:  # e.g. SIGINT: stop within a second, keeping what finished
+        for fut in pending:
             fut.cancel()
-        _stop_workers(pool)
-        pool.shutdown(wait=False, cancel_futures=True)
+        _abandon(pool)
         raise
     pool.shutdown(wait=True)
 
