@@ -28,6 +28,22 @@ settings.register_profile(
 settings.load_profile(CI_PROFILE)
 
 
+def _no_local_constants():
+    """Hypothesis (6.131 and later) mixes into its examples the literals of every local module loaded in
+    the process, so a test's examples would depend on which other tests and lazy imports ran before it in its
+    worker. Without them a test's examples derive from its source alone."""
+    try:
+        from hypothesis.internal.conjecture import providers
+    except ImportError:
+        return
+    if hasattr(providers, "_get_local_constants") and hasattr(providers, "Constants"):
+        empty = providers.Constants()
+        providers._get_local_constants = lambda: empty
+
+
+_no_local_constants()
+
+
 def pytest_configure(config):
     # hypothesis's own plugin may load a profile named by --hypothesis-profile; without that option
     # this profile stays (reloaded after every plugin's configure ran)
