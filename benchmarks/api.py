@@ -93,8 +93,8 @@ def run_matrix(datasets=None, models: list[str] | None = None, methods: list[str
     identifier, e.g. ``{"lsq": {"max_nfev": 60}}``, on top of the matrix's budgets. Finished
     cells are kept in ``out``/cells (``None``: a temporary folder, removed afterwards), so a second call
     with the same ``out`` computes only what is missing. Returns one dict per cell (keys ``model``,
-    ``method``, ``status``, ``params``, ``records`` with e_m and e_rms, ``fit_seconds``, ...), in
-    the matrix's order. Writes no report; ``hysbench run`` does.
+    ``method``, ``status``, ``params``, ``records`` with e_m and e_rms, ``fit_seconds``, ...; every key
+    is documented in ``hysbench.benchmarks.matrix.cells.CellResult``), in the matrix's order. Writes no report; ``hysbench run`` does.
 
     Example::
 

@@ -65,7 +65,38 @@ class DatasetError(HysbenchError):
 
 @dataclass
 class Record:
-    """One measured (or simulated) record: time, input, output and its role."""
+    """One measured (or simulated) record: time, input, output and its role.
+
+    Attributes
+    ----------
+    file : str
+        The record's file name, relative to the dataset folder (its key in the dataset).
+    t : numpy.ndarray
+        Sample times, s, shape (n,), increasing and uniformly spaced.
+    u : numpy.ndarray
+        The input, shape (n,), in the dataset's ``input_unit``.
+    y : numpy.ndarray
+        The measured output, shape (n,), in the dataset's ``output_unit``.
+    role : str
+        "identification" (fitted) or "validation" (never fitted).
+    frequency_hz : float or None
+        The drive frequency, Hz (None: not a periodic drive).
+    weight : float
+        k_m of eq. 9 when the record is fitted.
+    window : tuple[float, float] or None
+        The scored window [start, end) in s as the manifest gives it (None: the last full period of a
+        periodic record, else all of it).
+    start, stop : int
+        Sample indices [start, stop) of the scored window.
+    dt : float
+        The sample time, s (a property).
+    scored : slice
+        ``slice(start, stop)``: the samples that are fitted and scored (a property).
+    n_scored : int
+        The number of scored samples (a property).
+    label : str
+        "0.2 Hz" for a periodic record, else the file's stem (a property).
+    """
 
     file: str
     t: np.ndarray
@@ -87,6 +118,7 @@ class Record:
 
     @property
     def dt(self) -> float:
+        """The sample time, s."""
         return float((self.t[-1] - self.t[0]) / (self.t.size - 1)) if self.t.size > 1 else 0.0
 
     @property
@@ -105,7 +137,27 @@ class Record:
 
 @dataclass
 class Dataset:
-    """A plain container: metadata and records with fixed roles."""
+    """A plain container: metadata and records with fixed roles.
+
+    Attributes
+    ----------
+    name : str
+        The dataset's name (``name`` in dataset.toml).
+    records : list[Record]
+        Every record, in the manifest's order.
+    description : str
+        Free text from the manifest.
+    time_column, input_column, output_column : str
+        The column names (or 0-based indices as text) the records were read from.
+    input_unit, output_unit : str
+        The units of ``u`` and ``y`` ("" when the manifest names none).
+    path : pathlib.Path or None
+        The folder the dataset was read from (None: built in memory).
+    identification : list[Record]
+        The records with role "identification" (a property).
+    validation : list[Record]
+        The records with role "validation" (a property).
+    """
 
     name: str
     records: list[Record]

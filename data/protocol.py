@@ -77,6 +77,22 @@ def simulated_dataset(
 # --- scoring ------------------------------------------------------------------
 @dataclass(frozen=True)
 class RecordScore:
+    """The errors of a model on one record's scored window (eq. 10).
+
+    Attributes
+    ----------
+    file : str
+        The record's file name.
+    frequency_hz : float or None
+        The record's drive frequency, Hz (None: not a periodic drive).
+    role : str
+        "identification" (fitted) or "validation" (not fitted).
+    e_m : float
+        The largest absolute error, in percent of the measured peak-to-peak of the scored window.
+    e_rms : float
+        The root-mean-square error, in percent of the measured peak-to-peak of the scored window.
+    """
+
     file: str
     frequency_hz: float | None
     role: str

@@ -30,7 +30,6 @@ to every stage that knows them, or prefixed by a stage (``lsq.max_nfev``).
 
 from __future__ import annotations
 
-import math
 import os
 from typing import Mapping
 
@@ -41,7 +40,7 @@ from hysbench.models import get_model
 from hysbench.models.base import HysteresisModel
 
 from . import lsq, mpso, native, varpro
-from .base import Chain, Identifier
+from .base import Chain, Identifier, check_option
 from .errors import IdentificationError
 from .fit import Fit
 from .lsq import LeastSquares
@@ -54,8 +53,6 @@ IDENTIFIERS = {"varpro": Varpro, "mpso": ParticleSwarm, "lsq": LeastSquares, "na
 METHODS = ("varpro", "mpso", "lsq", "varpro+lsq", "mpso+lsq")  # the parameter searches
 NATIVE = "native"  # a model's own training (the black-box learners); the only method for them
 COMMON_OPTIONS = ("fit_on", "bounds", "start")
-# smallest allowed value of each numeric option (integers where the default is one)
-OPTION_MINIMUM = {"n_candidates": 0, "inertia_end": 0.0, "inertia_start": 0.0, "c1": 0.0, "c2": 0.0}
 
 
 def list_methods() -> list[str]:
@@ -102,24 +99,6 @@ def resolve_method(method: str, model: HysteresisModel) -> list[str]:
     return stages
 
 
-def _check_value(key: str, value, default):
-    if isinstance(default, bool):
-        if not isinstance(value, bool):
-            raise IdentificationError(f"option {key} must be true or false, got {value!r}")
-        return value
-    minimum = OPTION_MINIMUM.get(key, 1 if isinstance(default, int) else None)
-    if isinstance(default, int):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-            raise IdentificationError(f"option {key} must be an integer >= {minimum}, got {value!r}")
-        return int(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
-        raise IdentificationError(f"option {key} must be a finite number, got {value!r}")
-    if (minimum is None and value <= 0) or (minimum is not None and value < minimum):
-        raise IdentificationError(f"option {key} must be {'positive' if minimum is None else f'>= {minimum}'}, "
-                                  f"got {value!r}")
-    return float(value)
-
-
 def split_options(stages: list[str], method: str, options: Mapping) -> tuple[dict, list[dict]]:
     """Common options and the resolved options of each stage (defaults filled in)."""
     common = {k: options[k] for k in COMMON_OPTIONS if k in options}
@@ -135,7 +114,7 @@ def split_options(stages: list[str], method: str, options: Mapping) -> tuple[dic
                 f"unknown option {key!r} for method {method!r}; options: {', '.join(list(COMMON_OPTIONS) + known)}"
             )
         for i in targets:
-            per_stage[i][name] = _check_value(key, value, STAGES[stages[i]].OPTIONS[name])
+            per_stage[i][name] = check_option(key, value, STAGES[stages[i]].OPTIONS[name])
     for s, opts in zip(stages, per_stage):
         if s == "mpso":
             IDENTIFIERS[s](**opts).check(None)  # the swarm's own consistency (inertia)

@@ -35,8 +35,39 @@ from .fit import Fit, squared_unit
 from .problem import Problem
 
 
+# smallest allowed value of each numeric option (integers where the default is one)
+OPTION_MINIMUM = {"n_candidates": 0, "inertia_end": 0.0, "inertia_start": 0.0, "c1": 0.0, "c2": 0.0}
+
+
+def check_option(key: str, value, default):
+    """``value`` checked against the kind of its default (bool, integer >= its minimum, positive or
+    bounded finite number; a default of None also takes None), as a plain bool, int or float."""
+    if default is None and value is None:
+        return None
+    if isinstance(default, bool):
+        if not isinstance(value, (bool, np.bool_)):
+            raise IdentificationError(f"option {key} must be true or false, got {value!r}")
+        return bool(value)
+    minimum = OPTION_MINIMUM.get(key, 1 if isinstance(default, int) else None)
+    if isinstance(default, int):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
+            raise IdentificationError(f"option {key} must be an integer >= {minimum}, got {value!r}")
+        return int(value)
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number))
+            or not math.isfinite(value)):
+        raise IdentificationError(f"option {key} must be a finite number, got {value!r}")
+    if (minimum is None and value <= 0) or (minimum is not None and value < minimum):
+        raise IdentificationError(f"option {key} must be {'positive' if minimum is None else f'>= {minimum}'}, "
+                                  f"got {value!r}")
+    return float(value)
+
+
 class Identifier(ABC):
-    """Base class: options are the constructor's arguments; ``search`` is the algorithm."""
+    """Base class: options are the constructor's arguments; ``search`` is the algorithm.
+
+    The constructor stores its arguments as given (``get_params``, ``repr``); ``fit`` checks them
+    with the rules ``identify`` applies to the same options (``check_options``) and never changes them.
+    """
 
     name: ClassVar[str] = ""
 
@@ -44,6 +75,12 @@ class Identifier(ABC):
         """The constructor arguments, as given (scikit-learn's get_params)."""
         names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
         return {n: getattr(self, n) for n in names}
+
+    def check_options(self) -> None:
+        """Refuse, in one line, an option of the wrong kind or out of range (as ``identify`` does)."""
+        defaults = {n: p.default for n, p in inspect.signature(type(self).__init__).parameters.items() if n != "self"}
+        for key, value in self.get_params().items():
+            check_option(key, value, defaults[key])
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
@@ -79,6 +116,7 @@ class Identifier(ABC):
         """Identify ``model`` on the dataset's identification records (or ``fit_on``)."""
         name = self.method
         for stage in self.stages():
+            stage.check_options()
             stage.check(model)
         common = {k: v for k, v in (("fit_on", fit_on), ("bounds", bounds), ("start", start)) if v is not None}
         records = _fit_records(dataset, fit_on, model.name, name)
@@ -175,7 +213,11 @@ class Chain(Identifier):
         self._stages = list(stages)
 
     def get_params(self) -> dict:
+        """{stage name: that stage's get_params()}."""
         return {s.name: s.get_params() for s in self._stages}
+
+    def __repr__(self) -> str:
+        return f"Chain({', '.join(repr(s) for s in self._stages)})"
 
     def stages(self) -> list[Identifier]:
         return list(self._stages)

@@ -59,6 +59,78 @@ def _shown(x: float, spec: str) -> str:
 
 @dataclass
 class Fit:
+    """What an identification returns: the one result type of every identifier.
+
+    Every public attribute is listed here (``help(Fit)``); e_m and e_rms are in percent of the measured
+    peak-to-peak of each record's scored window (eq. 10), the fitness is in the output unit squared (eq. 9).
+
+    Attributes
+    ----------
+    model : str
+        The model's registry name.
+    hyperparameters : dict
+        The model's constructor arguments (``get_hyperparameters()``).
+    method : str
+        The identifier that ran: ``varpro``, ``mpso``, ``lsq``, ``native`` or a chain such as ``varpro+lsq``.
+    params : dict[str, float]
+        The identified parameters, name -> value, in the model's ``param_names`` order.
+    n_params : int
+        The number of parameters (``len(params)``; a property).
+    fitness : float
+        Eq. 9 on the scored windows of the fit records: their weighted mean squared error, in
+        ``output_unit`` squared; NaN when the fit failed.
+    records : list[RecordScore]
+        One per record of the dataset: ``file``, ``frequency_hz`` (Hz or None), ``role``
+        ("identification" if fitted, else "validation"), ``e_m`` and ``e_rms`` (%).
+    n_evaluations : int
+        Model evaluations of the search (the final scoring is not counted).
+    fit_seconds : float
+        Wall time of the search and final solve, s (not the scoring of every record).
+    history : list[tuple[int, float]]
+        Convergence: (evaluations so far, best eq. 9 fitness so far in ``output_unit`` squared).
+    input_range : tuple[float, float]
+        (min, max) of the input over the fit records, input unit: fixes input-dependent structure
+        (play thresholds, a Preisach grid) for every later simulation.
+    bounds : dict[str, tuple[float, float]]
+        Each parameter's (low, high) bounds of the search (equal: fixed).
+    scale : dict[str, float]
+        The fit records' data scale the default bounds follow: ``u`` max |input|, ``y`` max |output|
+        (their units), ``time`` the shortest drive period (s).
+    options : dict
+        The identifier's options per stage (stage name -> ``get_params()``) and the common options
+        given (``fit_on``, ``bounds``, ``start``).
+    seed : int or None
+        The seed of the search.
+    dataset : str
+        The dataset's name.
+    dataset_hash : str
+        ``Dataset.content_hash()`` of the dataset (SHA-256, hex).
+    fitted_on : list[str]
+        File names of the fit records.
+    diagnostics : dict
+        Per stage the method's diagnostics (condition numbers, local searches, ...) and ``at_bounds``,
+        the parameters that ended at a bound.
+    notes : list[str]
+        Warnings in words (parameters at bounds, non-finite evaluations, undetermined parameters).
+    version : str
+        The hysbench version that computed the fit ("" when unknown).
+    success : bool
+        False when the model's output is not finite at the identified parameters (such a fit is not scored).
+    message : str
+        One line on how the fit ended.
+    n_nonfinite : int
+        Evaluated parameter sets whose model output was not finite.
+    n_rows : int
+        Scored samples of the fit records (the n of AIC and BIC).
+    aic, bic : float
+        Akaike and Bayesian information criteria from eq. 9's fitness as a Gaussian likelihood
+        (n = ``n_rows``, k = the free parameters; identification/criteria.py); NaN when the fit failed.
+    undetermined : list[str]
+        Parameters the scored data do not determine, fixed by varpro's linear solve.
+    output_unit : str
+        The dataset's output unit ("" when it names none): ``fitness`` is in its square.
+    """
+
     model: str
     hyperparameters: dict
     method: str
@@ -81,17 +153,18 @@ class Fit:
     version: str = ""
     success: bool = True
     message: str = ""
-    n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
-    n_rows: int = 0  # scored rows of the fit records
+    n_nonfinite: int = 0
+    n_rows: int = 0
     aic: float = math.nan
     bic: float = math.nan
-    undetermined: list[str] = field(default_factory=list)  # parameters the scored data do not determine (fixed)
-    output_unit: str = ""  # the dataset's output unit ("" when it names none): the fitness is in its square
+    undetermined: list[str] = field(default_factory=list)
+    output_unit: str = ""
     _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
 
     # --- the fitted model ----------------------------------------------------
     @property
     def n_params(self) -> int:
+        """The number of parameters."""
         return len(self.params)
 
     def model_instance(self) -> HysteresisModel:

@@ -172,19 +172,35 @@ class StepStructure:
 
 @dataclass
 class Inversion:
-    """The input a model's inverse computed for a desired output, and where it clipped."""
+    """The input a model's inverse computed for a desired output, and where it clipped.
+
+    Attributes
+    ----------
+    u : numpy.ndarray
+        The input, one value per sample of the desired output, input unit.
+    clipped : numpy.ndarray
+        Bool per sample: the desired output was not reached (the input at a limit).
+    method : str
+        How the inverse was computed: "numerical" (a root search, sample by sample) or "analytic" (a
+        closed form: classical-pi's play inversion).
+    inverse : str
+        Which causal inverse ran (P-I family): "exact" or "reference-driven" (``INVERSES``).
+    exact_recursion_radius : float
+        The largest root modulus of the exact inverse's error recursion along the returned input
+        (``recursion_radius``; above 1 the exact inverse is unstable there); NaN where not computed.
+    n_clipped : int
+        The number of clipped samples (a property).
+    """
 
     u: np.ndarray
-    clipped: np.ndarray  # bool per sample: the desired output was not reached
+    clipped: np.ndarray
     method: str = "numerical"
-    #: which causal inverse ran (P-I family): "exact" or "reference-driven" (``INVERSES``)
     inverse: str = "exact"
-    #: the largest root modulus of the exact inverse's error recursion along the returned input
-    #: (``recursion_radius``; above 1 the exact inverse is unstable there); NaN where not computed
     exact_recursion_radius: float = float("nan")
 
     @property
     def n_clipped(self) -> int:
+        """The number of clipped samples."""
         return int(np.count_nonzero(self.clipped))
 
 

@@ -97,8 +97,25 @@ class FittedModel:
     """A model with its identified parameters and the input range that fixes its structure.
 
     ``simulate(u, dt=None)``, ``stepper(dt=None)``, ``inverse_stepper(dt=None, ...)`` and ``invert``
-    default ``dt`` to ``sample_time``; ``metadata`` holds the model file's other fields (units,
-    dataset, identifier, scores, version) as read or as the identification gave them."""
+    default ``dt`` to ``sample_time``.
+
+    Attributes
+    ----------
+    model : HysteresisModel
+        The model, built from its registry name and hyperparameters.
+    params : dict[str, float]
+        Every parameter, name -> value, in the model's ``param_names`` order.
+    input_range : tuple[float, float]
+        (min, max) of the identification input, input unit: fixes input-dependent structure.
+    sample_time : float
+        The sample time, s, of the data it was identified on (the default ``dt``).
+    metadata : dict
+        The model file's other fields (``input_unit``, ``output_unit``, ``scale``, ``dataset``,
+        ``identifier``, ``scores``: worst validation e_rms and e_m in percent of the measured
+        peak-to-peak, ``hysbench_version``), as read or as the identification gave them.
+    name : str
+        The model's registry name (a property).
+    """
 
     model: HysteresisModel
     params: dict[str, float]
@@ -113,6 +130,7 @@ class FittedModel:
 
     @property
     def name(self) -> str:
+        """The model's registry name."""
         return self.model.name
 
     def _dt(self, dt) -> float:

@@ -156,3 +156,33 @@ def test_hysbench_fit_prints_the_fitness_with_its_unit_and_writes_it_to_the_json
     d = json.loads(out.out)
     assert d["output_unit"] == "um"
     assert f"fitness (eq. 9) {d['fitness']:.6g} um²   evaluations" in out.err
+
+
+@pytest.mark.parametrize("make,option", [
+    (lambda I: I.Varpro(n_starts=0), "n_starts"),
+    (lambda I: I.Varpro(n_candidates="4"), "n_candidates"),
+    (lambda I: I.LeastSquares(tol=-1.0), "tol"),
+    (lambda I: I.Varpro(stable_inverse=1), "stable_inverse"),
+    (lambda I: I.Chain(I.Varpro(), I.LeastSquares(max_nfev=0)), "max_nfev"),
+])
+def test_an_identifier_object_refuses_the_options_identify_refuses(make, option):
+    """An identifier built directly checks its options in fit with identify's rules, and fit leaves them as given."""
+    import hysbench.identification as I
+
+    identifier = make(I)
+    given = repr(identifier)
+    with pytest.raises(IdentificationError, match=f"option {option} must"):
+        identifier.fit(get_model("classical-pi"), _linear_dataset(), seed=0)
+    assert repr(identifier) == given
+
+
+def test_fit_leaves_the_identifier_and_the_model_configured_as_given():
+    """Fitting changes neither the identifier's get_params nor the model's hyperparameters; repr shows both."""
+    from hysbench.identification import Chain, LeastSquares, Varpro
+
+    model, identifier = get_model("classical-pi", n_operators=5), Chain(Varpro(n_starts=1), LeastSquares(max_nfev=5))
+    before = (identifier.get_params(), model.get_hyperparameters(), repr(identifier), repr(model))
+    fit = identifier.fit(model, _linear_dataset(), seed=0)
+    assert (identifier.get_params(), model.get_hyperparameters(), repr(identifier), repr(model)) == before
+    assert repr(identifier).startswith("Chain(Varpro(n_starts=1, ") and "LeastSquares(n_starts=1, max_nfev=5" in repr(identifier)
+    assert fit.options["lsq"]["max_nfev"] == 5 and fit.hyperparameters == model.get_hyperparameters()

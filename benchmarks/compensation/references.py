@@ -40,9 +40,21 @@ WAVEFORM_SEED = 0
 
 @dataclass(frozen=True)
 class Reference:
+    """A desired output for the plant to track.
+
+    Attributes
+    ----------
+    name : str
+        The reference's name (e.g. "sine-1Hz"; the key of the results).
+    y : numpy.ndarray
+        The desired output, mm, one value per sample.
+    scored : slice
+        The samples scored (after the creep transition).
+    """
+
     name: str
-    y: np.ndarray  # desired output, one value per sample
-    scored: slice  # the samples scored (after the creep transition)
+    y: np.ndarray
+    scored: slice
 
 
 def loop_range(record) -> tuple[float, float]:

@@ -70,7 +70,25 @@ def check_identify_options(names, method: str, options: Mapping | None) -> None:
 
 @dataclass
 class Tracking:
-    """One controller on one reference: the run and its scores."""
+    """One controller on one reference: the run and its scores.
+
+    Attributes
+    ----------
+    reference : Reference
+        The reference tracked (its name, desired output in mm, scored samples).
+    u : numpy.ndarray
+        The command sent to the plant, kV, one value per sample.
+    y : numpy.ndarray
+        The sensor's reading of the plant's output, mm, one value per sample.
+    clipped_input : numpy.ndarray
+        Bool per sample: the command was clipped at the input limits.
+    clipped_inverse : numpy.ndarray
+        Bool per sample: the inverse did not reach the reference.
+    scores : dict
+        Filled by ``score()``, on the reference's scored samples: ``e_rms`` and ``e_m`` in percent of the
+        reference's peak-to-peak there (None when ``y`` is not finite), ``clipped`` (samples clipped
+        either way), ``input_clipped``, ``inverse_clipped``, ``scored_samples`` and ``finite``.
+    """
 
     reference: Reference
     u: np.ndarray

@@ -32,32 +32,122 @@ def _plain(obj):
 
 @dataclass
 class Diagnosis:
-    dataset: Dataset  # the records diagnosed (own samples; cut into segments if asked)
-    model: str  # the base model's registry name
-    seed: int  # the seed of the fits and of the screen's row subset
-    base_fit: Fit  # the base model identified with varpro on the identification records' scored windows
-    before: list[RecordResidual]  # the base fit's residual over every record, whole
-    summaries: list[ResidualSummary]  # per record: noise sd, rms, whiteness of ``before``
-    noise_sd: float  # measurement noise sd: the median over the identification records (first differences)
-    screen: Screen  # the candidate fits on a row subset of the identification records (and the ``policy``)
-    library: dict  # the pysindy library screen of the base residual (``library_screen``)
-    candidates: list[Candidate]  # each cause's best candidate (relaxation: its best variant), scored held out
-    relaxation_variants: list[Candidate]  # relaxation with each number of time constants tried
-    verdict: Verdict  # the cause named, why, and the trace of the rules that decided it
-    structure: dict  # whether the residual repeats from period to period (``residuals.periodic_structure``)
-    secondary_tried: list[Candidate] = field(default_factory=list)  # causes tried on top of the named one
-    also_alternatives: list = field(default_factory=list)  # (a kept also, those as good on top of the same part)
-    slow_part: Candidate | None = None  # the named relaxation's slowest part replaced by creep (``slow_part``)
-    experiments: list[dict] = field(default_factory=list)  # suggested experiments (``experiment.suggest``)
-    extended_fit: Fit | None = None  # the named extension identified on the identification records' whole length
-    after: list[RecordResidual] = field(default_factory=list)  # the extended model's residual over every record
-    base_whole_fit: Fit | None = None  # the base refitted on the identification records' whole length
-    base_whole: list[RecordResidual] = field(default_factory=list)  # that refit's residual over every record
-    interference_check: dict = field(default_factory=dict)  # a named interference's amplitude on validation
-    unexplained_check: dict | None = None  # an unexplained verdict's evidence on the validation records
-    also_check: list = field(default_factory=list)  # each cause under "also" on the validation records
-    timings: dict = field(default_factory=dict)  # wall time per step (s)
-    settings: dict = field(default_factory=dict)  # the run's settings and the records held out in part
+    """What ``diagnose`` found, in one result object (its JSON: ``to_json``; docs/diagnosis.md).
+
+    Attributes
+    ----------
+    dataset : Dataset
+        The records diagnosed (own samples; cut into segments if asked).
+    model : str
+        The base model's registry name.
+    seed : int
+        The seed of the fits and of the screen's row subset.
+    base_fit : Fit
+        The base model identified with varpro on the identification records' scored windows.
+    before : list[RecordResidual]
+        The base fit's residual over every record, whole.
+    summaries : list[ResidualSummary]
+        Per record: noise sd, rms, whiteness of ``before``.
+    noise_sd : float
+        Measurement noise sd, output unit: the median over the identification records (from first differences).
+    screen : Screen
+        The candidate fits on a row subset of the identification records (and the ``policy``).
+    library : dict
+        The pysindy library screen of the base residual (``library_screen``).
+    candidates : list[Candidate]
+        Each cause's best candidate (relaxation: its best variant), scored held out.
+    relaxation_variants : list[Candidate]
+        Relaxation with each number of time constants tried.
+    verdict : Verdict
+        The cause named, why, and the trace of the rules that decided it.
+    structure : dict
+        Whether the residual repeats from period to period (``residuals.periodic_structure``).
+    secondary_tried : list[Candidate]
+        Causes tried on top of the named one.
+    also_alternatives : list[tuple[Candidate, list[Candidate]]]
+        For each cause kept under ``also``: the causes tried on top of the same part that were as good (see
+        ``as_good_as``).
+    slow_part : Candidate | None
+        The named relaxation's slowest part replaced by creep (``slow_part``).
+    experiments : list[dict]
+        Suggested experiments (``experiment.suggest``).
+    extended_fit : Fit | None
+        The named extension identified on the identification records' whole length.
+    after : list[RecordResidual]
+        The extended model's residual over every record.
+    base_whole_fit : Fit | None
+        The base refitted on the identification records' whole length.
+    base_whole : list[RecordResidual]
+        That refit's residual over every record.
+    interference_check : dict
+        A named interference's amplitude on validation.
+    unexplained_check : dict | None
+        An unexplained verdict's evidence on the validation records.
+    also_check : list
+        Each cause under "also" on the validation records.
+    timings : dict
+        Wall time per step, s.
+    settings : dict
+        The run's settings and the records held out in part.
+    chosen : Candidate | None
+        The named cause's candidate (None for none or unexplained). (a property)
+    cause : str
+        The cause named: a cause of the vocabulary, "none" or "unexplained". (a property)
+    also : list[Candidate]
+        The causes kept on top of the named one, in the order kept. (a property)
+    dropped : Candidate | None
+        The first named cause, if the causes kept on top of it made it redundant. (a property)
+    trace : list[dict]
+        Every rule that decided or changed the verdict, in order (``rule.step``). (a property)
+    extended_model : str | None
+        The registry name of the base model extended by the named cause. (a property)
+    parameters : dict
+        The named cause's parameters (identified on the identification records' whole length). (a property)
+    uncertainty : dict
+        The named cause's parameters' jackknife uncertainty over the held-out folds. (a property)
+    policy : Policy
+        The decision policy every step used (the screen's). (a property)
+    decision_rule : str
+        The decision rule with this diagnosis's policy values (``rules.rule_text``). (a property)
+    confirmed : bool | None
+        Whether the named extension lowers the validation residual (whole and on the windows, against the
+        base refitted the same way) by z >= ``policy.z_confirm``; an interference: by the same amplitude
+        there. (a property)
+    warning : str
+        Why the named cause is not confirmed on the validation records ("" if it is or was not checked). (a
+        property)
+    one_drive_caution : str
+        Under one periodic drive a delay, a lag or a mode only reshapes the response's harmonics, as a
+        static nonlinearity outside the vocabulary can: said when one is named or kept ("" otherwise). (a
+        property)
+    """
+
+    dataset: Dataset
+    model: str
+    seed: int
+    base_fit: Fit
+    before: list[RecordResidual]
+    summaries: list[ResidualSummary]
+    noise_sd: float
+    screen: Screen
+    library: dict
+    candidates: list[Candidate]
+    relaxation_variants: list[Candidate]
+    verdict: Verdict
+    structure: dict
+    secondary_tried: list[Candidate] = field(default_factory=list)
+    also_alternatives: list = field(default_factory=list)
+    slow_part: Candidate | None = None
+    experiments: list[dict] = field(default_factory=list)
+    extended_fit: Fit | None = None
+    after: list[RecordResidual] = field(default_factory=list)
+    base_whole_fit: Fit | None = None
+    base_whole: list[RecordResidual] = field(default_factory=list)
+    interference_check: dict = field(default_factory=dict)
+    unexplained_check: dict | None = None
+    also_check: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
     _gain: tuple | None = field(default=None, init=False, repr=False, compare=False)  # (inputs, gains)
 
     @property

@@ -83,13 +83,59 @@ class Cell:
 
 @dataclass
 class CellResult:
+    """One cell of the matrix: a model identified by one method on one dataset, scored on every record.
+    ``hb.run_matrix`` returns these as dicts (``to_dict``), one key per attribute.
+
+    Attributes
+    ----------
+    key : str
+        The cell's key (``Cell.key``): a hash of everything that can change its result.
+    dataset : str
+        The dataset's name.
+    model : str
+        The model's registry name.
+    method : str
+        The identifier.
+    seed : int
+        The seed of the identification.
+    options : dict
+        The identifier options the cell ran with (the matrix's budget and the user's).
+    status : str
+        "ok" or "failed".
+    n_params : int
+        The model's number of parameters.
+    fitness : float
+        Eq. 9 on the fit records, in the output unit squared (NaN: failed).
+    fit_seconds : float
+        Wall time of the identification, s.
+    simulate_seconds : float
+        Wall time of simulating every record once with the fitted parameters, s.
+    n_evaluations : int
+        Model evaluations of the search.
+    params : dict
+        The identified parameters, name -> value.
+    input_range : list
+        [min, max] of the input over the fit records.
+    records : list[dict]
+        Per record: ``file``, ``frequency_hz``, ``role``, ``e_m`` and ``e_rms`` (percent of the measured
+        peak-to-peak of the scored window, eq. 10).
+    error : str
+        Why the cell failed ("" when it did not).
+    nonfinite_records : list
+        Records whose prediction is not finite.
+    fit : dict
+        The Fit itself (``Fit.to_dict()``; empty when the cell failed).
+    format : str
+        The cell file's format tag.
+    """
+
     key: str
     dataset: str
     model: str
     method: str
     seed: int
     options: dict
-    status: str  # "ok" or "failed"
+    status: str
     n_params: int = 0
     fitness: float = float("nan")
     fit_seconds: float = float("nan")
@@ -97,10 +143,10 @@ class CellResult:
     n_evaluations: int = 0
     params: dict = field(default_factory=dict)
     input_range: list = field(default_factory=list)
-    records: list = field(default_factory=list)  # {file, frequency_hz, role, e_m, e_rms}
+    records: list = field(default_factory=list)
     error: str = ""
-    nonfinite_records: list = field(default_factory=list)  # records whose prediction is not finite
-    fit: dict = field(default_factory=dict)  # the Fit itself (Fit.to_dict())
+    nonfinite_records: list = field(default_factory=list)
+    fit: dict = field(default_factory=dict)
     format: str = CELL_FORMAT
 
     def to_dict(self) -> dict:

@@ -38,11 +38,44 @@ def autocorr_times(x: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Convergence:
+    """Burn-in, autocorrelation times and effective sample sizes of a chain.
+
+    Attributes
+    ----------
+    n_steps : int
+        Steps in the chain, burn-in included.
+    burn : int
+        Steps discarded as burn-in.
+    tau : numpy.ndarray
+        Integrated autocorrelation time, in steps, on the kept chain: one per sampled coordinate, then one
+        per linear parameter drawn (``PosteriorRun.reported_tau`` gives them in its ``names`` order).
+    ess : numpy.ndarray
+        Effective sample size of each, in the order of ``tau``.
+    acceptance : numpy.ndarray
+        Acceptance fraction of each walker, shape (walkers,).
+    tau_factor : float
+        The kept chain must be this many times ``tau_max`` long to count as converged.
+    min_ess : float
+        The effective sample size every parameter must reach for ``ess_met``.
+    kept : int
+        Steps after burn-in (a property).
+    tau_max : float
+        The largest finite ``tau`` (inf when none is finite; a property).
+    length_in_tau : float
+        ``kept / tau_max`` (a property).
+    problems : list[str]
+        Why the chain is not converged, in words (empty: converged; a property).
+    converged : bool
+        No ``problems`` (a property).
+    ess_met : bool
+        Every ``ess`` is finite and at least ``min_ess`` (a property).
+    """
+
     n_steps: int
     burn: int
-    tau: np.ndarray  # per reported parameter, on the kept chain
+    tau: np.ndarray
     ess: np.ndarray
-    acceptance: np.ndarray  # per walker
+    acceptance: np.ndarray
     tau_factor: float = TAU_FACTOR
     min_ess: float = 0.0
 

@@ -92,14 +92,37 @@ class Calibration:
     Each predictive draw (model output plus its AR(1) noise path) has its deviation from the
     per-sample median multiplied by ``scale_at(frequency)``. With ``constant`` set, every record
     gets that one scale.
+
+    Attributes
+    ----------
+    level : float
+        The nominal coverage of the predictive bands (a fraction, e.g. 0.9).
+    frequencies : list[float or None]
+        The fitted records' drive frequencies, Hz (None where unknown).
+    in_sample : list[float]
+        Per fitted record: the scale covering its own residuals at ``level``.
+    leverage : list[float]
+        Per fitted record: the mean variance of the linear parameters' contribution over the noise variance.
+    pooled : float
+        c_pool: covers the fitted records' own residuals at ``level`` on average.
+    outside : float or None
+        c_out: from the end records held out (None: none could be).
+    constant : float or None
+        One scale for every record, when set.
+    folds : list[dict]
+        The records held out in turn: the end ones set ``outside``, the interior ones are reported only.
+    note : str
+        Why the scale is ``constant``, in words ("" otherwise).
+    beyond : float
+        The scale beyond the fitted range: max(c_pool, c_out) (a property).
     """
 
     level: float
-    frequencies: list = field(default_factory=list)  # fitted records' frequencies (Hz; None if unknown)
-    in_sample: list = field(default_factory=list)  # scale covering each fitted record's own residuals (reported)
-    leverage: list = field(default_factory=list)  # per fitted record: mean linear-parameter var / noise var
-    pooled: float = 1.0  # c_pool: covers the fitted records' own residuals at `level` on average
-    outside: float | None = None  # c_out: from the end records held out (None: none could be)
+    frequencies: list = field(default_factory=list)
+    in_sample: list = field(default_factory=list)
+    leverage: list = field(default_factory=list)
+    pooled: float = 1.0
+    outside: float | None = None
     constant: float | None = None
     folds: list[dict] = field(default_factory=list)
     note: str = ""

@@ -38,15 +38,59 @@ MOVES = {
 
 @dataclass
 class PosteriorRun:
-    """What ``sample_posterior`` returns; ``summary()`` gives the JSON body."""
+    """What ``sample_posterior`` returns; ``summary()`` gives the JSON body.
+
+    Attributes
+    ----------
+    post : LogPosterior
+        The target: the model, the records, the priors and the noise model.
+    chain : numpy.ndarray
+        The sampled coordinates (``post.coord_names``: nonlinear parameters, sigma, phi), shape
+        (steps, walkers, d), every step including burn-in.
+    draws : numpy.ndarray
+        The linear parameters drawn at each state, shape (steps, walkers, p).
+    log_prob : numpy.ndarray
+        The log posterior of each state, shape (steps, walkers).
+    conv : Convergence
+        Burn-in, autocorrelation times and effective sample sizes of the chain.
+    start : dict
+        How the walkers started: the start ``method`` ("varpro" or "given"), its ``params``, the noise
+        estimate, the posterior ``mode`` and ``modes`` found, ``seconds``.
+    wall_seconds : float
+        Wall time over every run that built the chain (resumed runs add up), s.
+    sampling_seconds : float
+        The part of ``wall_seconds`` spent in emcee, s.
+    this_run_seconds : float
+        Wall time of this call, s.
+    resumed_from : int
+        The steps read from the chain file before this call (0: a fresh chain).
+    n_walkers : int
+        The number of walkers.
+    moves : str
+        The emcee moves: "stretch" or "de".
+    seed : int or None
+        The seed of the start and of the sampler.
+    dataset : str
+        The dataset's name.
+    chain_file : str or None
+        The HDF5 chain file (None: kept in memory only).
+    calibration : Calibration or None
+        The predictive scale of the mode holding most kept states (None: not calibrated).
+    mode_calibrations : list[Calibration or None]
+        One per start mode (None: the mode holds no kept state).
+    notes : list[str]
+        Warnings in words (several modes, parameters cut off by a prior bound).
+    names : list[str]
+        The reported parameters: the model's, the discrepancy's, then sigma and phi (a property).
+    """
 
     post: LogPosterior
-    chain: np.ndarray  # (steps, walkers, d) sampler coordinates
-    draws: np.ndarray  # (steps, walkers, p) linear parameters
-    log_prob: np.ndarray  # (steps, walkers)
+    chain: np.ndarray
+    draws: np.ndarray
+    log_prob: np.ndarray
     conv: Convergence
     start: dict
-    wall_seconds: float  # over every run that built the chain (resumed runs add up)
+    wall_seconds: float
     sampling_seconds: float
     this_run_seconds: float
     resumed_from: int
@@ -55,13 +99,14 @@ class PosteriorRun:
     seed: int | None
     dataset: str
     chain_file: str | None
-    calibration: Calibration | None = None  # of the mode holding most kept states
-    mode_calibrations: list = field(default_factory=list)  # one per start mode (None: the mode holds no kept state)
+    calibration: Calibration | None = None
+    mode_calibrations: list = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
 
     # --- reported parameters: model order, then sigma and phi -------------------------
     @property
     def names(self) -> list[str]:
+        """The reported parameters, in the order of ``samples`` and ``reported_tau``."""
         return list(self.post.param_names) + list(self.post.discrepancy_names) + ["sigma", "phi"]
 
     def samples(self, thin: int = 1) -> np.ndarray:
