@@ -81,11 +81,11 @@ def validation_scores(model, params, dataset: Dataset, input_range=None) -> dict
         "val_multisine_from_rest_fit": fit_percent(rest, ms.y),
         "val_multisine_steady_state_nrmse": nrmse(steady, ms.y),
         "val_multisine_steady_state_fit": fit_percent(steady, ms.y),
-        "train_window": rmse(model.simulate(train.u, train.dt, params, input_range=input_range)[train.scored],
+        "train_window_rmse_m": rmse(model.simulate(train.u, train.dt, params, input_range=input_range)[train.scored],
                              train.y[train.scored]),
-        "val_multisine_from_rest": rmse(model.simulate(ms.u, ms.dt, params, input_range=input_range), ms.y),
-        "val_multisine_steady_state": rmse(steady_state(model, params, ms, input_range), ms.y),
-        "val_sinesweep_from_rest": rmse(model.simulate(sweep.u, sweep.dt, params, input_range=input_range), sweep.y),
+        "val_multisine_from_rest_rmse_m": rmse(model.simulate(ms.u, ms.dt, params, input_range=input_range), ms.y),
+        "val_multisine_steady_state_rmse_m": rmse(steady_state(model, params, ms, input_range), ms.y),
+        "val_sinesweep_from_rest_rmse_m": rmse(model.simulate(sweep.u, sweep.dt, params, input_range=input_range), sweep.y),
     }
 
 
@@ -126,7 +126,7 @@ def _row(model, fit, dataset, seconds, how) -> dict:
     return {"model": model.name, "kind": kind(model), "hyperparameters": model.get_hyperparameters(), "how": how,
             "n_params": model.n_params, "params": fit.params, "seconds": seconds, "fit_seconds": fit.fit_seconds,
             "n_evaluations": fit.n_evaluations, "notes": list(fit.notes),
-            "rmse_m": validation_scores(model, fit.params, dataset, fit.input_range)}
+            "scores": validation_scores(model, fit.params, dataset, fit.input_range)}
 
 
 def interpolation_check(dataset: Dataset) -> list[dict]:
@@ -134,7 +134,7 @@ def interpolation_check(dataset: Dataset) -> list[dict]:
     rows = []
     for how in ("fourier", "linear", "hold"):
         model = get_model("bouc-wen-oscillator", input_interpolation=how)
-        rows.append({"input_interpolation": how, "rmse_m": validation_scores(model, TRUE_PARAMS, dataset)})
+        rows.append({"input_interpolation": how, "scores": validation_scores(model, TRUE_PARAMS, dataset)})
     return rows
 
 
@@ -161,16 +161,16 @@ def _e(x: float) -> str:
 
 
 def _cells(e: dict) -> str:
-    return " | ".join(_e(e[k]) for k in ("val_multisine_from_rest", "val_multisine_steady_state",
-                                         "val_sinesweep_from_rest", "train_window"))
+    return " | ".join(_e(e[k]) for k in ("val_multisine_from_rest_rmse_m", "val_multisine_steady_state_rmse_m",
+                                         "val_sinesweep_from_rest_rmse_m", "train_window_rmse_m"))
 
 
 def _with_fit(e: dict, protocol: str) -> str:
     """RMSE / NRMSE / fit (%) of the validation multisine under one protocol."""
     key = f"val_multisine_{protocol}"
-    if not np.isfinite(e[key]):
+    if not np.isfinite(e[key + "_rmse_m"]):
         return "not finite"
-    return f"{_e(e[key])} / {e[key + '_nrmse']:.3g} / {e[key + '_fit']:.1f}"
+    return f"{_e(e[key + '_rmse_m'])} / {e[key + '_nrmse']:.3g} / {e[key + '_fit']:.1f}"
 
 
 def _label(row: dict) -> str:
@@ -207,10 +207,10 @@ def render(r: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in r["rows"]:
-        e = row["rmse_m"]
+        e = row["scores"]
         lines.append(f"| {_label(row)} | {row.get('kind', 'grey-box')} | {row['how']} | {row['n_params']} | "
                      f"{_with_fit(e, 'steady_state')} | {_with_fit(e, 'from_rest')} | "
-                     f"{_e(e['val_sinesweep_from_rest'])} | {_e(e['train_window'])} | "
+                     f"{_e(e['val_sinesweep_from_rest_rmse_m'])} | {_e(e['train_window_rmse_m'])} | "
                      f"{row['seconds']:.1f} | {row['n_evaluations']} |")
     lines += [f"\nNot run: {row['model']} ({row['reason']}); the table and the comparisons below leave it out."
               for row in r.get("not_run", [])]
@@ -236,12 +236,12 @@ def render(r: dict) -> str:
         "val sine sweep, from rest | training window |",
         "|---|---|---|---|---|",
     ]
-    lines += [f"| {row['input_interpolation']} | {_cells(row['rmse_m'])} |" for row in r["true_parameters"]]
-    osc, p = r["rows"][0]["rmse_m"], r["rows"][0]["params"]
-    floor = r["true_parameters"][0]["rmse_m"]
+    lines += [f"| {row['input_interpolation']} | {_cells(row['scores'])} |" for row in r["true_parameters"]]
+    osc, p = r["rows"][0]["scores"], r["rows"][0]["params"]
+    floor = r["true_parameters"][0]["scores"]
     f0 = np.sqrt((p["k"] + p["alpha"]) / p["m"]) / (2 * np.pi)
     others = [row for row in r["rows"] if row["model"] != "bouc-wen-oscillator" and row.get("kind") != "black-box"]
-    best_other = min(row["rmse_m"]["val_multisine_steady_state"] for row in others)
+    best_other = min(row["scores"]["val_multisine_steady_state_rmse_m"] for row in others)
     dev = max(abs(p[k] / v - 1.0) for k, v in TRUE_PARAMS.items())
     nu_row = next((row for row in r["rows"] if "nu" in row["params"]), None)
     lines += [
@@ -249,17 +249,17 @@ def render(r: dict) -> str:
         "## What it says",
         "",
         f"- The official validation multisine output is a steady-state response (its first sample is 1.9e-4 m, not 0). "
-        f"Simulated from rest, even the true system misses it by {floor['val_multisine_from_rest']:.3g} m, nearly all "
+        f"Simulated from rest, even the true system misses it by {floor['val_multisine_from_rest_rmse_m']:.3g} m, nearly all "
         f"of it in the first ~500 samples (the start-up transient); in steady state the true system is within "
-        f"{floor['val_multisine_steady_state']:.2g} m. So under the 'from rest' protocol no correct model goes below "
-        f"about {floor['val_multisine_from_rest']:.2g} m: the best published {best:.3g} m was presumably scored in "
+        f"{floor['val_multisine_steady_state_rmse_m']:.2g} m. So under the 'from rest' protocol no correct model goes below "
+        f"about {floor['val_multisine_from_rest_rmse_m']:.2g} m: the best published {best:.3g} m was presumably scored in "
         "steady state or without the transient, while dynoNet's 4.52e-5 m (its test script simulates from a zero "
         "state) sits at the from-rest floor.",
-        f"- bouc-wen-oscillator identified on the training record: {osc['val_multisine_steady_state']:.3g} m on the "
-        f"validation multisine in steady state ({'below' if osc['val_multisine_steady_state'] < best else 'above'} "
-        f"the best published {best:.3g} m, {best / osc['val_multisine_steady_state']:.0f} times lower), "
-        f"{osc['val_multisine_from_rest']:.3g} m from rest ({'below' if osc['val_multisine_from_rest'] < best else 'above'}"
-        f" it: the transient floor above), {osc['val_sinesweep_from_rest']:.3g} m on the sine sweep from rest. "
+        f"- bouc-wen-oscillator identified on the training record: {osc['val_multisine_steady_state_rmse_m']:.3g} m on the "
+        f"validation multisine in steady state ({'below' if osc['val_multisine_steady_state_rmse_m'] < best else 'above'} "
+        f"the best published {best:.3g} m, {best / osc['val_multisine_steady_state_rmse_m']:.0f} times lower), "
+        f"{osc['val_multisine_from_rest_rmse_m']:.3g} m from rest ({'below' if osc['val_multisine_from_rest_rmse_m'] < best else 'above'}"
+        f" it: the transient floor above), {osc['val_sinesweep_from_rest_rmse_m']:.3g} m on the sine sweep from rest. "
         f"Its parameters are within {100 * dev:.2g} % of the benchmark's true values; identification took "
         f"{r['rows'][0]['seconds']:.1f} s (goal: 60 s).",
     ]
@@ -269,20 +269,20 @@ def render(r: dict) -> str:
     lines += [
         f"- The rate-independent models (bouc-wen, classical-pi) have no mass or damping: they cannot follow the "
         f"oscillator's resonance (identified: {f0:.1f} Hz); their best steady-state RMSE, {best_other:.3g} m, is "
-        f"{best_other / osc['val_multisine_steady_state']:.0f} times the oscillator's.",
+        f"{best_other / osc['val_multisine_steady_state_rmse_m']:.0f} times the oscillator's.",
         "- Force between samples: the benchmark builds its multisines at the 15 kHz integration rate from spectral "
         "lines below 150 Hz, so the band-limited (fourier) interpolation of the 750 Hz samples is the force it "
         "integrated; with the true parameters it predicts best (table above).",
     ]
     boxes = [row for row in r["rows"] if row.get("kind") == "black-box"]
     if boxes:
-        finite = [row for row in boxes if np.isfinite(row["rmse_m"]["val_multisine_steady_state"])]
-        text = "; ".join(f"{row['model']} {_e(row['rmse_m']['val_multisine_steady_state'])} m "
-                         f"(fit {row['rmse_m']['val_multisine_steady_state_fit']:.1f} %, {row['n_params']} parameters)"
-                         if np.isfinite(row["rmse_m"]["val_multisine_steady_state"]) else f"{row['model']} not finite"
+        finite = [row for row in boxes if np.isfinite(row["scores"]["val_multisine_steady_state_rmse_m"])]
+        text = "; ".join(f"{row['model']} {_e(row['scores']['val_multisine_steady_state_rmse_m'])} m "
+                         f"(fit {row['scores']['val_multisine_steady_state_fit']:.1f} %, {row['n_params']} parameters)"
+                         if np.isfinite(row["scores"]["val_multisine_steady_state_rmse_m"]) else f"{row['model']} not finite"
                          for row in boxes)
         lines.append(f"- Black-box learners at their default hyperparameters, validation multisine in steady state: "
-                     f"{text}. " + (f"The best of them is {min(row['rmse_m']['val_multisine_steady_state'] for row in finite) / osc['val_multisine_steady_state']:.0f} "
+                     f"{text}. " + (f"The best of them is {min(row['scores']['val_multisine_steady_state_rmse_m'] for row in finite) / osc['val_multisine_steady_state_rmse_m']:.0f} "
                                     "times the grey-box oscillator's RMSE." if finite else ""))
     return "\n".join(lines) + "\n"
 
