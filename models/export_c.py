@@ -1,7 +1,7 @@
 """C code for a fitted P-I-family model and its inverse (``hysbench export``).
 
 ``export_c(fitted, prefix, ...)`` returns the text of PREFIX.h and PREFIX.c: plain C99, no
-allocation, only <math.h>:
+allocation, only <math.h> and <limits.h>:
 
     typedef struct {...} PREFIX_state;
     void   PREFIX_init(PREFIX_state *s);                    /* the state before the first sample */
@@ -75,7 +75,7 @@ GUIDED_SAMPLE = """
    dy/du has no rate or lag term. */
 static double guided_sample(PREFIX_state *s, double u, double gd, int commit, double *slope)
 {
-    const long k = s->k;
+    const double k = s->k;
     double a = 0.0, d2 = 0.0, acc = 0.0, dy = 0.0, p = 0.0, dp = 0.0, y;
     int i, j;
     (void)k;
@@ -115,7 +115,9 @@ static double guided_sample(PREFIX_state *s, double u, double gd, int commit, do
 
 INVERSE_EXACT = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
 {
-    const double x = search(s, y_ref, 0.0);
+    double x;
+    if (refused(s, y_ref)) return s->u1;
+    x = search(s, y_ref, 0.0);
     advance(s, x);
     return x;
 }
@@ -125,6 +127,7 @@ INVERSE_EXACT = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
 INVERSE_GUIDED = """double PREFIX_inverse_step(PREFIX_state *s, double y_ref)
 {
     double mapped, gd, x, dg;
+    if (refused(s, y_ref)) return s->u1;
     if (s->first) s->y_first = y_ref;
     mapped = U_START + (y_ref - s->y_first) * INV_GAIN;
     if (s->first) s->g1 = s->g2 = mapped;
@@ -162,11 +165,11 @@ def _base_code(fitted: FittedModel) -> tuple[str, float]:
     s = base_model._structure(fitted.sample_time, {k: p[k] for k in model.base_names}, fitted.input_range, 1)
     expr = "BASE"
     if model.has("creep"):  # as ExtendedModel._creep_column: -expm1(-(k dt) / T_c)
-        expr = f"({expr} + {_num(p['creep_size'])} * -expm1(-(0.0 + (double)k * DT) / {_num(p['creep_time'])}))"
+        expr = f"({expr} + {_num(p['creep_size'])} * -expm1(-(0.0 + k * DT) / {_num(p['creep_time'])}))"
     if model.has("interference"):  # as ExtendedModel.interference_columns: phase = 2 pi f dt k
         w = 2.0 * math.pi * p["interference_frequency"] * fitted.sample_time
-        expr = (f"({expr} + ({_num(p['interference_sin'])} * sin({_num(w)} * (double)k) + "
-                f"{_num(p['interference_cos'])} * cos({_num(w)} * (double)k)))")
+        expr = (f"({expr} + ({_num(p['interference_sin'])} * sin({_num(w)} * k) + "
+                f"{_num(p['interference_cos'])} * cos({_num(w)} * k)))")
     return expr, float(s.base[0])
 
 
@@ -175,7 +178,8 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
              reference_scale: float | None = None, n_grid: int = 32, inverse_note: str = "",
              inverse: str = "auto", guide_time: float = DEFAULT_GUIDE_TIME) -> tuple[str, str]:
     """(header, source) of the C export; the inverse options as ``PIInverseStepper``
-    (``reference_scale`` default: the data scale's |y| recorded in the model file, else 1;
+    (``reference_scale`` default: ``fitted.reference_scale``, the data scale's |y| recorded in the
+    model file, else 1, as ``fitted.inverse_stepper``;
     ``inverse``: "auto", "exact" or "reference-driven", ``inverse.INVERSES``; ``guide_time``: the
     reference-driven inverse's follower time constant, s);
     ``inverse_note``: the inverse's check (``check_inverse``), written into the header."""
@@ -184,7 +188,7 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
     check_exportable(fitted)
     model, dt = fitted.model, fitted.sample_time
     if reference_scale is None:
-        reference_scale = float((fitted.metadata.get("scale") or {}).get("y") or 1.0)
+        reference_scale = fitted.reference_scale  # as fitted.inverse_stepper's default
     a = InverseArguments.check(model.name, [abs(float(reference_scale))], dt, fitted.input_range, input_limits,
                                n_grid, max_rate, u_start)
     s = model._structure(dt, fitted.params, fitted.input_range, 1)
@@ -210,7 +214,11 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
  * {dt!r} s, after {P}_init). {P}_inverse_step(s, y_ref): the input within [{a.lo!r}, {a.hi!r}]
  * that makes the {'reference-driven ' if guided else ''}model output y_ref at this sample; s->clipped says the reference was out of
  * reach (the nearest reachable output was taken), s->n_clipped counts those. Use one state
- * for either the forward model or the inverse.
+ * for either the forward model or the inverse; {P}_init(s) again resets it. The forward model
+ * does not clip its input (outside the input range it extrapolates). A NaN or infinite input
+ * (or reference) is refused: the state does not advance, s->refused is set and s->n_refused
+ * counts it; {P}_step returns NaN, {P}_inverse_step the last input it returned ({P}_init: the
+ * start input). (Compiled with -ffast-math, the compiler may drop that check.)
  */
 #ifndef {guard}
 #define {guard}
@@ -221,13 +229,15 @@ def export_c(fitted: FittedModel, prefix: str, model_file: str = "", model_sha25
 
 typedef struct {{
     int first;        /* 1 before the first sample */
-    long k;           /* samples since init */
+    double k;         /* samples since init (a double: exact to 2^53 samples, never overflows) */
     double u1, u2;    /* the input one and two samples ago */
     double y_first, g1, g2;  /* reference-driven inverse: the first reference, the guide one and two samples ago */
     double w[{P.upper()}_N_PLAYS];     /* play operators */
     double xf[{P.upper()}_N_FILTERS];  /* relaxation filters */
     int clipped;      /* inverse: the last reference was out of reach */
-    long n_clipped;   /* inverse: references out of reach since init */
+    long n_clipped;   /* inverse: references out of reach since init (stops at LONG_MAX) */
+    int refused;      /* the last input or reference was NaN or infinite: the state did not advance */
+    long n_refused;   /* inputs and references refused since init (stops at LONG_MAX) */
 }} {P}_state;
 
 void {P}_init({P}_state *s);
@@ -237,6 +247,7 @@ double {P}_inverse_step({P}_state *s, double y_ref);
 #endif
 """
     source = f"""/* {origin} */
+#include <limits.h>
 #include <math.h>
 #include "{P}.h"
 
@@ -282,7 +293,7 @@ static double ipow(double x, int p)
    receives dy/du when not NULL. */
 static double sample({P}_state *s, double u, int commit, double *slope)
 {{
-    const long k = s->k;
+    const double k = s->k;
     double a = 0.0, sg = 0.0, d2 = 0.0, acc = 0.0, dy = 0.0, p = 0.0, dp = 0.0, y;
     int i, j;
     (void)k;
@@ -331,14 +342,22 @@ static void advance({P}_state *s, double u)
     s->u2 = s->first ? u : s->u1;
     s->u1 = u;
     s->first = 0;
-    s->k++;
+    s->k += 1.0;
+}}
+
+/* A NaN or infinite sample is refused (the state does not advance), as the Python stepper refuses it. */
+static int refused({P}_state *s, double x)
+{{
+    s->refused = !isfinite(x);
+    if (s->refused && s->n_refused < LONG_MAX) s->n_refused++;
+    return s->refused;
 }}
 
 void {P}_init({P}_state *s)
 {{
     int i;
     s->first = 1;
-    s->k = 0;
+    s->k = 0.0;
     s->u1 = s->u2 = U_START;
     s->y_first = 0.0;
     s->g1 = s->g2 = U_START;
@@ -346,11 +365,15 @@ void {P}_init({P}_state *s)
     for (i = 0; i < {P.upper()}_N_FILTERS; i++) s->xf[i] = 0.0;
     s->clipped = 0;
     s->n_clipped = 0;
+    s->refused = 0;
+    s->n_refused = 0;
 }}
 
 double {P}_step({P}_state *s, double u)
 {{
-    const double y = sample(s, u, 1, 0);
+    double y;
+    if (refused(s, u)) return NAN;
+    y = sample(s, u, 1, 0);
     advance(s, u);
     return y;
 }}
@@ -462,7 +485,7 @@ static double search({P}_state *s, double y_ref, double gd)
 done:
     {'guided_sample(s, x, gd, 1, 0)' if guided else 'sample(s, x, 1, 0)'};
     s->clipped = clipped;
-    s->n_clipped += clipped;
+    if (clipped && s->n_clipped < LONG_MAX) s->n_clipped++;
     return x;
 }}
 

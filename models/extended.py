@@ -238,8 +238,9 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
         return -np.expm1(-(t0 + k * dt) / creep_time)
 
     @staticmethod
-    def interference_columns(n: int, dt: float, f: float) -> np.ndarray:
-        phase = 2.0 * np.pi * f * dt * np.arange(n)
+    def interference_columns(n: int | np.ndarray, dt: float, f: float) -> np.ndarray:
+        """The (sin, cos) columns over n samples, or at the sample indices ``n`` (an array)."""
+        phase = 2.0 * np.pi * f * dt * (np.arange(n) if np.ndim(n) == 0 else n)
         return np.stack([np.sin(phase), np.cos(phase)])
 
     def _check_range(self, params: Mapping[str, float]) -> None:
@@ -288,13 +289,20 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
             s.filter_b1 = np.array([c[2] for c in coef for _ in range(n_p)])
             s.filter_power = np.array(list(self.relaxation_powers) * len(coef), dtype=np.int64)
             s.filter_weight = np.array([params[w] for w in self._relaxation_weight_names()])
-        if self.has("creep"):
-            base += params["creep_size"] * self._creep_column(n_samples, dt, params["creep_time"])
-        if self.has("interference"):
-            cols = self.interference_columns(n_samples, dt, params["interference_frequency"])
-            base += params["interference_sin"] * cols[0] + params["interference_cos"] * cols[1]
-        s.base = base
+        s.base = self.varying_base(base, np.arange(n_samples), dt, params)
         return s
+
+    def varying_base(self, base: np.ndarray, k: np.ndarray, dt: float, params) -> np.ndarray:
+        """The step structure's offset at the sample indices ``k``: the base's offset ``base`` (one per
+        index) plus the creep and interference there. ``step_structure`` computes it for 0..n-1; a
+        stepper for a block of samples anywhere in time, with the same arithmetic (so the same bits)."""
+        base = np.array(base, dtype=float)
+        if self.has("creep"):
+            base += params["creep_size"] * self._creep_column(k, dt, params["creep_time"])
+        if self.has("interference"):
+            cols = self.interference_columns(k, dt, params["interference_frequency"])
+            base += params["interference_sin"] * cols[0] + params["interference_cos"] * cols[1]
+        return base
 
     # --- causal stepper (models/extended_stepper.py) --------------------
     def stepper(self, dt: float, params, input_range=None):

@@ -37,6 +37,7 @@ import numpy as np
 
 from .base import HysteresisModel
 from .errors import HysbenchError, ModelError
+from .inverse import StepInvertible
 from .registry import get_model
 from .stepper import InverseStepper, Stepper
 
@@ -143,7 +144,20 @@ class FittedModel:
     def stepper(self, dt: float | None = None) -> Stepper:
         return self.model.stepper(self._dt(dt), self.params, input_range=self.input_range)
 
+    @property
+    def reference_scale(self) -> float:
+        """The |y| a P-I-family inverse's reach tolerance 1e-12 (1 + scale) is relative to, unless given:
+        the data scale's y the model file records (1 where it records none). ``inverse_stepper`` and
+        ``hysbench export`` both take it, so the Python inverse stepper and the exported C inverse run
+        the same search and agree sample by sample."""
+        value = (self.metadata.get("scale") or {}).get("y")
+        return abs(float(value)) if value else 1.0
+
     def inverse_stepper(self, dt: float | None = None, input_limits=None, **options) -> InverseStepper:
+        """The model's causal inverse stepper; options as the model's ``inverse_stepper``. A P-I-family
+        model's ``reference_scale`` defaults to ``self.reference_scale``, the exported C's."""
+        if isinstance(self.model, StepInvertible) and options.get("reference_scale") is None:
+            options["reference_scale"] = self.reference_scale
         return self.model.inverse_stepper(self._dt(dt), self.params, input_range=self.input_range,
                                           input_limits=input_limits, **options)
 

@@ -9,8 +9,9 @@ kernel, the batch inverse and the exported C share.
 
 Packed constants: [dt, g_lo, g_hi, q, r_lo (n), r_hi (n), weights (n), poly (m), fa, fb0, fb1, fw (f each)].
 Packed state: [first (1.0 before the first sample), u(k-1), u(k-2), k, W_1..W_n, x_1..x_f].
-A time-varying offset (creep, interference) is taken from the model's step structure, computed
-for a block of samples and extended (doubled) as the stepper passes its end.
+A time-varying offset (creep, interference) is computed by the model (``varying_base``) for a
+block of ``BASE_BLOCK`` samples at a time, the block holding the current sample: the memory is
+fixed and the cost per step constant however long the stepper runs.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .root_search import SEARCH_SIZE, search_clipped
 from .stepper import InverseStepper, Stepper, check_state_keys, check_step_input
 
 HEAD = 4  # dt, g_lo, g_hi, q  /  first, u1, u2, k
-BASE_BLOCK = 4096  # samples of a time-varying offset computed at once
+BASE_BLOCK = 1024  # samples of a time-varying offset computed at once
 
 
 @njit(inline="always")
@@ -125,17 +126,24 @@ class _PIBase:
         self.structure = s
         self._coef, self._fpow = pack_structure(s, self.dt)
         self._n, self._f = s.r_lo.size, self._fpow.size
-        self._base = np.array(s.base, dtype=float)
+        self._base = np.array(s.base, dtype=float)  # the offset at samples _base_start .. + BASE_BLOCK - 1
+        self._base_start = 0
         self._base0 = float(self._base[0])
+        if self._varying:  # the base model's own (constant) offset, without creep and interference
+            base_names = getattr(model, "base_names", ())
+            self._offset = model.base_model.step_structure(
+                self.dt, {k: self.params[k] for k in base_names}, self.input_range, BASE_BLOCK).base
         self._state = np.zeros(HEAD + self._n + self._f)
 
     def _base_at(self, k: int) -> float:
         if not self._varying:
             return self._base0
-        while k >= self._base.size:
-            self._base = np.array(self.model._structure(self.dt, self.params, self.input_range,
-                                                        2 * self._base.size).base, dtype=float)
-        return float(self._base[k])
+        i = k - self._base_start
+        if not 0 <= i < BASE_BLOCK:  # the next block, in fixed memory
+            self._base_start, i = k, 0
+            self._base = self.model.varying_base(self._offset, np.arange(k, k + BASE_BLOCK, dtype=np.int64),
+                                                 self.dt, self.params)
+        return float(self._base[i])
 
     def _start(self, u_before: float) -> None:
         self._state[:] = 0.0

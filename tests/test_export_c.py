@@ -12,7 +12,7 @@ import pytest
 
 from hysbench.benchmarks.cli import main
 from hysbench.data.dataset import load_dataset
-from hysbench.models import MRPIM, FittedModel, get_model, load_model
+from hysbench.models import MRPIM, FittedModel, ModelError, get_model, load_model
 from hysbench.models.export_c import ExportError, export_c
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -244,3 +244,111 @@ def test_fit_save_export_compile_run_reproduces_the_prediction(tmp_path, capsys)
     u = record.u[:50000]
     y_c, _ = run(exe, 0, u)
     assert close(y_c, load_model(model_file).simulate(u), 1e-9)
+
+
+FAR_DRIVER = """#include <stdio.h>
+#include "{p}.h"
+/* reads: mode (0 forward, 1 inverse), the sample count to start at, n, then n numbers (nan, inf
+   allowed); prints n results, then n_clipped and n_refused */
+int main(void)
+{{
+    {p}_state s;
+    int mode;
+    long n, i;
+    double x, k0;
+    if (scanf("%d %lf %ld", &mode, &k0, &n) != 3) return 1;
+    {p}_init(&s);
+    s.k = k0;
+    for (i = 0; i < n; i++) {{
+        if (scanf("%lf", &x) != 1) return 1;
+        printf("%.17g\\n", mode ? {p}_inverse_step(&s, x) : {p}_step(&s, x));
+    }}
+    printf("%ld %ld\\n", s.n_clipped, s.n_refused);
+    return 0;
+}}
+"""
+
+
+@pytest.fixture(scope="module")
+def creep_c(tmp_path_factory):
+    """mrpim+creep (a time-varying offset) exported with its exact inverse and the export's defaults,
+    compiled once for this module with a driver that can start at any sample count."""
+    if CC is None:
+        pytest.skip("no C compiler (cc, gcc or clang) on PATH")
+    folder = tmp_path_factory.mktemp("creep_c")
+    fit = fitted("mrpim+creep")
+    header, source = export_c(fit, "cr", max_rate=50.0, inverse="exact")
+    (folder / "cr.h").write_text(header)
+    (folder / "cr.c").write_text(source)
+    (folder / "driver.c").write_text(FAR_DRIVER.format(p="cr"))
+    exe = folder / "run"
+    done = subprocess.run([CC, *FLAGS, "-o", str(exe), str(folder / "cr.c"), str(folder / "driver.c"), "-lm"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return fit, exe
+
+
+def run_far(exe: Path, mode: int, values, k0: float = 0.0):
+    text = f"{mode} {k0!r} {len(values)}\n" + "\n".join(repr(float(v)) for v in values) + "\n"
+    out = subprocess.run([str(exe)], input=text, capture_output=True, text=True, check=True).stdout.split()
+    return np.array([float(v) for v in out[:-2]]), int(out[-2]), int(out[-1])
+
+
+def test_the_c_inverse_with_the_export_defaults_equals_the_fitted_inverse_stepper_with_its_defaults(creep_c):
+    """Neither side is given a reach tolerance: the C inverse and ``FittedModel.inverse_stepper`` take
+    the same default (the model file's data scale), so they agree sample by sample, also where the
+    exact inverse's recursion amplifies a difference in the last bits."""
+    fit, exe = creep_c
+    u = drive(3000)
+    y = fit.simulate(u)
+    python = fit.inverse_stepper(max_rate=50.0, inverse="exact")
+    u_py = python.run(y)
+    u_c, n_clipped, n_refused = run_far(exe, 1, y)
+    assert np.array_equal(u_c, u_py) and n_clipped == python.n_clipped and n_refused == 0
+
+
+def test_a_non_finite_sample_is_refused_by_the_c_as_by_python_and_the_state_does_not_advance(creep_c):
+    """NaN and infinite inputs (the first sample among them) are refused: the C step returns NaN, the C
+    inverse its last input (the start input before any), the state does not advance, ``n_refused``
+    counts them; every other sample equals the Python stepper's over the finite samples alone (Python
+    refuses the others with ModelError, its state unchanged)."""
+    fit, exe = creep_c
+    u = drive(600)
+    bad = {0: np.nan, 200: np.inf, 201: -np.inf, 450: np.nan}
+    finite = np.array([k not in bad for k in range(u.size)])
+    u_bad = u.copy()
+    u_bad[list(bad)] = list(bad.values())
+    y_c, _, n_refused = run_far(exe, 0, u_bad)
+    assert n_refused == len(bad) and np.all(np.isnan(y_c[~finite]))
+    assert np.array_equal(y_c[finite], fit.stepper().run(u_bad[finite]))
+    stepper = fit.stepper()
+    with pytest.raises(ModelError):
+        stepper.step(float("nan"))
+    assert stepper.state == fit.stepper().state
+
+    y = fit.simulate(u[finite])
+    y_bad = np.full(u.size, np.nan)
+    y_bad[finite] = y
+    y_bad[list(bad)] = list(bad.values())
+    u_c, n_clipped, n_refused = run_far(exe, 1, y_bad)
+    python = fit.inverse_stepper(max_rate=50.0, inverse="exact")
+    assert np.array_equal(u_c[finite], python.run(y)) and n_clipped == python.n_clipped
+    assert n_refused == len(bad)
+    held = [python.u_start if k == 0 else u_c[k - 1] for k in sorted(bad)]
+    assert np.array_equal(u_c[sorted(bad)], held)
+
+
+def test_the_c_counts_samples_past_32_bits_and_agrees_with_python_there(creep_c):
+    """Started 2^33 samples into a run (beyond a 32-bit long, about 100 days at 1 ms), the C model and
+    its inverse equal the Python steppers started at the same sample count."""
+    fit, exe = creep_c
+    k0 = 2**33
+    u = drive(1500)
+    stepper = fit.stepper()
+    stepper.set_state(dict(stepper.state, k=k0))
+    y_c, _, _ = run_far(exe, 0, u, float(k0))
+    assert close(y_c, stepper.run(u), 1e-12)
+    inverse = fit.inverse_stepper(max_rate=50.0, inverse="exact")
+    inverse.set_state(dict(inverse.state, k=k0))
+    u_c, n_clipped, _ = run_far(exe, 1, y_c, float(k0))
+    assert close(u_c, inverse.run(y_c), 1e-12) and n_clipped == inverse.n_clipped

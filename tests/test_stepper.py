@@ -119,6 +119,42 @@ def test_a_time_varying_offset_is_followed_past_its_first_block():
     assert_close(model.stepper(DT, params, input_range=RANGE).run(u), y, 1e-12)
 
 
+@pytest.mark.parametrize("name", ["mrpim+creep", "mrpim+interference"])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_a_time_varying_offset_far_into_a_run_costs_fixed_memory_and_is_the_closed_form(name, inverse):
+    """A stepper 2^40 samples into a run (about 35 years at 1 ms) holds the offset of one block only
+    and adds the creep and interference there: its output minus the same stepper's at sample 0 (the
+    same plays) is the closed-form offset difference, computed with math."""
+    import math
+
+    from hysbench.models import pi_stepper
+    model, params = model_and_params(name)
+    params.update(creep_time=0.7, creep_size=0.2, interference_frequency=3.0, interference_sin=0.1,
+                  interference_cos=-0.05)
+    params = {k: v for k, v in params.items() if k in model.param_names}
+    make = model.inverse_stepper if inverse else model.stepper
+    s = make(DT, params, input_range=RANGE)
+    values = list(model.simulate(np.full(3, 1.2), DT, params, input_range=RANGE)) if inverse else [1.2, 1.3, 1.1]
+    at_zero = [s.step(v) for v in values]
+    s.reset()
+    state = dict(s.state, k=2**40)
+    s.set_state(state)
+    far = [s.step(v) for v in values[:1]]
+    assert s._base.size <= pi_stepper.BASE_BLOCK
+    if not inverse:
+        def offset(k):
+            out = 0.0
+            if "creep_size" in params:
+                out += params["creep_size"] * -math.expm1(-(k * DT) / params["creep_time"])
+            if "interference_sin" in params:
+                phase = 2.0 * math.pi * params["interference_frequency"] * DT * k
+                out += params["interference_sin"] * math.sin(phase) + params["interference_cos"] * math.cos(phase)
+            return out
+        assert abs((far[0] - at_zero[0]) - (offset(2**40) - offset(0))) <= 1e-12 * (1 + abs(far[0]))
+    else:
+        assert math.isfinite(far[0]) and RANGE[0] <= far[0] <= RANGE[1]
+
+
 def test_the_oscillator_steps_with_a_held_input_too():
     model, params = model_and_params("bouc-wen-oscillator")
     model = model.clone(input_interpolation="hold")
