@@ -116,6 +116,10 @@ class FittedModel:
         peak-to-peak, ``hysbench_version``), as read or as the identification gave them.
     name : str
         The model's registry name (a property).
+    reference_scale : float
+        Output unit: the |y| a P-I-family inverse's reach tolerance is relative to, the recorded data
+        scale's y (1 where none is recorded); the default of ``inverse_stepper`` and of the exported C
+        inverse (a property).
     """
 
     model: HysteresisModel
@@ -208,6 +212,10 @@ class FittedModel:
     @classmethod
     def from_dict(cls, d, where: str = "model file") -> "FittedModel":
         if not isinstance(d, dict) or d.get("format") != FORMAT:
+            other = d.get("format") if isinstance(d, dict) else None
+            if isinstance(other, str):  # e.g. a fit's result (hysbench fit --json)
+                raise ModelFileError(f"{where}: a file of format {other[:80]!r}, not a hysbench model file "
+                                     f"({FORMAT!r}); a model file is written by hysbench fit ... --save MODEL.json")
             raise ModelFileError(f"{where}: not a hysbench model file (no \"format\": {FORMAT!r})")
         version = d.get("format_version")
         if type(version) is not int or version != FORMAT_VERSION:  # type(): true and 1.0 are not 1 here

@@ -142,6 +142,11 @@ def test_fit_save_writes_a_model_file_that_reproduces_the_fit(tmp_path, capsys):
     assert d["sample_time"] > 0 and d["input_unit"] == "kV" and d["output_unit"] == "mm"
     validation = [r["e_rms"] for r in fit["records"] if r["role"] == "validation"]
     assert d["scores"]["validation_e_rms"] == max(validation)
+    # the fit's result is not a model file: the refusal names what it is and how a model file is written
+    code = main(["export", str(fit_json), "--out", str(tmp_path / "c"), "--prefix", "pi"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "c").exists()
+    assert f"format {fit['format']!r}" in err and "--save" in err
 
 
 @pytest.mark.parametrize("version", [FORMAT_VERSION + 1, 0])
