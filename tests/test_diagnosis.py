@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
+import matplotlib.figure
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -31,6 +32,7 @@ from hypothesis import strategies as st
 from scipy import signal, stats
 
 from hysbench.benchmarks.cli import main as hysbench_main
+from hysbench.benchmarks.plots import unreadable
 from hysbench.benchmarks.diagnosis import diagnose
 from hysbench.benchmarks.diagnosis.diagnose import build_screen
 from hysbench.benchmarks.diagnosis_accuracy.accuracy import judge, parameter_errors
@@ -1538,7 +1540,14 @@ def _json_fields_documented() -> set[str]:
     return set(re.findall(r"`([a-z_0-9]+)`", section))
 
 
-def test_cli_writes_report_and_json(tmp_path, capsys):
+def test_cli_writes_report_and_json(tmp_path, capsys, monkeypatch):
+    drawn, savefig = [], matplotlib.figure.Figure.savefig
+
+    def save_and_keep(fig, *args, **kwargs):
+        drawn.append(fig)
+        return savefig(fig, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", save_and_keep)
     ds, truth = _draw_above(("interference",), LIMITS["interference"], start=5)
     save_dataset(ds, tmp_path / "ds")
     out = tmp_path / "out"
@@ -1571,6 +1580,7 @@ def test_cli_writes_report_and_json(tmp_path, capsys):
                 "whiteness", "candidates"):
         assert (out / f"diagnosis_{png}.png").stat().st_size > 1000
         assert f"diagnosis_{png}.png" in md
+    assert len(drawn) == 7 and [unreadable(fig) for fig in drawn] == [[]] * 7  # each figure reads on its own
 
 
 @pytest.mark.parametrize("args,needle", [
@@ -1886,7 +1896,8 @@ def test_no_error_against_frequency_figure_is_drawn_for_records_without_a_drive_
     from hysbench.benchmarks.diagnosis import figures
 
     record = SimpleNamespace(frequency_hz=None, role="identification")
-    diag = SimpleNamespace(before=[SimpleNamespace(record=record)], base_whole=[], after=[])
+    diag = SimpleNamespace(before=[SimpleNamespace(record=record)], base_whole=[], after=[], model="mrpim",
+                           extended_model="mrpim+creep")
     path = tmp_path / "error.png"
     figures.figure_error_vs_frequency(diag, path)
     assert not path.exists()

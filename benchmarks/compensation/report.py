@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import legend_outside, pyplot, save_figure, series_style
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
 SINES_PREFIX = "sine-"
@@ -88,23 +88,33 @@ def summary(result: dict) -> str:
     return " ".join(out)
 
 
+PLOT_SECONDS = 20.0  # a longer reference is shown by its last 20 s: 1,000 pixels do not resolve more
+
+
 def figure(runs: dict, reference: str, controllers: list[str], path: Path, plt) -> Path:
     by = runs[reference]
     ref = next(iter(by.values())).reference
     s = ref.scored
-    t = np.arange(ref.y.size)[s] * 1e-3
+    dt = 1e-3  # the plant's sample time
+    s = slice(max(s.start, s.stop - int(round(PLOT_SECONDS / dt))), s.stop)
+    t = np.arange(ref.y.size)[s] * dt
     fig, axes = plt.subplots(3, 1, figsize=(10, 8.5), sharex=True)
     axes[0].plot(t, ref.y[s], "k", lw=2.0, label="reference")
-    for c in controllers:
-        axes[0].plot(t, by[c].y[s], lw=0.9, label=c)
-        axes[1].plot(t, by[c].y[s] - ref.y[s], lw=0.9, label=c)
-        axes[2].plot(t, by[c].u[s], lw=0.9, label=c)
+    for i, c in enumerate(controllers):
+        # the line styles keep in sight a controller that tracks as well as another drawn over it
+        style = series_style(i, marker=False)
+        axes[0].plot(t, by[c].y[s], lw=0.9, label=c, **style)
+        axes[1].plot(t, by[c].y[s] - ref.y[s], lw=0.9, label=c, **style)
+        axes[2].plot(t, by[c].u[s], lw=0.9, label=c, **style)
     axes[0].set_ylabel("output (mm)")
     axes[1].set_ylabel("tracking error (mm)")
     axes[2].set_ylabel("input to the plant (kV)")
-    axes[2].set_xlabel("time (s), scored samples")
-    axes[0].set_title(f"{reference}: reference and achieved output (sensor reading)")
-    axes[0].legend(fontsize=8, ncol=3)
+    shown = "scored samples" if s.start == ref.scored.start else f"last {PLOT_SECONDS:g} s of the scored samples"
+    axes[2].set_xlabel(f"time (s), {shown}")
+    axes[0].set_title(f"{reference}: reference and achieved output (sensor reading)\n"
+                      "a model's name: its inverse, open loop; pi: PI feedback; pi+name: PI with the inverse as "
+                      "feedforward; linear: the linear gain's inverse", fontsize=9)
+    legend_outside(axes[0], fontsize=8)
     for ax in axes:
         ax.grid(alpha=0.3)
     return save_figure(fig, path)

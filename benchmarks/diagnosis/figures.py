@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import (axis_label, figure_legend, legend_outside, plain_log_labels, pyplot, save_figure,
+                                      series_style, ticks_at)
 
 from .residuals import LAGS, autocorrelation, coherent_spectrum, periodogram, phase_of
 
@@ -54,27 +55,29 @@ def figure_residual_time(diag, path: Path) -> None:
         ax.axhline(0, color="k", lw=0.4)
         ax.set_ylabel(_label(r), fontsize=8)
         ax.tick_params(labelsize=7)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
-    axes[0, 0].set_title(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
-                         "records; shaded: scored window", fontsize=9)
-    axes[-1, 0].set_xlabel("time (s)")
+    figure_legend(fig, axes[0, 0])
+    fig.suptitle(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
+                 "records; shaded: scored window", fontsize=9)
+    fig.supxlabel("time (s)")  # every panel's: the records differ in length
     save_figure(fig, path)
 
 
-def _per_record(recs: list, path: Path, draw, xlabel: str) -> None:
+def _per_record(diag, recs: list, path: Path, draw, xlabel: str, title: str) -> None:
     """One small panel per record, four to a row, each drawn by ``draw(ax, record_residual)``."""
     cols = min(4, len(recs))
     rows = int(math.ceil(len(recs) / cols))
-    fig, axes = pyplot().subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows), squeeze=False, layout="constrained")
+    fig, axes = pyplot().subplots(rows, cols, figsize=(3.0 * cols, 2.4 * rows + 0.6), squeeze=False,
+                                  layout="constrained")
     for ax, rr in zip(axes.flat, recs):
         draw(ax, rr)
         ax.set_title(_label(rr.record), fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(recs):]:
         ax.axis("off")
-    axes[0, 0].legend(fontsize=6)
+    figure_legend(fig, axes[0, 0])
+    fig.suptitle(f"{title}: residual of the base model {diag.model} (measured - model)", fontsize=9)
     fig.supxlabel(xlabel, fontsize=8)
-    fig.supylabel("residual (base model)", fontsize=8)
+    fig.supylabel(axis_label("residual", diag.dataset.output_unit), fontsize=8)
     save_figure(fig, path)
 
 
@@ -85,7 +88,8 @@ def figure_residual_input(diag, path: Path) -> None:
         ax.plot(r.u[::k], rr.residual[::k], ".", ms=1, color="0.6", label="whole record")
         w = slice(r.start, r.stop, _stride(r.stop - r.start))  # the scored window, thinned
         ax.plot(r.u[w], rr.residual[w], lw=0.7, color="C0", label="window")
-    _per_record(diag.before, path, draw, f"input ({diag.dataset.input_unit or 'input units'})")
+    _per_record(diag, diag.before, path, draw, axis_label("input", diag.dataset.input_unit or "input units"),
+                "against the input")
 
 
 def figure_residual_phase(diag, path: Path) -> None:
@@ -99,7 +103,8 @@ def figure_residual_phase(diag, path: Path) -> None:
         ax.plot(ph[w][order], rr.residual[w][order], lw=0.8, color="C0", label="scored period")
     recs = [rr for rr in diag.before if rr.record.frequency_hz]
     if recs:
-        _per_record(recs, path, draw, "phase within the drive period (0: input minimum)")
+        _per_record(diag, recs, path, draw, "phase within the drive period (periods; 0: input minimum)",
+                    "against the phase within the drive period")
 
 
 def figure_spectrum(diag, path: Path) -> None:
@@ -110,10 +115,12 @@ def figure_spectrum(diag, path: Path) -> None:
         f, a = f[f > 0], a[f > 0]
         keep = extremes_kept(np.log(f), a, low=False)
         ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
-    ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8)
-    ax.set(xlabel="frequency (Hz)", ylabel="residual amplitude")
-    ax.set_title("residual spectrum per record (base model)", fontsize=9)
-    ax.legend(fontsize=6)
+    ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8,
+               label="white noise of the\nestimated sd")
+    unit = diag.dataset.output_unit
+    ax.set(xlabel="frequency (Hz)", ylabel=axis_label("residual amplitude", unit))
+    ax.set_title(f"residual spectrum per record (base model {diag.model})", fontsize=9)
+    legend_outside(ax, fontsize=6)
     ax = axes[1]
     ids = [rr for rr in diag.before if rr.record.role == "identification"]
     duration = max(rr.record.t.size * rr.record.dt for rr in ids)
@@ -125,7 +132,7 @@ def figure_spectrum(diag, path: Path) -> None:
     if marker is not None:
         ax.axvline(marker, color="C3", lw=0.8, ls="--", label=f"named {diag.cause}")
         ax.legend(fontsize=7)
-    ax.set(xlabel="frequency (Hz)", ylabel="pooled coherent amplitude")
+    ax.set(xlabel="frequency (Hz)", ylabel=axis_label("pooled coherent amplitude", unit))
     ax.set_title("identification records pooled in their own time\n(a disturbance with a common phase adds up)",
                  fontsize=9)
     save_figure(fig, path)
@@ -135,20 +142,24 @@ def figure_error_vs_frequency(diag, path: Path) -> None:
     if not any(rr.record.frequency_hz for rr in diag.before):  # no nominal drive frequency: nothing to plot
         return
     fig, axes = pyplot().subplots(1, 2, figsize=(10, 3.8), layout="constrained")
-    series = (("before", diag.before, "0.3", "o"), ("base refit, whole records", diag.base_whole, "C0", "s"),
-              ("after", diag.after, "C3", "^"))  # one without records draws nothing
+    series = ((f"{diag.model} (before)", diag.before, "0.3", "o"),
+              (f"{diag.model} refit on whole records", diag.base_whole, "C0", "s"),
+              (f"{diag.extended_model} (after)", diag.after, "C3", "^"))  # one without records draws nothing
     for ax, key, title in ((axes[0], "e_rms", "scored window"), (axes[1], "e_rms_whole", "whole record")):
         for name, recs, color, marker in series:
             pts = sorted((rr.record.frequency_hz, rr.scores()[key], rr.record.role) for rr in recs
                          if rr.record.frequency_hz)
             if not pts:
                 continue
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=0.8, label=name)
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=0.8, marker=marker, ms=5,
+                    label=name)
             for fr, v, role in pts:
                 ax.plot(fr, v, marker, color=color, mfc=color if role == "identification" else "white", ms=5)
         ax.set(xscale="log", yscale="log", xlabel="drive frequency (Hz)", ylabel="e_rms (% of measured peak-to-peak)")
+        ticks_at(ax, [rr.record.frequency_hz for rr in diag.before if rr.record.frequency_hz])
+        plain_log_labels(ax)
         ax.set_title(f"error against frequency, {title}\n(filled: identification, open: validation)", fontsize=9)
-    axes[0].legend(fontsize=7)
+    figure_legend(fig, axes[0])
     save_figure(fig, path)
 
 
@@ -156,14 +167,17 @@ def figure_whiteness(diag, path: Path) -> None:
     fig, ax = pyplot().subplots(figsize=(7, 3.8), layout="constrained")
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
-        ax.plot(lags, autocorrelation(rr.residual, LAGS), "o-", ms=2, lw=0.7, color=f"C{i % 10}",
+        ax.plot(lags, autocorrelation(rr.residual, LAGS), ms=3, lw=0.7, **series_style(i),
                 label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
     n = min(rr.record.t.size for rr in diag.before)
     ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")
     ax.axhline(0, color="k", lw=0.4)
     ax.set(xlabel="lag (samples)", ylabel="autocorrelation of the residual")
-    ax.set_title("whiteness of the base model's residual (whole records)", fontsize=9)
-    ax.legend(fontsize=6)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # lags are whole samples
+    ax.set_title(f"whiteness of the base model's residual ({diag.model}, whole records)", fontsize=9)
+    legend_outside(ax, fontsize=6)
     save_figure(fig, path)
 
 
@@ -178,9 +192,12 @@ def figure_candidates(diag, path: Path) -> None:
     axes[0].invert_yaxis()
     axes[1].barh(names, [max(min(c.heldout.get("z", 0.0), 40.0), -10.0) for c in cands], color=colors)
     axes[1].axvline(diag.policy.z_pass, color="k", ls=":", lw=0.8)
-    axes[1].set_xlabel("z (signed-rank test over blocks)")
+    axes[1].set_xlabel("z (signed-rank test over blocks; clipped to -10..40)")
     axes[1].invert_yaxis()
-    fig.suptitle("candidate causes (red: named)", fontsize=9)
+    for ax in axes:
+        ax.set_ylabel("candidate cause")
+    fig.suptitle(f"candidate causes (red: named); dotted: the decision rule's least held-out gain "
+                 f"({100 * diag.policy.min_explained:g} %) and least block-test z ({diag.policy.z_pass:g})", fontsize=9)
     save_figure(fig, path)
 
 

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import (axis_label, figure_legend, legend_outside, plain_log_labels, pyplot, save_figure,
+                                      series_style, ticks_at)
 from hysbench.data.files import write_atomic
 from hysbench.data.dataset import Dataset
 from hysbench.identification import Fit
@@ -181,26 +182,53 @@ def _slug(s: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in s)
 
 
+EXCERPT_SAMPLES = 500  # of a record without a drive period: the end of its scored window, drawn against time
+
+
+def _role(role: str) -> str:
+    return "id" if role == "identification" else "val"
+
+
+def _periodic(records) -> bool:
+    """Every record has its own drive frequency: records are placed and told apart by it."""
+    freqs = [r.frequency_hz for r in records]
+    return all(freqs) and len(set(freqs)) == len(freqs)
+
+
+def _record_tick(rec: dict) -> str:
+    name = f"{rec['frequency_hz']:g} Hz" if rec["frequency_hz"] else Path(rec["file"]).stem
+    return f"{name} ({_role(rec['role'])})"
+
+
+def _record_order(rec: dict):
+    return rec["frequency_hz"] or 0, rec["file"]
+
+
 def loops_figure(ds: Dataset, best, out: Path, n_models: int = 3) -> str:
     plt = pyplot()
     recs = ds.records
+    loops = all(r.frequency_hz for r in recs)  # input-output loops; other drives overlay into a blot
     ncol = min(4, len(recs))
     nrow = int(math.ceil(len(recs) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.4 * ncol, 2.9 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.4 * ncol, 2.9 * nrow + 0.9), squeeze=False, layout="constrained")
     for ax in axes.flat[len(recs):]:
         ax.set_visible(False)
+    fits = [(res, Fit.from_dict(res["fit"])) for res, _ in best[:n_models]]  # the models rebuilt from the stored Fits
     for ax, rec in zip(axes.flat, recs):
-        s = rec.scored
-        ax.plot(rec.u[s], rec.y[s], color="black", lw=1.4, label="measured")
-        for res, _ in best[:n_models]:
-            y = Fit.from_dict(res["fit"]).predict(rec)  # the model rebuilt from the stored Fit
-            ax.plot(rec.u[s], y[s], lw=0.9, label=f"{res['model']} ({res['method']})")
-        ax.set_title(f"{rec.label} ({rec.role[:3]}.)", fontsize=9)
+        s = rec.scored if loops else slice(max(rec.start, rec.stop - EXCERPT_SAMPLES), rec.stop)
+        x = rec.u[s] if loops else rec.t[s]
+        ax.plot(x, rec.y[s], color="black", lw=1.4, label="measured")
+        for i, (res, fit) in enumerate(fits):
+            ax.plot(x, fit.predict(rec)[s], lw=0.9, label=f"{res['model']} ({res['method']})",
+                    **series_style(i, marker=False))
+        ax.set_title(f"{rec.label} ({rec.role})", fontsize=9)
         ax.tick_params(labelsize=7)
-    axes.flat[0].legend(fontsize=6)
-    fig.supxlabel(f"input ({ds.input_unit})" if ds.input_unit else "input", fontsize=9)
-    fig.supylabel(f"output ({ds.output_unit})" if ds.output_unit else "output", fontsize=9)
-    fig.tight_layout()
+    figure_legend(fig, axes.flat[0])
+    what = ("against the input, scored windows" if loops
+            else f"against time, last {EXCERPT_SAMPLES} samples of each scored window")
+    fig.suptitle(f"{ds.name}: measured and predicted output {what}; best {len(fits)} models", fontsize=10)
+    fig.supxlabel(axis_label("input", ds.input_unit) if loops else "time (s)", fontsize=9)
+    fig.supylabel(axis_label("output", ds.output_unit), fontsize=9)
     name = f"loops_{_slug(ds.name)}.png"
     save_figure(fig, out / name)
     return name
@@ -209,21 +237,33 @@ def loops_figure(ds: Dataset, best, out: Path, n_models: int = 3) -> str:
 def error_figure(ds: Dataset, best, out: Path) -> str:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    periodic = all(r.frequency_hz for r in ds.records)
-    for res, _ in best:
-        recs = sorted(res["records"], key=lambda r: (r["frequency_hz"] or 0, r["file"]))
-        x = [r["frequency_hz"] if periodic else i for i, r in enumerate(recs)]
-        ax.plot(x, [r["e_rms"] for r in recs], marker="o", ms=3, lw=1, label=f"{res['model']} ({res['method']})")
+    periodic = _periodic(ds.records)
+    for i, (res, _) in enumerate(best):
+        recs = sorted(res["records"], key=_record_order)
+        x = [r["frequency_hz"] if periodic else j for j, r in enumerate(recs)]
+        style = series_style(i)
+        ax.plot(x, [r["e_rms"] for r in recs], ms=4, lw=1, label=f"{res['model']} ({res['method']})", **style)
+        val = [(xi, r["e_rms"]) for xi, r in zip(x, recs) if r["role"] == "validation"]
+        if val:  # open markers over the filled ones
+            ax.plot(*zip(*val), ls="none", marker=style["marker"], color=style["color"], mfc="white", ms=4)
     if periodic:
         ax.set_xscale("log")
         ax.set_xlabel("drive frequency (Hz)")
+        ticks_at(ax, [r.frequency_hz for r in ds.records])
         for r in ds.validation:
             ax.axvline(r.frequency_hz, color="0.85", lw=3, zorder=0)
-    else:
+    elif best:
+        recs = sorted(best[0][0]["records"], key=_record_order)
+        ax.set_xticks(range(len(recs)), [_record_tick(r) for r in recs],
+                      fontsize=7, rotation=20 if len(recs) > 3 else 0)
         ax.set_xlabel("record")
-    ax.set_ylabel("e_rms (% of peak-to-peak)")
-    ax.set_title(f"{ds.name}: e_rms per record, best cell of each model (grey: validation)", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.set_yscale("log")  # e_rms spans decades between the best and the worst model; every e_rms figure alike
+    plain_log_labels(ax)
+    ax.set_ylabel("e_rms (% of measured peak-to-peak)")
+    per = "drive frequency" if periodic else "record"
+    mark = "open markers and grey lines" if periodic and ds.validation else "open markers"
+    ax.set_title(f"{ds.name}: e_rms per {per}, best cell of each model\n({mark}: validation)", fontsize=9)
+    legend_outside(ax)
     name = f"erms_{_slug(ds.name)}.png"
     save_figure(fig, out / name)
     return name

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import pyplot, save_figure, series_style
 from hysbench.data.files import jsonable, write_atomic, write_json
 
 FACTOR_LABELS = {"order": "polynomial order", "q_term": "q V'' term", "envelopes": "envelopes",
@@ -185,16 +185,15 @@ def plot(result: dict, path) -> Path:
                 ax.minorticks_off()
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("e_rms (%)")
+    axes[0].set_ylabel("e_rms (% of measured peak-to-peak)")
     axes[0].legend(fontsize=8)
     ax = axes[4]
     grid = [r for r in rows if "grid" in r["families"]]
-    for q in (False, True):
-        for e in (False, True):
-            sel = sorted([r for r in grid if r["q_term"] == q and r["envelopes"] == e], key=lambda r: r["order"])
-            if sel:
-                ax.plot([r["order"] for r in sel], [r["cv_e_rms"] for r in sel], "o-", ms=3,
-                        label=f"q {_onoff(q)}, env {_onoff(e)}")
+    for i, (q, e) in enumerate((q, e) for q in (False, True) for e in (False, True)):
+        sel = sorted([r for r in grid if r["q_term"] == q and r["envelopes"] == e], key=lambda r: r["order"])
+        if sel:
+            ax.plot([r["order"] for r in sel], [r["cv_e_rms"] for r in sel], ms=4,
+                    label=f"q {_onoff(q)}, env {_onoff(e)}", **series_style(i))
     ax.set_xlabel(f"order (grid, N = {ref['n_operators']}), CV e_rms")
     ax.grid(alpha=0.3)
     if grid:

@@ -21,7 +21,7 @@ import numpy as np
 
 from hysbench.benchmarks.matrix.report import best_per_model, kind_of, ranking
 from hysbench.benchmarks.matrix.store import read_cell
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import legend_outside, plain_log_labels, pyplot, save_figure, series_style, ticks_at
 from hysbench.data.files import write_atomic
 from hysbench.data.metrics import e_rms
 from hysbench.data.virtual_dea import SAMPLE_TIME_S, displacement_mm
@@ -98,14 +98,16 @@ def write(results_dir: Path) -> Path:
     write_atomic(results_dir / "amplitude_extrapolation.md", "\n".join(lines))
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for r in rows:
-        ax.plot(AMPLITUDES_KV, [r["e_rms"][a] for a in AMPLITUDES_KV], marker="o", ms=3,
-                ls="--" if r["kind"] == "black-box" else "-", label=f"{r['model']} ({r['kind']})")
+    for i, r in enumerate(rows):
+        ax.plot(AMPLITUDES_KV, [r["e_rms"][a] for a in AMPLITUDES_KV], ms=4, lw=1,
+                label=f"{r['model']} ({r['kind']})", **series_style(i))
     ax.axvline(1.0, color="0.85", lw=3, zorder=0)
     ax.set_yscale("log")
-    ax.set_xlabel("drive amplitude (kV) around 1.5 kV; grey: identified")
-    ax.set_ylabel("e_rms (% of peak-to-peak)")
-    ax.set_title("virtual DEA, 0.2 Hz: best seven-sine cell of each model", fontsize=9)
-    ax.legend(fontsize=6)
+    plain_log_labels(ax)
+    ticks_at(ax, AMPLITUDES_KV)
+    ax.set_xlabel(f"drive amplitude (kV) around {OFFSET_KV:g} kV; grey: identified")
+    ax.set_ylabel("e_rms (% of reference peak-to-peak)")
+    ax.set_title(f"virtual DEA, {FREQUENCY_HZ:g} Hz: best seven-sine cell of each model", fontsize=9)
+    legend_outside(ax)
     save_figure(fig, results_dir / "erms_amplitude.png")
     return results_dir / "amplitude_extrapolation.md"

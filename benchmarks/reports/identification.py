@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import figure_legend, pyplot, save_figure
 from hysbench.data.files import ensure_dir, shown_path, write_atomic, write_json
 from hysbench.data.protocol import simulated_dataset
 from hysbench.data.dataset import Dataset, load_dataset
@@ -234,20 +234,24 @@ def collinear_operators(results) -> list[str]:
 
 def convergence_figure(results, path: Path) -> None:
     plt = pyplot()
-    fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 4), squeeze=False)
+    fig, axes = plt.subplots(1, len(results), figsize=(5 * len(results), 4.4), squeeze=False, layout="constrained")
     for ax, (label, fits) in zip(axes[0], results):
         for f in fits:
             if f.history:
                 n, best = zip(*f.history)
                 chained = "+" in f.method  # drawn dashed over the stage it continues
-                ax.step(np.maximum(n, 1), best, where="post", label=f.method, lw=1.2 if chained else 2.4,
-                        ls="--" if chained else "-")
+                (line,) = ax.step(np.maximum(n, 1), best, where="post", label=f.method, lw=1.2 if chained else 2.4,
+                                  ls="--" if chained else "-")
+                # the end marked: a history of one evaluation draws no step
+                ax.plot(max(n[-1], 1), best[-1], "o", ms=3 if chained else 6, color=line.get_color())
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("model evaluations")
         ax.set_ylabel("best fitness (eq. 9)")
         ax.set_title(label, fontsize=9)
-        ax.legend(fontsize=8)
+    figure_legend(fig, max(axes[0], key=lambda ax: len(ax.get_legend_handles_labels()[1])))
+    fig.suptitle("Best fitness so far against model evaluations, per identifier "
+                 "(dashed: lsq continuing the stage named before it; dots: the end)", fontsize=10)
     save_figure(fig, path)
 
 

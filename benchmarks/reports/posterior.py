@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hysbench.benchmarks.plots import pyplot, save_figure
+from hysbench.benchmarks.plots import axis_label, pyplot, save_figure
 
 from hysbench.identification.posterior import PosteriorRun, build_segments
 
@@ -117,6 +117,7 @@ def trace_figure(run: PosteriorRun, path: Path) -> None:
     axes[d].set_ylim(-5 * post.ndim, 1)
     axes[d].axvline(run.conv.burn, color="k", ls="--", lw=0.8)
     axes[d].set_xlabel("step (dashed: end of burn-in)")
+    axes[0].set_title(f"sampler traces: each walker's position per step ({run.chain.shape[1]} walkers)", fontsize=9)
     save_figure(fig, path)
 
 
@@ -128,14 +129,16 @@ def correlation_figure(run: PosteriorRun, path: Path) -> None:
     ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
     ax.set_yticks(range(len(names)), names, fontsize=7)
     fig.colorbar(im, ax=ax, shrink=0.7, label="posterior correlation")
+    ax.set_xlabel("parameter")
+    ax.set_ylabel("parameter")
+    ax.set_title("posterior correlation of every pair of parameters", fontsize=10)
     save_figure(fig, path)
 
 
 def predictive_figure(pred: list[dict], path: Path, unit: str = "", level: float = 0.9) -> None:
     plt = pyplot()
     n = len(pred)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 2.9 * n), squeeze=False)
-    fig.subplots_adjust(hspace=0.45, wspace=0.2)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 2.9 * n + 0.6), squeeze=False, layout="constrained")
     for row, p in zip(axes, pred):
         t, y, med = p["_t"], p["_y"], p["_median"]
         (olo, ohi), (mlo, mhi) = p["_obs"], p["_model"]
@@ -143,16 +146,19 @@ def predictive_figure(pred: list[dict], path: Path, unit: str = "", level: float
         row[0].fill_between(t, olo, ohi, color="C0", alpha=0.3, lw=0, label=f"{level:.0%} predictive band")
         row[0].plot(t, med, color="C0", lw=0.8, label="median prediction")
         row[0].plot(t, y, color="k", lw=0.5, label="measured")
-        row[0].set_title(f"{f}: {p['fraction_inside_observation_band']:.1%} of samples inside", fontsize=9)
-        row[0].set_ylabel(f"y {unit}".strip(), fontsize=8)
-        row[1].fill_between(t, olo - med, ohi - med, color="C0", alpha=0.3, lw=0, label="predictive (with noise)")
-        row[1].fill_between(t, mlo - med, mhi - med, color="C3", alpha=0.5, lw=0, label="model only")
+        row[0].set_title(f"{f}: {p['fraction_inside_observation_band']:.1%} of samples inside the band", fontsize=9)
+        row[0].set_ylabel(axis_label("output", unit), fontsize=8)
+        row[1].fill_between(t, olo - med, ohi - med, color="C0", alpha=0.3, lw=0,
+                            label="predictive band about the median (with noise)")
+        row[1].fill_between(t, mlo - med, mhi - med, color="C3", alpha=0.5, lw=0,
+                            label="model's band only (without noise)")
         row[1].plot(t, y - med, color="k", lw=0.5, label="measured - median")
         row[1].set_title(f"{f}: residual about the median prediction", fontsize=9)
-    axes[0, 0].legend(fontsize=7, loc="upper right")
-    axes[0, 1].legend(fontsize=7, loc="upper right")
-    axes[-1, 0].set_xlabel("time in the scored window (s)")
-    axes[-1, 1].set_xlabel("time in the scored window (s)")
+        row[1].set_ylabel(axis_label("output - median", unit), fontsize=8)
+        for ax in row:  # the records differ in length: no shared time axis
+            ax.set_xlabel("time in the scored window (s)", fontsize=8)
+    (h0, l0), (h1, l1) = (ax.get_legend_handles_labels() for ax in axes[0])
+    fig.legend(h0 + h1, l0 + l1, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
     save_figure(fig, path)
 
 
