@@ -26,6 +26,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
 
     plt = pyplot()
     buf = io.BytesIO()
+    _title_beside_legends(fig)
     laid_out = isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches=None if laid_out else "tight")
     plt.close(fig)
@@ -115,10 +116,49 @@ def _has_data(ax) -> bool:
     return ax.get_visible() and ax.axison and bool(ax.lines or ax.collections or ax.patches or ax.images)
 
 
+def _drawn(fig):
+    """A renderer of the figure as laid out when drawn."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas if hasattr(fig.canvas, "get_renderer") else FigureCanvasAgg(fig)  # a Figure() has none
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def _title_beside_legends(fig) -> None:
+    """Wrap the figure's title to the width a legend beside the panels leaves it (the title is centred on the
+    figure, the legend reaches its top): a title of any length, on a figure of any number of panels."""
+    import textwrap
+
+    title = fig._suptitle
+    if title is None or not title.get_text() or not fig.legends:
+        return
+    renderer = _drawn(fig)
+    right = max(fig.bbox.x1 - g.get_window_extent(renderer).x0 for g in fig.legends)
+    room = fig.bbox.width - 2 * right - 10
+    box = title.get_window_extent(renderer)
+    if box.width <= room:
+        return
+    lines = title.get_text().split("\n")
+    per_char = box.width / max(len(line) for line in lines)
+    width = max(20, int(room / per_char))
+    title.set_text("\n".join(w for line in lines for w in textwrap.wrap(line, width)))
+
+
+def _titles_under_legends(fig) -> list[str]:
+    """The figure's and the axes' titles that a legend covers, where the figure is laid out when drawn."""
+    renderer = _drawn(fig)
+    legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    titles = [t for t in [fig._suptitle] + [ax.title for ax in fig.axes] if t is not None and t.get_text()]
+    return [f"the title {t.get_text()!r} runs under a legend" for t in titles
+            if any(t.get_window_extent(renderer).overlaps(g.get_window_extent(renderer)) for g in legends)]
+
+
 def unreadable(fig) -> list[str]:
     """What a reader could not tell from the figure alone: drawn axes without an x or y label (their own, one
-    of the axes they share it with, or the figure's ``supxlabel``/``supylabel``), and no title at all."""
-    problems = []
+    of the axes they share it with, or the figure's ``supxlabel``/``supylabel``), no title at all, and a
+    title a legend covers."""
+    problems = _titles_under_legends(fig)
     drawn = [ax for ax in fig.axes if _has_data(ax)]
     if not (fig._suptitle is not None and fig._suptitle.get_text()) and not any(ax.get_title() for ax in fig.axes):
         problems.append("the figure has no title")

@@ -14,7 +14,7 @@ import pytest
 
 from hysbench.benchmarks.compensation import report as compensation_report
 from hysbench.benchmarks.matrix.report import error_figure, loops_figure
-from hysbench.benchmarks.plots import axis_label, pyplot, series_style, unreadable
+from hysbench.benchmarks.plots import axis_label, figure_legend, pyplot, series_style, unreadable
 from hysbench.benchmarks.reports.identification import convergence_figure
 from hysbench.benchmarks.reports.posterior import predictive_figure
 from hysbench.data.dataset import load_dataset
@@ -90,6 +90,21 @@ def test_unreadable_names_what_is_missing():
     fig.suptitle("t")
     fig.supylabel("y (mm)")
     axes[1].set_xlabel("x (s)")
+    assert unreadable(fig) == []
+    pyplot().close(fig)
+
+
+def test_unreadable_names_a_title_a_legend_covers():
+    fig, axes = pyplot().subplots(1, 3, figsize=(9, 3), layout="constrained")
+    for i, ax in enumerate(axes):
+        ax.plot([0, 1], [0, i], label=f"a model with a long name {i}")
+    fig.supxlabel("x (s)")
+    fig.supylabel("y (mm)")
+    figure_legend(fig, axes[0])
+    fig.suptitle("a title long enough to run from the left edge of the panels under the legend beside them, "
+                 "as one line")
+    assert any("runs under a legend" in p for p in unreadable(fig))
+    fig.suptitle("a short title")
     assert unreadable(fig) == []
     pyplot().close(fig)
 
