@@ -4,6 +4,7 @@ agrees with Python's simulate and inverse stepper to 1e-9 relative."""
 import hashlib
 import json
 import shutil
+import os
 import subprocess
 from pathlib import Path
 
@@ -352,3 +353,40 @@ def test_the_c_counts_samples_past_32_bits_and_agrees_with_python_there(creep_c)
     inverse.set_state(dict(inverse.state, k=k0))
     u_c, n_clipped, _ = run_far(exe, 1, y_c, float(k0))
     assert close(u_c, inverse.run(y_c), 1e-12) and n_clipped == inverse.n_clipped
+
+
+SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g"]
+
+
+def _sanitizers_available(tmp_path: Path) -> bool:
+    probe = tmp_path / "probe.c"
+    probe.write_text("int main(void) { return 0; }\n")
+    done = subprocess.run([CC, *SANITIZE, "-o", str(tmp_path / "probe"), str(probe)], capture_output=True)
+    return done.returncode == 0 and subprocess.run([str(tmp_path / "probe")], capture_output=True,
+                                                   env={**os.environ, "ASAN_OPTIONS": "detect_leaks=0"}).returncode == 0
+
+
+@needs_cc
+@pytest.mark.parametrize("name", ["classical-pi", "mrpim", "rate-dependent-pi", "mrpim+relaxation", "mrpim+creep",
+                                  "mrpim+interference"])
+def test_generated_c_runs_clean_under_address_and_undefined_behaviour_sanitizers(tmp_path, name):
+    """The exported code, forward and inverse, on a drive with a non-finite sample and inputs and targets
+    beyond the limits: no out-of-bounds access, no undefined behaviour (the sanitizers stop the program
+    with a report), and the same numbers as the optimised build."""
+    if not _sanitizers_available(tmp_path):
+        pytest.skip("the C compiler cannot build and run with -fsanitize=address,undefined here")
+    fit = fitted(name)
+    optimised = build(tmp_path, fit, max_rate=50.0, inverse="exact", guide_time=0.02)
+    checked = tmp_path / "checked"
+    done = subprocess.run([CC, *FLAGS, *SANITIZE, "-o", str(checked), str(tmp_path / "hm.c"),
+                           str(tmp_path / "driver.c"), "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    u = np.concatenate([drive(600), [np.nan, 4.0, -3.0], drive(300)])
+    y = np.concatenate([fit.simulate(drive(600)), [np.inf, 40.0, -40.0], fit.simulate(drive(300))])
+    env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=0:abort_on_error=0", "UBSAN_OPTIONS": "print_stacktrace=1"}
+    for mode, values in ((0, u), (1, y)):
+        text = f"{mode} {len(values)}\n" + "\n".join(repr(float(v)) for v in values) + "\n"
+        result = subprocess.run([str(checked)], input=text, capture_output=True, text=True, env=env)
+        assert result.returncode == 0 and "runtime error" not in result.stderr, result.stderr[-2000:]
+        assert result.stdout == subprocess.run([str(optimised)], input=text, capture_output=True, text=True,
+                                               check=True).stdout
