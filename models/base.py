@@ -28,6 +28,7 @@ import numpy as np
 from .errors import ModelError
 from .kernels import all_finite
 from .stepper import InverseStepper, ReplayStepper, Stepper
+from .units import render
 from .window import Window
 
 
@@ -42,6 +43,7 @@ class Parameter:
     linear: bool = False
     description: str = ""
     log_scale: bool = False  # positive and spanning decades: searched on a log scale
+    unit: str | None = None  # models/units.py: "y/u", "s", "1" (dimensionless); None: not declared
 
     def scaled(self, factor: float) -> "Parameter":
         """Bounds and default multiplied by a positive factor (unit scaling)."""
@@ -112,7 +114,7 @@ class HysteresisModel:
     def offset_parameter(scale: DataScale, bound: float = 2.0) -> Parameter:
         """The output offset every model may carry: |c| <= bound * max |y|."""
         b = bound * scale.y
-        return Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)")
+        return Parameter("offset", 0.0, -b, b, True, "output offset (sensor zero)", unit="y")
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -132,6 +134,10 @@ class HysteresisModel:
     @property
     def nonlinear_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters() if not p.linear)
+
+    def parameter_units(self, input_unit: str = "", output_unit: str = "") -> dict[str, str]:
+        """Each parameter's unit in the data's units, e.g. {"a1": "mm/kV"} ("" dimensionless; models/units.py)."""
+        return {p.name: render(p.unit, input_unit, output_unit) for p in self.parameters()}
 
     @property
     def has_linear_part(self) -> bool:

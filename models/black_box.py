@@ -280,12 +280,12 @@ class LaggedBlackBox(HysteresisModel):
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         st = self.sample_time if self.sample_time is not None else 1e-3
         u, y = scale.u, scale.y
-        fixed = [Parameter("u_center", 0.0, -u, u, description="input centre of the scaling"),
-                 Parameter("u_scale", u, u * 1e-9, 2 * u, description="input scale"),
-                 Parameter("y_center", 0.0, -y, y, description="output centre of the scaling"),
-                 Parameter("y_scale", y, y * 1e-9, 2 * y, description="output scale"),
-                 Parameter("sample_time", st, st, st, description="model step (s), fixed at fit")]
-        return fixed + [Parameter(n, 0.0, -WEIGHT_BOUND, WEIGHT_BOUND, description="learnt weight")
+        fixed = [Parameter("u_center", 0.0, -u, u, description="input centre of the scaling", unit="u"),
+                 Parameter("u_scale", u, u * 1e-9, 2 * u, description="input scale", unit="u"),
+                 Parameter("y_center", 0.0, -y, y, description="output centre of the scaling", unit="y"),
+                 Parameter("y_scale", y, y * 1e-9, 2 * y, description="output scale", unit="y"),
+                 Parameter("sample_time", st, st, st, description="model step (s), fixed at fit", unit="s")]
+        return fixed + [Parameter(n, 0.0, -WEIGHT_BOUND, WEIGHT_BOUND, description="learnt weight", unit="1")
                         for n in self.weight_names()]
 
     @property

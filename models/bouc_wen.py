@@ -348,11 +348,11 @@ class BoucWen(KernelInvertible, HysteresisModel):
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         g = GAIN_BOUND * scale.y
         params = [
-            Parameter("beta", 1.0, 0.0, SHAPE_BOUND, False, "Bouc-Wen beta (dimensionless, input in [-1, 1])"),
-            Parameter("gamma", 0.0, -SHAPE_BOUND, SHAPE_BOUND, False, "Bouc-Wen gamma (beta + gamma > 0: bounded z)"),
-            Parameter("n", 1.0, 1.0, N_MAX, False, "Bouc-Wen exponent n (sharpness of the transition)"),
-            Parameter("kx", 0.0, -g, g, True, "gain of the scaled input xi (alpha k)"),
-            Parameter("kz", 0.0, -g, g, True, "gain of the hysteretic state z ((1 - alpha) k)"),
+            Parameter("beta", 1.0, 0.0, SHAPE_BOUND, False, "Bouc-Wen beta (dimensionless, input in [-1, 1])", unit="1"),
+            Parameter("gamma", 0.0, -SHAPE_BOUND, SHAPE_BOUND, False, "Bouc-Wen gamma (beta + gamma > 0: bounded z)", unit="1"),
+            Parameter("n", 1.0, 1.0, N_MAX, False, "Bouc-Wen exponent n (sharpness of the transition)", unit="1"),
+            Parameter("kx", 0.0, -g, g, True, "gain of the scaled input xi (alpha k)", unit="y"),
+            Parameter("kz", 0.0, -g, g, True, "gain of the hysteretic state z ((1 - alpha) k)", unit="y"),
         ]
         if self.offset:
             params.append(self.offset_parameter(scale))

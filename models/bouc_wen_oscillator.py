@@ -247,15 +247,16 @@ class BoucWenOscillator(HysteresisModel):
         t = scale.time
         shape = SHAPE_BOUND / (self.beta * scale.y)
         params = [
-            Parameter("m", stiff * t * t / 100.0, 1e-6 * stiff * t * t, 100.0 * stiff * t * t, False, "mass"),
-            Parameter("c", stiff * t / 100.0, 0.0, 100.0 * stiff * t, False, "viscous damping"),
-            Parameter("k", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "linear stiffness"),
-            Parameter("alpha", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "Bouc-Wen initial stiffness"),
-            Parameter("gamma", 0.0, -shape, shape, False, "Bouc-Wen gamma (at the fixed beta)"),
-            Parameter("delta", 0.0, -shape, shape, False, "Bouc-Wen delta (at the fixed beta)"),
+            Parameter("m", stiff * t * t / 100.0, 1e-6 * stiff * t * t, 100.0 * stiff * t * t, False, "mass",
+                      unit="u*s^2/y"),
+            Parameter("c", stiff * t / 100.0, 0.0, 100.0 * stiff * t, False, "viscous damping", unit="u*s/y"),
+            Parameter("k", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "linear stiffness", unit="u/y"),
+            Parameter("alpha", stiff / 2.0, 0.0, STIFFNESS_BOUND * stiff, False, "Bouc-Wen initial stiffness", unit="u/y"),
+            Parameter("gamma", 0.0, -shape, shape, False, "Bouc-Wen gamma (at the fixed beta)", unit="1"),
+            Parameter("delta", 0.0, -shape, shape, False, "Bouc-Wen delta (at the fixed beta)", unit="1"),
         ]
         if self.fixed_nu is None:
-            params.append(Parameter("nu", 1.0, 1.0, NU_MAX, False, "Bouc-Wen exponent nu"))
+            params.append(Parameter("nu", 1.0, 1.0, NU_MAX, False, "Bouc-Wen exponent nu", unit="1"))
         return params
 
     @property

@@ -350,8 +350,8 @@ class BranchModel(KernelInvertible, HysteresisModel):
     # interface ------------------------------------------------------------
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         b = COEF_BOUND * scale.y
-        params = [Parameter(n, 0.0, -b, b, True, d) for n, d in self._centre_parameters()]
-        params += [Parameter(n, 0.0, -b, b, True, d) for n, d in self._halfwidth_parameters()]
+        params = [Parameter(n, 0.0, -b, b, True, d, unit="y") for n, d in self._centre_parameters()]
+        params += [Parameter(n, 0.0, -b, b, True, d, unit="y") for n, d in self._halfwidth_parameters()]
         if self.offset:
             params.append(self.offset_parameter(scale))
         return params

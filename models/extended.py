@@ -146,36 +146,38 @@ class ExtendedModel(SteppableStructure, HysteresisModel):
             lo, hi = TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T
             for k in range(1, self.n_relaxation + 1):
                 start = min(hi, max(lo, T * 10.0 ** (k - 1)))
-                out.append(Parameter(f"tau{k}", start, lo, hi, False, f"relaxation time {k} (s)", log_scale=True))
+                out.append(Parameter(f"tau{k}", start, lo, hi, False, f"relaxation time {k} (s)", log_scale=True,
+                                     unit="s"))
             for k in range(1, self.n_relaxation + 1):
                 for p in self.relaxation_powers:
                     b = RELAX_WEIGHT_BOUND * y / u**p
                     out.append(Parameter(f"c{k}" + ("" if p == 1 else f"_u{p}"), 0.0, -b, b, linear,
-                                         f"weight of the low-pass history of u^{p} with tau{k}"))
+                                         f"weight of the low-pass history of u^{p} with tau{k}", unit=f"y/u^{p}"))
         if self.has("delay"):
-            out.append(Parameter("delay", 0.0, 0.0, DELAY_BOUND * T, False, "pure time delay (s)"))
+            out.append(Parameter("delay", 0.0, 0.0, DELAY_BOUND * T, False, "pure time delay (s)", unit="s"))
         if self.has("resonance"):
             lo, hi = RESONANCE_HZ_BOUNDS[0] / T, RESONANCE_HZ_BOUNDS[1] / T
             out.append(Parameter("natural_frequency", min(hi, 20.0 / T), lo, hi, False,
-                                 "natural frequency of the mode (Hz)", log_scale=True))
+                                 "natural frequency of the mode (Hz)", log_scale=True, unit="Hz"))
             out.append(Parameter("damping_ratio", 0.5, *DAMPING_BOUNDS, False, "damping ratio of the mode",
-                                 log_scale=True))
+                                 log_scale=True, unit="1"))
         if self.has("creep"):
             out.append(Parameter("creep_time", 100.0 * T, CREEP_TIME_BOUNDS[0] * T, CREEP_TIME_BOUNDS[1] * T,
-                                 False, "creep time scale (s)", log_scale=True))
+                                 False, "creep time scale (s)", log_scale=True, unit="s"))
             out.append(Parameter("creep_size", 0.0, -CREEP_SIZE_BOUND * y, CREEP_SIZE_BOUND * y, linear,
-                                 "creep size (output units): s in s (1 - exp(-t / T_c))"))
+                                 "creep size (output units): s in s (1 - exp(-t / T_c))", unit="y"))
         if self.has("interference"):
             lo, hi = INTERFERENCE_HZ_BOUNDS[0] / T, INTERFERENCE_HZ_BOUNDS[1] / T
             out.append(Parameter("interference_frequency", min(hi, 10.0 / T), lo, hi, False,
-                                 "frequency of the disturbance (Hz)"))
+                                 "frequency of the disturbance (Hz)", unit="Hz"))
             b = INTERFERENCE_BOUND * y
-            out.append(Parameter("interference_sin", 0.0, -b, b, linear, "sine weight of the disturbance"))
-            out.append(Parameter("interference_cos", 0.0, -b, b, linear, "cosine weight of the disturbance"))
+            out.append(Parameter("interference_sin", 0.0, -b, b, linear, "sine weight of the disturbance", unit="y"))
+            out.append(Parameter("interference_cos", 0.0, -b, b, linear, "cosine weight of the disturbance", unit="y"))
         if self.has("saturation"):
             b = SATURATION_BOUND * y
             out.append(Parameter("saturation_level", y if self.saturation_side == "upper" else -y, -b, b, False,
-                                 f"level the output is clipped at from {'above' if self.saturation_side == 'upper' else 'below'}"))
+                                 f"level the output is clipped at from {'above' if self.saturation_side == 'upper' else 'below'}",
+                                 unit="y"))
         return tuple(out)
 
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:

@@ -71,17 +71,17 @@ class PlayOperatorModel(SteppableStructure, HysteresisModel):
         params = []
         if self.envelopes:
             b = ENVELOPE_BOUND * T
-            params.append(Parameter("gamma", 0.0, -b, b, False, "left envelope: h_l = u - gamma |u'| (s)"))
-            params.append(Parameter("lambda", 0.0, -b, b, False, "right envelope: h_r = u + lambda |u'| (s)"))
+            params.append(Parameter("gamma", 0.0, -b, b, False, "left envelope: h_l = u - gamma |u'| (s)", unit="s"))
+            params.append(Parameter("lambda", 0.0, -b, b, False, "right envelope: h_r = u + lambda |u'| (s)", unit="s"))
         for j in range(1, self.poly_order + 1):
             b = POLY_BOUND * y / u**j
-            params.append(Parameter(f"p{j}", 0.0, -b, b, True, f"polynomial coefficient of u^{j}"))
+            params.append(Parameter(f"p{j}", 0.0, -b, b, True, f"polynomial coefficient of u^{j}", unit=f"y/u^{j}"))
         if self.q_term:
             b = Q_BOUND * y * T * T / u
-            params.append(Parameter("q", 0.0, -b, b, True, "weight of the input's second derivative"))
+            params.append(Parameter("q", 0.0, -b, b, True, "weight of the input's second derivative", unit="y*s^2/u"))
         for i in range(1, self.n_operators + 1):
             b = WEIGHT_BOUND * y / u
-            params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}"))
+            params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}", unit="y/u"))
         if self.offset:
             params.append(self.offset_parameter(scale))
         return params

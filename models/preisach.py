@@ -282,7 +282,7 @@ class Preisach(KernelInvertible, HysteresisModel):
         b = WEIGHT_BOUND * scale.y
         params = [
             Parameter(f"w{i + 1}_{j + 1}", 0.0, 0.0, b, True,
-                      f"weight of the relay up at level {i + 1}, down at level {j + 1} (>= 0)")
+                      f"weight of the relay up at level {i + 1}, down at level {j + 1} (>= 0)", unit="y")
             for i, j in self._index
         ]
         if self.offset:

@@ -157,13 +157,13 @@ class RateDependentPI(SteppableStructure, HysteresisModel):
     def declare_parameters(self, scale: DataScale) -> list[Parameter]:
         u, y, T = scale.u, scale.y, scale.time
         params = [Parameter("beta", 0.0, 0.0, BETA_BOUND * T, False,
-                            "threshold growth with the input rate: r_i = r0_i + beta |u'| (s)")]
+                            "threshold growth with the input rate: r_i = r0_i + beta |u'| (s)", unit="s")]
         for j in range(1, self.poly_order + 1):
             b = POLY_BOUND * y / u**j
-            params.append(Parameter(f"p{j}", 0.0, -b, b, True, f"polynomial coefficient of u^{j}"))
+            params.append(Parameter(f"p{j}", 0.0, -b, b, True, f"polynomial coefficient of u^{j}", unit=f"y/u^{j}"))
         for i in range(1, self.n_operators + 1):
             b = WEIGHT_BOUND * y / u
-            params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}"))
+            params.append(Parameter(f"a{i}", 0.0, -b, b, True, f"weight of play operator {i}", unit="y/u"))
         if self.offset:
             params.append(self.offset_parameter(scale))
         return params

@@ -183,20 +183,20 @@ class Viscoelastic(HysteresisModel):
         S, T = self.stress_scale_kpa(scale), scale.time
         K = self.n_branches
         params = [
-            Parameter("mu", 0.1 * S, MU_BOUNDS[0] * S, MU_BOUNDS[1] * S, False, "Gent spring modulus (kPa)"),
+            Parameter("mu", 0.1 * S, MU_BOUNDS[0] * S, MU_BOUNDS[1] * S, False, "Gent spring modulus (kPa)", unit="kPa"),
             Parameter("eta_v", 0.1 * S * T, ETA_BOUNDS[0] * S * T, ETA_BOUNDS[1] * S * T, False,
-                      "parallel dashpot viscosity (kPa s)"),
+                      "parallel dashpot viscosity (kPa s)", unit="kPa*s"),
         ]
         for k in range(K):
             params.append(Parameter(f"mu{k + 1}", S, BRANCH_MU_BOUNDS[0] * S, BRANCH_MU_BOUNDS[1] * S, False,
-                                    f"modulus of Maxwell branch {k + 1} (kPa)"))
+                                    f"modulus of Maxwell branch {k + 1} (kPa)", unit="kPa"))
         for k in range(K):
             tau = min(T * 0.3 * 10.0**k, 0.5 * TAU_BOUNDS[1] * T)
             params.append(Parameter(f"tau{k + 1}", tau, TAU_BOUNDS[0] * T, TAU_BOUNDS[1] * T, False,
-                                    f"relaxation time of Maxwell branch {k + 1} (s)"))
+                                    f"relaxation time of Maxwell branch {k + 1} (s)", unit="s"))
         params.append(Parameter("length", self.length0, LENGTH_BOUNDS[0] * self.length0,
                                 LENGTH_BOUNDS[1] * self.length0, True,
-                                "unstretched length of the active region (output units per unit stretch)"))
+                                "unstretched length of the active region (output units per unit stretch)", unit="y"))
         if self.offset:
             params.append(self.offset_parameter(scale))
         return params
