@@ -195,6 +195,7 @@ class Identifier(ABC):
             bic=bic(fitness, n_rows, k) if finite else math.nan,
             undetermined=[str(n) for n in diagnostics[self.stages()[-1].name].get("undetermined", {})],
             output_unit=dataset.output_unit or "",
+            input_unit=dataset.input_unit or "",
             _instance=model,
         )
 

@@ -13,10 +13,11 @@ parameter sets gave non-finite output, and AIC / BIC computed once from eq. 9's
 fitness as a Gaussian likelihood with n = the scored rows of the fit records
 and k = the free parameters (identification/criteria.py; residuals are
 correlated, so these favour bigger models: the ablation and the diagnosis use
-the effective-sample-size forms). ``output_unit`` is the dataset's output unit
-("" when it names none): the fitness is in its square, the summary prints it
-so. It simulates new inputs and round-trips through JSON (``to_dict`` /
-``from_dict``; a fit written without ``output_unit`` reads as naming none).
+the effective-sample-size forms). ``input_unit`` and ``output_unit`` are the
+dataset's units ("" when it names none): the fitness is in the output unit
+squared, and each parameter's unit (``param_units``) is written in them. It
+simulates new inputs and round-trips through JSON (``to_dict`` / ``from_dict``;
+a fit written without a unit reads as naming none).
 """
 
 from __future__ import annotations
@@ -129,6 +130,12 @@ class Fit:
         Parameters the scored data do not determine, fixed by varpro's linear solve.
     output_unit : str
         The dataset's output unit ("" when it names none): ``fitness`` is in its square.
+    input_unit : str
+        The dataset's input unit ("" when it names none).
+    param_units : dict[str, str]
+        Each parameter's unit in the dataset's units, e.g. ``{"a1": "mm/kV", "gamma": "s"}`` ("" for a
+        dimensionless one; ``in`` and ``out`` stand for units the dataset does not name); a property, from
+        the model's declarations (models/units.py).
     """
 
     model: str
@@ -159,6 +166,7 @@ class Fit:
     bic: float = math.nan
     undetermined: list[str] = field(default_factory=list)
     output_unit: str = ""
+    input_unit: str = ""
     _instance: HysteresisModel | None = field(default=None, repr=False, compare=False)
 
     # --- the fitted model ----------------------------------------------------
@@ -177,10 +185,17 @@ class Fit:
         """Output of the fitted model for a new input, from its first sample."""
         return self.model_instance().simulate(u, dt, self.params, input_range=self.input_range)
 
-    def fitted_model(self, sample_time: float, input_unit: str = "", output_unit: str | None = None) -> FittedModel:
+    @property
+    def param_units(self) -> dict[str, str]:
+        """Each parameter's unit in the dataset's units ("" dimensionless)."""
+        return self.model_instance().parameter_units(self.input_unit, self.output_unit)
+
+    def fitted_model(self, sample_time: float, input_unit: str | None = None,
+                     output_unit: str | None = None) -> FittedModel:
         """The fitted model with what its model file records (models/model_file.py): the dataset's
-        sample time and units (``output_unit`` None: the fit's own), the data scale, the dataset's name
+        sample time and units (None: the fit's own), the data scale, the dataset's name
         and hash, the identifier and the worst validation e_rms and e_m."""
+        input_unit = self.input_unit if input_unit is None else input_unit
         output_unit = self.output_unit if output_unit is None else output_unit
         if not self.success:
             raise IdentificationError(f"fit of {self.model} failed ({self.message}): no model to save")
@@ -233,9 +248,14 @@ class Fit:
             f = f"{s.frequency_hz:g}" if s.frequency_hz else "-"
             lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {_shown(s.e_m, '8.3f')} {_shown(s.e_rms, '8.3f')}")
         lines.append("")
-        items = [f"{k} = {_shown(v, '.6g')}" for k, v in self.params.items()]
+        units = self.param_units
+        items = [f"{k} = {_shown(v, '.6g')}" + (f" {units[k]}" if units.get(k) and math.isfinite(v) else "")
+                 for k, v in self.params.items()]
+        width = max(20, *(len(it) for it in items)) if items else 20
         for i in range(0, len(items), 4):
-            lines.append("   ".join(f"{it:<20}" for it in items[i:i + 4]).rstrip())
+            lines.append("   ".join(f"{it:<{width}}" for it in items[i:i + 4]).rstrip())
+        if not (self.input_unit and self.output_unit) and any(units.values()):
+            lines.append("(in, out: the input's and the output's units, which the dataset does not name)")
         if self.undetermined:
             lines += ["", "undetermined by the scored data (fixed): " + ", ".join(
                 f"{n} = {_shown(self.params.get(n, math.nan), '.6g')}" for n in self.undetermined)]
@@ -259,6 +279,8 @@ class Fit:
             "params": self.params,
             "fitness": self.fitness,
             "output_unit": self.output_unit,
+            "input_unit": self.input_unit,
+            "param_units": self.param_units,
             "fit_seconds": self.fit_seconds,
             "n_evaluations": self.n_evaluations,
             "records": [s.as_dict() for s in self.records],
@@ -318,13 +340,14 @@ class Fit:
                 aic=_float(d.get("aic")),
                 bic=_float(d.get("bic")),
                 undetermined=[str(n) for n in d.get("undetermined", [])],
-                output_unit=_unit(d.get("output_unit", "")),
+                output_unit=_unit(d.get("output_unit", ""), "output_unit"),
+                input_unit=_unit(d.get("input_unit", ""), "input_unit"),
             )
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise IdentificationError(f"malformed fit record: {exc!r}") from None
 
 
-def _unit(value) -> str:
+def _unit(value, key: str) -> str:
     if not isinstance(value, str):
-        raise IdentificationError(f"malformed fit record: output_unit must be a string, got {value!r}")
+        raise IdentificationError(f"malformed fit record: {key} must be a string, got {value!r}")
     return value

@@ -136,8 +136,10 @@ class HysteresisModel:
         return tuple(p.name for p in self.parameters() if not p.linear)
 
     def parameter_units(self, input_unit: str = "", output_unit: str = "") -> dict[str, str]:
-        """Each parameter's unit in the data's units, e.g. {"a1": "mm/kV"} ("" dimensionless; models/units.py)."""
-        return {p.name: render(p.unit, input_unit, output_unit) for p in self.parameters()}
+        """Each parameter's unit in the data's units, e.g. {"a1": "mm/kV"} (models/units.py; "" for a dimensionless
+        one and for one whose model declares no unit, as a user's own model may not)."""
+        return {p.name: render(p.unit, input_unit, output_unit) if p.unit is not None else ""
+                for p in self.parameters()}
 
     @property
     def has_linear_part(self) -> bool:

@@ -14,6 +14,8 @@ Fields (all required; ``FORMAT_VERSION`` is the version this code writes and the
     params               name -> value, every parameter of the model
     input_range          [u_min, u_max] of the identification records: fixes play thresholds, grids
     input_unit, output_unit   the dataset's units ("" when it states none)
+    param_units          name -> each parameter's unit in those units (models/units.py; "" dimensionless);
+                         written for readers outside Python, not read back (the model declares them)
     sample_time          the identification records' sample time (s): the dt to step the model at
     scale                the data scale {u, y, time} the default bounds were scaled with
     dataset              {name, content_hash}
@@ -178,6 +180,7 @@ class FittedModel:
             "model": self.model.name,
             "hyperparameters": self.model.get_hyperparameters(),
             "params": self.params,
+            "param_units": self.model.parameter_units(meta.get("input_unit", ""), meta.get("output_unit", "")),
             "input_range": list(self.input_range),
             "input_unit": meta.get("input_unit", ""),
             "output_unit": meta.get("output_unit", ""),

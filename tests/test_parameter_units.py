@@ -1,11 +1,14 @@
 """Every parameter of every model declares its unit, and the unit agrees with how its search bounds follow the
 data's scale: a parameter in y/u has bounds that grow with the output's scale and shrink with the input's."""
 
+import json
 import math
+import re
 
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from hysbench.identification.fit import Fit
 from hysbench.models import get_model, list_models
 from hysbench.models.base import DataScale
 from hysbench.models.errors import ModelError
@@ -70,3 +73,33 @@ def test_units_render_in_the_datasets_terms():
 def test_a_malformed_unit_is_refused(bad):
     with pytest.raises(ModelError, match="unit"):
         factors(bad)
+
+
+def _fit_tiny(tmp_path, units: bool):
+    from hysbench.benchmarks.cli import main
+    from tiny_dataset import write_tiny_dataset
+
+    folder = write_tiny_dataset(tmp_path / "tiny")
+    if units:
+        toml = folder / "dataset.toml"
+        toml.write_text(toml.read_text().replace('name = "tiny"', 'name = "tiny"\ninput_unit = "V"\noutput_unit = "um"'))
+    code = main(["fit", str(folder), "--model", "classical-pi", "--method", "varpro", "--json", str(tmp_path / "fit.json"),
+                 "--save", str(tmp_path / "model.json")])
+    assert code == 0
+    return json.loads((tmp_path / "fit.json").read_text()), json.loads((tmp_path / "model.json").read_text())
+
+
+def test_a_fit_states_each_parameters_unit_in_the_datasets_units(tmp_path, capsys):
+    fit, model_file = _fit_tiny(tmp_path, units=True)
+    printed = capsys.readouterr().out
+    assert fit["input_unit"] == "V" and fit["param_units"]["a1"] == "um/V" and fit["param_units"]["offset"] == "um"
+    assert model_file["param_units"] == fit["param_units"]
+    assert re.search(r"a1 = \S+ um/V", printed) and "do not name" not in printed
+    assert Fit.from_dict(fit).param_units == fit["param_units"]
+
+
+def test_without_the_datasets_units_in_and_out_stand_for_them(tmp_path, capsys):
+    fit, _ = _fit_tiny(tmp_path, units=False)
+    printed = capsys.readouterr().out
+    assert fit["param_units"]["a1"] == "out/in"
+    assert re.search(r"a1 = \S+ out/in", printed) and "which the dataset does not name" in printed
