@@ -131,18 +131,30 @@ def best_cells(report: str) -> dict[str, list[str]]:
     return best
 
 
+def report_is_the_committed_one() -> bool:
+    """False when git says results/report.md differs from the commit (a local ``hysbench run`` rewrote it)."""
+    try:
+        proc = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "results/report.md"], cwd=ROOT,
+                              capture_output=True)
+    except FileNotFoundError:
+        return True
+    return proc.returncode != 1
+
+
 @pytest.mark.parametrize("page,columns", [("README.md", (1, 2, 3, 4, "e_rms", 7, 9)),
                                           ("docs/matrix.md", (1, 3, 4, "e_rms", 7, 9))])
 def test_the_best_cell_tables_quote_the_committed_report(page, columns):
     """README's and docs/matrix.md's table of each model's best cell is the report's row: every column,
-    the fit time included."""
+    the fit time included. A local ``hysbench run`` rewrites the report with its own wall-clock times (its
+    other columns are the same for the same seed), so the times are compared only on the committed report."""
     best = best_cells((ROOT / "results" / "report.md").read_text(encoding="utf-8"))
     quoted = [r for r in table_rows((ROOT / page).read_text(encoding="utf-8"), len(columns)) if r[0] in best]
     assert len(quoted) >= 9
+    keep = slice(None) if report_is_the_committed_one() else slice(-1)
     for row in quoted:
         cell = best[row[0]]
         expected = [f"{cell[5]} / {cell[6]}" if c == "e_rms" else cell[c] for c in columns]
-        assert row == expected, f"{page}: {row[0]}"
+        assert row[keep] == expected[keep], f"{page}: {row[0]}"
 
 
 def test_the_table_check_sees_a_stale_figure():
