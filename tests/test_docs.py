@@ -113,3 +113,53 @@ def test_every_shown_command_runs_with_help(capsys):
 def test_an_unknown_shown_command_is_caught():
     with pytest.raises(AssertionError, match="no such command"):
         subcommand_path(["report", "no-such-report"], build_parser())
+
+
+def table_rows(text: str, width: int) -> list[list[str]]:
+    """The cells of every Markdown table row of ``width`` columns (header and rule rows included)."""
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in text.splitlines()
+            if line.startswith("|")]
+    return [r for r in rows if len(r) == width]
+
+
+def best_cells(report: str) -> dict[str, list[str]]:
+    """Each model's first (best) row of the ranking in results/report.md, by model name."""
+    best: dict[str, list[str]] = {}
+    for row in table_rows(report, 11):
+        if row[0].isdigit():
+            best.setdefault(row[1], row)
+    return best
+
+
+def report_is_the_committed_one() -> bool:
+    """False when git says results/report.md differs from the commit (a local ``hysbench run`` rewrote it)."""
+    try:
+        proc = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "results/report.md"], cwd=ROOT,
+                              capture_output=True)
+    except FileNotFoundError:
+        return True
+    return proc.returncode != 1
+
+
+@pytest.mark.parametrize("page,columns", [("README.md", (1, 2, 3, 4, "e_rms", 7, 9)),
+                                          ("docs/matrix.md", (1, 3, 4, "e_rms", 7, 9))])
+def test_the_best_cell_tables_quote_the_committed_report(page, columns):
+    """README's and docs/matrix.md's table of each model's best cell is the report's row: every column,
+    the fit time included. A local ``hysbench run`` rewrites the report with its own wall-clock times (its
+    other columns are the same for the same seed), so the times are compared only on the committed report."""
+    best = best_cells((ROOT / "results" / "report.md").read_text(encoding="utf-8"))
+    quoted = [r for r in table_rows((ROOT / page).read_text(encoding="utf-8"), len(columns)) if r[0] in best]
+    assert len(quoted) >= 9
+    keep = slice(None) if report_is_the_committed_one() else slice(-1)
+    for row in quoted:
+        cell = best[row[0]]
+        expected = [f"{cell[5]} / {cell[6]}" if c == "e_rms" else cell[c] for c in columns]
+        assert row[keep] == expected[keep], f"{page}: {row[0]}"
+
+
+def test_the_table_check_sees_a_stale_figure():
+    report = ("| rank | model | kind | method | p | mean | worst | e_m | fitness | fit | sim |\n"
+              "| 1 | mrpim | grey-box | varpro | 21 | 2.02 | 2.75 | 5.98 | 0.58 | 1.17 | 0.03 |\n"
+              "| 2 | mrpim | grey-box | lsq | 21 | 2.03 | 2.76 | 5.79 | 0.58 | 6.42 | 0.05 |\n")
+    assert best_cells(report)["mrpim"][9] == "1.17"
+    assert table_rows("| mrpim | varpro | 1.36 |\n| a | b |", 3) == [["mrpim", "varpro", "1.36"]]
