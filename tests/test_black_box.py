@@ -247,6 +247,30 @@ def test_too_few_rows_for_the_weights_is_one_line():
     assert "\n" not in str(info.value)
 
 
+def _split_recording(y_after: np.ndarray | None = None) -> Dataset:
+    """One recording cut into an identification window (first half) and a validation window (second half),
+    as a measured dataset lists one file twice; ``y_after`` replaces the output of the second half."""
+    u = _input(0)
+    y = reference_narx(u)
+    if y_after is not None:
+        y = np.concatenate([y[: N // 2], y_after])
+    t = np.arange(N) * DT
+    half = N // 2 * DT
+    return Dataset(name="split", records=[
+        Record(file="rec.csv#1", t=t, u=u, y=y, role="identification", window=(0.0, half)),
+        Record(file="rec.csv#2", t=t, u=u, y=y, role="validation", window=(half, N * DT))])
+
+
+@pytest.mark.parametrize("name, hyper", [("narx-sparse", {"degree": 2}), ("narx-mlp", {"width": 4, "max_epochs": 30})])
+def test_a_learner_sees_no_output_outside_its_fit_windows(name, hyper):
+    """The output of the validation window (here: the same recording's second half) takes no part in
+    training: other outputs there give the same weights, bit for bit."""
+    model = get_model(name, sample_time=DT, **hyper)
+    honest = identify(model, _split_recording(), "native", seed=0)
+    other = identify(model, _split_recording(np.linspace(5.0, -5.0, N - N // 2)), "native", seed=0)
+    assert honest.params == other.params
+
+
 # --- the recurrent network (optional extra [neural]) ------------------------------------
 needs_torch = pytest.mark.skipif(not torch_available(),
                                  reason='PyTorch not installed: the optional extra pip install -e ".[neural]"')
