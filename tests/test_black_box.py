@@ -304,6 +304,17 @@ def test_gru_kernel_equals_pytorch_forward():
 
 
 @needs_torch
+def test_a_fit_record_shorter_than_a_training_window_is_named_in_the_notes():
+    records = [(_input(0, 400), reference_linear(_input(0, 400)), DT, slice(None)),
+               (_input(1, 30), reference_linear(_input(1, 30)), DT, slice(None))]
+    model = get_model("gru", sample_time=DT, width=2, window=50, washout=10, max_epochs=2)
+    _, _, notes = model.train(records, DT, 0, lambda p: 0.0)
+    assert any("1 of 2 fit records (30 model steps) are shorter than one training window (50 steps)" in n for n in notes)
+    _, _, notes = model.train(records[:1], DT, 0, lambda p: 0.0)
+    assert not any("training window" in n for n in notes)
+
+
+@needs_torch
 def test_gru_learns_a_linear_system_and_is_seeded():
     """Free run on a new input within 2.5 % (rms) of the output's range; an untrained network is ~30 %."""
     ds = _dataset(reference_linear, noise_sd=0.002, n=800)
