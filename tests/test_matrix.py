@@ -405,3 +405,16 @@ def test_a_ranked_cell_at_a_bound_or_with_notes_says_so_in_the_report():
     assert rows["elliptical"].endswith("| gamma |") and rows["mrpim"].endswith("| – |")
     assert "- elliptical / lsq: parameters at their bounds: gamma (upper 0.01)" in text
     assert "- mrpim / lsq" not in text
+
+
+def test_the_report_states_the_learners_training_budget(small_dataset):
+    """A learner's budget is its hyperparameters (no identifier option bounds it): the report says them."""
+    from hysbench.benchmarks.cli.run import budget_lines
+
+    ds = load_dataset(small_dataset)
+    cells = plan_cells([(small_dataset, ds)], ["mrpim", "narx-mlp"], None, 0, method_options(None, {}, False))
+    text = "\n".join(budget_lines(method_options(None, {}, False), cells, False))
+    assert "lsq.max_nfev=20" in text
+    assert 'narx-mlp {' in text and '"max_epochs": 200' in text and '"max_rows": 50000' in text
+    only_structured = [c for c in cells if c.method != "native"]
+    assert "Learners" not in "\n".join(budget_lines({}, only_structured, False))
