@@ -1,7 +1,10 @@
 """``native``: a model trained by its own library (the black-box learners of models/black_box.py).
 
 Such a model declares ``native_training`` and a ``train(records, sample_time, seed,
-simulation_error)`` method; this identifier hands it the fit records (u, y, dt, window), the
+simulation_error)`` method; this identifier hands it the scored windows of the fit records
+(u, y, dt, the whole slice): the samples eq. 9 covers, the only outputs any other identifier
+fits (a record's output outside its window may be another record's validation window, as
+when one recording is split into an identification and a validation window), the
 model step fixed for this fit (``sample_time``, from the model's start from the data) and a
 callable giving eq. 9 of a candidate parameter set in free-run simulation of those records
 (counted as evaluations, as every identifier's are). The result is the usual ``Fit``: scored
@@ -44,7 +47,8 @@ class Native(Identifier):
         def simulation_error(params) -> float:
             return float(problem.fitness_batch(model.pack(params)[None])[0])
 
-        records = [(r.u, r.y, r.dt, r.scored) for r in problem.records]
+        # the scored windows only: a learner sees the outputs every other identifier fits, no more
+        records = [(r.u[r.scored], r.y[r.scored], r.dt, slice(None)) for r in problem.records]
         params, diagnostics, notes = model.train(records, float(sample_time), seed, simulation_error)
         x = model.pack(params)
         if not np.all(np.isfinite(x)):

@@ -39,8 +39,11 @@ def drive_time(record: Record) -> float:
 
 
 def data_scale(records: Sequence[Record]) -> DataScale:
-    """DataScale of the fit records: max |u|, max |y| and the shortest drive period (``drive_time``)."""
-    return DataScale.of([r.u for r in records], [r.y for r in records], time=min(drive_time(r) for r in records))
+    """DataScale of the fit records: max |u| over the whole records (the input a simulation is driven by),
+    max |y| over their scored windows (the outputs a fit may see: outside its window a record's output may be
+    another record's validation window) and the shortest drive period (``drive_time``)."""
+    return DataScale.of([r.u for r in records], [r.y[r.scored] for r in records],
+                        time=min(drive_time(r) for r in records))
 
 
 def fit_output_scale(records: Sequence[Record]) -> float:

@@ -178,12 +178,14 @@ class RecurrentNetwork(LaggedBlackBox):
         scaling = {"u_center": float(np.mean(us)), "u_scale": float(np.std(us)) or 1.0,
                    "y_center": float(np.mean(ys)), "y_scale": float(np.std(ys)) or 1.0,
                    "sample_time": float(sample_time)}
-        windows_u, windows_y = [], []
+        windows_u, windows_y, short = [], [], []
         stride = max(1, (self.window - self.washout) // 2)
         for u, y, dt, _ in records:
             k = lag_step(sample_time, dt)
             uc = (training_samples(u, k, self.prefilter) - scaling["u_center"]) / scaling["u_scale"]
             yc = (training_samples(y, k, self.prefilter) - scaling["y_center"]) / scaling["y_scale"]
+            if uc.size < self.window:
+                short.append(uc.size)
             starts = list(range(0, max(1, uc.size - self.window + 1), stride))
             if uc.size >= self.window and starts[-1] != uc.size - self.window:
                 starts.append(uc.size - self.window)
@@ -223,6 +225,9 @@ class RecurrentNetwork(LaggedBlackBox):
             torch.set_num_threads(threads)
         out = {**scaling, **dict(zip(self.weight_names(), (float(v) for v in flat)))}
         notes = [] if math.isfinite(losses[-1]) else ["the network's training loss is not finite"]
+        if short:  # said, so a score is not read as learnt from every fit record
+            notes.append(f"{len(short)} of {len(records)} fit records ({', '.join(str(n) for n in short)} model steps) "
+                         f"are shorter than one training window ({self.window} steps) and took no part in training")
         diagnostics = {"epochs": self.max_epochs, "final_loss": losses[-1], "n_windows": len(windows_u),
                        "torch": torch.__version__}
         return out, diagnostics, notes

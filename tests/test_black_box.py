@@ -247,6 +247,30 @@ def test_too_few_rows_for_the_weights_is_one_line():
     assert "\n" not in str(info.value)
 
 
+def _split_recording(y_after: np.ndarray | None = None) -> Dataset:
+    """One recording cut into an identification window (first half) and a validation window (second half),
+    as a measured dataset lists one file twice; ``y_after`` replaces the output of the second half."""
+    u = _input(0)
+    y = reference_narx(u)
+    if y_after is not None:
+        y = np.concatenate([y[: N // 2], y_after])
+    t = np.arange(N) * DT
+    half = N // 2 * DT
+    return Dataset(name="split", records=[
+        Record(file="rec.csv#1", t=t, u=u, y=y, role="identification", window=(0.0, half)),
+        Record(file="rec.csv#2", t=t, u=u, y=y, role="validation", window=(half, N * DT))])
+
+
+@pytest.mark.parametrize("name, hyper", [("narx-sparse", {"degree": 2}), ("narx-mlp", {"width": 4, "max_epochs": 30})])
+def test_a_learner_sees_no_output_outside_its_fit_windows(name, hyper):
+    """The output of the validation window (here: the same recording's second half) takes no part in
+    training: other outputs there give the same weights, bit for bit."""
+    model = get_model(name, sample_time=DT, **hyper)
+    honest = identify(model, _split_recording(), "native", seed=0)
+    other = identify(model, _split_recording(np.linspace(5.0, -5.0, N - N // 2)), "native", seed=0)
+    assert honest.params == other.params
+
+
 # --- the recurrent network (optional extra [neural]) ------------------------------------
 needs_torch = pytest.mark.skipif(not torch_available(),
                                  reason='PyTorch not installed: the optional extra pip install -e ".[neural]"')
@@ -277,6 +301,17 @@ def test_gru_kernel_equals_pytorch_forward():
         h, _ = gru(torch.tensor(((u - 1.0) / 0.5)[None, :, None]))
     theirs = (h[0].numpy() @ readout + bias) * 2.0 + 0.2
     np.testing.assert_allclose(ours, theirs, rtol=1e-10, atol=1e-10)
+
+
+@needs_torch
+def test_a_fit_record_shorter_than_a_training_window_is_named_in_the_notes():
+    records = [(_input(0, 400), reference_linear(_input(0, 400)), DT, slice(None)),
+               (_input(1, 30), reference_linear(_input(1, 30)), DT, slice(None))]
+    model = get_model("gru", sample_time=DT, width=2, window=50, washout=10, max_epochs=2)
+    _, _, notes = model.train(records, DT, 0, lambda p: 0.0)
+    assert any("1 of 2 fit records (30 model steps) are shorter than one training window (50 steps)" in n for n in notes)
+    _, _, notes = model.train(records[:1], DT, 0, lambda p: 0.0)
+    assert not any("training window" in n for n in notes)
 
 
 @needs_torch

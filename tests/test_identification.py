@@ -436,6 +436,31 @@ def test_fit_on_a_subset_of_records(paper_model, noisy):
     assert fit.fitted_on == files
 
 
+def _split_recording(y_after_scale: float) -> Dataset:
+    """One 1 Hz recording of four periods: periods 2-3 identify, period 4 validates; the validation
+    window's output is multiplied by ``y_after_scale``."""
+    t = np.arange(4000) * 1e-3
+    u = 1.5 - np.cos(2 * np.pi * t)
+    y = u**2 + 0.3 * np.sin(2 * np.pi * t)
+    y[3000:] *= y_after_scale
+    return Dataset(name="split", records=[
+        Record(file="rec.csv#1", t=t, u=u, y=y, role="identification", frequency_hz=1.0, window=(1.0, 3.0)),
+        Record(file="rec.csv#2", t=t, u=u, y=y, role="validation", frequency_hz=1.0, window=(3.0, 4.0))])
+
+
+def test_bounds_and_start_see_no_output_outside_the_fit_windows():
+    """The data scale that sets default bounds and starts reads the fit windows' outputs only: another
+    output in the validation window (the same recording's last period) leaves the problem unchanged."""
+    model = get_model("classical-pi", n_operators=4)
+    same, other = (Problem.build(model, _split_recording(k).identification) for k in (1.0, 3.0))
+    assert same.scale == other.scale
+    assert np.array_equal(same.lower, other.lower) and np.array_equal(same.upper, other.upper)
+    assert np.array_equal(same.start_vector(None), other.start_vector(None))
+    rec = same.records[0]
+    inside = Problem.build(model, [Record(file="r", t=rec.t, u=rec.u, y=3.0 * rec.y, frequency_hz=1.0, window=(1.0, 3.0))])
+    assert not np.array_equal(inside.upper, same.upper)  # the scale does follow the outputs inside the window
+
+
 # --- the command line -------------------------------------------------------------
 def test_cli_fit_writes_the_json(tmp_path, noisy, capsys):
     folder = save_dataset(noisy, tmp_path / "data")

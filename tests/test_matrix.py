@@ -386,3 +386,35 @@ def test_an_abandoned_pool_is_stopped_at_once_and_leaves_no_thread_to_race_the_e
         w.join(2.0)
         assert not w.is_alive()
     assert all(f.done() for f in futures)
+
+
+def test_a_ranked_cell_at_a_bound_or_with_notes_says_so_in_the_report():
+    """A score whose fit stopped at a search bound (or carries another note) is not shown bare."""
+    from hysbench.benchmarks.matrix.report import dataset_section
+
+    def cell(model, e_rms, at_bounds, notes):
+        return {"dataset": "d", "model": model, "method": "lsq", "status": "ok", "n_params": 3, "fitness": 1.0,
+                "fit_seconds": 1.0, "simulate_seconds": 0.1,
+                "records": [{"file": "v", "frequency_hz": 1.0, "role": "validation", "e_m": 2 * e_rms, "e_rms": e_rms}],
+                "fit": {"diagnostics": {"at_bounds": at_bounds}, "notes": notes}}
+
+    bounded = cell("elliptical", 1.0, ["gamma"], ["parameters at their bounds: gamma (upper 0.01); the optimum ..."])
+    free = cell("mrpim", 2.0, [], [])
+    text = "\n".join(dataset_section("d", [bounded, free], [], {}))
+    rows = {ln.split(" | ")[1]: ln for ln in text.splitlines() if ln.startswith("| 1 |") or ln.startswith("| 2 |")}
+    assert rows["elliptical"].endswith("| gamma |") and rows["mrpim"].endswith("| – |")
+    assert "- elliptical / lsq: parameters at their bounds: gamma (upper 0.01)" in text
+    assert "- mrpim / lsq" not in text
+
+
+def test_the_report_states_the_learners_training_budget(small_dataset):
+    """A learner's budget is its hyperparameters (no identifier option bounds it): the report says them."""
+    from hysbench.benchmarks.cli.run import budget_lines
+
+    ds = load_dataset(small_dataset)
+    cells = plan_cells([(small_dataset, ds)], ["mrpim", "narx-mlp"], None, 0, method_options(None, {}, False))
+    text = "\n".join(budget_lines(method_options(None, {}, False), cells, False))
+    assert "lsq.max_nfev=20" in text
+    assert 'narx-mlp {' in text and '"max_epochs": 200' in text and '"max_rows": 50000' in text
+    only_structured = [c for c in cells if c.method != "native"]
+    assert "Learners" not in "\n".join(budget_lines({}, only_structured, False))

@@ -37,6 +37,20 @@ EXAMPLE = ("hysbench run data/virtual_dea --models mrpim,classical-pi --methods 
            "  hysbench run --suite measured --datasets-root ../shared/datasets")
 
 
+def budget_lines(options: dict, cells, full_budget: bool) -> list[str]:
+    """The report's statement of every cell's budget: the identifiers' options, and for the learners
+    (``native``, which no identifier option bounds) the hyperparameters that set their training."""
+    budget = "the identifiers' own defaults" if full_budget else "the matrix's default budget"
+    lines = ["", f"Identifier options ({budget} and any `--option`): "
+             + (", ".join(f"{m}.{k}={v}" for m, o in options.items() for k, v in o.items()) or "none")
+             + ". Budgets are part of each cell's key: a rerun with other options recomputes."]
+    learners = sorted({(c.model, c.hyperparameters) for c in cells if c.method == "native"})
+    if learners:
+        lines += ["", "Learners (`native`) train by their own library, bounded by their hyperparameters, not by an "
+                  "identifier option: " + "; ".join(f"{m} {h}" for m, h in learners) + "."]
+    return lines
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_dataset_argument(parser, many=True)
     parser.add_argument("--models", help="comma-separated model names (default: the registry's matrix models)")
@@ -172,10 +186,7 @@ def main(args) -> int:
          f"`{ds.content_hash()[:12]}` |" for p, ds in datasets]
     if skipped:
         header += ["", "Folders not scored:", ""] + [f"- {line}" for line in skipped]
-    budget = "the identifiers' own defaults" if args.full_budget else "the matrix's default budget"
-    header += ["", f"Identifier options ({budget} and any `--option`): "
-               + (", ".join(f"{m}.{k}={v}" for m, o in options.items() for k, v in o.items()) or "none")
-               + ". Budgets are part of each cell's key: a rerun with other options recomputes."]
+    header += budget_lines(options, cells, args.full_budget)
     write_report(out, ordered, [ds for _, ds in datasets], header, extra, report_name)
     failed = [r for r in ordered if r["status"] != "ok"]
     if not args.quiet:

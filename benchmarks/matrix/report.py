@@ -118,20 +118,42 @@ def kind_of(model_name: str) -> str:
         return "–"
 
 
+def at_bounds(res: dict) -> list[str]:
+    """The parameters a cell's fit left at a bound of its search (its Fit's diagnostics)."""
+    return list((res.get("fit") or {}).get("diagnostics", {}).get("at_bounds", []))
+
+
+def cell_notes(res: dict) -> list[str]:
+    """What a cell's fit says about itself (parameters at bounds, non-finite candidates, training stopped)."""
+    return list((res.get("fit") or {}).get("notes", []))
+
+
 def ranking_table(ranked) -> list[str]:
     on = ranked[0][1]["ranked_on"] if ranked else "validation"
     lines = [
         f"| rank | model | kind | method | parameters | {on} e_rms mean (%) | {on} e_rms worst (%) | {on} e_m worst (%) "
-        "| fitness (eq. 9) | fit (s) | simulate all records (s) |",
-        "|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        "| fitness (eq. 9) | fit (s) | simulate all records (s) | at a bound |",
+        "|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for i, (res, s) in enumerate(ranked, 1):
         lines.append(
             f"| {i} | {res['model']} | {kind_of(res['model'])} | {res['method']} | {res['n_params']} | {_fmt(s['val_mean'])} | "
             f"{_fmt(s['val_worst'])} | {_fmt(s['val_em_worst'])} | {res['fitness']:.4g} | "
-            f"{_secs(res['fit_seconds'])} | {_secs(res['simulate_seconds'])} |"
+            f"{_secs(res['fit_seconds'])} | {_secs(res['simulate_seconds'])} | {', '.join(at_bounds(res)) or '–'} |"
         )
     return lines
+
+
+def notes_section(ranked) -> list[str]:
+    """Every ranked cell's notes, so a score whose fit stopped at a bound or short of converging is read with it."""
+    noted = [(res, cell_notes(res)) for res, _ in ranked]
+    noted = [(res, notes) for res, notes in noted if notes]
+    if not noted:
+        return []
+    lines = ["### Notes of ranked cells (parameters at a search bound, non-finite candidates, training stopped)", ""]
+    for res, notes in noted:
+        lines += [f"- {res['model']} / {res['method']}: {note}" for note in notes]
+    return lines + [""]
 
 
 def paper_layout(best, role: str) -> list[str]:
@@ -162,6 +184,7 @@ def dataset_section(ds_name: str, results: list[dict], failed: list[dict], figur
     lines += [f"Ranked by mean {on} e_rms (ties by worst). e_m and e_rms in % of the measured peak-to-peak "
               "of each scored window (eq. 10).", ""]
     lines += ranking_table(ranked) + [""]
+    lines += notes_section(ranked)
     lines += ["### Identification errors, best cell of each model (layout of the paper's Table 3: e_m / e_rms, %)",
               ""] + paper_layout(best, "identification") + [""]
     val = paper_layout(best, "validation")
