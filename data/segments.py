@@ -28,6 +28,24 @@ def same_recording(a: Record, b: Record) -> bool:
             and np.array_equal(a.y, b.y))
 
 
+def own_stretch(record: Record, records) -> slice:
+    """The samples of ``record`` whose output a fit may read: its scored window widened on each side up to the
+    nearest scored window of another record of the same recording (one file listed twice: that window is the
+    other record's, e.g. its validation window); the whole record when no other record shares its samples,
+    its window alone when another one overlaps it."""
+    lo, hi = 0, record.t.size
+    for other in records:
+        if other is record or not same_recording(record, other):
+            continue
+        if other.stop <= record.start:
+            lo = max(lo, other.stop)
+        elif other.start >= record.stop:
+            hi = min(hi, other.start)
+        else:
+            return record.scored
+    return slice(lo, hi)
+
+
 def cut(record: Record, start: int, stop: int, key: str | None = None) -> Record:
     """The samples [start, stop) of ``record`` as a record of their own, scored on all of them."""
     t = record.t[start:stop]

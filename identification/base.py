@@ -125,7 +125,7 @@ class Identifier(ABC):
         if start is not None and not (isinstance(start, Mapping) and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in start.values())):
             raise IdentificationError(f"option start must map parameter names to finite numbers, got {start!r}")
-        problem = Problem.build(model, records, bounds)
+        problem = Problem.build(model, records, bounds, others=[r for r in dataset.records if all(r is not f for f in records)])
         for stage in self.stages():
             stage.check(model, problem)
         problem.start_vector(start)  # checks names early

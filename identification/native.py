@@ -1,10 +1,10 @@
 """``native``: a model trained by its own library (the black-box learners of models/black_box.py).
 
 Such a model declares ``native_training`` and a ``train(records, sample_time, seed,
-simulation_error)`` method; this identifier hands it the scored windows of the fit records
-(u, y, dt, the whole slice): the samples eq. 9 covers, the only outputs any other identifier
-fits (a record's output outside its window may be another record's validation window, as
-when one recording is split into an identification and a validation window), the
+simulation_error)`` method; this identifier hands it each fit record's own stretch
+(u, y, dt, the scored window within it; ``data.segments.own_stretch``): the record, run-in included,
+up to any other record's scored window of the same recording (a recording split into an
+identification and a validation window: the validation window's output is never read), the
 model step fixed for this fit (``sample_time``, from the model's start from the data) and a
 callable giving eq. 9 of a candidate parameter set in free-run simulation of those records
 (counted as evaluations, as every identifier's are). The result is the usual ``Fit``: scored
@@ -47,8 +47,9 @@ class Native(Identifier):
         def simulation_error(params) -> float:
             return float(problem.fitness_batch(model.pack(params)[None])[0])
 
-        # the scored windows only: a learner sees the outputs every other identifier fits, no more
-        records = [(r.u[r.scored], r.y[r.scored], r.dt, slice(None)) for r in problem.records]
+        stretches = problem.stretches or [slice(0, r.t.size) for r in problem.records]
+        records = [(r.u[s], r.y[s], r.dt, slice(r.start - s.start, r.stop - s.start))
+                   for r, s in zip(problem.records, stretches)]
         params, diagnostics, notes = model.train(records, float(sample_time), seed, simulation_error)
         x = model.pack(params)
         if not np.all(np.isfinite(x)):

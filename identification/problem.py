@@ -24,6 +24,7 @@ import numpy as np
 from hysbench.data.protocol import input_range as records_input_range
 from hysbench.data.dataset import Record, scale_of_outputs
 from hysbench.data.excitations import shortest_period
+from hysbench.data.segments import own_stretch
 from hysbench.models.base import DataScale, HysteresisModel
 
 from .errors import IdentificationError
@@ -38,11 +39,12 @@ def drive_time(record: Record) -> float:
     return shortest_period(record.u[record.scored], record.dt, record.frequency_hz)
 
 
-def data_scale(records: Sequence[Record]) -> DataScale:
+def data_scale(records: Sequence[Record], stretches: Sequence[slice] | None = None) -> DataScale:
     """DataScale of the fit records: max |u| over the whole records (the input a simulation is driven by),
-    max |y| over their scored windows (the outputs a fit may see: outside its window a record's output may be
-    another record's validation window) and the shortest drive period (``drive_time``)."""
-    return DataScale.of([r.u for r in records], [r.y[r.scored] for r in records],
+    max |y| over each record's ``stretches`` (the outputs a fit may read, ``own_stretch``; default: whole
+    records) and the shortest drive period (``drive_time``)."""
+    stretches = stretches or [slice(None)] * len(records)
+    return DataScale.of([r.u for r in records], [r.y[s] for r, s in zip(records, stretches)],
                         time=min(drive_time(r) for r in records))
 
 
@@ -68,11 +70,15 @@ class Problem:
     n_nonfinite: int = 0  # evaluated parameter sets whose model output was not finite
     data_start: dict | None = None  # the model's start from the data (``start_from_data``), if it has one
     output_scale: float = 1.0  # residuals are divided by it (``fit_output_scale``); fitness is reported unscaled
+    stretches: list | None = None  # per record, the samples whose output the fit may read (``own_stretch``)
 
     @classmethod
     def build(cls, model: HysteresisModel, records: Sequence[Record],
-              bounds: Mapping[str, Sequence[float]] | None = None) -> "Problem":
+              bounds: Mapping[str, Sequence[float]] | None = None, others: Sequence[Record] = ()) -> "Problem":
+        """``others``: the dataset's other records; the output a fit reads stops at their scored windows
+        (``own_stretch``: a validation window of the same recording is never read)."""
         records = list(records)
+        stretches = [own_stretch(r, [*records, *others]) for r in records]
         if records and not any(r.weight > 0 for r in records):
             raise IdentificationError(f"every fit record ({', '.join(r.file for r in records)}) has weight 0: "
                                       "eq. 9 has nothing to fit")
@@ -80,7 +86,7 @@ class Problem:
             raise IdentificationError(
                 f"model {model.name!r} has {model.n_params} parameters, more than the {sum(r.n_scored for r in records)} "
                 "scored samples of the fit records: nothing determines them (use fewer operators or longer windows)")
-        scale = data_scale(records)
+        scale = data_scale(records, stretches)
         lower, upper = (np.array(b, dtype=float) for b in model.bounds(scale))
         names = model.param_names
         informed = model.start_from_data([(r.u, r.y, r.dt, r.scored) for r in records], scale)
@@ -98,7 +104,7 @@ class Problem:
             i = names.index(name)
             lower[i], upper[i] = lo, hi
         return cls(model, records, scale, lower, upper, records_input_range(records), data_start=data_start,
-                   output_scale=fit_output_scale(records))
+                   output_scale=fit_output_scale(records), stretches=stretches)
 
     @classmethod
     def for_fit(cls, fit, dataset) -> "Problem":

@@ -262,7 +262,7 @@ def _split_recording(y_after: np.ndarray | None = None) -> Dataset:
 
 
 @pytest.mark.parametrize("name, hyper", [("narx-sparse", {"degree": 2}), ("narx-mlp", {"width": 4, "max_epochs": 30})])
-def test_a_learner_sees_no_output_outside_its_fit_windows(name, hyper):
+def test_a_learner_sees_no_output_of_the_validation_window(name, hyper):
     """The output of the validation window (here: the same recording's second half) takes no part in
     training: other outputs there give the same weights, bit for bit."""
     model = get_model(name, sample_time=DT, **hyper)

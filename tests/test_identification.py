@@ -448,11 +448,12 @@ def _split_recording(y_after_scale: float) -> Dataset:
         Record(file="rec.csv#2", t=t, u=u, y=y, role="validation", frequency_hz=1.0, window=(3.0, 4.0))])
 
 
-def test_bounds_and_start_see_no_output_outside_the_fit_windows():
-    """The data scale that sets default bounds and starts reads the fit windows' outputs only: another
+def test_bounds_and_start_see_no_output_of_the_validation_window():
+    """The data scale that sets default bounds and starts reads no output of another record's window: another
     output in the validation window (the same recording's last period) leaves the problem unchanged."""
     model = get_model("classical-pi", n_operators=4)
-    same, other = (Problem.build(model, _split_recording(k).identification) for k in (1.0, 3.0))
+    same, other = (Problem.build(model, ds.identification, others=ds.validation)
+                   for ds in (_split_recording(k) for k in (1.0, 3.0)))
     assert same.scale == other.scale
     assert np.array_equal(same.lower, other.lower) and np.array_equal(same.upper, other.upper)
     assert np.array_equal(same.start_vector(None), other.start_vector(None))

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hysbench.data.dataset import Dataset, DatasetError, Record, load_dataset
-from hysbench.data.segments import own_samples, segment_bounds, split_records
+from hysbench.data.segments import own_samples, own_stretch, segment_bounds, split_records
 
 
 def _recording(n, dt=0.01, seed=0):
@@ -96,3 +96,33 @@ def test_split_records_cuts_identification_only_with_distinct_keys():
     assert np.array_equal(np.concatenate([r.y for r in first]), ds.records[0].y)
     assert all(r.role == "identification" and r.frequency_hz == 1.0 for r in first)
     assert split.records[2] is ds.records[1]
+
+
+def _windows(*windows):
+    """One recording of 100 samples (dt 1) listed once per window."""
+    t = np.arange(100.0)
+    u = np.sin(t / 7)
+    return [Record(file=f"r#{k}", t=t, u=u, y=2 * u, window=w) for k, w in enumerate(windows)]
+
+
+@given(st.integers(0, 97), st.integers(2, 99))
+@settings(max_examples=40, deadline=None)
+def test_a_records_own_stretch_is_the_widest_run_round_its_window_no_other_record_scores(a, b):
+    b = max(a + 2, b)
+    mine, *others = _windows((a, b), (0, 10), (90, 100))
+    stretch = own_stretch(mine, [mine, *others])
+    taken = np.zeros(100, dtype=bool)
+    for o in others:
+        taken[o.scored] = True
+    if taken[mine.scored].any():  # another record scores some of its window: the window alone
+        assert stretch == mine.scored
+    else:  # every sample of the stretch is free, it holds the window, and it cannot grow
+        assert stretch.start <= a and stretch.stop >= b and not taken[stretch].any()
+        assert stretch.start == 0 or taken[stretch.start - 1]
+        assert stretch.stop == 100 or taken[stretch.stop]
+
+
+def test_a_record_no_other_shares_is_its_own_stretch_whole():
+    mine = _windows((20, 30))[0]
+    other = Record(file="x", t=mine.t, u=mine.u, y=mine.y + 1.0, window=(50, 60))  # another recording
+    assert own_stretch(mine, [mine, other]) == slice(0, 100)
