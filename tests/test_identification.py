@@ -462,6 +462,15 @@ def test_bounds_and_start_see_no_output_of_the_validation_window():
     assert not np.array_equal(inside.upper, same.upper)  # the scale does follow the outputs inside the window
 
 
+def test_the_posteriors_prior_sees_no_output_of_the_validation_window():
+    from hysbench.identification.posterior import LogPosterior
+
+    model = get_model("classical-pi", n_operators=4)
+    same, other = (LogPosterior(model, ds.identification, others=ds.validation).problem
+                   for ds in (_split_recording(k) for k in (1.0, 3.0)))
+    assert same.scale == other.scale and np.array_equal(same.upper, other.upper)
+
+
 # --- the command line -------------------------------------------------------------
 def test_cli_fit_writes_the_json(tmp_path, noisy, capsys):
     folder = save_dataset(noisy, tmp_path / "data")

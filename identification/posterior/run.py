@@ -329,7 +329,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     if not (isinstance(min_ess, (int, float)) and min_ess >= 0):
         raise IdentificationError(f"min_ess must be a number >= 0, got {min_ess!r}")
 
-    post = LogPosterior(model, records, noise=noise, seed=seed, discrepancy=discrepancy)
+    post = LogPosterior(model, records, noise=noise, seed=seed, discrepancy=discrepancy, others=dataset.validation)
     if n_walkers < 2 * post.ndim or n_walkers % 2:
         raise IdentificationError(
             f"walkers must be an even number >= {2 * post.ndim} (twice the {post.ndim} sampled coordinates "

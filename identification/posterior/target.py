@@ -148,7 +148,9 @@ class LogPosterior:
 
     def __init__(self, model: HysteresisModel, records: Sequence[Record], noise: str = "ar1",
                  bounds: Mapping | None = None, shorten: bool = True, seed: int | None = 0,
-                 start_nonlinear: np.ndarray | None = None, discrepancy: str = "relaxation"):
+                 start_nonlinear: np.ndarray | None = None, discrepancy: str = "relaxation",
+                 others: Sequence[Record] = ()):
+        # others: the dataset's other records, whose windows' output the prior's scale never reads (Problem.build)
         if discrepancy not in DISCREPANCY_KINDS:
             raise IdentificationError(f"unknown discrepancy {discrepancy!r}; choose one of "
                                       f"{', '.join(DISCREPANCY_KINDS)}")
@@ -163,7 +165,7 @@ class LogPosterior:
             raise IdentificationError("posterior: no records to fit")
         self.model = model
         self.noise = noise
-        self.problem = Problem.build(model, records, bounds)
+        self.problem = Problem.build(model, records, bounds, others=others)
         self.input_range = self.problem.input_range
         names = model.param_names
         self.param_names = names
