@@ -89,7 +89,7 @@ def fit_once(model, dataset: Dataset, fit_on: list[str], bounds: dict, seed: int
         evaluations, in_range, notes = fit.n_evaluations, fit.input_range, list(fit.notes)
     else:
         records = [r for r in dataset.records if r.file in fitted]
-        problem = Problem.build(model, records, bounds)
+        problem = Problem.build(model, records, bounds, others=[r for r in dataset.records if r.file not in fitted])
         sep = SeparableProblem(problem)
         if columns is None:
             blocks = [model.windowed_regressors_batch(r.u, r.dt, np.zeros((1, 0)), r.scored, problem.input_range)[0]
