@@ -1,6 +1,7 @@
 """The grey-/black-box label and the benchmarks' NRMSE and fit (%) in the reports."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -56,3 +57,10 @@ def test_the_bouc_wen_report_names_a_learner_it_did_not_run():
     text = render(stored)
     assert "Not run: gru (PyTorch is not installed); the table and the comparisons below leave it out." in text
     assert "| gru |" not in text
+
+
+def test_the_bouc_wen_report_gives_each_parameter_in_the_datasets_units():
+    stored = json.loads((Path(__file__).parents[1] / "results" / "bouc_wen_benchmark.json").read_text())
+    text = render({**stored, "input_unit": "N", "output_unit": "m"})
+    assert re.search(r"m = [\d.]+ N\*s\^2/m, c = [\d.]+ N\*s/m, k = [\d.]+ N/m", text)
+    assert re.search(r"a2 = [-\d.e]+ m/N", text)

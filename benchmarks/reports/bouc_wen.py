@@ -145,7 +145,8 @@ def build(dataset_path: Path, out: Path, seed: int) -> dict:
     rows.append(fit_comparison("classical-pi", dataset, seed, "varpro"))  # its weights solved exactly
     trained = [name for name in BLACK_BOX if name != "gru" or torch_available()]
     rows += [fit_black_box(name, dataset, seed) for name in trained]
-    result = {"dataset": dataset.name, "seed": seed, "published": PUBLISHED, "rows": rows,
+    result = {"dataset": dataset.name, "input_unit": dataset.input_unit, "output_unit": dataset.output_unit,
+              "seed": seed, "published": PUBLISHED, "rows": rows,
               "true_parameters": interpolation_check(dataset), "load_average": os.getloadavg()[0]}
     not_run = [{"model": name, "reason": EXTRA_HINT} for name in BLACK_BOX if name not in trained]
     if not_run:  # the report says which learner it leaves out, so its black-box lines are not read as all of them
@@ -221,7 +222,9 @@ def render(r: dict) -> str:
         if row.get("kind") == "black-box":  # hundreds of weights say nothing read one by one
             ps = f"{len(row['params'])} values (weights and scaling constants), in bouc_wen_benchmark.json"
         else:
-            ps = ", ".join(f"{k} = {v:.6g}" for k, v in row["params"].items())
+            units = get_model(row["model"], **row["hyperparameters"]).parameter_units(
+                r.get("input_unit", ""), r.get("output_unit", "")) if "input_unit" in r else {}
+            ps = ", ".join(f"{k} = {v:.6g}" + (f" {units[k]}" if units.get(k) else "") for k, v in row["params"].items())
         lines.append(f"- {_label(row)} ({row['how']}): {ps}")
         for note in row["notes"]:
             lines.append(f"  - note: {note}")
