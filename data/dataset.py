@@ -357,6 +357,8 @@ def fitting_problems(dataset: "Dataset") -> list[str]:
         return ["no identification records (every record has role 'validation'): nothing to fit on"]
     if all(float(np.ptp(r.u)) == 0 for r in dataset.identification):
         return ["the input is constant in every identification record: no hysteresis can be identified"]
+    if not any(r.weight > 0 for r in dataset.identification):  # eq. 9 weighs every fitted residual by it
+        return ["every identification record has weight 0: eq. 9 has nothing to fit"]
     return []
 
 
