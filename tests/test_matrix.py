@@ -19,7 +19,7 @@ from hysbench.benchmarks.matrix import cells as cells_module
 from hysbench.benchmarks.matrix import execute as execute_module
 from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
 from hysbench.benchmarks.matrix.execute import run_matrix
-from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows, seconds_per_cell
+from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows, paper_layout, seconds_per_cell
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data import load_dataset
 from hysbench.identification import Fit
@@ -386,3 +386,12 @@ def test_an_abandoned_pool_is_stopped_at_once_and_leaves_no_thread_to_race_the_e
         w.join(2.0)
         assert not w.is_alive()
     assert all(f.done() for f in futures)
+
+
+def test_paper_tables_tell_apart_records_of_one_frequency():
+    """Rows are keyed by frequency; records that share one (e.g. two amplitudes at 1 Hz) are named by file."""
+    recs = [{"file": f, "role": "identification", "frequency_hz": hz, "e_m": em, "e_rms": em / 2}
+            for f, hz, em in (("a.csv", 1.0, 1.0), ("b.csv", 1.0, 3.0), ("c.csv", 0.5, 5.0), ("d.csv", None, 7.0))]
+    rows = paper_layout([({"model": "m", "method": "varpro", "records": recs}, {})], "identification")[2:]
+    assert rows == ["| 1 (a.csv) | 1.00 / 0.50 |", "| 1 (b.csv) | 3.00 / 1.50 |", "| 0.5 | 5.00 / 2.50 |",
+                    "| d.csv | 7.00 / 3.50 |"]
