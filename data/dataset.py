@@ -467,7 +467,9 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
         raise DatasetError(f"{where}: columns of unequal length (line {line_numbers[k]} has {counts[k]} fields, "
                            f"{names_from} names {len(header)})")
     try:
-        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
+        # comments=None: '#' starts no comment in the format (an Excel '#N/A' must not drop its row)
+        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2,
+                          comments=None)
     except ValueError:
         data = None
     if data is None:

@@ -393,3 +393,20 @@ def test_refuses_a_validation_window_that_overlaps_the_identification_window_of_
             '\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "validation"\nwindow = [0.5, 1.5]\n')
     with pytest.raises(DatasetError, match="r.csv: its validation window overlaps its identification window"):
         load_dataset(make(tmp_path, toml, n=2000))
+
+
+@pytest.mark.parametrize("row", [500, 999])
+def test_a_hash_in_a_column_it_does_not_use_keeps_its_row(tmp_path, row):
+    """'#' starts no comment: a spreadsheet's '#N/A' in another column leaves the row's numbers read."""
+    t = np.arange(1000) * 1e-3
+    u = np.sin(2 * np.pi * 2.0 * t)
+    rows = [f"ok,{a!r},{b!r},{2 * b!r}" for a, b in zip(t.tolist(), u.tolist())]
+    rows[row] = "#N/A," + rows[row].split(",", 1)[1]
+    (tmp_path / "r.csv").write_text("note,t,u,y\n" + "\n".join(rows) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    r = load_dataset(tmp_path).records[0]
+    assert r.t.size == 1000 and r.u[row] == u[row]
+    rows[row] = rows[row].replace("#N/A,", "ok,", 1).rsplit(",", 1)[0] + ",#N/A"  # in a column it uses
+    (tmp_path / "r.csv").write_text("note,t,u,y\n" + "\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=f"non-numeric value on line {row + 2}, column y"):
+        load_dataset(tmp_path)
