@@ -410,3 +410,27 @@ def test_a_hash_in_a_column_it_does_not_use_keeps_its_row(tmp_path, row):
     (tmp_path / "r.csv").write_text("note,t,u,y\n" + "\n".join(rows) + "\n")
     with pytest.raises(DatasetError, match=f"non-numeric value on line {row + 2}, column y"):
         load_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("encode, named", [
+    (lambda text: text.replace("y", "y (µm)", 1).encode("latin-1"), "is not UTF-8 text (byte 0xb5 on line 1"),
+    (lambda text: text.encode("utf-16"), "is UTF-16 text")])
+def test_a_csv_that_is_not_utf8_is_named_as_such(tmp_path, encode, named):
+    folder = make(tmp_path, GOOD)
+    (folder / "r.csv").write_bytes(encode((folder / "r.csv").read_text()))
+    with pytest.raises(DatasetError, match=re.escape(f"r.csv: {named}")):
+        load_dataset(folder)
+
+
+def test_a_decimal_comma_and_space_aligned_columns_are_named(tmp_path):
+    t = np.arange(1000) * 1e-3
+    u = np.sin(4 * np.pi * t)
+    (tmp_path / "r.csv").write_text("t;u;y\n" + "\n".join(f"{a:.6f};{b:.6f};{2 * b:.6f}".replace(".", ",")
+                                                         for a, b in zip(t, u)) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + 'delimiter = ";"\n' + GOOD)
+    with pytest.raises(DatasetError, match="line 2, column t; numbers take a decimal point, not a comma"):
+        load_dataset(tmp_path)
+    (tmp_path / "r.csv").write_text("t u y\n" + "\n".join(f"{a:9.6f} {b:9.6f} {2 * b:9.6f}" for a, b in zip(t, u)) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + 'delimiter = " "\n' + GOOD)
+    with pytest.raises(DatasetError, match="line 2 has .* fields are separated by runs of spaces"):
+        load_dataset(tmp_path)

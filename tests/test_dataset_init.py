@@ -144,3 +144,13 @@ def test_two_datasets_with_one_name_are_refused_naming_both_folders_and_the_fix(
     assert "share the name 'run1'" in err and "dataset.toml" in err
     assert str(tmp_path / "a") in err and str(tmp_path / "b") in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_csv_that_is_not_utf8_is_named_as_such_and_nothing_is_written(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "run.csv"
+    csv.write_bytes(("t,u,y (µm)\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, u, y))).encode("latin-1"))
+    assert main(["dataset", "init", str(csv), "--time", "0", "--input", "1", "--output", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "run.csv: is not UTF-8 text (byte 0xb5 on line 1" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import os
 from pathlib import Path
 
-from hysbench.data.dataset import ROLES, DatasetError, load_dataset
+from hysbench.data.dataset import ROLES, DatasetError, load_dataset, not_utf8
 from hysbench.data.files import shown, write_atomic
 
 from .common import CommandError
@@ -46,12 +47,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def first_row(path: Path, delimiter: str) -> list[str]:
     try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            for row in csv.reader(fh, delimiter=delimiter):
-                if any(f.strip() for f in row):
-                    return [f.strip() for f in row]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CommandError(f"cannot read {path}: {exc}") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise CommandError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise CommandError(f"{path}: {not_utf8(raw, exc)}") from None
+    for row in csv.reader(io.StringIO(text, newline=""), delimiter=delimiter):
+        if any(f.strip() for f in row):
+            return [f.strip() for f in row]
     raise CommandError(f"{path} holds no rows")
 
 
