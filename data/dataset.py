@@ -204,6 +204,9 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     """Read and check a dataset folder (or its dataset.toml)."""
     path = Path(path)
     toml_path = path if path.suffix == ".toml" else path / "dataset.toml"
+    if path.suffix != ".toml" and path.is_file():
+        raise DatasetError(f"{path}: a file, not a dataset folder (a dataset is a folder holding dataset.toml; "
+                           "for a CSV file, hysbench dataset init writes one)")
     if toml_path.exists() and not toml_path.is_file():
         raise DatasetError(f"{toml_path}: not a regular file (a dataset is a folder holding dataset.toml)")
     if not toml_path.is_file():

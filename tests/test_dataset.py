@@ -434,3 +434,9 @@ def test_a_decimal_comma_and_space_aligned_columns_are_named(tmp_path):
     (tmp_path / "dataset.toml").write_text(HEADER + 'delimiter = " "\n' + GOOD)
     with pytest.raises(DatasetError, match="line 2 has .* fields are separated by runs of spaces"):
         load_dataset(tmp_path)
+
+
+def test_a_record_file_given_as_the_dataset_is_named_a_file(tmp_path):
+    folder = make(tmp_path, GOOD)
+    with pytest.raises(DatasetError, match=r"r.csv: a file, not a dataset folder .*hysbench dataset init"):
+        load_dataset(folder / "r.csv")
