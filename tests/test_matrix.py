@@ -395,3 +395,13 @@ def test_paper_tables_tell_apart_records_of_one_frequency():
     rows = paper_layout([({"model": "m", "method": "varpro", "records": recs}, {})], "identification")[2:]
     assert rows == ["| 1 (a.csv) | 1.00 / 0.50 |", "| 1 (b.csv) | 3.00 / 1.50 |", "| 0.5 | 5.00 / 2.50 |",
                     "| d.csv | 7.00 / 3.50 |"]
+
+
+@pytest.mark.parametrize("roles", [("identification",), ("identification", "validation")])
+def test_a_ranking_on_fitted_data_says_so(roles):
+    from hysbench.benchmarks.matrix.report import dataset_section
+    recs = [{"file": f"{r}.csv", "role": r, "frequency_hz": 1.0, "e_m": 2.0, "e_rms": 1.0} for r in roles]
+    cell = {"dataset": "d", "model": "classical-pi", "method": "varpro", "status": "ok", "records": recs,
+            "n_params": 15, "fitness": 1.0, "fit_seconds": 0.1, "simulate_seconds": 0.01}
+    text = "\n".join(dataset_section("d", [cell], [], {}))
+    assert ("No validation records: every score is on the data its model was fitted to" in text) == (len(roles) == 1)

@@ -166,6 +166,10 @@ def dataset_section(ds_name: str, results: list[dict], failed: list[dict], figur
     on = ranked[0][1]["ranked_on"]
     lines += [f"Ranked by mean {on} e_rms (ties by worst). e_m and e_rms in % of the measured peak-to-peak "
               "of each scored window (eq. 10).", ""]
+    if on == "identification":  # in-sample: more parameters score better whether or not they predict better
+        lines += ["**No validation records: every score is on the data its model was fitted to**, so this ranking "
+                  "favours more parameters and says nothing of prediction; give a record the role `validation` "
+                  "(docs/datasets.md) for a ranking on data no fit saw.", ""]
     lines += ranking_table(ranked) + [""]
     lines += ["### Identification errors, best cell of each model (layout of the paper's Table 3: e_m / e_rms, %)",
               ""] + paper_layout(best, "identification") + [""]
