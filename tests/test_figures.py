@@ -125,3 +125,15 @@ def test_amplitude_figure_is_labelled(tmp_path, drawn, monkeypatch):
     amplitude.write(tmp_path)
     (fig,) = drawn
     assert unreadable(fig) == [] and len({line.get_marker() for line in fig.axes[0].lines}) > 1
+
+
+def test_diagnosis_panels_of_records_that_share_a_frequency_name_their_files():
+    from hysbench.benchmarks.diagnosis.figures import _label
+    from hysbench.data.dataset import Record
+
+    t = np.arange(200) * 0.01
+    recs = [Record(file=f, t=t, u=np.sin(2 * np.pi * t), y=np.cos(2 * np.pi * t), role=role, frequency_hz=hz)
+            for f, role, hz in (("a.csv", "identification", 1.0), ("b.csv", "validation", 1.0),
+                                ("c.csv", "identification", 2.0))]
+    diag = SimpleNamespace(before=[SimpleNamespace(record=r) for r in recs])
+    assert [_label(r, diag) for r in recs] == ["1 Hz, a.csv (id)", "1 Hz, b.csv (val)", "2 Hz (id)"]
