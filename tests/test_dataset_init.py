@@ -154,3 +154,17 @@ def test_a_csv_that_is_not_utf8_is_named_as_such_and_nothing_is_written(tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run.csv: is not UTF-8 text (byte 0xb5 on line 1" in err[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+
+
+def test_a_tab_separated_csv_is_named_and_read_with_a_typed_tab(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "run.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter="\t", header="t\tu\ty", comments="", fmt="%.10g")
+    args = ["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "its fields look separated by '\\t': pass --delimiter 'tab'" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+    for typed in ("\\t", "tab"):
+        assert main(args + ["--delimiter", typed, "--force"]) == 0
+        assert np.allclose(load_dataset(tmp_path).records[0].y, y)

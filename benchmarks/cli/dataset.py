@@ -18,13 +18,14 @@ import json
 import os
 from pathlib import Path
 
-from hysbench.data.dataset import ROLES, DatasetError, load_dataset, not_utf8
+from hysbench.data.dataset import CSV_DELIMITERS, ROLES, DatasetError, load_dataset, not_utf8
 from hysbench.data.files import shown, write_atomic
 
 from .common import CommandError
 
 EXAMPLE = "hysbench dataset init measurements/run1.csv --time 0 --input 2 --output 1 --frequency 1 --role validation"
 ROLE_NAMES = ("time", "input", "output")
+DELIMITER_ARG = {"\t": "tab"}  # how a delimiter is typed as --delimiter
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--name", help="dataset name (default: the CSV's file name without its suffix, _ written as -)")
     p.add_argument("--input-unit", default="", help="unit of the input column")
     p.add_argument("--output-unit", default="", help="unit of the output column")
-    p.add_argument("--delimiter", default=",", help="field delimiter (default ,)")
+    p.add_argument("--delimiter", default=",", help="field delimiter, one character; \\t or tab for a tab (default ,)")
     p.add_argument("--force", action="store_true", help="replace an existing dataset.toml")
 
 
@@ -135,9 +136,17 @@ def main(args) -> int:
     target = csv_path.parent / "dataset.toml"
     if target.exists() and not args.force:
         raise CommandError(f"{target} exists; pass --force to replace it")
+    if args.delimiter in ("\\t", "tab"):  # what a shell passes for a typed \t
+        args.delimiter = "\t"
     if len(args.delimiter) != 1:
-        raise CommandError(f"--delimiter must be one character, got {args.delimiter!r}")
+        raise CommandError(f"--delimiter must be one character (\\t or tab for a tab), got {args.delimiter!r}")
     row = first_row(csv_path, args.delimiter)
+    if len(row) == 1:  # three columns are needed: one field means another separator
+        other = next((d for d in CSV_DELIMITERS if d != args.delimiter and len(row[0].split(d)) >= 3), None)
+        hint = (f"; its fields look separated by {other!r}: pass --delimiter {DELIMITER_ARG.get(other, other)!r}"
+                if other else "")
+        raise CommandError(f"{csv_path}: its first row has one field with --delimiter {args.delimiter!r}, and time, "
+                           f"input and output need three{hint}")
     header = None if all(_is_number(f) for f in row if f) else row
     columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
     if len(set(columns)) < 3:
