@@ -496,6 +496,8 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
 
 def not_utf8(raw: bytes, exc: UnicodeDecodeError) -> str:
     """Why a CSV file's bytes are not read: the format is UTF-8 text (a BOM is allowed)."""
+    if raw.startswith(b"PK\x03\x04"):
+        return "is a zip archive (an .xlsx workbook?), not CSV text: export it as CSV (UTF-8)"
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         return "is UTF-16 text (a spreadsheet's 'Unicode text'); CSV records are read as UTF-8: save it as UTF-8"
     line = raw.count(b"\n", 0, exc.start) + 1

@@ -414,7 +414,8 @@ def test_a_hash_in_a_column_it_does_not_use_keeps_its_row(tmp_path, row):
 
 @pytest.mark.parametrize("encode, named", [
     (lambda text: text.replace("y", "y (µm)", 1).encode("latin-1"), "is not UTF-8 text (byte 0xb5 on line 1"),
-    (lambda text: text.encode("utf-16"), "is UTF-16 text")])
+    (lambda text: text.encode("utf-16"), "is UTF-16 text"),
+    (lambda text: b"PK\x03\x04\x14\x00\x06\x00\x08\x00\x00\x00!\x00\xff", "is a zip archive (an .xlsx workbook?)")])
 def test_a_csv_that_is_not_utf8_is_named_as_such(tmp_path, encode, named):
     folder = make(tmp_path, GOOD)
     (folder / "r.csv").write_bytes(encode((folder / "r.csv").read_text()))
