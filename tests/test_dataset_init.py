@@ -163,7 +163,8 @@ def test_a_tab_separated_csv_is_named_and_read_with_a_typed_tab(tmp_path, capsys
     args = ["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "its fields look separated by '\\t': pass --delimiter 'tab'" in err[0]
+    assert len(err) == 1 and "--time 't': no such column" in err[0]
+    assert "looks separated by '\\t': pass --delimiter 'tab'" in err[0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
     for typed in ("\\t", "tab"):
         assert main(args + ["--delimiter", typed, "--force"]) == 0

@@ -141,14 +141,16 @@ def main(args) -> int:
     if len(args.delimiter) != 1:
         raise CommandError(f"--delimiter must be one character (\\t or tab for a tab), got {args.delimiter!r}")
     row = first_row(csv_path, args.delimiter)
-    if len(row) == 1:  # three columns are needed: one field means another separator
-        other = next((d for d in CSV_DELIMITERS if d != args.delimiter and len(row[0].split(d)) >= 3), None)
-        hint = (f"; its fields look separated by {other!r}: pass --delimiter {DELIMITER_ARG.get(other, other)!r}"
-                if other else "")
-        raise CommandError(f"{csv_path}: its first row has one field with --delimiter {args.delimiter!r}, and time, "
-                           f"input and output need three{hint}")
     header = None if all(_is_number(f) for f in row if f) else row
-    columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
+    try:
+        columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
+    except CommandError as exc:  # a first row of one field is most likely split by another separator
+        other = next((d for d in CSV_DELIMITERS if d != args.delimiter and len(row) == 1
+                      and len(row[0].split(d)) >= 3), None)
+        if other is None:
+            raise
+        raise CommandError(f"{exc}; its first row is one field under --delimiter {args.delimiter!r} and looks "
+                           f"separated by {other!r}: pass --delimiter {DELIMITER_ARG.get(other, other)!r}") from None
     if len(set(columns)) < 3:
         raise CommandError(f"--time, --input and --output must be three different columns, got indices {columns}")
     if header is not None:
