@@ -476,12 +476,14 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
                 if runs and any(runs in ln or ln.startswith(" ") for ln in (header_line or "", body[k])) else "")
         raise DatasetError(f"{where}: columns of unequal length (line {line_numbers[k]} has {counts[k]} fields, "
                            f"{names_from} names {len(header)}{hint})")
-    try:
-        # comments=None: '#' starts no comment in the format (an Excel '#N/A' must not drop its row)
-        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2,
-                          comments=None)
-    except ValueError:
-        data = None
+    data = None
+    if counts is not None:  # no quotes: a delimiter always splits fields, which loadtxt assumes
+        try:
+            # comments=None: '#' starts no comment in the format (an Excel '#N/A' must not drop its row)
+            data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2,
+                              comments=None)
+        except ValueError:
+            data = None
     if data is None:
         rows = list(csv.reader(body, delimiter=delimiter))
         lengths = {len(r) for r in rows}

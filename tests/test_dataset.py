@@ -441,3 +441,16 @@ def test_a_record_file_given_as_the_dataset_is_named_a_file(tmp_path):
     folder = make(tmp_path, GOOD)
     with pytest.raises(DatasetError, match=r"r.csv: a file, not a dataset folder .*hysbench dataset init"):
         load_dataset(folder / "r.csv")
+
+
+def test_a_quoted_field_holding_the_delimiter_shifts_no_column(tmp_path):
+    """A quoted field is one field whatever it holds: '"1,234,567,890"' (a number with thousands separators)
+    does not split into four, so the columns after it are read from their own fields."""
+    t = np.arange(1000) * 1e-3
+    u = np.sin(4 * np.pi * t)
+    rows = [f"{a!r},{k},{b!r},{2 * b!r}" for k, (a, b) in enumerate(zip(t.tolist(), u.tolist()))]
+    rows[10] = f'{t.tolist()[10]!r},"1,234,567,890",{u.tolist()[10]!r},{2 * u.tolist()[10]!r}'
+    (tmp_path / "r.csv").write_text("t,idx,u,y\n" + "\n".join(rows) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    r = load_dataset(tmp_path).records[0]
+    assert r.u[10] == u[10] and r.y[10] == 2 * u[10]
