@@ -169,3 +169,17 @@ def test_a_tab_separated_csv_is_named_and_read_with_a_typed_tab(tmp_path, capsys
     for typed in ("\\t", "tab"):
         assert main(args + ["--delimiter", typed, "--force"]) == 0
         assert np.allclose(load_dataset(tmp_path).records[0].y, y)
+
+
+def test_check_shows_each_records_ranges_so_a_record_in_another_unit_stands_out(tmp_path, capsys):
+    t, u, y = _series()
+    lines = ['name = "two"', 'time_column = "t"', 'input_column = "u"', 'output_column = "y"']
+    for name, scale in (("um.csv", 1.0), ("m.csv", 1e-6)):
+        np.savetxt(tmp_path / name, np.column_stack([t, u, y * scale]), delimiter=",", header="t,u,y", comments="")
+        lines += ["[[records]]", f'file = "{name}"', 'role = "identification"']
+    (tmp_path / "dataset.toml").write_text("\n".join(lines) + "\n")
+    assert main(["check", str(tmp_path)]) == 0
+    header, first, second = capsys.readouterr().out.splitlines()[1:4]
+    assert header.endswith("output range, scored") and len(header) == len(first) == len(second)
+    assert first.endswith(f"{y.min():.4g} to {y.max():.4g}") and second.endswith(f"{y.min() * 1e-6:.4g} to "
+                                                                              f"{y.max() * 1e-6:.4g}")
