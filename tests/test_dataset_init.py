@@ -183,3 +183,15 @@ def test_check_shows_each_records_ranges_so_a_record_in_another_unit_stands_out(
     assert header.endswith("output range, scored") and len(header) == len(first) == len(second)
     assert first.endswith(f"{y.min():.4g} to {y.max():.4g}") and second.endswith(f"{y.min() * 1e-6:.4g} to "
                                                                               f"{y.max() * 1e-6:.4g}")
+
+
+@pytest.mark.parametrize("name", ["piezo \U0001F600", "\U0001D707-stage", "del\x7fchar", "tab\tand \"quote\""])
+def test_any_unicode_name_is_written_as_valid_toml(tmp_path, capsys, name):
+    """A character beyond U+FFFF (JSON would write it as a surrogate pair, which TOML refuses) or a DEL (which
+    TOML must see escaped) in --name or the file name."""
+    t, u, y = _series()
+    csv = tmp_path / f"run{name[0]}{name[-1]}.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y", "--name", name]) == 0
+    ds = load_dataset(tmp_path)
+    assert ds.name == name and ds.records[0].file == csv.name

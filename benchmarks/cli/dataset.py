@@ -95,13 +95,15 @@ def manifest(args, csv_path: Path, header: list[str] | None, columns: list[int],
     chosen = [names[k] for k in columns]
 
     def q(text: str, what: str) -> str:
-        """``text`` as a TOML basic string (a JSON string is one); TOML is UTF-8, so a name whose bytes are not
+        """``text`` as a TOML basic string (a JSON string, in UTF-8); TOML is UTF-8, so a name whose bytes are not
         (a file name or argument as the OS gave it) is refused, naming what holds it."""
         try:
             text.encode("utf-8")
         except UnicodeEncodeError:
             raise CommandError(f"{what} is not valid UTF-8, so dataset.toml (UTF-8) cannot hold it") from None
-        return json.dumps(text)
+        # raw UTF-8: TOML has no surrogate-pair escapes (JSON's for a character beyond U+FFFF), and U+007F, which
+        # JSON leaves raw, must be escaped in TOML
+        return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
 
     file_name = f"the CSV's file name {shown(csv_path.name)}"
     lines = [f"name = {q(args.name, '--name') if args.name else q(csv_path.stem.replace('_', '-'), file_name)}",
