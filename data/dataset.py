@@ -204,6 +204,9 @@ def load_dataset(path: str | os.PathLike) -> Dataset:
     """Read and check a dataset folder (or its dataset.toml)."""
     path = Path(path)
     toml_path = path if path.suffix == ".toml" else path / "dataset.toml"
+    if path.suffix != ".toml" and path.is_file():
+        raise DatasetError(f"{path}: a file, not a dataset folder (a dataset is a folder holding dataset.toml; "
+                           "for a CSV file, hysbench dataset init writes one)")
     if toml_path.exists() and not toml_path.is_file():
         raise DatasetError(f"{toml_path}: not a regular file (a dataset is a folder holding dataset.toml)")
     if not toml_path.is_file():
@@ -357,6 +360,8 @@ def fitting_problems(dataset: "Dataset") -> list[str]:
         return ["no identification records (every record has role 'validation'): nothing to fit on"]
     if all(float(np.ptp(r.u)) == 0 for r in dataset.identification):
         return ["the input is constant in every identification record: no hysteresis can be identified"]
+    if not any(r.weight > 0 for r in dataset.identification):  # eq. 9 weighs every fitted residual by it
+        return ["every identification record has weight 0: eq. 9 has nothing to fit"]
     return []
 
 
@@ -427,9 +432,13 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     if path.stat().st_size > MAX_RECORD_BYTES:
         raise DatasetError(f"{where}: CSV file larger than the limit of {MAX_RECORD_BYTES / 2**20:.0f} MiB per record")
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DatasetError(f"{where}: cannot read CSV file: {exc}") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DatasetError(f"{where}: cannot read CSV file: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{where}: {not_utf8(raw, exc)}") from None
     # blank lines are skipped; lines are numbered as an editor numbers them (\n, \r\n or \r ends one)
     numbered = [(n, ln) for n, ln in enumerate(re.split(r"\r\n|\r|\n", text), start=1) if ln.strip()]
     header_line = None
@@ -462,12 +471,19 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     counts = np.array([ln.count(delimiter) + 1 for ln in body]) if '"' not in text else None
     if counts is not None and np.any(counts != len(header)):
         k = int(np.flatnonzero(counts != len(header))[0])
+        runs = " " * 2 * (delimiter == " ")  # columns aligned by runs of spaces split into empty fields
+        hint = ("; fields are separated by runs of spaces: the delimiter must stand once between fields"
+                if runs and any(runs in ln or ln.startswith(" ") for ln in (header_line or "", body[k])) else "")
         raise DatasetError(f"{where}: columns of unequal length (line {line_numbers[k]} has {counts[k]} fields, "
-                           f"{names_from} names {len(header)})")
-    try:
-        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2)
-    except ValueError:
-        data = None
+                           f"{names_from} names {len(header)}{hint})")
+    data = None
+    if counts is not None:  # no quotes: a delimiter always splits fields, which loadtxt assumes
+        try:
+            # comments=None: '#' starts no comment in the format (an Excel '#N/A' must not drop its row)
+            data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, usecols=wanted, ndmin=2,
+                              comments=None)
+        except ValueError:
+            data = None
     if data is None:
         rows = list(csv.reader(body, delimiter=delimiter))
         lengths = {len(r) for r in rows}
@@ -480,7 +496,19 @@ def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
     return [data[:, k].copy() for k in range(len(columns))], line_numbers
 
 
+def not_utf8(raw: bytes, exc: UnicodeDecodeError) -> str:
+    """Why a CSV file's bytes are not read: the format is UTF-8 text (a BOM is allowed)."""
+    if raw.startswith(b"PK\x03\x04"):
+        return "is a zip archive (an .xlsx workbook?), not CSV text: export it as CSV (UTF-8)"
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "is UTF-16 text (a spreadsheet's 'Unicode text'); CSV records are read as UTF-8: save it as UTF-8"
+    line = raw.count(b"\n", 0, exc.start) + 1
+    return (f"is not UTF-8 text (byte 0x{raw[exc.start]:02x} on line {line}, e.g. a 'µ' written in "
+            "Latin-1); CSV records are read as UTF-8: save it as UTF-8")
+
+
 # a decimal number in ASCII digits (float() would also take '1_0' as 10, and digits of other scripts)
+DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+([eE][+-]?\d+)?", re.ASCII)
 CSV_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.ASCII | re.IGNORECASE)
 
 
@@ -491,7 +519,8 @@ def _csv_number(cell: str, where: str, line: int, column: str) -> float:
     if not cell:
         raise DatasetError(f"{where}: empty cell on line {line}, column {column}")
     if not CSV_NUMBER.fullmatch(cell):
-        raise DatasetError(f"{where}: non-numeric value on line {line}, column {column}")
+        hint = "; numbers take a decimal point, not a comma" if DECIMAL_COMMA.fullmatch(cell) else ""
+        raise DatasetError(f"{where}: non-numeric value on line {line}, column {column}{hint}")
     return float(cell)
 
 

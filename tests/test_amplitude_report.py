@@ -53,3 +53,17 @@ def test_a_damaged_cell_file_is_named_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "a.json is not a readable cell file" in err[0]
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.json", "cells"]
+
+
+def test_cells_of_another_actuator_named_virtual_dea_are_refused(results, tmp_path, capsys):
+    """The study compares against the virtual DEA's displacement (mm): fits in another output unit that share
+    the dataset's name are not driven with it."""
+    _, cell = results
+    (tmp_path / "cells").mkdir()
+    other = json.loads(json.dumps(cell))
+    other["fit"]["output_unit"] = "um"
+    (tmp_path / "cells" / "mine.json").write_text(json.dumps(other))
+    assert main(["report", "amplitude", "--results", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "output unit um, not the virtual DEA's mm" in err[0]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["cells", "mine.json"]

@@ -118,6 +118,14 @@ def _constant_input(root: Path) -> list[str]:
             "--methods", "varpro", "--jobs", "1", "--out", str(root / "out")]
 
 
+def _zero_weights(root: Path) -> list[str]:
+    folder = write_tiny_dataset(root / "w0")
+    toml = folder / "dataset.toml"
+    toml.write_text(toml.read_text().replace('role = "identification"', 'role = "identification"\nweight = 0'))
+    return ["run", str(folder), "--models", "classical-pi", "--methods", "varpro", "--jobs", "1",
+            "--out", str(root / "out")]
+
+
 CASES = [
     Case("json to a FIFO", lambda r: ["fit", _tiny(r), "--model", "classical-pi", "--json", str(_fifo(r / "p"))],
          "it is a FIFO, not a regular file"),
@@ -137,6 +145,7 @@ CASES = [
                                                                         "f2Hz.npz": "validation"}),
                                                  "--jobs", "1", "--out", str(r / "out")], "no identification records"),
     Case("constant input", _constant_input, "the input is constant"),
+    Case("every identification record of weight 0", _zero_weights, "has weight 0"),
     Case("record outside its dataset folder", _outside_record, "must stay inside the dataset folder"),
     Case("FIFO as a record file", lambda r: ["check", _manifest(r, [(str(_fifo(r / "rec.csv")), "identification")])],
          "not a regular file"),
@@ -190,6 +199,11 @@ def test_check_warns_about_a_dataset_nothing_can_be_fitted_on(tmp_path, capsys):
     records = {f: (t, np.full_like(u, 1.5), y) for f, (t, u, y) in tiny_records().items()}
     assert cli(["check", str(write_tiny_dataset(tmp_path / "const", records=records))]) == 0
     assert "warning: the input is constant in every identification record" in capsys.readouterr().err
+    folder = write_tiny_dataset(tmp_path / "w0")
+    toml = folder / "dataset.toml"
+    toml.write_text(toml.read_text().replace('role = "identification"', 'role = "identification"\nweight = 0'))
+    assert cli(["check", str(folder)]) == 0
+    assert "warning: every identification record has weight 0" in capsys.readouterr().err
 
 
 def test_an_absolute_record_path_is_allowed(tmp_path, capsys):

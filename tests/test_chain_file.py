@@ -154,3 +154,19 @@ def test_a_sound_chain_file_is_read_whole(stored):
     assert got["start"]["modes"] and len(got["random_state"]) == 5
     with pytest.raises(ChainFileError, match="holds a chain for other settings \\(differs in: walkers\\)"):
         read_chain(chain, {**fingerprint, "walkers": 10}, names)
+
+
+def test_a_start_that_fails_leaves_no_chain_file(stored, tmp_path, capsys, monkeypatch):
+    """A posterior refused before its first step leaves neither a chain file of settings alone nor its folder."""
+    from hysbench.identification.errors import IdentificationError
+    from hysbench.identification.posterior import run as posterior_run
+
+    def no_mode(post, starts):
+        raise IdentificationError("posterior: no mode search started from a finite log posterior")
+
+    monkeypatch.setattr(posterior_run, "find_modes", no_mode)
+    folder, _ = stored
+    out = tmp_path / "new" / "out"
+    assert hysbench(["posterior", str(folder), "--out", str(out), "--steps", "4", *RUN]) == 2
+    assert "no mode search started" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()

@@ -189,3 +189,31 @@ def test_a_reader_that_goes_away_stops_the_command_without_a_traceback():
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=60) == 1
     assert "Traceback" not in err and "BrokenPipeError" not in err and "Exception ignored" not in err, err
+
+
+def test_a_dataset_named_virtual_dea_in_other_units_is_not_scored_on_the_unseen_waveforms(tmp_path, capsys):
+    """The waveforms drive the virtual DEA (kV -> mm); a fit of another actuator that shares its name is not
+    simulated on them: --unseen is refused, the default skips them and says so."""
+    from types import SimpleNamespace
+
+    from tiny_dataset import write_tiny_dataset
+
+    from hysbench.benchmarks.cli.run import _unseen_dataset
+    from hysbench.data.dataset import load_dataset
+
+    def dataset(name, units):
+        folder = write_tiny_dataset(tmp_path / name)
+        toml = folder / "dataset.toml"
+        toml.write_text(toml.read_text().replace('name = "tiny"', f'name = "{name}"\ninput_unit = "{units[0]}"\n'
+                                                                  f'output_unit = "{units[1]}"'))
+        return folder
+
+    mine = dataset("virtual-dea", ("V", "um"))
+    drives = str(dataset("drives", ("kV", "mm")))
+    datasets = [(mine, load_dataset(mine))]
+    with pytest.raises(CommandError, match="is named 'virtual-dea' but in V -> um, the unseen waveforms in kV -> mm"):
+        _unseen_dataset(SimpleNamespace(suite="default", unseen=drives), datasets)
+    assert _unseen_dataset(SimpleNamespace(suite="default", unseen=None), datasets) is None
+    assert "its fits are not scored on them" in capsys.readouterr().err
+    datasets[0][1].input_unit, datasets[0][1].output_unit = "kV", "mm"
+    assert _unseen_dataset(SimpleNamespace(suite="default", unseen=drives), datasets).name == "drives"

@@ -393,3 +393,64 @@ def test_refuses_a_validation_window_that_overlaps_the_identification_window_of_
             '\n[[records]]\nfile = "r.csv"\nfrequency_hz = 2.0\nrole = "validation"\nwindow = [0.5, 1.5]\n')
     with pytest.raises(DatasetError, match="r.csv: its validation window overlaps its identification window"):
         load_dataset(make(tmp_path, toml, n=2000))
+
+
+@pytest.mark.parametrize("row", [500, 999])
+def test_a_hash_in_a_column_it_does_not_use_keeps_its_row(tmp_path, row):
+    """'#' starts no comment: a spreadsheet's '#N/A' in another column leaves the row's numbers read."""
+    t = np.arange(1000) * 1e-3
+    u = np.sin(2 * np.pi * 2.0 * t)
+    rows = [f"ok,{a!r},{b!r},{2 * b!r}" for a, b in zip(t.tolist(), u.tolist())]
+    rows[row] = "#N/A," + rows[row].split(",", 1)[1]
+    (tmp_path / "r.csv").write_text("note,t,u,y\n" + "\n".join(rows) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    r = load_dataset(tmp_path).records[0]
+    assert r.t.size == 1000 and r.u[row] == u[row]
+    rows[row] = rows[row].replace("#N/A,", "ok,", 1).rsplit(",", 1)[0] + ",#N/A"  # in a column it uses
+    (tmp_path / "r.csv").write_text("note,t,u,y\n" + "\n".join(rows) + "\n")
+    with pytest.raises(DatasetError, match=f"non-numeric value on line {row + 2}, column y"):
+        load_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("encode, named", [
+    (lambda text: text.replace("y", "y (µm)", 1).encode("latin-1"), "is not UTF-8 text (byte 0xb5 on line 1"),
+    (lambda text: text.encode("utf-16"), "is UTF-16 text"),
+    (lambda text: b"PK\x03\x04\x14\x00\x06\x00\x08\x00\x00\x00!\x00\xff", "is a zip archive (an .xlsx workbook?)")])
+def test_a_csv_that_is_not_utf8_is_named_as_such(tmp_path, encode, named):
+    folder = make(tmp_path, GOOD)
+    (folder / "r.csv").write_bytes(encode((folder / "r.csv").read_text()))
+    with pytest.raises(DatasetError, match=re.escape(f"r.csv: {named}")):
+        load_dataset(folder)
+
+
+def test_a_decimal_comma_and_space_aligned_columns_are_named(tmp_path):
+    t = np.arange(1000) * 1e-3
+    u = np.sin(4 * np.pi * t)
+    (tmp_path / "r.csv").write_text("t;u;y\n" + "\n".join(f"{a:.6f};{b:.6f};{2 * b:.6f}".replace(".", ",")
+                                                         for a, b in zip(t, u)) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + 'delimiter = ";"\n' + GOOD)
+    with pytest.raises(DatasetError, match="line 2, column t; numbers take a decimal point, not a comma"):
+        load_dataset(tmp_path)
+    (tmp_path / "r.csv").write_text("t u y\n" + "\n".join(f"{a:9.6f} {b:9.6f} {2 * b:9.6f}" for a, b in zip(t, u)) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + 'delimiter = " "\n' + GOOD)
+    with pytest.raises(DatasetError, match="line 2 has .* fields are separated by runs of spaces"):
+        load_dataset(tmp_path)
+
+
+def test_a_record_file_given_as_the_dataset_is_named_a_file(tmp_path):
+    folder = make(tmp_path, GOOD)
+    with pytest.raises(DatasetError, match=r"r.csv: a file, not a dataset folder .*hysbench dataset init"):
+        load_dataset(folder / "r.csv")
+
+
+def test_a_quoted_field_holding_the_delimiter_shifts_no_column(tmp_path):
+    """A quoted field is one field whatever it holds: '"1,234,567,890"' (a number with thousands separators)
+    does not split into four, so the columns after it are read from their own fields."""
+    t = np.arange(1000) * 1e-3
+    u = np.sin(4 * np.pi * t)
+    rows = [f"{a!r},{k},{b!r},{2 * b!r}" for k, (a, b) in enumerate(zip(t.tolist(), u.tolist()))]
+    rows[10] = f'{t.tolist()[10]!r},"1,234,567,890",{u.tolist()[10]!r},{2 * u.tolist()[10]!r}'
+    (tmp_path / "r.csv").write_text("t,idx,u,y\n" + "\n".join(rows) + "\n")
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    r = load_dataset(tmp_path).records[0]
+    assert r.u[10] == u[10] and r.y[10] == 2 * u[10]

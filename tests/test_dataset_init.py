@@ -144,3 +144,54 @@ def test_two_datasets_with_one_name_are_refused_naming_both_folders_and_the_fix(
     assert "share the name 'run1'" in err and "dataset.toml" in err
     assert str(tmp_path / "a") in err and str(tmp_path / "b") in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_csv_that_is_not_utf8_is_named_as_such_and_nothing_is_written(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "run.csv"
+    csv.write_bytes(("t,u,y (µm)\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, u, y))).encode("latin-1"))
+    assert main(["dataset", "init", str(csv), "--time", "0", "--input", "1", "--output", "2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "run.csv: is not UTF-8 text (byte 0xb5 on line 1" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+
+
+def test_a_tab_separated_csv_is_named_and_read_with_a_typed_tab(tmp_path, capsys):
+    t, u, y = _series()
+    csv = tmp_path / "run.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter="\t", header="t\tu\ty", comments="", fmt="%.10g")
+    args = ["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--time 't': no such column" in err[0]
+    assert "looks separated by '\\t': pass --delimiter 'tab'" in err[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]
+    for typed in ("\\t", "tab"):
+        assert main(args + ["--delimiter", typed, "--force"]) == 0
+        assert np.allclose(load_dataset(tmp_path).records[0].y, y)
+
+
+def test_check_shows_each_records_ranges_so_a_record_in_another_unit_stands_out(tmp_path, capsys):
+    t, u, y = _series()
+    lines = ['name = "two"', 'time_column = "t"', 'input_column = "u"', 'output_column = "y"']
+    for name, scale in (("um.csv", 1.0), ("m.csv", 1e-6)):
+        np.savetxt(tmp_path / name, np.column_stack([t, u, y * scale]), delimiter=",", header="t,u,y", comments="")
+        lines += ["[[records]]", f'file = "{name}"', 'role = "identification"']
+    (tmp_path / "dataset.toml").write_text("\n".join(lines) + "\n")
+    assert main(["check", str(tmp_path)]) == 0
+    header, first, second = capsys.readouterr().out.splitlines()[1:4]
+    assert header.endswith("output range, scored") and len(header) == len(first) == len(second)
+    assert first.endswith(f"{y.min():.4g} to {y.max():.4g}") and second.endswith(f"{y.min() * 1e-6:.4g} to "
+                                                                              f"{y.max() * 1e-6:.4g}")
+
+
+@pytest.mark.parametrize("name", ["piezo \U0001F600", "\U0001D707-stage", "del\x7fchar", "tab\tand \"quote\""])
+def test_any_unicode_name_is_written_as_valid_toml(tmp_path, capsys, name):
+    """A character beyond U+FFFF (JSON would write it as a surrogate pair, which TOML refuses) or a DEL (which
+    TOML must see escaped) in --name or the file name."""
+    t, u, y = _series()
+    csv = tmp_path / f"run{name[0]}{name[-1]}.csv"
+    np.savetxt(csv, np.column_stack([t, u, y]), delimiter=",", header="t,u,y", comments="")
+    assert main(["dataset", "init", str(csv), "--time", "t", "--input", "u", "--output", "y", "--name", name]) == 0
+    ds = load_dataset(tmp_path)
+    assert ds.name == name and ds.records[0].file == csv.name

@@ -125,3 +125,24 @@ def test_amplitude_figure_is_labelled(tmp_path, drawn, monkeypatch):
     amplitude.write(tmp_path)
     (fig,) = drawn
     assert unreadable(fig) == [] and len({line.get_marker() for line in fig.axes[0].lines}) > 1
+
+
+def test_diagnosis_panels_of_records_that_share_a_frequency_name_their_files():
+    from hysbench.benchmarks.diagnosis.figures import _label
+    from hysbench.data.dataset import Record
+
+    t = np.arange(200) * 0.01
+    recs = [Record(file=f, t=t, u=np.sin(2 * np.pi * t), y=np.cos(2 * np.pi * t), role=role, frequency_hz=hz)
+            for f, role, hz in (("a.csv", "identification", 1.0), ("b.csv", "validation", 1.0),
+                                ("c.csv", "identification", 2.0))]
+    diag = SimpleNamespace(before=[SimpleNamespace(record=r) for r in recs])
+    assert [_label(r, diag) for r in recs] == ["1 Hz, a.csv (id)", "1 Hz, b.csv (val)", "2 Hz (id)"]
+
+
+def test_predictive_panels_of_records_that_share_a_frequency_name_their_files(tmp_path, drawn):
+    t = np.linspace(0, 1, 50)
+    pred = [{"frequency_hz": 1.0, "file": f, "_t": t, "_y": t, "_median": t, "_obs": (t - 1, t + 1),
+             "_model": (t - 0.5, t + 0.5), "fraction_inside_observation_band": 0.9} for f in ("a.csv", "b.csv")]
+    predictive_figure(pred + [dict(pred[0], frequency_hz=2.0, file="c.csv")], tmp_path / "p.png", unit="um")
+    titles = [ax.get_title() for ax in drawn[0].axes[::2]]
+    assert [t.split(":")[0] for t in titles] == ["1 Hz, a.csv", "1 Hz, b.csv", "2 Hz"]

@@ -19,7 +19,7 @@ from hysbench.benchmarks.matrix import cells as cells_module
 from hysbench.benchmarks.matrix import execute as execute_module
 from hysbench.benchmarks.matrix.cells import method_options, plan_cells, run_cell
 from hysbench.benchmarks.matrix.execute import run_matrix
-from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows, seconds_per_cell
+from hysbench.benchmarks.matrix.report import TIMING_COLUMNS, matrix_rows, paper_layout, seconds_per_cell
 from hysbench.benchmarks.matrix.store import CellStore
 from hysbench.data import load_dataset
 from hysbench.identification import Fit
@@ -418,3 +418,23 @@ def test_the_report_states_the_learners_training_budget(small_dataset):
     assert 'narx-mlp {' in text and '"max_epochs": 200' in text and '"max_rows": 50000' in text
     only_structured = [c for c in cells if c.method != "native"]
     assert "Learners" not in "\n".join(budget_lines({}, only_structured, False))
+
+
+
+def test_paper_tables_tell_apart_records_of_one_frequency():
+    """Rows are keyed by frequency; records that share one (e.g. two amplitudes at 1 Hz) are named by file."""
+    recs = [{"file": f, "role": "identification", "frequency_hz": hz, "e_m": em, "e_rms": em / 2}
+            for f, hz, em in (("a.csv", 1.0, 1.0), ("b.csv", 1.0, 3.0), ("c.csv", 0.5, 5.0), ("d.csv", None, 7.0))]
+    rows = paper_layout([({"model": "m", "method": "varpro", "records": recs}, {})], "identification")[2:]
+    assert rows == ["| 1 (a.csv) | 1.00 / 0.50 |", "| 1 (b.csv) | 3.00 / 1.50 |", "| 0.5 | 5.00 / 2.50 |",
+                    "| d.csv | 7.00 / 3.50 |"]
+
+
+@pytest.mark.parametrize("roles", [("identification",), ("identification", "validation")])
+def test_a_ranking_on_fitted_data_says_so(roles):
+    from hysbench.benchmarks.matrix.report import dataset_section
+    recs = [{"file": f"{r}.csv", "role": r, "frequency_hz": 1.0, "e_m": 2.0, "e_rms": 1.0} for r in roles]
+    cell = {"dataset": "d", "model": "classical-pi", "method": "varpro", "status": "ok", "records": recs,
+            "n_params": 15, "fitness": 1.0, "fit_seconds": 0.1, "simulate_seconds": 0.01}
+    text = "\n".join(dataset_section("d", [cell], [], {}))
+    assert ("No validation records: every score is on the data its model was fitted to" in text) == (len(roles) == 1)

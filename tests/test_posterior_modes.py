@@ -20,6 +20,7 @@ from hysbench.data.dataset import load_dataset
 from hysbench.identification.posterior import (LogPosterior, find_modes, mode_search_starts, nearest_mode,
                                                noise_estimate, screen_candidates, separated, walkers_in_modes)
 from hysbench.identification.posterior.modes import MODE_GAP, VALLEY_DEPTH
+from hysbench.identification.errors import IdentificationError
 from hysbench.models import get_model
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -262,3 +263,12 @@ def test_moves_within_modes_sample_each_mode_and_the_masses(shapes):
         x = kept[which == k]
         assert np.all(np.abs(x.mean(axis=0) - post.centres[k]) < 0.15 * post.sds[k]), (k, x.mean(axis=0))
         assert np.all(np.abs(x.std(axis=0) / post.sds[k] - 1) < 0.1), (k, x.std(axis=0))
+
+
+def test_no_finite_start_is_refused_with_the_counts_that_say_why():
+    post = ToyPosterior([[0.0, 0.0]], [[0.1, 0.1]], [1.0])
+    post.log_prob = lambda X: np.full(np.atleast_2d(X).shape[0], -np.inf)
+    post.n_evaluations, post.n_singular, post.n_nonfinite = 7, 5, 2
+    with pytest.raises(IdentificationError, match="of 7 parameter sets evaluated, 5 had a linear part whose "
+                                                   "precision is not positive definite.* and 2 a non-finite"):
+        find_modes(post, np.array([[0.1, 0.1], [-0.2, 0.3]]))

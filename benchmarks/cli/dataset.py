@@ -13,17 +13,19 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import os
 from pathlib import Path
 
-from hysbench.data.dataset import ROLES, DatasetError, load_dataset
+from hysbench.data.dataset import CSV_DELIMITERS, ROLES, DatasetError, load_dataset, not_utf8
 from hysbench.data.files import shown, write_atomic
 
 from .common import CommandError
 
 EXAMPLE = "hysbench dataset init measurements/run1.csv --time 0 --input 2 --output 1 --frequency 1 --role validation"
 ROLE_NAMES = ("time", "input", "output")
+DELIMITER_ARG = {"\t": "tab"}  # how a delimiter is typed as --delimiter
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,18 +42,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--name", help="dataset name (default: the CSV's file name without its suffix, _ written as -)")
     p.add_argument("--input-unit", default="", help="unit of the input column")
     p.add_argument("--output-unit", default="", help="unit of the output column")
-    p.add_argument("--delimiter", default=",", help="field delimiter (default ,)")
+    p.add_argument("--delimiter", default=",", help="field delimiter, one character; \\t or tab for a tab (default ,)")
     p.add_argument("--force", action="store_true", help="replace an existing dataset.toml")
 
 
 def first_row(path: Path, delimiter: str) -> list[str]:
     try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            for row in csv.reader(fh, delimiter=delimiter):
-                if any(f.strip() for f in row):
-                    return [f.strip() for f in row]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CommandError(f"cannot read {path}: {exc}") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise CommandError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise CommandError(f"{path}: {not_utf8(raw, exc)}") from None
+    for row in csv.reader(io.StringIO(text, newline=""), delimiter=delimiter):
+        if any(f.strip() for f in row):
+            return [f.strip() for f in row]
     raise CommandError(f"{path} holds no rows")
 
 
@@ -89,13 +95,15 @@ def manifest(args, csv_path: Path, header: list[str] | None, columns: list[int],
     chosen = [names[k] for k in columns]
 
     def q(text: str, what: str) -> str:
-        """``text`` as a TOML basic string (a JSON string is one); TOML is UTF-8, so a name whose bytes are not
+        """``text`` as a TOML basic string (a JSON string, in UTF-8); TOML is UTF-8, so a name whose bytes are not
         (a file name or argument as the OS gave it) is refused, naming what holds it."""
         try:
             text.encode("utf-8")
         except UnicodeEncodeError:
             raise CommandError(f"{what} is not valid UTF-8, so dataset.toml (UTF-8) cannot hold it") from None
-        return json.dumps(text)
+        # raw UTF-8: TOML has no surrogate-pair escapes (JSON's for a character beyond U+FFFF), and U+007F, which
+        # JSON leaves raw, must be escaped in TOML
+        return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
 
     file_name = f"the CSV's file name {shown(csv_path.name)}"
     lines = [f"name = {q(args.name, '--name') if args.name else q(csv_path.stem.replace('_', '-'), file_name)}",
@@ -130,11 +138,21 @@ def main(args) -> int:
     target = csv_path.parent / "dataset.toml"
     if target.exists() and not args.force:
         raise CommandError(f"{target} exists; pass --force to replace it")
+    if args.delimiter in ("\\t", "tab"):  # what a shell passes for a typed \t
+        args.delimiter = "\t"
     if len(args.delimiter) != 1:
-        raise CommandError(f"--delimiter must be one character, got {args.delimiter!r}")
+        raise CommandError(f"--delimiter must be one character (\\t or tab for a tab), got {args.delimiter!r}")
     row = first_row(csv_path, args.delimiter)
     header = None if all(_is_number(f) for f in row if f) else row
-    columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
+    try:
+        columns = [resolve_column(getattr(args, role), f"--{role}", header, len(row)) for role in ROLE_NAMES]
+    except CommandError as exc:  # a first row of one field is most likely split by another separator
+        other = next((d for d in CSV_DELIMITERS if d != args.delimiter and len(row) == 1
+                      and len(row[0].split(d)) >= 3), None)
+        if other is None:
+            raise
+        raise CommandError(f"{exc}; its first row is one field under --delimiter {args.delimiter!r} and looks "
+                           f"separated by {other!r}: pass --delimiter {DELIMITER_ARG.get(other, other)!r}") from None
     if len(set(columns)) < 3:
         raise CommandError(f"--time, --input and --output must be three different columns, got indices {columns}")
     if header is not None:

@@ -112,9 +112,19 @@ def _unseen_dataset(args, datasets):
             raise CommandError(f"--unseen needs cells identified on {unseen.IDENTIFIED_ON!r}; no such dataset is run")
         return None
     try:
-        return load_dataset(args.unseen or default_waveforms_path())
+        waveforms = load_dataset(args.unseen or default_waveforms_path())
     except DatasetError as exc:
         raise CommandError(f"--unseen: {exc}") from None
+    units = (waveforms.input_unit, waveforms.output_unit)
+    for path, ds in datasets:  # the name alone does not make a dataset the actuator the waveforms drive
+        if ds.name == unseen.IDENTIFIED_ON and (ds.input_unit, ds.output_unit) != units:
+            why = (f"{shown(path)} is named {ds.name!r} but in {ds.input_unit or '?'} -> {ds.output_unit or '?'}, "
+                   f"the unseen waveforms in {units[0] or '?'} -> {units[1] or '?'}")
+            if args.unseen:
+                raise CommandError(f"--unseen: {why}: its fits cannot be scored on them")
+            print(f"hysbench run: {why}: its fits are not scored on them", file=sys.stderr)
+            return None
+    return waveforms
 
 
 def main(args) -> int:

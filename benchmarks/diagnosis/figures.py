@@ -35,8 +35,10 @@ def extremes_kept(key: np.ndarray, y: np.ndarray, bins: int = MAX_PLOT_POINTS //
     return np.unique(np.array(kept))
 
 
-def _label(rec) -> str:
-    return f"{rec.label} ({'id' if rec.role == 'identification' else 'val'})"
+def _label(rec, diag) -> str:
+    """The record's frequency and role; its file too when another record has the same frequency."""
+    shared = rec.frequency_hz and sum(rr.record.frequency_hz == rec.frequency_hz for rr in diag.before) > 1
+    return f"{rec.label}{f', {rec.file}' if shared else ''} ({'id' if rec.role == 'identification' else 'val'})"
 
 
 def figure_residual_time(diag, path: Path) -> None:
@@ -53,7 +55,7 @@ def figure_residual_time(diag, path: Path) -> None:
             ax.plot(r.t[k], after[rr.file].residual[k], lw=0.6, color="C3", label=f"{diag.extended_model} (after)")
         ax.axvspan(r.t[r.start], r.t[r.stop - 1], color="C0", alpha=0.12, lw=0)
         ax.axhline(0, color="k", lw=0.4)
-        ax.set_ylabel(_label(r), fontsize=8)
+        ax.set_ylabel(_label(r, diag), fontsize=8)
         ax.tick_params(labelsize=7)
     figure_legend(fig, axes[0, 0])
     fig.suptitle(f"residual (measured - model, {diag.dataset.output_unit or 'output units'}) over whole "
@@ -70,7 +72,7 @@ def _per_record(diag, recs: list, path: Path, draw, xlabel: str, title: str) -> 
                                   layout="constrained")
     for ax, rr in zip(axes.flat, recs):
         draw(ax, rr)
-        ax.set_title(_label(rr.record), fontsize=8)
+        ax.set_title(_label(rr.record, diag), fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(recs):]:
         ax.axis("off")
@@ -114,7 +116,7 @@ def figure_spectrum(diag, path: Path) -> None:
         f, a = periodogram(rr.residual, rr.record.dt)
         f, a = f[f > 0], a[f > 0]
         keep = extremes_kept(np.log(f), a, low=False)
-        ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record))
+        ax.loglog(f[keep], np.maximum(a[keep], 1e-12), lw=0.5, color=f"C{i % 10}", label=_label(rr.record, diag))
     ax.axhline(diag.noise_sd * 2.0 / math.sqrt(max(rr.record.t.size for rr in diag.before)), color="k", ls=":", lw=0.8,
                label="white noise of the\nestimated sd")
     unit = diag.dataset.output_unit
@@ -168,7 +170,7 @@ def figure_whiteness(diag, path: Path) -> None:
     lags = np.arange(1, LAGS + 1)
     for i, (rr, s) in enumerate(zip(diag.before, diag.summaries)):
         ax.plot(lags, autocorrelation(rr.residual, LAGS), ms=3, lw=0.7, **series_style(i),
-                label=f"{_label(rr.record)}: Ljung-Box p = {s.ljung_box_p:.2g}")
+                label=f"{_label(rr.record, diag)}: Ljung-Box p = {s.ljung_box_p:.2g}")
     n = min(rr.record.t.size for rr in diag.before)
     ax.axhspan(-1.96 / math.sqrt(n), 1.96 / math.sqrt(n), color="0.85", lw=0, label="95 % band of white noise")
     ax.axhline(0, color="k", lw=0.4)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -106,8 +107,11 @@ def _secs(x) -> str:
     return "–" if x is None or math.isnan(x) else (f"{x:.3g}" if x < 100 else f"{x:.0f}")
 
 
-def _freq_label(rec: dict) -> str:
-    return f"{rec['frequency_hz']:g}" if rec["frequency_hz"] else rec["file"]
+def _freq_label(rec: dict, shared: bool = False) -> str:
+    """The row's frequency; with the file beside it when another row has the same one (``shared``)."""
+    if not rec["frequency_hz"]:
+        return rec["file"]
+    return f"{rec['frequency_hz']:g} ({rec['file']})" if shared else f"{rec['frequency_hz']:g}"
 
 
 def kind_of(model_name: str) -> str:
@@ -165,12 +169,13 @@ def paper_layout(best, role: str) -> list[str]:
         return []
     head = "| frequency (Hz) | " + " | ".join(f"{res['model']} ({res['method']})" for res, _ in best) + " |"
     lines = [head, "|---:|" + "---:|" * len(best)]
+    freqs = Counter(r["frequency_hz"] for r in recs)
     for rec in recs:
         cells = []
         for res, _ in best:
             match = next((r for r in res["records"] if r["file"] == rec["file"]), None)
             cells.append(f"{match['e_m']:.2f} / {match['e_rms']:.2f}" if match else "–")
-        lines.append(f"| {_freq_label(rec)} | " + " | ".join(cells) + " |")
+        lines.append(f"| {_freq_label(rec, freqs[rec['frequency_hz']] > 1)} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -183,6 +188,10 @@ def dataset_section(ds_name: str, results: list[dict], failed: list[dict], figur
     on = ranked[0][1]["ranked_on"]
     lines += [f"Ranked by mean {on} e_rms (ties by worst). e_m and e_rms in % of the measured peak-to-peak "
               "of each scored window (eq. 10).", ""]
+    if on == "identification":  # in-sample: more parameters score better whether or not they predict better
+        lines += ["**No validation records: every score is on the data its model was fitted to**, so this ranking "
+                  "favours more parameters and says nothing of prediction; give a record the role `validation` "
+                  "(docs/datasets.md) for a ranking on data no fit saw.", ""]
     lines += ranking_table(ranked) + [""]
     lines += notes_section(ranked)
     lines += ["### Identification errors, best cell of each model (layout of the paper's Table 3: e_m / e_rms, %)",

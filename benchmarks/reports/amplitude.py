@@ -33,6 +33,7 @@ OFFSET_KV = 1.5
 FREQUENCY_HZ = 0.2
 DURATION_S = 410.0
 IDENTIFIED_ON = "virtual-dea"
+OUTPUT_UNIT = "mm"  # the virtual DEA's displacement, as its dataset.toml names it
 
 
 def drive(amplitude_kv: float, dt: float = SAMPLE_TIME_S) -> np.ndarray:
@@ -56,6 +57,12 @@ def best_cells(results_dir: Path) -> list[dict]:
             raise HysbenchError(f"{path} is not a readable cell file (hysbench run computes it again)")
         cells.append(cell)
     cells = [c for c in cells if c.get("dataset") == IDENTIFIED_ON and c.get("status") == "ok" and c.get("fit")]
+    # the name alone does not make a dataset the virtual DEA, whose displacement (mm) the study compares against
+    units = sorted({c["fit"].get("output_unit") or "?" for c in cells} - {OUTPUT_UNIT})
+    cells = [c for c in cells if c["fit"].get("output_unit") == OUTPUT_UNIT]
+    if units and not cells:
+        raise HysbenchError(f"{results_dir}/cells: the cells of the dataset named {IDENTIFIED_ON!r} have the output "
+                            f"unit {', '.join(units)}, not the virtual DEA's {OUTPUT_UNIT}: not fits of the virtual DEA")
     return [res for res, _ in best_per_model(ranking(cells, IDENTIFIED_ON))]
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -139,10 +140,12 @@ def predictive_figure(pred: list[dict], path: Path, unit: str = "", level: float
     plt = pyplot()
     n = len(pred)
     fig, axes = plt.subplots(n, 2, figsize=(11, 2.9 * n + 0.6), squeeze=False, layout="constrained")
+    shared = Counter(p["frequency_hz"] for p in pred)
     for row, p in zip(axes, pred):
         t, y, med = p["_t"], p["_y"], p["_median"]
         (olo, ohi), (mlo, mhi) = p["_obs"], p["_model"]
-        f = f"{p['frequency_hz']:g} Hz" if p["frequency_hz"] else p["file"]
+        f = p["file"] if not p["frequency_hz"] else (
+            f"{p['frequency_hz']:g} Hz, {p['file']}" if shared[p["frequency_hz"]] > 1 else f"{p['frequency_hz']:g} Hz")
         row[0].fill_between(t, olo, ohi, color="C0", alpha=0.3, lw=0, label=f"{level:.0%} predictive band")
         row[0].plot(t, med, color="C0", lw=0.8, label="median prediction")
         row[0].plot(t, y, color="k", lw=0.5, label="measured")

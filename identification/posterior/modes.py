@@ -53,7 +53,10 @@ def find_modes(post: LogPosterior, starts: np.ndarray) -> list[dict]:
         modes.append({"x": x, "cov": cov, "info": info, "log_posterior": float(info["log_posterior"])})
     modes.sort(key=lambda m: -m["log_posterior"])
     if not modes:
-        raise IdentificationError("posterior: no mode search started from a finite log posterior")
+        raise IdentificationError(
+            f"posterior: no mode search started from a finite log posterior (of {post.n_evaluations} parameter sets "
+            f"evaluated, {post.n_singular} had a linear part whose precision is not positive definite, e.g. a record "
+            f"all but free of noise, and {post.n_nonfinite} a non-finite model output)")
     return [m for m in modes if m["log_posterior"] >= modes[0]["log_posterior"] - MODE_GAP]
 
 

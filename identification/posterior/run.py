@@ -298,6 +298,42 @@ def _num(x):
     return x if math.isfinite(x) else None
 
 
+def _start(post, model, dataset, n_walkers, seed, moves, start_params, path, say):
+    """A fresh chain's start: the optimum, the posterior's modes, the walkers in them; stored in the chain file."""
+    ts = time.perf_counter()
+    if start_params is None:
+        say("start: identify (varpro) ...")
+        fit = identify(model, dataset, method="varpro", seed=seed)
+        start_params, start_method = fit.params, "varpro"
+    else:
+        start_method = "given"
+    nl0 = np.array([float(start_params[n]) for n in post.nonlinear_names])
+    nl0 = np.clip(nl0, post.priors.nonlinear_lower, post.priors.nonlinear_upper)
+    sigma0, phi0 = noise_estimate(post, nl0)
+    say("start: posterior modes and Laplace covariances ...")
+    modes = find_modes(post, mode_search_starts(post, screen_candidates(post, nl0, sigma0, phi0, seed)))
+    best = modes[0]
+    rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
+    p0 = walkers_in_modes(post, modes, n_walkers, rng)
+    if len(modes) > 1:
+        say(f"start: a {PILOT_STEPS}-step pilot measures each mode's shape for the mode jumps ...")
+        p0 = pilot_shapes(post, modes, MOVES[moves](emcee), p0, seed)
+    start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
+             "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
+             "mode": dict(zip(post.coord_names, map(float, best["x"]))),
+             "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(best["cov"]))))),
+             "mode_search": best["info"],
+             "modes": [{"mode": dict(zip(post.coord_names, map(float, m["x"]))),
+                        "log_posterior": m["log_posterior"], "walkers": m["walkers"],
+                        "covariance": [[float(v) for v in row] for row in m["cov"]],
+                        **({"pilot_mean": [float(v) for v in m["pilot_mean"]],
+                            "pilot_covariance": [[float(v) for v in row] for row in m["pilot_cov"]]}
+                           if "pilot_cov" in m else {})} for m in modes],
+             "seconds": time.perf_counter() - ts}
+    store_start(path, start)
+    return start, p0
+
+
 def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "ar1", n_walkers: int = 16,
                      max_steps: int = 8000, min_ess: float = 1000.0, fixed_steps: bool = False,
                      burn: int | str = "auto", seed: int | None = 0, moves: str = "de",
@@ -342,40 +378,15 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     if done and start is None:
         start = {}
     p0 = None
-    if not done:
-        ts = time.perf_counter()
-        if start_params is None:
-            say("start: identify (varpro) ...")
-            fit = identify(model, dataset, method="varpro", seed=seed)
-            start_params, start_method = fit.params, "varpro"
+    try:
+        if not done:
+            start, p0 = _start(post, model, dataset, n_walkers, seed, moves, start_params, path, say)
         else:
-            start_method = "given"
-        nl0 = np.array([float(start_params[n]) for n in post.nonlinear_names])
-        nl0 = np.clip(nl0, post.priors.nonlinear_lower, post.priors.nonlinear_upper)
-        sigma0, phi0 = noise_estimate(post, nl0)
-        say("start: posterior modes and Laplace covariances ...")
-        modes = find_modes(post, mode_search_starts(post, screen_candidates(post, nl0, sigma0, phi0, seed)))
-        best = modes[0]
-        rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 11]))
-        p0 = walkers_in_modes(post, modes, n_walkers, rng)
-        if len(modes) > 1:
-            say(f"start: a {PILOT_STEPS}-step pilot measures each mode's shape for the mode jumps ...")
-            p0 = pilot_shapes(post, modes, MOVES[moves](emcee), p0, seed)
-        start = {"method": start_method, "params": {k: float(v) for k, v in start_params.items()},
-                 "noise_from_residuals": {"sigma": sigma0, "phi": phi0},
-                 "mode": dict(zip(post.coord_names, map(float, best["x"]))),
-                 "start_sd": dict(zip(post.coord_names, map(float, np.sqrt(np.diag(best["cov"]))))),
-                 "mode_search": best["info"],
-                 "modes": [{"mode": dict(zip(post.coord_names, map(float, m["x"]))),
-                            "log_posterior": m["log_posterior"], "walkers": m["walkers"],
-                            "covariance": [[float(v) for v in row] for row in m["cov"]],
-                            **({"pilot_mean": [float(v) for v in m["pilot_mean"]],
-                                "pilot_covariance": [[float(v) for v in row] for row in m["pilot_cov"]]}
-                               if "pilot_cov" in m else {})} for m in modes],
-                 "seconds": time.perf_counter() - ts}
-        store_start(path, start)
-    else:
-        post.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7, done]))
+            post.rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 7, done]))
+    except BaseException:
+        if path is not None and not done:  # a start that failed leaves no chain file holding only settings
+            path.unlink(missing_ok=True)
+        raise
 
     sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
                                     moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start),
