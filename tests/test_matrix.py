@@ -438,3 +438,13 @@ def test_a_ranking_on_fitted_data_says_so(roles):
             "n_params": 15, "fitness": 1.0, "fit_seconds": 0.1, "simulate_seconds": 0.01}
     text = "\n".join(dataset_section("d", [cell], [], {}))
     assert ("No validation records: every score is on the data its model was fitted to" in text) == (len(roles) == 1)
+
+
+def test_a_long_note_is_cut_at_a_clause_and_says_where_the_rest_is():
+    from hysbench.benchmarks.matrix.report import _shortened
+
+    long = "varpro: linear solve regularised: " + "; ".join(f"-1.00*w{k}_1 +0.5*w{k}_2 (s/s_max 1e-16)" for k in range(40))
+    short = _shortened(long)
+    assert len(short) < 380 and short.startswith("varpro: linear solve regularised: ")
+    assert short.endswith("... (the whole note: the cell's file in cells/)") and long.startswith(short.split(" ... ")[0])
+    assert _shortened("parameters at their bounds: gamma (upper 0.1)") == "parameters at their bounds: gamma (upper 0.1)"

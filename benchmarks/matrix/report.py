@@ -156,8 +156,16 @@ def notes_section(ranked) -> list[str]:
         return []
     lines = ["### Notes of ranked cells (parameters at a search bound, non-finite candidates, training stopped)", ""]
     for res, notes in noted:
-        lines += [f"- {res['model']} / {res['method']}: {note}" for note in notes]
+        lines += [f"- {res['model']} / {res['method']}: {_shortened(note)}" for note in notes]
     return lines + [""]
+
+
+def _shortened(note: str, limit: int = 300) -> str:
+    """A note as the report shows it: a long one (e.g. varpro's list of weak directions) cut at a clause."""
+    if len(note) <= limit:
+        return note
+    cut = max(note.rfind(sep, 0, limit) for sep in ("; ", ": ", ", "))
+    return note[:cut if cut > limit // 2 else limit] + " ... (the whole note: the cell's file in cells/)"
 
 
 def paper_layout(best, role: str) -> list[str]:
