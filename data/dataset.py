@@ -428,17 +428,22 @@ def _check_npz_size(path: Path, where: str, columns) -> None:
 CSV_DELIMITERS = (",", ";", "\t", " ", "|")  # the ones a missing column is checked against (a hint)
 
 
-def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
-    if path.stat().st_size > MAX_RECORD_BYTES:
-        raise DatasetError(f"{where}: CSV file larger than the limit of {MAX_RECORD_BYTES / 2**20:.0f} MiB per record")
+def csv_text(path: Path, where: str) -> str:
+    """A CSV file's text (UTF-8, a byte-order mark dropped); one DatasetError line naming what is wrong."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise DatasetError(f"{where}: cannot read CSV file: {exc.strerror or exc}") from None
     try:
-        text = raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise DatasetError(f"{where}: {not_utf8(raw, exc)}") from None
+
+
+def _read_csv(path: Path, where: str, columns, csv_columns, delimiter):
+    if path.stat().st_size > MAX_RECORD_BYTES:
+        raise DatasetError(f"{where}: CSV file larger than the limit of {MAX_RECORD_BYTES / 2**20:.0f} MiB per record")
+    text = csv_text(path, where)
     # blank lines are skipped; lines are numbered as an editor numbers them (\n, \r\n or \r ends one)
     numbered = [(n, ln) for n, ln in enumerate(re.split(r"\r\n|\r|\n", text), start=1) if ln.strip()]
     header_line = None

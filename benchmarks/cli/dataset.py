@@ -18,7 +18,7 @@ import json
 import os
 from pathlib import Path
 
-from hysbench.data.dataset import CSV_DELIMITERS, ROLES, DatasetError, load_dataset, not_utf8
+from hysbench.data.dataset import CSV_DELIMITERS, ROLES, DatasetError, csv_text, load_dataset
 from hysbench.data.files import shown, write_atomic
 
 from .common import CommandError
@@ -48,13 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def first_row(path: Path, delimiter: str) -> list[str]:
     try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise CommandError(f"cannot read {path}: {exc.strerror or exc}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise CommandError(f"{path}: {not_utf8(raw, exc)}") from None
+        text = csv_text(path, str(path))
+    except DatasetError as exc:
+        raise CommandError(str(exc)) from None
     for row in csv.reader(io.StringIO(text, newline=""), delimiter=delimiter):
         if any(f.strip() for f in row):
             return [f.strip() for f in row]
