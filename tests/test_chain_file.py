@@ -170,3 +170,33 @@ def test_a_start_that_fails_leaves_no_chain_file(stored, tmp_path, capsys, monke
     assert hysbench(["posterior", str(folder), "--out", str(out), "--steps", "4", *RUN]) == 2
     assert "no mode search started" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
+
+
+def test_an_interrupted_run_keeps_its_steps_and_its_seconds(stored, tmp_path, monkeypatch):
+    """Ctrl-C during sampling: the chain file keeps every step sampled and the time spent on them, and the resumed
+    run's ``wall_seconds`` counts both runs."""
+    from hysbench.identification.posterior import run as posterior_run, sample_posterior
+    from hysbench.data.dataset import load_dataset
+
+    folder, _ = stored
+    chain = tmp_path / "chain.h5"
+    real = posterior_run.convergence
+
+    def interrupt_at_first_check(chain_, *args, **kwargs):
+        if chain_.shape[0] == 100:
+            raise KeyboardInterrupt
+        return real(chain_, *args, **kwargs)
+
+    monkeypatch.setattr(posterior_run, "convergence", interrupt_at_first_check)
+    model, ds = get_model("mrpim", **SMALL), load_dataset(folder)
+    settings = dict(n_walkers=8, min_ess=1e9, seed=0, progress=False, discrepancy="none", calibrate=False,
+                    start_params=TRUTH, chain_file=chain)
+    with pytest.raises(KeyboardInterrupt):
+        sample_posterior(model, ds, max_steps=400, **settings)
+    with h5py.File(chain, "r") as f:
+        assert f["mcmc"].attrs["iteration"] == 100
+        first = json.loads(f.attrs["hysbench_seconds"])
+    assert first["wall"] >= first["sampling"] > 0
+    run = sample_posterior(model, ds, max_steps=104, fixed_steps=True, **settings)
+    assert run.resumed_from == 100 and run.chain.shape[0] == 104
+    assert run.wall_seconds == pytest.approx(first["wall"] + run.this_run_seconds)

@@ -469,6 +469,19 @@ def test_cli_flags_validation_records_outside_the_fitted_frequency_range(tmp_pat
     assert "**Outside the fitted frequency range:" in (out / "posterior.md").read_text()
 
 
+def test_a_given_burn_in_longer_than_the_first_checks_is_sampled_past():
+    """``burn`` = 120 with checks every 50 steps: the checks before step 121 are skipped, not refused; a burn-in
+    that leaves no step of ``max_steps`` is refused before any sampling."""
+    ds = simulated_ar1_dataset(get_model("mrpim", **SMALL), TRUTH, sigma=SIGMA, phi=PHI, n_periods=2, dt=0.05,
+                               frequencies=(0.4, 1.0))
+    kw = dict(n_walkers=8, min_ess=1e9, seed=0, progress=False, discrepancy="none", calibrate=False,
+              start_params=TRUTH)
+    run = sample_posterior(get_model("mrpim", **SMALL), ds, max_steps=160, burn=120, **kw)
+    assert run.chain.shape[0] == 160 and run.conv.burn == 120
+    with pytest.raises(IdentificationError, match="burn-in 160 leaves no step of the at most 160 steps"):
+        sample_posterior(get_model("mrpim", **SMALL), ds, max_steps=160, burn=160, **kw)
+
+
 def test_api_refuses_models_without_a_linear_part_and_bad_settings():
     ds = simulated_ar1_dataset(get_model("mrpim", **SMALL), TRUTH, sigma=SIGMA, phi=PHI, n_periods=2, dt=0.05,
                                frequencies=(0.4, 1.0))

@@ -102,8 +102,8 @@ def main(args) -> int:
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     dataset = load_dataset(dataset_paths(args.dataset)[0])
     model = get_model(args.model)
-    if args.fixed_steps and args.burn != "auto" and args.burn >= args.steps:
-        raise IdentificationError(f"--burn {args.burn} leaves no steps of the {args.steps} fixed steps")
+    if args.burn != "auto" and args.burn >= args.steps:
+        raise IdentificationError(f"--burn {args.burn} leaves no step of the at most {args.steps} steps (--steps)")
     check_output_dir(args.out)
     json_path = check_output_file(args.json) if args.json else Path(args.out) / "posterior.json"
     chain = None if args.no_chain else Path(args.chain) if args.chain else Path(args.out) / "posterior_chain.h5"

@@ -298,6 +298,15 @@ def _num(x):
     return x if math.isfinite(x) else None
 
 
+def _add_seconds(path: Path, wall: float, sampling: float) -> dict:
+    """Add a run's seconds to the chain file's ``hysbench_seconds``; the seconds stored before it."""
+    with h5py.File(path, "a") as f:
+        earlier = seconds_of(f.attrs, str(path))  # checked when the file was opened
+        f.attrs["hysbench_seconds"] = json.dumps({"wall": earlier["wall"] + wall,
+                                                  "sampling": earlier["sampling"] + sampling})
+    return earlier
+
+
 def _start(post, model, dataset, n_walkers, seed, moves, start_params, path, say):
     """A fresh chain's start: the optimum, the posterior's modes, the walkers in them; stored in the chain file."""
     ts = time.perf_counter()
@@ -364,6 +373,10 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
             raise IdentificationError(f"{name} must be an integer >= {lo}, got {value!r}")
     if not (isinstance(min_ess, (int, float)) and min_ess >= 0):
         raise IdentificationError(f"min_ess must be a number >= 0, got {min_ess!r}")
+    if burn != "auto" and (isinstance(burn, bool) or not isinstance(burn, (int, np.integer)) or burn < 0):
+        raise IdentificationError(f"burn must be 'auto' or an integer >= 0, got {burn!r}")
+    if burn != "auto" and burn >= max_steps:
+        raise IdentificationError(f"burn-in {burn} leaves no step of the at most {max_steps} steps")
 
     post = LogPosterior(model, records, noise=noise, seed=seed, discrepancy=discrepancy, others=dataset.validation)
     if n_walkers < 2 * post.ndim or n_walkers % 2:
@@ -414,7 +427,8 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
             for k, _ in enumerate(sampler.sample(p0, iterations=remaining, progress=False), start=done + 1):
                 if bar is not None:
                     bar.update(1)
-                if not fixed_steps and k % check_every == 0 and k >= 2 * check_every:
+                # a given burn-in is checked only once the chain is longer than it
+                if not fixed_steps and k % check_every == 0 and k >= 2 * check_every and (burn == "auto" or k > burn):
                     c = convergence(sampler.get_chain(), sampler.get_blobs(), sampler.backend.accepted, burn,
                                     min_ess, sampler.get_log_prob())
                     if bar is not None:
@@ -423,6 +437,10 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
                     if c.converged and c.ess_met:
                         conv = c
                         break
+        except BaseException:  # Ctrl-C or an error: the chain file keeps the steps and the time they took
+            if path is not None:
+                _add_seconds(path, time.perf_counter() - t0, time.perf_counter() - ts)
+            raise
         finally:
             if bar is not None:
                 bar.close()
@@ -438,10 +456,7 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
     wall = time.perf_counter() - t0
     earlier = {"wall": 0.0, "sampling": 0.0}
     if path is not None:  # seconds spent on this chain file, over every run that built it
-        with h5py.File(path, "a") as f:
-            earlier = seconds_of(f.attrs, str(path))  # checked when the file was opened
-            f.attrs["hysbench_seconds"] = json.dumps({"wall": earlier["wall"] + wall,
-                                                      "sampling": earlier["sampling"] + sampling_seconds})
+        earlier = _add_seconds(path, wall, sampling_seconds)
     run = PosteriorRun(post=post, chain=chain, draws=draws, log_prob=sampler.get_log_prob(), conv=conv,
                        start=start, wall_seconds=earlier["wall"] + wall,
                        sampling_seconds=earlier["sampling"] + sampling_seconds, this_run_seconds=wall,
