@@ -163,3 +163,72 @@ def test_the_table_check_sees_a_stale_figure():
               "| 2 | mrpim | grey-box | lsq | 21 | 2.03 | 2.76 | 5.79 | 0.58 | 6.42 | 0.05 | – |\n")
     assert best_cells(report)["mrpim"][9] == "1.17"
     assert table_rows("| mrpim | varpro | 1.36 |\n| a | b |", 3) == [["mrpim", "varpro", "1.36"]]
+
+
+# --- docs/posterior.md and docs/compensation.md quote the committed results -------------------------
+def committed(*paths: str) -> bool:
+    """False when git says one of ``paths`` differs from the commit (a local run rewrote it)."""
+    try:
+        proc = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", *paths], cwd=ROOT, capture_output=True)
+    except FileNotFoundError:
+        return True
+    return proc.returncode != 1
+
+
+def compensation_quotes(page: str, result: dict) -> list[tuple[str, str, str]]:
+    """(what, quoted, from the JSON) for the page's table of sine means and its bouc-wen identification time."""
+    from hysbench.benchmarks.compensation.report import sine_mean
+    rows = {r[0]: r for r in table_rows(page, 11)}
+    header = rows["controller"][1:]
+    models = ["linear" if h == "linear gain" else h for h in header]
+    out = []
+    for label, prefix in (("open loop (inverse)", ""), ("PI (5 Hz) + inverse as feedforward", "pi+")):
+        for model, cell in zip(models, rows[label][1:]):
+            out.append((f"{label} {model}", f"{float(cell.strip('*')):.3g}", f"{sine_mean(result, prefix + model):.3g}"))
+    t = re.search(r"([\d.]+) s in the run that wrote results/", page)
+    out.append(("bouc-wen identification", t and t.group(1), f"{result['models']['bouc-wen']['identify_s']:.1f}"))
+    return out
+
+
+def posterior_quotes(page: str, result: dict) -> list[tuple[str, str, str]]:
+    """(what, quoted, from the JSON) for the page's default-dataset coverage, widths and mode shares, and the
+    calibration model's parameter count."""
+    from hysbench.models import get_model
+    cov = result["predictive_coverage"]
+    m = re.search(r"90 % bands cover \*\*([\d.]+) %, ([\d.]+) % and ([\d.]+) %\*\*.*?\(widths ([\d.]+), ([\d.]+), "
+                  r"([\d.]+) mm\); 50 % bands ([\d.]+) / ([\d.]+) / ([\d.]+) %", page, re.S)
+    quoted = list(m.groups()) if m else [None] * 9
+    files = sorted(cov, key=lambda f: next(p["frequency_hz"] for p in result["predictive"]["validation"]
+                                          if p["file"] == f))
+    actual = ([f"{100 * cov[f]['90']:.1f}" for f in files] + [f"{cov[f]['width_90']:.3f}" for f in files]
+              + [f"{100 * cov[f]['50']:.1f}" for f in files])
+    out = [(f"coverage/width {i}", q, a) for i, (q, a) in enumerate(zip(quoted, actual))]
+    shares = re.search(r"there are two, holding (\d+) / (\d+) % of the kept states", page)
+    out.append(("mode shares", shares and "/".join(shares.groups()),
+                "/".join(f"{100 * m['share_of_kept_states']:.0f}" for m in result["modes"])))
+    n = re.search(r"quadratic polynomial: (\d+) parameters", page)
+    out.append(("reduced model's parameters", n and n.group(1),
+                str(len(get_model("mrpim", n_operators=4, poly_order=2).param_names))))
+    return out
+
+
+@pytest.mark.parametrize("page,result,quotes", [("docs/compensation.md", "results/compensation.json",
+                                                 compensation_quotes),
+                                                ("docs/posterior.md", "results/posterior.json", posterior_quotes)])
+def test_the_docs_quote_the_committed_results(page, result, quotes):
+    import json
+    if not committed(result):
+        pytest.skip(f"{result} was rewritten by a local run")
+    text = (ROOT / page).read_text(encoding="utf-8")
+    got = quotes(text, json.loads((ROOT / result).read_text(encoding="utf-8")))
+    wrong = [(what, q, a) for what, q, a in got if q != a]
+    assert not wrong, f"{page}: (quoted, in {result}): {wrong}"
+
+
+def test_the_quote_check_sees_a_stale_figure():
+    import json
+    result = json.loads((ROOT / "results/compensation.json").read_text(encoding="utf-8"))
+    text = (ROOT / "docs/compensation.md").read_text(encoding="utf-8")
+    stale = text.replace("| open loop (inverse) | 8.79 |", "| open loop (inverse) | 8.80 |")
+    wrong = {w for w, q, a in compensation_quotes(stale, result) if q != a}
+    assert wrong - {w for w, q, a in compensation_quotes(text, result) if q != a} == {"open loop (inverse) linear"}

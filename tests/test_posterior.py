@@ -8,7 +8,7 @@ parameters, NumPy Gram matrices, the base ``regressors`` interface.
 
 Calibration check, reduced to stay within CI's budget (same property checked;
 the full study is in benchmarks/speed/bench_posterior.py): MRPIM with 4
-operators and a quadratic polynomial (11 parameters instead of 21), the four
+operators and a quadratic polynomial (10 parameters instead of 21), the four
 identification frequencies at a 20 ms step (instead of 1 ms) over two periods,
 16 walkers run until the chain is >= 50 tau long with >= 300 effective samples
 (instead of 1000). Its truth is that reduced model's varpro fit to Table 2's
