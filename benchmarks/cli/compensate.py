@@ -86,6 +86,6 @@ def main(args) -> int:
     write_report(result, runs, args.out, args.json, command=command)
     for name, why in result["not_invertible"].items():
         print(f"{name}: cannot be inverted: {why}")
-    print(f"best open-loop inverse on the sines: {result['best_model']}")
+    print(f"best open-loop inverse on the sines: {result['best_model'] or 'none (no sine reference run)'}")
     print(f"wrote {args.out}/compensation.md")
     return 0

@@ -42,18 +42,26 @@ def pi_alone(result: dict) -> float | None:
     return sine_mean(result, "pi")
 
 
+NUMBERS = {1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven"}
+
+
 def summary(result: dict) -> str:
     """The findings, written from the numbers (the same sentences whatever they say)."""
     lin = sine_mean(result, "linear")
     best = best_model(result)
     out = []
+    n_sines = sum(name.startswith(SINES_PREFIX) for name in result["references"])
+    if not n_sines:
+        return "No sine reference was run: the inverses are not ranked on the sines."
     if best is None or lin is None:
         return "No model's inverse gave finite tracking on every sine."
     b = sine_mean(result, best)
     ratio = lin / b
-    out.append(f"On the seven sines the best open-loop inverse is {best}'s: mean e_rms {b:.3g} % against "
-               f"{lin:.3g} % for the static linear gain, {ratio:.2g}x lower; the goal (>= 5x) is "
-               f"{'reached' if ratio >= 5 else 'not reached'}.")
+    sines = f"{NUMBERS.get(n_sines, n_sines)} sine{'s' if n_sines > 1 else ''}"
+    out.append(f"On the {sines} the best open-loop inverse is {best}'s: mean e_rms {b:.3g} % against "
+               f"{lin:.3g} % for the static linear gain, "
+               + (f"{ratio:.2g}x lower" if ratio >= 1 else f"{1 / ratio:.2g}x higher")
+               + f"; the goal (>= 5x) is {'reached' if ratio >= 5 else 'not reached'}.")
     others = [f"{m} {_fmt(sine_mean(result, m))} % ({lin / sine_mean(result, m):.2g}x)" for m in ranked_models(result)
               if m != best]
     if others:
