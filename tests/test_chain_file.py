@@ -200,3 +200,31 @@ def test_an_interrupted_run_keeps_its_steps_and_its_seconds(stored, tmp_path, mo
     run = sample_posterior(model, ds, max_steps=104, fixed_steps=True, **settings)
     assert run.resumed_from == 100 and run.chain.shape[0] == 104
     assert run.wall_seconds == pytest.approx(first["wall"] + run.this_run_seconds)
+
+
+def test_ctrl_c_in_the_log_posterior_prints_no_traceback(stored, tmp_path, monkeypatch, capfd):
+    """Ctrl-C while the log posterior is evaluated reaches the caller as itself, with nothing printed (emcee's
+    wrapper would print the walkers and a traceback); the steps sampled before it are in the chain file."""
+    from hysbench.identification.posterior import sample_posterior
+    from hysbench.identification.posterior.target import LogPosterior
+    from hysbench.data.dataset import load_dataset
+
+    real, calls = LogPosterior.__call__, []
+
+    def interrupt_on_the_60th_call(self, X):
+        calls.append(1)
+        if len(calls) == 60:
+            raise KeyboardInterrupt
+        return real(self, X)
+
+    monkeypatch.setattr(LogPosterior, "__call__", interrupt_on_the_60th_call)
+    folder, _ = stored
+    chain = tmp_path / "chain.h5"
+    capfd.readouterr()
+    with pytest.raises(KeyboardInterrupt):
+        sample_posterior(get_model("mrpim", **SMALL), load_dataset(folder), n_walkers=8, max_steps=400, seed=0,
+                         progress=False, discrepancy="none", calibrate=False, start_params=TRUTH, chain_file=chain)
+    out = capfd.readouterr()
+    assert out.out == "" and out.err == "", out
+    with h5py.File(chain, "r") as f:
+        assert f["mcmc"].attrs["iteration"] >= 20

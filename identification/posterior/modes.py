@@ -106,6 +106,14 @@ def jump_centres(post: LogPosterior, start: dict | None) -> np.ndarray | None:
 PILOT_STEPS = 200  # steps of a pilot run that measures each mode's mean and covariance for the jumps
 
 
+def ensemble_sampler(n_walkers: int, post: LogPosterior, **kwargs) -> emcee.EnsembleSampler:
+    """emcee's sampler of ``post``, vectorised, calling ``post`` itself: emcee's wrapper prints the walkers
+    and a traceback for any exception in the log posterior, Ctrl-C included, before re-raising it."""
+    sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, **kwargs)
+    sampler.log_prob_fn = post
+    return sampler
+
+
 def pilot_shapes(post: LogPosterior, modes: list[dict], moves, p0: np.ndarray, seed: int | None,
                  steps: int = PILOT_STEPS) -> np.ndarray:
     """Run the sampler ``steps`` steps from ``p0`` (jumps mapped by the Laplace shapes) and store each mode's
@@ -113,8 +121,7 @@ def pilot_shapes(post: LogPosterior, modes: list[dict], moves, p0: np.ndarray, s
     fewer than 10 x d such states keeps its Laplace shape). Returns the last walker positions: the kept chain
     starts there, with the jumps fixed from then on."""
     M = np.array([m["x"] for m in modes])
-    sampler = emcee.EnsembleSampler(len(p0), post.ndim, post, vectorize=True,
-                                    moves=with_mode_jumps(moves, post, M, [m["cov"] for m in modes]))
+    sampler = ensemble_sampler(len(p0), post, moves=with_mode_jumps(moves, post, M, [m["cov"] for m in modes]))
     sampler.random_state = np.random.RandomState([0 if seed is None else int(seed), 13]).get_state()
     state = sampler.run_mcmc(p0, steps, progress=False)
     X = sampler.get_chain(discard=steps // 2, flat=True)

@@ -24,8 +24,8 @@ from ..errors import IdentificationError
 from .backend import open_backend, seconds_of, settings_fingerprint, store_start
 from .convergence import TAU_FACTOR, Convergence, convergence
 from .discrepancy import Calibration, calibrate_scale
-from .modes import (JUMP_SHARE, PILOT_STEPS, find_modes, jump_centres, mode_covariances, mode_locations,
-                    mode_search_starts, nearest_mode, pilot_shapes, walkers_in_modes, with_mode_jumps)
+from .modes import (JUMP_SHARE, PILOT_STEPS, ensemble_sampler, find_modes, jump_centres, mode_covariances,
+                    mode_locations, mode_search_starts, nearest_mode, pilot_shapes, walkers_in_modes, with_mode_jumps)
 from .start import noise_estimate, screen_candidates
 from .target import LogPosterior
 
@@ -401,9 +401,9 @@ def sample_posterior(model: HysteresisModel, dataset: Dataset, *, noise: str = "
             path.unlink(missing_ok=True)
         raise
 
-    sampler = emcee.EnsembleSampler(n_walkers, post.ndim, post, vectorize=True, backend=backend,
-                                    moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start),
-                                                          mode_covariances(post, start), jump_centres(post, start)))
+    sampler = ensemble_sampler(n_walkers, post, backend=backend,
+                               moves=with_mode_jumps(MOVES[moves](emcee), post, mode_locations(post, start),
+                                                     mode_covariances(post, start), jump_centres(post, start)))
     if p0 is not None:
         sampler.random_state = np.random.RandomState(0 if seed is None else int(seed)).get_state()
     else:  # resuming: the last stored state (coordinates, log posterior, draws, random state)
