@@ -206,6 +206,8 @@ def posterior_quotes(page: str, result: dict) -> list[tuple[str, str, str]]:
     shares = re.search(r"there are two, holding (\d+) / (\d+) % of the kept states", page)
     out.append(("mode shares", shares and "/".join(shares.groups()),
                 "/".join(f"{100 * m['share_of_kept_states']:.0f}" for m in result["modes"])))
+    wall = re.search(r"([\d.]+) s \(the run that wrote results/posterior.json", page)
+    out.append(("wall time", wall and wall.group(1), f"{result['wall_seconds']:.1f}"))
     n = re.search(r"quadratic polynomial: (\d+) parameters", page)
     out.append(("reduced model's parameters", n and n.group(1),
                 str(len(get_model("mrpim", n_operators=4, poly_order=2).param_names))))
