@@ -249,3 +249,18 @@ def test_the_summary_counts_the_sines_run_and_says_higher_when_the_inverse_is_wo
     result["references"] = {f"sine-{f}Hz": {**by, "mrpim": cell(2.0)} for f in range(7)}
     assert summary(result).startswith("On the seven sines the best open-loop inverse is mrpim's: mean e_rms 2 % "
                                       "against 10 % for the static linear gain, 5x lower; the goal (>= 5x) is reached")
+
+
+def test_the_report_creates_the_json_files_folder(tmp_path):
+    """``--json`` in a folder that does not exist yet (accepted by the check before any work) is written there,
+    with the report beside it, not refused after the run with the report half-written."""
+    from hysbench.benchmarks.compensation.report import write_report
+
+    cell = {"e_rms": 1.0, "e_m": 2.0, "clipped": 0}
+    result = {"seconds": 1.0, "invert_seconds": 0.5, "pi": {"bandwidth_hz": 5.0, "kp": 0.1, "ki": 7.0, "zero_s": 0.016},
+              "plant": {"sensor": {"noise_sd_mm": 0.01}, "u_limits_kV": [0.5, 2.5]}, "dataset": "d",
+              "dataset_hash": "0" * 12, "linear": {"gain": 4.0, "offset": 1.0}, "models": {}, "not_invertible": {},
+              "references": {"sine-1Hz": {"linear": cell, "pi": cell, "pi+linear": cell}}}
+    json_path = tmp_path / "new" / "folder" / "c.json"
+    write_report(result, {}, tmp_path / "out", json_path)
+    assert json.loads(json_path.read_text())["dataset"] == "d" and (tmp_path / "out" / "compensation.md").is_file()

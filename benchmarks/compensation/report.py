@@ -131,6 +131,9 @@ def figure(runs: dict, reference: str, controllers: list[str], path: Path, plt) 
 def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Path | None = None,
                  command: str = "") -> dict:
     out = ensure_dir(Path(out))
+    json_path = Path(json_path) if json_path else out / "compensation.json"
+    if str(json_path) != "-":  # the JSON's folder exists before any file is written
+        ensure_dir(json_path.parent)
     plt = pyplot()
     best = best_model(result)
     top = ranked_models(result)[:2]
@@ -185,5 +188,5 @@ def write_report(result: dict, runs: dict, out: str | Path, json_path: str | Pat
     lines += ["", "## What it shows", "", summary(result), ""]
     text = "\n".join(lines) + "\n"
     write_atomic(out / "compensation.md", text.encode())
-    write_json(Path(json_path) if json_path else out / "compensation.json", result)
+    write_json(json_path, result)
     return result
