@@ -234,3 +234,13 @@ def test_the_quote_check_sees_a_stale_figure():
     stale = text.replace("| open loop (inverse) | 8.79 |", "| open loop (inverse) | 8.80 |")
     wrong = {w for w, q, a in compensation_quotes(stale, result) if q != a}
     assert wrong - {w for w, q, a in compensation_quotes(text, result) if q != a} == {"open loop (inverse) linear"}
+
+
+def test_the_posterior_page_names_the_models_it_cannot_sample():
+    """docs/posterior.md's Limitations name exactly the registered models without a linear part."""
+    from hysbench.models import get_model
+    from hysbench.models.registry import list_models
+    text = (ROOT / "docs/posterior.md").read_text(encoding="utf-8")
+    line = re.search(r"every registered\s+model but (.*?), which are refused", text, re.S).group(1)
+    named = set(CODE_SPAN.findall(line))
+    assert named == {n for n in list_models() if not get_model(n).has_linear_part}
