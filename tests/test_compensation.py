@@ -183,12 +183,13 @@ def test_cli_options_reach_the_report_and_its_command_line(tmp_path):
     out = tmp_path / "res"
     assert cli_main(["compensate", str(data), "--model", "classical-pi", "--method", "varpro", "--references",
                      "sine-1Hz", "--option", "stable_inverse=true", "--option", "inverse_radius=0.99", "--inverse",
-                     "exact", "--out", str(out), "--quiet"]) == 0
+                     "exact", "--seed", "3", "--out", str(out), "--quiet"]) == 0
     result = json.loads((out / "compensation.json").read_text())
+    assert result["seed"] == 3
     assert result["models"]["classical-pi"]["identify_options"] == {"stable_inverse": True, "inverse_radius": 0.99}
     assert result["models"]["classical-pi"]["inverse"] == "numerical (exact)"
     report = (out / "compensation.md").read_text()
-    assert ("--option stable_inverse=true --option inverse_radius=0.99 --inverse exact" in report
+    assert ("--option stable_inverse=true --option inverse_radius=0.99 --inverse exact --seed 3" in report
             and "| classical-pi | varpro (stable_inverse=True, inverse_radius=0.99) | numerical (exact) |" in report)
 
 

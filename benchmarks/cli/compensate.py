@@ -78,6 +78,8 @@ def main(args) -> int:
         parts += ["--option", shlex.quote(item)]
     if args.inverse != "auto":
         parts += ["--inverse", args.inverse]
+    if args.seed != 0:
+        parts += ["--seed", str(args.seed)]
     if args.bandwidth != PI_BANDWIDTH_HZ:
         parts += ["--bandwidth", f"{args.bandwidth:g}"]
     if refs:
