@@ -482,6 +482,14 @@ def test_a_given_burn_in_longer_than_the_first_checks_is_sampled_past():
         sample_posterior(get_model("mrpim", **SMALL), ds, max_steps=160, burn=160, **kw)
 
 
+def test_the_burn_in_help_states_the_automatic_rule(capsys):
+    """--help states the automatic burn-in that ``convergence`` computes, both of its parts."""
+    code, out, _ = _hysbench(capsys, "posterior", "--help")
+    help_text = " ".join(out.split())  # argparse wraps the lines
+    assert code == 0
+    assert "the larger of 5 autocorrelation times and the step where the walkers' median log posterior" in help_text
+
+
 def test_api_refuses_models_without_a_linear_part_and_bad_settings():
     ds = simulated_ar1_dataset(get_model("mrpim", **SMALL), TRUTH, sigma=SIGMA, phi=PHI, n_periods=2, dt=0.05,
                                frequencies=(0.4, 1.0))

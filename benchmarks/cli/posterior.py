@@ -68,7 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="effective samples every parameter needs before stopping early (default 1000)")
     parser.add_argument("--fixed-steps", action="store_true", help="run exactly --steps steps")
     parser.add_argument("--burn", type=_burn, default="auto",
-                        help="burn-in steps, or auto (default: 5 autocorrelation times)")
+                        help="burn-in steps, or auto (default: the larger of 5 autocorrelation times and the step "
+                             "where the walkers' median log posterior reaches its second-half median, plus 2 "
+                             "autocorrelation times)")
     parser.add_argument("--moves", default="de", choices=sorted(MOVES),
                         help="emcee moves: de (differential evolution 0.8 + snooker 0.2, default) or stretch")
     add_seed_argument(parser, what="the sampler and the predictive draws")
