@@ -184,7 +184,8 @@ def compensation_quotes(page: str, result: dict) -> list[tuple[str, str, str]]:
     out = []
     for label, prefix in (("open loop (inverse)", ""), ("PI (5 Hz) + inverse as feedforward", "pi+")):
         for model, cell in zip(models, rows[label][1:]):
-            out.append((f"{label} {model}", f"{float(cell.strip('*')):.3g}", f"{sine_mean(result, prefix + model):.3g}"))
+            quoted, actual = float(cell.strip("*")), sine_mean(result, prefix + model)
+            out.append((f"{label} {model}", f"{quoted:.3g}", f"{actual:.3g}"))
     t = re.search(r"([\d.]+) s in the run that wrote results/", page)
     out.append(("bouc-wen identification", t and t.group(1), f"{result['models']['bouc-wen']['identify_s']:.1f}"))
     return out
