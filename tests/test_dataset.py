@@ -204,7 +204,7 @@ def test_refuses_time_not_increasing(tmp_path):
 
 def test_refuses_time_not_uniform(tmp_path):
     t = np.arange(1000) * 1e-3
-    t[500:] += 0.5e-3  # one step of 1.5 ms
+    t[500:] += 0.015e-3  # one step of 1.015 ms: 1.5 % off the median, just beyond the tolerance
     write_csv(tmp_path / "r.csv", t, np.sin(t), t)
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
     with pytest.raises(DatasetError, match="r.csv: time step is not uniform.*tolerance 1%"):
