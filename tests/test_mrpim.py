@@ -145,7 +145,8 @@ def test_piezo_range_works():
 @pytest.mark.parametrize("bad", [{"n_operators": 0}, {"poly_order": -1}, {"derivative": "magic"},
                                  {"derivative_window": 0.0}, {"nonsense": 1}])
 def test_bad_hyperparameters(bad):
-    with pytest.raises(ModelError):
+    name = next(iter(bad))
+    with pytest.raises(ModelError, match=f"{name} must be|hyperparameter '{name}'"):  # the refusal names it
         get_model("mrpim", **bad)
 
 
