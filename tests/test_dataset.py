@@ -46,6 +46,18 @@ def test_good_dataset_loads_with_last_period_default(tmp_path):
     assert ds.identification == [r] and ds.validation == []
 
 
+@pytest.mark.parametrize("ending", ["\n", "\r\n", "\r"])
+@pytest.mark.parametrize("header", ["t,u,y", "t, u, y"])
+def test_any_line_ending_and_spaces_after_the_header_commas_read_the_same_samples(tmp_path, ending, header):
+    t = np.arange(1000) * 1e-3
+    u = np.sin(4 * np.pi * t)
+    rows = [header] + [f"{a:.17g},{b:.17g},{2 * b:.17g}" for a, b in zip(t, u)]
+    (tmp_path / "r.csv").write_bytes((ending.join(rows) + ending).encode())
+    (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
+    r = load_dataset(tmp_path).records[0]
+    assert np.array_equal(r.t, t) and np.array_equal(r.u, u) and np.array_equal(r.y, 2 * u)
+
+
 def test_window_selects_samples(tmp_path):
     ds = load_dataset(make(tmp_path, GOOD + "window = [0.25, 0.75]\n"))
     r = ds.records[0]
@@ -204,7 +216,7 @@ def test_refuses_time_not_increasing(tmp_path):
 
 def test_refuses_time_not_uniform(tmp_path):
     t = np.arange(1000) * 1e-3
-    t[500:] += 0.5e-3  # one step of 1.5 ms
+    t[500:] += 0.015e-3  # one step of 1.015 ms: 1.5 % off the median, just beyond the tolerance
     write_csv(tmp_path / "r.csv", t, np.sin(t), t)
     (tmp_path / "dataset.toml").write_text(HEADER + GOOD)
     with pytest.raises(DatasetError, match="r.csv: time step is not uniform.*tolerance 1%"):

@@ -88,6 +88,7 @@ def test_a_line_near_a_drive_harmonic_keeps_its_amplitude_in_every_fold():
     assert abs(on_residual[0] - planted["frequency_hz"]) > 0.2
     c = next(c for c in d.candidates if c.cause == "interference")
     _, fold_est = heldout_errors(s, folds, c, refit=True)
+    assert len(fold_est) == folds.n  # one refit per fold: the loop below checks each
     for est in fold_est:
         assert abs(est["interference_frequency"] - planted["frequency_hz"]) < 0.5
         assert est["amplitude"] == pytest.approx(planted["amplitude"], rel=0.5)

@@ -584,3 +584,37 @@ def test_bad_inverse_options_are_refused():
     with pytest.raises(ModelError, match="increasing loading curve"):
         m.invert(np.ones(5), DT, p, input_range=LIMITS, inverse="reference-driven")
     assert m.invert(np.ones(5), DT, p, input_range=LIMITS).inverse == "exact"  # auto falls back
+
+
+def test_the_step_kernels_slope_is_the_derivative_of_its_output_in_the_input():
+    """dy/du of ``step_output`` (the inverse's Newton steps, c0 of its error recursion) against a central
+    difference of its own y, with relaxation filters of powers 1 and 2 and a non-zero play and filter state."""
+    from hysbench.models.inverse import step_output
+
+    rng = np.random.default_rng(5)
+    ext = get_model("mrpim+relaxation", relaxation_powers=(1, 2))
+    p = dict(mrpim_params(rng, ext), tau1=0.7, c1=0.4, c1_u2=-0.3)
+    s = ext.step_structure(DT, p, LIMITS, 10)
+    args = s.arguments()
+    w = rng.uniform(-0.5, 0.5, args[0].size)
+    xf = rng.uniform(0.5, 1.5, args[7].size)
+    base = float(np.asarray(s.base)[0])
+    for u, u1, u2 in [(1.7, 1.69, 1.685), (0.9, 0.92, 0.93), (2.2, 2.21, 2.2)]:
+        def y(x):
+            return step_output(x, False, u1, u2, DT, base, w.copy(), xf.copy(), *args)[0]
+
+        slope = step_output(u, False, u1, u2, DT, base, w.copy(), xf.copy(), *args)[1]
+        h = 1e-7
+        assert slope == pytest.approx((y(u + h) - y(u - h)) / (2 * h), rel=1e-5)
+
+
+def test_the_guide_gain_is_the_secant_of_the_loading_curve_from_rest():
+    """Slow reference: the model without rate terms driven from rest up a ramp over the input range; its
+    output's rise over the range's width is the reference-driven inverse's gain."""
+    rng = np.random.default_rng(6)
+    m = get_model("mrpim")
+    p = mrpim_params(rng, m, gamma=0.0, lam=0.0, q=0.0)
+    u = np.linspace(LIMITS[0], LIMITS[1], 2001)
+    y = m.simulate(u, DT, p, input_range=LIMITS)
+    s = m.step_structure(DT, p, LIMITS, u.size)
+    assert guide_gain(s, LIMITS) == pytest.approx((y[-1] - y[0]) / (LIMITS[1] - LIMITS[0]), rel=1e-12)

@@ -137,6 +137,8 @@ def test_undetermined_count_from_the_spectrum():
     assert undetermined_count(ev) == 2
     A2, b2 = _design(3)
     assert undetermined_count(spectrum_from_qr(A2, b2, column_scale=column_norms(A2))[0]) == 0
+    # singular values 1, 1e-7, 1e-11 of s_max: only the last is below UNDETERMINED_TOL = 1e-10
+    assert undetermined_count(np.array([1.0, 1e-14, 1e-22])) == 1
 
 
 class _Stub:

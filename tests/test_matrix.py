@@ -448,3 +448,26 @@ def test_a_long_note_is_cut_at_a_clause_and_says_where_the_rest_is():
     assert len(short) < 380 and short.startswith("varpro: linear solve regularised: ")
     assert short.endswith("... (the whole note: the cell's file in cells/)") and long.startswith(short.split(" ... ")[0])
     assert _shortened("parameters at their bounds: gamma (upper 0.1)") == "parameters at their bounds: gamma (upper 0.1)"
+
+
+def test_cells_are_ranked_by_mean_validation_error_then_worst_and_each_models_best_is_its_first():
+    """The order of the ranking table: validation e_rms mean, ties broken by the worst record; a failed cell is
+    not ranked; the table shows the worst e_rms and the worst e_m of the records ranked on."""
+    from hysbench.benchmarks.matrix.report import best_per_model, ranking
+
+    def cell(model, method, val, ide=(9.0,), status="ok"):
+        recs = [{"file": f"v{k}", "role": "validation", "frequency_hz": 1.0, "e_rms": e, "e_m": 3 * e}
+                for k, e in enumerate(val)]
+        recs += [{"file": f"i{k}", "role": "identification", "frequency_hz": 1.0, "e_rms": e, "e_m": 3 * e}
+                 for k, e in enumerate(ide)]
+        return {"dataset": "d", "model": model, "method": method, "status": status, "records": recs}
+
+    cells = [cell("a", "lsq", [1.0, 5.0]),  # mean 3, worst 5
+             cell("b", "lsq", [4.0, 4.0]),  # mean 4, worst 4
+             cell("a", "varpro", [2.0, 4.0]),  # mean 3, worst 4: ahead of a / lsq
+             cell("c", "lsq", [0.1, 0.1], status="failed")]
+    ranked = ranking(cells, "d")
+    assert [(r["model"], r["method"]) for r, _ in ranked] == [("a", "varpro"), ("a", "lsq"), ("b", "lsq")]
+    top = ranked[0][1]
+    assert (top["val_mean"], top["val_worst"], top["val_em_worst"], top["id_mean"]) == (3.0, 4.0, 12.0, 9.0)
+    assert [(r["model"], r["method"]) for r, _ in best_per_model(ranked)] == [("a", "varpro"), ("b", "lsq")]

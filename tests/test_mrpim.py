@@ -78,6 +78,19 @@ def test_batch_equals_single():
         np.testing.assert_allclose(Y[b], model.simulate(V, 1e-3, P[b]), rtol=1e-12, atol=1e-12)
 
 
+def test_a_model_simulated_over_another_input_range_uses_that_ranges_thresholds():
+    """One model object simulated for fits of different input ranges gives each range's output (as a fresh
+    object does), whatever it simulated before."""
+    V = paper_voltage(protocol_time(0.8, 1), 0.8)
+    params = get_model("mrpim").preset("paper")
+    model = get_model("mrpim")
+    for rng in [(0.5, 2.5), (0.0, 5.0), (0.5, 2.5)]:
+        np.testing.assert_array_equal(model.simulate(V, 1e-3, params, input_range=rng),
+                                      get_model("mrpim").simulate(V, 1e-3, params, input_range=rng))
+    assert not np.array_equal(model.simulate(V, 1e-3, params, input_range=(0.0, 5.0)),
+                              model.simulate(V, 1e-3, params, input_range=(0.5, 2.5)))
+
+
 @pytest.mark.parametrize("derivative", ["backward", "smoothed"])
 def test_batch_and_window_kernels_match_reference(derivative):
     """The parallel batch kernel, the windowed kernels (one set and many) and the windowed play
@@ -126,6 +139,8 @@ def test_thresholds_follow_input_range():
     np.testing.assert_allclose(model.thresholds(np.array([-90.0, 90.0])), [0, 22.5, 45, 67.5])
     np.testing.assert_allclose(model.thresholds(np.array([0.5, 2.5])), [0, 0.625, 1.25, 1.875])
     np.testing.assert_allclose(model.thresholds(np.zeros(3), input_range=(0.5, 2.5)), [0, 0.625, 1.25, 1.875])
+    # ||u||_inf: the largest magnitude, here the most negative input
+    np.testing.assert_allclose(model.thresholds(np.array([-8.0, 2.0])), [0, 2, 4, 6])
 
 
 def test_piezo_range_works():
@@ -145,7 +160,8 @@ def test_piezo_range_works():
 @pytest.mark.parametrize("bad", [{"n_operators": 0}, {"poly_order": -1}, {"derivative": "magic"},
                                  {"derivative_window": 0.0}, {"nonsense": 1}])
 def test_bad_hyperparameters(bad):
-    with pytest.raises(ModelError):
+    name = next(iter(bad))
+    with pytest.raises(ModelError, match=f"{name} must be|hyperparameter '{name}'"):  # the refusal names it
         get_model("mrpim", **bad)
 
 

@@ -2,8 +2,12 @@
 
 import json
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hysbench.benchmarks.cli import main as hysbench
 from hysbench.data import metrics, protocol
@@ -21,6 +25,30 @@ def test_fitness_is_eq9():
     y1, ya1 = np.array([1.0, 2.0]), np.array([1.0, 1.0])  # mean sq 0.5
     y2, ya2 = np.zeros(4), np.full(4, 2.0)  # mean sq 4
     assert metrics.fitness([y1, y2], [ya1, ya2], [4, 1]) == pytest.approx(4 * 0.5 + 4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=1, max_size=6))
+def test_power_of_two_scale_is_the_power_of_two_at_or_below_the_largest_finite_magnitude(values):
+    s = metrics.power_of_two_scale(values)
+    finite = [abs(v) for v in values if math.isfinite(v)]
+    peak = max(finite, default=0.0)
+    if peak == 0.0:
+        assert s == 1.0
+        return
+    assert math.frexp(s)[0] == 0.5 and s <= peak < 2 * s  # 2^e <= peak < 2^(e+1)
+
+
+def test_input_range_covers_every_record():
+    """The operators' thresholds follow the input range of all fitted records, not of one of them."""
+    from hysbench.data.dataset import Record
+
+    t = np.arange(100) * 0.01
+    records = [Record(f"r{k}.csv", t, lo + (hi - lo) * np.sin(np.pi * t) ** 2, t, frequency_hz=None)
+               for k, (lo, hi) in enumerate([(0.5, 2.5), (-1.0, 1.0), (0.0, 4.0)])]
+    want = (min(float(r.u.min()) for r in records), max(float(r.u.max()) for r in records))
+    assert protocol.input_range(records) == want
+    assert want[0] < float(records[0].u.min()) and want[1] > float(records[0].u.max())
 
 
 def test_loop_width_of_an_ellipse():

@@ -84,6 +84,8 @@ def test_without_a_frequency_segments_have_equal_sample_counts():
     assert segment_bounds(r, 4) == [(0, 25), (25, 50), (50, 75), (75, 103)]
     with pytest.raises(DatasetError, match=">= 2"):
         segment_bounds(r, 1)
+    with pytest.raises(DatasetError, match="too few for 4 segments"):  # each segment needs two samples
+        segment_bounds(Record("r.csv", t[:7], u[:7], y[:7], window=(0.0, 0.07)), 4)
 
 
 def test_split_records_cuts_identification_only_with_distinct_keys():
@@ -126,3 +128,21 @@ def test_a_record_no_other_shares_is_its_own_stretch_whole():
     mine = _windows((20, 30))[0]
     other = Record(file="x", t=mine.t, u=mine.u, y=mine.y + 1.0, window=(50, 60))  # another recording
     assert own_stretch(mine, [mine, other]) == slice(0, 100)
+
+
+def test_a_window_next_to_another_records_window_widens_away_from_it():
+    """Windows that touch (one ends where the other starts) do not overlap: each stretch grows away from the
+    other window, up to the record's ends."""
+    left, right = _windows((20, 50), (50, 70))
+    assert own_stretch(left, [left, right]) == slice(0, 50)
+    assert own_stretch(right, [left, right]) == slice(50, 100)
+
+
+def test_a_shared_window_too_short_for_a_period_after_its_minimum_is_kept_whole():
+    """A window holding less than a whole period after its first input minimum is cut at its own start."""
+    t, u, y = _recording(1000)  # u = sin(2 pi t), 100 samples per period, lowest 0.75 s into each period
+    ident = Record("rec#1.csv", t, u, y, role="identification", frequency_hz=1.0, window=(1.0, 7.0))
+    valid = Record("rec#2.csv", t.copy(), u.copy(), y.copy(), role="validation", frequency_hz=1.0,
+                   window=(7.0, 8.5))
+    cut_valid = own_samples(Dataset("d", [ident, valid])).records[1]
+    assert np.array_equal(cut_valid.t, t[700:850])

@@ -67,6 +67,8 @@ def test_least_distance_feasible_inactive_and_inconsistent():
     np.testing.assert_allclose(least_distance(E, np.array([1.0, 2.0])), [1.0, 2.0], atol=1e-12)
     np.testing.assert_array_equal(least_distance(E, np.array([-1.0, -2.0])), [0.0, 0.0])  # z = 0 holds
     assert least_distance(np.array([[1.0], [-1.0]]), np.array([1.0, 0.0])) is None  # z >= 1 and z <= 0
+    # a consistent row far from the origin: the least-norm z is on it, however far
+    np.testing.assert_allclose(least_distance(np.array([[1.0, 0.0]]), np.array([1e3])), [1e3, 0.0], rtol=1e-9)
 
 
 def test_recursion_rows_match_finite_differences_of_simulate():
