@@ -69,3 +69,21 @@ def test_the_trace_shows_shares_in_percent_and_yes_or_no():
     lines = trace_lines(d)
     assert lines[0].endswith("(best delay: pure delay (gain 96.4 %, z 5.29))"), lines[0]
     assert lines[1].endswith("(predicts_as_well yes)") and lines[2].endswith("(explained_whole 95.2 %, z_whole 146)")
+
+
+def test_diagnose_with_the_json_on_standard_output_prints_the_verdict_on_stderr(monkeypatch, capsys, tmp_path):
+    import json
+
+    from hysbench.benchmarks.cli import build_parser
+    from hysbench.benchmarks.cli import diagnose as cli
+    from hysbench.data.files import write_json
+
+    monkeypatch.setattr(cli, "load_dataset", lambda path: "dataset")  # no diagnosis is run
+    monkeypatch.setattr(cli, "output_scale", lambda dataset: 1.0)
+    monkeypatch.setattr(cli, "diagnose", lambda *a, **k: "diag")
+    monkeypatch.setattr(cli, "write_report", lambda diag, out, json_path, note="": write_json(json_path, {"a": 1}))
+    monkeypatch.setattr(cli, "verdict", lambda diag: "cause: delay")
+    args = build_parser().parse_args(["diagnose", "--json", "-", "--out", str(tmp_path), "--quiet"])
+    assert cli.main(args) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out) == {"a": 1} and "cause: delay" in err
