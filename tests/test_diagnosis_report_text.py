@@ -87,3 +87,16 @@ def test_diagnose_with_the_json_on_standard_output_prints_the_verdict_on_stderr(
     assert cli.main(args) == 0
     out, err = capsys.readouterr()
     assert json.loads(out) == {"a": 1} and "cause: delay" in err
+
+
+def test_a_damping_limit_outside_the_modes_search_range_is_refused_before_any_work():
+    import pytest
+
+    from hysbench.benchmarks.diagnosis.policy import PolicyError
+    from hysbench.models.extended import DAMPING_BOUNDS
+
+    lo, hi = DAMPING_BOUNDS
+    for bad in (lo / 2, lo, 2 * hi):  # at or below the lower end the search has no range; above it, no effect
+        with pytest.raises(PolicyError, match="max_damping"):
+            Policy().with_overrides([f"max_damping={bad}"])
+    assert Policy().with_overrides([f"max_damping={hi}"]).max_damping == hi
