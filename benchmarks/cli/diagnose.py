@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 from hysbench.data.dataset import load_dataset, output_scale, scaled_output
+from hysbench.data.files import STDOUT
 from hysbench.benchmarks.cli.common import (add_dataset_argument, add_seed_argument, check_outputs, dataset_paths,
                                             integer_at_least, positive_int, timed_progress)
 from hysbench.benchmarks.diagnosis.candidates import MAX_ROWS
@@ -30,7 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_dataset_argument(parser)
     parser.add_argument("--model", default="mrpim", help="base model (registry name, default mrpim)")
     parser.add_argument("--out", default="results", help="folder for diagnosis.md, figures and JSON (default results/)")
-    parser.add_argument("--json", default=None, metavar="FILE", help="write the JSON here (default OUT/diagnosis.json)")
+    parser.add_argument("--json", default=None, metavar="FILE",
+                        help="write the JSON here (default OUT/diagnosis.json; - for standard output, the verdict "
+                             "then on stderr)")
     add_seed_argument(parser, what="the identifiers and the row subset")
     parser.add_argument("--max-rows", type=positive_int, default=None,
                         help="samples per record in the candidate screen (default 10000)")
@@ -67,7 +71,7 @@ def main(args) -> int:
                     segments=args.segments, progress=say, thorough=args.thorough, policy=policy)
     say("writing the report")
     write_report(diag, args.out, args.json, note=note)
-    print(verdict(diag))
+    print(verdict(diag), file=sys.stderr if args.json == STDOUT else sys.stdout)  # stdout: the JSON alone
     return 0
 
 

@@ -16,6 +16,7 @@ from typing import Iterable
 from scipy import stats
 
 from hysbench.models.errors import HysbenchError
+from hysbench.models.extended import DAMPING_BOUNDS
 
 VERSION = 1
 KINDS = {  # the values a field of each kind takes: (test, what it needs)
@@ -24,6 +25,8 @@ KINDS = {  # the values a field of each kind takes: (test, what it needs)
     "positive": (lambda v: 0.0 < v < math.inf, "a number > 0"),
     "angle": (lambda v: 0.0 < v <= math.pi, "an angle in (0, pi] rad"),
     "count": (lambda v: isinstance(v, int) and v >= 1, "an integer >= 1"),
+    "damping": (lambda v: DAMPING_BOUNDS[0] < v <= DAMPING_BOUNDS[1], "a number in ({:g}, {:g}] (the mode's damping "
+                "search range)".format(*DAMPING_BOUNDS)),
 }
 
 
@@ -66,7 +69,7 @@ class Policy:
     creep_periods: float = _field(2.0, "positive", "creep's time scale is at least this many drive periods")
     creep_limit_margin: float = _field(1.02, "positive", "creep with its time scale at or below this times its "
                                        "least time scale is not slow")
-    max_damping: float = _field(1.0, "positive", "a resonance is a mode: its damping ratio is searched up to this")
+    max_damping: float = _field(1.0, "damping", "a resonance is a mode: its damping ratio is searched up to this")
     damping_limit_share: float = _field(0.98, "share", "a resonance with its damping ratio at or above this share "
                                         "of max_damping is no mode")
     duplicate_tau_ratio: float = _field(1.25, "positive", "relaxation time constants closer than this are one")

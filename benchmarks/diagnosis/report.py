@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
 
 from hysbench.data.files import ensure_dir, write_atomic, write_json
 
+from .candidates import at_bound
 from .causes import OUTPUT_UNIT
 from .extensions import scores_by_file
 from .figures import FIGURES
@@ -54,6 +58,27 @@ def not_held_out_lines(d) -> list[str]:
                 "other fold's fit, and the held-out scores cover the rows predicted."]
 
 
+def _spread(name: str, u: dict, shown: str, units: dict, open_: bool, pinned: bool) -> str:
+    """One parameter's fold spread, named by the mean of its fold estimates (a relaxation's time constants are
+    reported sorted, their names are the fit's own order)."""
+    unit = units.get(shown, units.get(next((k for k in units if shown.startswith(k.split("_")[0])), ""), ""))
+    v = np.asarray(u["folds"], dtype=float)
+    mean = float(np.exp(np.log(v).mean()) if "relative_se" in u and np.all(v > 0) else v.mean())
+    head = f"{shown} ({_fmt(mean)}{f' {unit}' if unit else ''})"
+    if open_ or pinned:
+        return f"{head}: not identified" + (" (at a search bound on every fold)" if pinned else "")
+    return head + (f" ±{100 * u['relative_se']:.2g} %" if "relative_se" in u else
+                   f" ±{_fmt(u['se'], 2)}{f' {unit}' if unit else ''}")
+
+
+def _pinned_on_every_fold(d) -> set:
+    """The named cause's parameters at a search bound in every fold's refit (their spread says nothing)."""
+    c, folds = d.chosen, [dict(zip(d.uncertainty, f)) for f in zip(*(u["folds"] for u in d.uncertainty.values()))]
+    at = [set(at_bound(d.screen, SimpleNamespace(kind=c.kind, model=c.model, params={**c.params, **f})))
+          for f in folds]
+    return set.intersection(*at) if at else set()
+
+
 def _also_on_validation(check: dict | None) -> str:
     """What a cause kept under "also" did on the validation records, on top of what was kept before it."""
     if not check:
@@ -78,16 +103,17 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                                                 + (" (not identified)" if k in unidentified else "")
                                                 for k, v in d.parameters.items() if k in units))
         if d.uncertainty:
-            lines.append("uncertainty (jackknife over the held-out folds): " + ", ".join(
-                f"{k}: not identified" if k in open_ else
-                f"{k} ±{100 * v['relative_se']:.2g} %" if "relative_se" in v else f"{k} ±{_fmt(v['se'], 2)}"
-                for k, v in d.uncertainty.items()))
+            pinned = _pinned_on_every_fold(d)
+            lines.append("uncertainty (jackknife over the held-out folds; the folds' mean after each name): "
+                         + ", ".join(_spread(k, v, kind.reported_as.get(k, k), units, k in open_, k in pinned)
+                                     for k, v in d.uncertainty.items()))
         how = (f"identified with {d.extended_fit.method} on the identification records' whole length"
                if d.extended_fit else "phase fitted per record")
         lines.append(f"extended model: {code(d.extended_model)} ({how})")
     if (p := d.verdict.partial) is not None:
-        lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %, "
-                     f"{_fmt(p.heldout.get('share_of_misfit'))} of the misfit beyond noise)")
+        share = p.heldout.get("share_of_misfit")
+        lines.append(f"best partial candidate: {p.label} (held-out gain {100 * p.heldout_gain:.2f} %"
+                     + (f", {100 * share:.0f} % of the misfit beyond noise)" if share is not None else ")"))
     if u := d.unexplained_check:
         lines.append(f"the best partial candidate on the validation records (records {', '.join(u['records'])}, "
                      f"fitted on the identification records' whole length): {100 * u['explained_whole']:.2f} % of "
@@ -105,7 +131,8 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
                          f"{_fmt(e['noise_sd'], 3)})")
         else:
             lines.append(f"suggested experiment ({pair}): {e['drive'] or 'none'}"
-                         + (f" ({_fmt(e['separation'], 3)} {unit} rms)" if e.get("separation") else "")
+                         + (f" (the two fits differ by {_fmt(e['separation'], 3)} {unit} rms)"
+                            if e.get("separation") else "")
                          + (f": {e['note']}" if e.get("note") else ""))
     lines += [f"not identified: {n}" for n in d.verdict.not_identified]
     also = []
@@ -115,8 +142,10 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
             text += f" (or, as good on these records: {'; '.join(f'{a.cause}: {_estimates(a)}' for a in fits)})"
         also.append(text + (f" (not identified: {why})" if why else "") + _also_on_validation(check))
     lines.append(f"also: {', '.join(also) if also else 'none'}")
+    f = d.structure.get("F")
     lines.append(f"measurement noise sd (from first differences): {_fmt(d.noise_sd)} {unit}; residual "
-                 f"period-to-period F = {_fmt(d.structure.get('F'), 3)}")
+                 "period-to-period F = " + (_fmt(f, 3) if d.structure.get("records") else
+                                            "- (no record repeats its drive period)"))
     g = d.gain()
     if g:
         v = g["validation"]
@@ -135,19 +164,24 @@ def verdict_lines(d, strong=lambda text: text, code=lambda text: text) -> list[s
     return lines
 
 
-def _inputs_text(value) -> str:
-    """A trace entry's inputs in one line: numbers to 3 significant digits, a candidate's score by its cause and
-    label (a cause can have several candidates)."""
+SHARES = ("gain", "share_of_misfit", "explained_whole", "explained_window")  # fractions, shown in %
+
+
+def _inputs_text(value, key: str = "") -> str:
+    """A trace entry's inputs in one line: numbers to 3 significant digits, shares in %, a candidate's score by
+    its cause and label (a cause can have several candidates)."""
     if isinstance(value, dict):
         if "cause" in value and "gain" in value:
             label = value.get("label") or value["cause"]
             name = label if label.startswith(value["cause"]) else f"{value['cause']}: {label}"
-            return f"{name} (gain {_fmt(value['gain'], 3)}, z {_fmt(value.get('z'), 3)})"
-        return ", ".join(f"{k} {_inputs_text(v)}" for k, v in value.items())
+            return f"{name} (gain {_inputs_text(value['gain'], 'gain')}, z {_fmt(value.get('z'), 3)})"
+        return ", ".join(f"{k} {_inputs_text(v, k)}" for k, v in value.items())
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_inputs_text(v) for v in value) + "]"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
     if isinstance(value, float):
-        return _fmt(value, 3)
+        return f"{_fmt(100 * value, 3)} %" if key in SHARES and math.isfinite(value) else _fmt(value, 3)
     return str(value)
 
 
