@@ -53,6 +53,11 @@ def squared_unit(unit: str) -> str:
     return f"{unit}²" if re.fullmatch(r"[^\W\d_]+", unit) else f"({unit})²"
 
 
+def _percent(x: float) -> str:
+    """An error in % for the summary's table: three decimals, or three digits once it is too large for them."""
+    return _shown(x, "8.3f" if abs(x) < 1e5 else "8.3g")
+
+
 def _shown(x: float, spec: str) -> str:
     """A number as the summary prints it; a non-finite one as "non-finite" (never nan or inf)."""
     return format(x, spec) if math.isfinite(x) else "non-finite"
@@ -246,7 +251,7 @@ class Fit:
         ]
         for s in self.records:
             f = f"{s.frequency_hz:g}" if s.frequency_hz else "-"
-            lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {_shown(s.e_m, '8.3f')} {_shown(s.e_rms, '8.3f')}")
+            lines.append(f"{s.file:<24} {f:>8} {s.role:<15} {_percent(s.e_m)} {_percent(s.e_rms)}")
         lines.append("")
         units = self.param_units
         items = [f"{k} = {_shown(v, '.6g')}" + (f" {units[k]}" if units.get(k) and math.isfinite(v) else "")

@@ -186,3 +186,10 @@ def test_fit_leaves_the_identifier_and_the_model_configured_as_given():
     assert (identifier.get_params(), model.get_hyperparameters(), repr(identifier), repr(model)) == before
     assert repr(identifier).startswith("Chain(Varpro(n_starts=1, ") and "LeastSquares(n_starts=1, max_nfev=5" in repr(identifier)
     assert fit.options["lsq"]["max_nfev"] == 5 and fit.hyperparameters == model.get_hyperparameters()
+
+
+def test_the_summary_shows_a_huge_error_in_three_digits_not_thirty():
+    from hysbench.identification.fit import _percent
+
+    assert _percent(2.71828) == "   2.718" and _percent(99999.0) == "99999.000"
+    assert _percent(3.1e30) == " 3.1e+30" and _percent(float("nan")) == "non-finite"
